@@ -1,0 +1,100 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: the scene, parsed and validated (docs/SCENE.md, proto/v1/scene.json).
+ *
+ * gs_scene_parse() turns JSON text into a gs_scene with every default filled
+ * and every value checked; on error the gs_diag names the offending field by
+ * its JSON path. The scene owns its strings and arrays. Not collective. */
+#ifndef GEARSIM_SCENE_H
+#define GEARSIM_SCENE_H
+
+#include "gearsim/fe.h"
+#include "gearsim/geometry.h"
+#include "gearsim/types.h"
+
+#define GS_NAME_MAX 64
+
+typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
+typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
+typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
+typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1 } gs_mesh_model;
+typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1 } gs_stiffness_type;
+typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
+
+typedef struct gs_mesh_density {
+    int flank;   /* elements along a flank */
+    int across;  /* elements across a tooth */
+    int rim;     /* radial element layers in the rim */
+} gs_mesh_density;
+
+typedef struct gs_scene_body {
+    char name[GS_NAME_MAX];
+    gs_body_type type;
+    gs_body_model model;
+    gs_gear_params gear;       /* valid when type == GS_BODY_GEAR */
+    gs_material material;
+    gs_mesh_density mesh;
+    double mass;               /* kg (from geometry unless given) */
+    double inertia;            /* kg m^2 about the axis (from geometry unless given) */
+    bool mass_given, inertia_given;
+    /* joint */
+    gs_joint_type joint;
+    double centre[2];          /* m, fixed_axis */
+    int carrier;               /* body index, on_carrier */
+    double carrier_radius;     /* m */
+    double carrier_angle;      /* rad */
+    /* initial state */
+    double angle0, omega0;
+} gs_scene_body;
+
+typedef struct gs_scene_mesh {
+    char name[GS_NAME_MAX];
+    int gear[2];               /* body indices */
+    gs_mesh_model model;
+    gs_stiffness_type stiffness_type;
+    double k_single, k_double; /* N/m; constant uses k_single */
+    double damping;            /* N s/m; < 0 means "from damping_ratio" */
+    double damping_ratio;
+    double backlash;           /* m along the line of action */
+} gs_scene_mesh;
+
+typedef struct gs_scene_load {
+    char name[GS_NAME_MAX];
+    int body;
+    gs_load_type type;
+    double moment;             /* N m (constant, ramp) */
+    double ramp_time;          /* s */
+    double coefficient;        /* N m s/rad (brake) */
+    int n_table;
+    double *times, *moments;   /* table, owned */
+} gs_scene_load;
+
+typedef struct gs_scene {
+    char name[GS_NAME_MAX];
+    int n_bodies, n_meshes, n_loads;
+    gs_scene_body *bodies;
+    gs_scene_mesh *meshes;
+    gs_scene_load *loads;
+    double time_step;
+    double newton_tol;
+    int max_newton;
+    int telemetry_every;
+    int record_every;
+    char *json;                /* the scene as given, canonical JSON text (owned) */
+} gs_scene;
+
+/* Parse and validate. On failure returns the code, fills d, *out = NULL. */
+gs_err gs_scene_parse(const char *json_text, size_t len, gs_scene **out, gs_diag *d);
+/* Read a file and parse it. */
+gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d);
+void gs_scene_free(gs_scene **s);
+/* Index of a body by name, -1 if none. */
+int gs_scene_find_body(const gs_scene *s, const char *name);
+
+/* Parse one load object (as in scene.loads[] or set_load) against scene s.
+ * `path` prefixes field names in diagnostics. Owns nothing of s. */
+struct json_object;
+gs_err gs_scene_parse_load(const gs_scene *s, struct json_object *o, const char *path,
+                           gs_scene_load *out, gs_diag *d);
+void gs_scene_load_clear(gs_scene_load *l);
+
+#endif

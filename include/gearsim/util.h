@@ -1,0 +1,18 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: small helpers used across modules (clocks, checked allocation). */
+#ifndef GEARSIM_UTIL_H
+#define GEARSIM_UTIL_H
+
+#include <stddef.h>
+
+/* Monotonic wall clock in seconds. */
+double gs_now(void);
+/* calloc that returns NULL for n*size overflow instead of wrapping. */
+void *gs_calloc(size_t n, size_t size);
+/* strdup into a fresh allocation; NULL on failure or NULL input. */
+char *gs_strdup(const char *s);
+/* Read a whole file into a NUL-terminated buffer (owned by the caller).
+ * Returns NULL and sets *len = 0 on failure. max_bytes bounds the size. */
+char *gs_read_file(const char *path, size_t max_bytes, size_t *len);
+
+#endif
