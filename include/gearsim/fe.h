@@ -1,9 +1,36 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: linear finite elements of an elastic body in its material frame
  * (METHOD.md sections 1, 2 and 4). Owned by the fe module; the material
- * struct is the contract with the scene module. */
+ * struct is the contract with the scene module.
+ *
+ * Two objects:
+ *
+ *   gs_fe_model  the constant matrices of one body shape: CST stiffness K and
+ *                consistent mass M of the elastic part (fixed nodes
+ *                eliminated), the angular coupling vector s, the inertias.
+ *                Immutable after creation; several bodies (identical
+ *                planets) may share one model.
+ *   gs_fe_body   the state (q, w) of one body and everything that depends on
+ *                the time step h: the Cholesky factor of the step matrix
+ *                A = 2/h^2 M + 1/2 K (METHOD.md section 2), the bordered
+ *                (Schur) treatment of theta, the per-node cache of compliance
+ *                columns used by the condensed contact step (section 4).
+ *
+ * Body coordinates. q = (u_0 .. u_{ne-1}, theta): the ne elastic unknowns are
+ * the x and y displacements of the nodes that are not fixed, in node order
+ * (gs_fe_model_dof gives the index), in the body frame; theta is last. w is
+ * the matching velocity vector. Interface dofs (condensation) are named in
+ * mesh numbering with gs_fe_dof_node(node, comp) or GS_FE_DOF_THETA.
+ *
+ * Threads and MPI: no function here is collective. A model may be read by
+ * several threads at once; a body must be used by one thread at a time.
+ */
 #ifndef GEARSIM_FE_H
 #define GEARSIM_FE_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
 
 #include "gearsim/mesh.h"
 #include "gearsim/types.h"
@@ -22,5 +49,228 @@ static inline gs_material gs_material_steel(void)
     gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS};
     return m;
 }
+
+/* ------------------------------------------------------------------------ */
+/* Interface dof names (mesh numbering)                                      */
+/* ------------------------------------------------------------------------ */
+
+/* The rotation theta of the body. */
+#define GS_FE_DOF_THETA ((gs_index)-1)
+
+/* Displacement component comp (0 = x, 1 = y, body frame) of mesh node `node`. */
+static inline gs_index gs_fe_dof_node(gs_index node, int comp)
+{
+    return 2 * node + (gs_index)(comp != 0);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Model                                                                     */
+/* ------------------------------------------------------------------------ */
+
+typedef struct gs_fe_model gs_fe_model;
+
+typedef struct gs_fe_model_info {
+    gs_index n_nodes;          /* mesh nodes */
+    gs_index n_tris;           /* elements */
+    gs_index n_free_nodes;     /* nodes not fixed */
+    gs_index n_elastic;        /* ne = 2 * n_free_nodes: elastic unknowns */
+    gs_index nnz;              /* entries of the upper triangle of K (and of M, same pattern) */
+    double area_m2;            /* area of the elastic part */
+    double mass_kg;            /* rho * t * area */
+    double centroid[2];        /* centre of mass of the elastic part, body frame */
+    double inertia_elastic;    /* integral rho |X|^2 over the elastic part, kg m^2 */
+    double inertia_core;       /* as given to gs_fe_model_new */
+    double inertia_total;      /* I of METHOD.md section 1: elastic + core */
+} gs_fe_model_info;
+
+/* Build the model of the elastic part meshed by `mesh` (linear triangles,
+ * constant strain), with material `mat` (plane stress or plane strain), the
+ * thickness (face width) thickness_m, and the polar inertia of the rigid core
+ * core_inertia (kg m^2, >= 0) that is added to I.
+ * The mesh is only read: the model copies what it needs, so the mesh may be
+ * freed afterwards. *out receives a new model owned by the caller
+ * (gs_fe_model_free).
+ * Errors: GS_EINVAL (NULL pointers, non-positive or non-finite E, rho,
+ * thickness, nu outside (-1, 0.5), negative core inertia, node index out of
+ * range), GS_EGEOMETRY (an element with zero or negative area, i.e. not
+ * counter-clockwise), GS_ESINGULAR (the mass matrix of the body, theta
+ * included, is not positive definite: no fixed node and no core inertia),
+ * GS_ENOMEM. */
+gs_err gs_fe_model_new(const gs_mesh *mesh, const gs_material *mat, double thickness_m,
+                       double core_inertia, gs_fe_model **out);
+
+/* Free a model; safe on NULL; sets *m = NULL. Bodies using it must be freed
+ * first. */
+void gs_fe_model_free(gs_fe_model **m);
+
+/* Sizes and mass properties. */
+void gs_fe_model_get_info(const gs_fe_model *m, gs_fe_model_info *info);
+
+/* Index in q of displacement component comp (0 = x, 1 = y) of mesh node
+ * `node`, or -1 if the node is fixed or out of range. */
+gs_index gs_fe_model_dof(const gs_fe_model *m, gs_index node, int comp);
+
+/* Dense copies of the body matrices in q order, theta last, for checks on
+ * small meshes: K and M are (ne+1) x (ne+1), column-major, caller-allocated;
+ * K has a zero theta row and column, M is the full mass matrix with the
+ * coupling s and the inertia I (METHOD.md section 1). Either may be NULL.
+ * Errors: GS_EINVAL, GS_ETOOBIG (ne + 1 > 20000). */
+gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M);
+
+/* The coupling vector s (ne values, q order) is copied to s_out. */
+void gs_fe_model_coupling(const gs_fe_model *m, double *s_out);
+
+/* Static solution K u = f of the elastic part with the fixed nodes held:
+ * f_nodes and u_nodes are 2 * n_nodes arrays (x, y per mesh node, body
+ * frame); forces on fixed nodes are ignored and their displacement is set to
+ * zero. Factorises K on every call (for verification and for calibrating
+ * lumped stiffnesses, not for stepping).
+ * Errors: GS_EINVAL, GS_ESINGULAR (K not positive definite: too few fixed
+ * nodes), GS_ENOMEM. */
+gs_err gs_fe_model_static(const gs_fe_model *m, const double *f_nodes, double *u_nodes);
+
+/* Elastic energy 1/2 u^T K u of a nodal displacement field (2 * n_nodes
+ * values; fixed nodes' values are ignored). */
+double gs_fe_model_energy(const gs_fe_model *m, const double *u_nodes);
+
+/* Stress recovery from a nodal displacement field u_nodes (2 * n_nodes).
+ * Any output may be NULL: stress (3 * n_tris: sigma_xx, sigma_yy, tau_xy per
+ * element, body frame, Pa), vm_elem (n_tris: von Mises per element; plane
+ * strain includes sigma_zz = nu (sigma_xx + sigma_yy)), vm_node (n_nodes:
+ * area-weighted mean of the elements around each node).
+ * Errors: GS_EINVAL. */
+gs_err gs_fe_model_stress(const gs_fe_model *m, const double *u_nodes, double *stress,
+                          double *vm_elem, double *vm_node);
+
+/* ------------------------------------------------------------------------ */
+/* Body                                                                      */
+/* ------------------------------------------------------------------------ */
+
+typedef struct gs_fe_body gs_fe_body;
+
+typedef struct gs_fe_balance {
+    double kinetic;        /* 1/2 w^T M w (theta included), J */
+    double elastic;        /* 1/2 u^T K u, J */
+    double energy0;        /* kinetic + elastic at the last gs_fe_body_set_state */
+    double work_in;        /* sum over steps of F_{n+1/2} . dq (moment on theta, nodal loads) */
+    double work_iface;     /* sum over steps of f . dq of the interface forces (gs_fe_body_apply) */
+    double dissipated;     /* sum of c dq_theta^2 / h (the brake) */
+    double residual;       /* E - energy0 - work_in - work_iface + dissipated */
+} gs_fe_balance;
+
+typedef struct gs_fe_stats {
+    uint64_t factorizations;   /* numeric Cholesky factorisations (one per new h) */
+    uint64_t solves;           /* sparse triangular solve pairs, counted per right-hand side */
+    uint64_t steps;            /* completed steps */
+    uint64_t cache_hits;       /* node columns found in the compliance cache */
+    uint64_t cache_misses;     /* node columns computed (two solves each, batched) */
+    gs_index cached_nodes;     /* nodes held now */
+    size_t cache_bytes;        /* memory they use */
+    double factor_nnz;         /* entries of the Cholesky factor of the elastic block */
+} gs_fe_stats;
+
+/* A body at rest (q = w = 0) using model m, which must outlive it. No time
+ * step yet: call gs_fe_body_set_step before stepping. *out is owned by the
+ * caller (gs_fe_body_free). Errors: GS_EINVAL, GS_ENOMEM. */
+gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out);
+
+/* Free a body; safe on NULL; sets *b = NULL. */
+void gs_fe_body_free(gs_fe_body **b);
+
+/* Hold theta (a ring bolted to the housing): theta then stays where it is,
+ * its velocity is zero, and moments on it do no work. Takes effect at the
+ * next step; nothing is refactorised and the cache stays valid (theta is a
+ * border of the factor, not part of it). Errors: GS_EINVAL, GS_ESTATE
+ * (inside a step). */
+gs_err gs_fe_body_hold_theta(gs_fe_body *b, bool held);
+
+/* Set the state: rotation theta (rad), speed omega (rad/s), nodal elastic
+ * displacements u_nodes and velocities v_nodes (2 * n_nodes each, body
+ * frame; NULL means zero; fixed nodes' values are ignored). Resets the energy
+ * accounts (energy0 = current energy, works and dissipation zero).
+ * Errors: GS_EINVAL, GS_ESTATE (inside a step). */
+gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const double *u_nodes,
+                            const double *v_nodes);
+
+/* Set the time step h (s, > 0) and the brake coefficient brake_c (N m s, >= 0;
+ * brake moment -c theta', taken implicitly, METHOD.md section 2).
+ * Refactorises the elastic block only when h differs from the current one
+ * (and then empties the compliance cache); a change of brake_c alone only
+ * updates the scalar Schur complement of theta.
+ * Errors: GS_EINVAL, GS_ESTATE (inside a step), GS_ESINGULAR, GS_ENOMEM. */
+gs_err gs_fe_body_set_step(gs_fe_body *b, double h, double brake_c);
+
+/* One free step: gs_fe_body_begin_step then gs_fe_body_end_step. moment_nm is
+ * the moment on theta at the midpoint; f_nodes (2 * n_nodes, body frame,
+ * midpoint, may be NULL) nodal forces. Errors: as those two. */
+gs_err gs_fe_body_step(gs_fe_body *b, double moment_nm, const double *f_nodes);
+
+/* ---- condensed step, for the global step solver (METHOD.md section 4) ----
+ *
+ *   gs_fe_body_begin_step(b, M, f)        one solve: dq = A^{-1} b (free motion)
+ *   gs_fe_body_increment(b, n, dofs, dq)  dq at the interface dofs
+ *   gs_fe_body_compliance(b, n, dofs, C)  C = (A^{-1}) restricted to the dofs
+ *   ... global solver finds generalised interface forces f ...
+ *   gs_fe_body_apply(b, n, dofs, f)       dq += A^{-1} E f (no solve if cached)
+ *   gs_fe_body_end_step(b)                q += dq, w = 2 dq / h - w
+ *
+ * dofs name body coordinates: GS_FE_DOF_THETA or gs_fe_dof_node(node, comp).
+ * Dofs of fixed nodes (and theta of a held body) are allowed and behave as
+ * immovable: zero rows in C, zero increment, forces on them ignored.
+ * The compliance columns of the elastic block are cached per node for the
+ * current h, so a tooth that comes back into mesh costs no solve. */
+
+/* Start a step: assemble b = 2/h M w - K q + F and solve for the free-motion
+ * increment. Errors: GS_EINVAL, GS_ESTATE (no time step set, or a step
+ * already begun). */
+gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_nodes);
+
+/* The current increment dq (the free motion until gs_fe_body_apply is
+ * called) at n dofs, into dq_out (n values). Errors: GS_EINVAL (bad dof),
+ * GS_ESTATE (no step begun). */
+gs_err gs_fe_body_increment(gs_fe_body *b, int n, const gs_index *dofs, double *dq_out);
+
+/* Compliance block: C (n x n, column-major, caller-allocated, symmetric) =
+ * rows and columns `dofs` of A^{-1} (brake included). Needs a time step but
+ * not a begun step. Computes and caches the missing node columns (batched
+ * solves). Errors: GS_EINVAL, GS_ESTATE (no time step), GS_ENOMEM. */
+gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C);
+
+/* Add the response to generalised interface forces f (n values, N or N m,
+ * body frame, at the midpoint) on `dofs`: dq += A^{-1} E f, from the cached
+ * columns (computed if missing). May be called several times in a step; the
+ * forces add up. Their work f . dq is booked in work_iface at end_step.
+ * Errors: GS_EINVAL, GS_ESTATE (no step begun), GS_ENOMEM. */
+gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double *f);
+
+/* Finish the step: q += dq, w = 2 dq / h - w, energy accounts updated.
+ * Errors: GS_ESTATE (no step begun). */
+gs_err gs_fe_body_end_step(gs_fe_body *b);
+
+/* ---- state, energies, diagnostics ---- */
+
+double gs_fe_body_theta(const gs_fe_body *b);
+double gs_fe_body_omega(const gs_fe_body *b);
+/* 1/2 w^T M w, theta coupling included (J). */
+double gs_fe_body_kinetic(const gs_fe_body *b);
+/* 1/2 u^T K u (J). */
+double gs_fe_body_elastic(const gs_fe_body *b);
+/* I theta' + s . u' (body frame, about the axis; N m s). */
+double gs_fe_body_angular_momentum(const gs_fe_body *b);
+/* Nodal displacements and velocities (2 * n_nodes each, zero on fixed nodes;
+ * either may be NULL). */
+void gs_fe_body_nodal(const gs_fe_body *b, double *u_nodes, double *v_nodes);
+/* The raw coordinate vectors (ne + 1 values each, q order); read-only views
+ * valid until the next call that changes the state. */
+const double *gs_fe_body_q(const gs_fe_body *b);
+const double *gs_fe_body_w(const gs_fe_body *b);
+void gs_fe_body_get_balance(const gs_fe_body *b, gs_fe_balance *out);
+void gs_fe_body_get_stats(const gs_fe_body *b, gs_fe_stats *out);
+
+/* Bound the memory of the compliance cache (default 256 MiB). A request that
+ * needs more nodes at once than the bound allows still succeeds: the bound is
+ * exceeded for it, and least recently used nodes are dropped later.
+ * Errors: GS_EINVAL. */
+gs_err gs_fe_body_set_cache_limit(gs_fe_body *b, size_t max_bytes);
 
 #endif

@@ -52,6 +52,7 @@ typedef struct gs_scene_mesh {
     gs_mesh_model model;
     gs_stiffness_type stiffness_type;
     double k_single, k_double; /* N/m; constant uses k_single */
+    double transition;         /* fraction of the mesh cycle over which k changes */
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */
@@ -84,6 +85,13 @@ typedef struct gs_scene {
 
 /* Parse and validate. On failure returns the code, fills d, *out = NULL. */
 gs_err gs_scene_parse(const char *json_text, size_t len, gs_scene **out, gs_diag *d);
+/* Validate an already parsed JSON object (borrowed). */
+struct json_object;
+gs_err gs_scene_from_json(struct json_object *root, gs_scene **out, gs_diag *d);
+/* Embedded example scenes ("pair", "planetary"); NULL if unknown. */
+const char *gs_scene_builtin(const char *name);
+/* NULL-terminated list of builtin scene names. */
+const char *const *gs_scene_builtin_names(void);
 /* Read a file and parse it. */
 gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d);
 void gs_scene_free(gs_scene **s);

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# SPDX-License-Identifier: MIT
+# The main job end to end: install, build, start gearsimd under mpirun with
+# the embedded planetary train, drive it from the Python client (ramp moment
+# on the sun, brake on the carrier, 0.2 s), show live telemetry, write an
+# HDF5 record and a PNG plot, and shut the daemon down cleanly.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+deploy/install-deps.sh
+. deploy/env.sh
+build=${GEARSIM_BUILD:-build}
+[ -f "$build/build.ninja" ] || meson setup "$build" >/dev/null
+ninja -C "$build" >/dev/null
+out=${GEARSIM_OUT:-$root/out}
+mkdir -p "$out"
+rm -f "$out/gearsimd.json"
+ranks=${GEARSIM_RANKS:-2}
+mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \
+  --data-dir "$out" 2>"$out/gearsimd.log" &
+daemon=$!
+cleanup() { kill "$daemon" 2>/dev/null || true; }
+trap cleanup EXIT
+for _ in $(seq 100); do [ -f "$out/gearsimd.json" ] && break; sleep 0.1; done
+[ -f "$out/gearsimd.json" ] || { cat "$out/gearsimd.log"; echo "the daemon did not start"; exit 1; }
+gearctl=(/usr/bin/python3 clients/python/gearctl --connection-file "$out/gearsimd.json")
+"${gearctl[@]}" run builtin:planetary --until 0.2 --record demo.h5 --telemetry "$out/demo.jsonl" --live
+"${gearctl[@]}" plot "$out/demo.h5" -o "$out/demo.png"
+"${gearctl[@]}" shutdown
+wait "$daemon" || true
+trap - EXIT
+echo "record: $out/demo.h5"
+echo "plot:   $out/demo.png"

@@ -1,0 +1,57 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: the engine, replicated over MPI ranks (src/dist).
+ *
+ * Every state change is an operation that rank 0 broadcasts and every rank
+ * executes in the same order: load, unload, step, set/remove load, restore,
+ * shutdown. Bodies are spread over ranks (gs_system ownership); per step each
+ * rank contributes the interface records of its bodies, rank 0 solves the
+ * coupled problem, and the increment is broadcast back. Idle workers wait
+ * for the next operation with a non-blocking broadcast and short sleeps, so
+ * they do not burn a core (TOOLCHAIN.md gotcha 3).
+ *
+ * Collective: gs_engine_new/free, gs_engine_run (rank 0) paired with
+ * gs_engine_serve (other ranks). */
+#ifndef GEARSIM_ENGINE_H
+#define GEARSIM_ENGINE_H
+
+#include <mpi.h>
+
+#include "gearsim/step.h"
+
+typedef enum {
+    GS_OP_NONE = 0,
+    GS_OP_LOAD,        /* payload: scene JSON */
+    GS_OP_UNLOAD,
+    GS_OP_STEP,        /* payload: int64 number of steps */
+    GS_OP_SET_LOAD,    /* payload: load JSON object */
+    GS_OP_REMOVE_LOAD, /* payload: load name */
+    GS_OP_RESTORE,     /* payload: gs_engine_snapshot serialisation */
+    GS_OP_SHUTDOWN,
+} gs_op;
+
+typedef struct gs_engine gs_engine;
+
+/* Called on rank 0 after every step of a GS_OP_STEP; return false to stop
+ * the chunk early (cancel). */
+typedef bool (*gs_engine_step_hook)(gs_engine *e, void *user);
+
+gs_err gs_engine_new(MPI_Comm comm, gs_engine **out);
+void gs_engine_free(gs_engine **e);
+int gs_engine_rank(const gs_engine *e);
+int gs_engine_size(const gs_engine *e);
+gs_system *gs_engine_system(gs_engine *e);   /* NULL when nothing is loaded */
+void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
+
+/* Rank 0: broadcast an operation and execute it here too. Errors name the
+ * field in d. For GS_OP_STEP, *steps_done (may be NULL) receives the number
+ * of steps taken. */
+gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs_diag *d,
+                     int64_t *steps_done);
+/* Other ranks: execute operations until GS_OP_SHUTDOWN. */
+gs_err gs_engine_serve(gs_engine *e);
+
+/* Full state as bytes (rank 0, owned by the caller), restorable with
+ * GS_OP_RESTORE so that the run continues bit for bit. */
+gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len);
+
+#endif

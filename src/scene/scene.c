@@ -1,0 +1,758 @@
+/* SPDX-License-Identifier: MIT
+ * Scene parsing and validation (docs/SCENE.md). Every value is checked and
+ * defaulted here, so the layers below (geometry, models, step) can trust it. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <json-c/json.h>
+
+#include "gearsim/scene.h"
+#include "gearsim/util.h"
+#include "scene/jsonv.h"
+
+#define MAX_BODIES 64
+#define MAX_MESHES 256
+#define MAX_LOADS 256
+#define MAX_TABLE 100000
+#define DEG (GS_PI / 180.0)
+
+static const char *const top_keys[] = {"name", "bodies", "joints", "meshes", "loads",
+                                       "numerics", "initial", "outputs", "description", NULL};
+static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
+    "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
+    "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", NULL};
+static const char *const material_keys[] = {"E", "nu", "density", "plane", NULL};
+static const char *const meshdens_keys[] = {"flank", "across", "rim", NULL};
+static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
+                                         "angle_deg", NULL};
+static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
+                                         "damping_ratio", "backlash_mm", NULL};
+static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
+static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
+                                        "coefficient", "times", "moments", NULL};
+static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", NULL};
+static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", NULL};
+static const char *const outputs_keys[] = {"telemetry_every", "record_every", NULL};
+
+int gs_scene_find_body(const gs_scene *s, const char *name)
+{
+    for (int i = 0; i < s->n_bodies; i++)
+        if (strcmp(s->bodies[i].name, name) == 0)
+            return i;
+    return -1;
+}
+
+void gs_scene_load_clear(gs_scene_load *l)
+{
+    free(l->times);
+    free(l->moments);
+    l->times = l->moments = NULL;
+    l->n_table = 0;
+}
+
+void gs_scene_free(gs_scene **ps)
+{
+    if (!ps || !*ps)
+        return;
+    gs_scene *s = *ps;
+    for (int i = 0; i < s->n_loads; i++)
+        gs_scene_load_clear(&s->loads[i]);
+    free(s->bodies);
+    free(s->meshes);
+    free(s->loads);
+    free(s->json);
+    free(s);
+    *ps = NULL;
+}
+
+static gs_err pick(const char *value, const char *const *names, int n, int *out)
+{
+    for (int i = 0; i < n; i++)
+        if (strcmp(value, names[i]) == 0) {
+            *out = i;
+            return GS_OK;
+        }
+    return GS_ERANGE;
+}
+
+/* A string field that must be one of `names`; its index in *out. */
+static gs_err enum_field(json_object *o, const char *key, const char *path, const char *def,
+                         const char *const *names, int n, int *out, gs_diag *d)
+{
+    char buf[64];
+    GS_TRY(gsi_json_string(o, key, path, def == NULL, def, buf, sizeof buf, d));
+    if (pick(buf, names, n, out) != GS_OK) {
+        char p[256], list[256] = "";
+        gsi_path(p, sizeof p, path, key);
+        for (int i = 0; i < n; i++) {
+            strncat(list, names[i], sizeof list - strlen(list) - 3);
+            if (i + 1 < n)
+                strncat(list, ", ", sizeof list - strlen(list) - 1);
+        }
+        return gs_diag_set(d, GS_ERANGE, p, "'%s' must be one of: %s (got '%s')", key, list, buf);
+    }
+    return GS_OK;
+}
+
+/* Geometry's own diagnostics name the scene field; prefix the body path. */
+static gs_err prefix_diag(gs_err e, gs_diag *d, const char *path)
+{
+    if (e != GS_OK && d) {
+        char f[sizeof d->field];
+        size_t n = strlen(path);
+        if (n >= sizeof f)
+            n = sizeof f - 1;
+        memcpy(f, path, n);
+        f[n] = '\0';
+        if (d->field[0] && n + 1 < sizeof f) {
+            f[n] = '.';
+            f[n + 1] = '\0';
+            size_t k = n + 1;
+            for (const char *c = d->field; *c && k + 1 < sizeof f; c++)
+                f[k++] = *c;
+            f[k] = '\0';
+        }
+        memcpy(d->field, f, sizeof f);
+    }
+    return e;
+}
+
+static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
+{
+    static const char *const types[] = {"gear", "carrier"};
+    static const char *const models[] = {"rigid", "elastic"};
+    static const char *const kinds[] = {"external", "internal"};
+    static const char *const planes[] = {"stress", "strain"};
+    if (json_object_get_type(o) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, path, "a body must be an object");
+    GS_TRY(gsi_json_only(o, path, body_keys, d));
+    GS_TRY(gsi_json_string(o, "name", path, true, NULL, b->name, sizeof b->name, d));
+    int t, m;
+    GS_TRY(enum_field(o, "type", path, "gear", types, 2, &t, d));
+    GS_TRY(enum_field(o, "model", path, "rigid", models, 2, &m, d));
+    b->type = (gs_body_type)t;
+    b->model = (gs_body_model)m;
+    b->material = gs_material_steel();
+    b->mesh = (gs_mesh_density){8, 4, 3};
+    double x;
+    b->mass_given = json_object_object_get_ex(o, "mass", NULL);
+    b->inertia_given = json_object_object_get_ex(o, "inertia", NULL);
+    GS_TRY(gsi_json_positive(o, "mass", path, 1e9, false, 0, &b->mass, d));
+    GS_TRY(gsi_json_positive(o, "inertia", path, 1e9, false, 0, &b->inertia, d));
+    if (b->type == GS_BODY_CARRIER) {
+        static const char *const gear_only[] = {"kind", "teeth", "module_mm", "pressure_angle_deg",
+            "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm", "face_width_mm",
+            "hub_radius_mm", "material", "mesh", NULL};
+        for (const char *const *k = gear_only; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                char p[256];
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "a carrier has no '%s'", *k);
+            }
+        if (!b->mass_given || !b->inertia_given)
+            return gs_diag_set(d, GS_ESCHEMA, path,
+                               "a carrier needs 'mass' (kg) and 'inertia' (kg m^2)");
+        if (b->model != GS_MODEL_RIGID) {
+            char p[256];
+            gsi_path(p, sizeof p, path, "model");
+            return gs_diag_set(d, GS_ERANGE, p, "a carrier is rigid");
+        }
+        return GS_OK;
+    }
+    gs_gear_params *g = &b->gear;
+    gs_gear_params_defaults(g);
+    int k;
+    GS_TRY(enum_field(o, "kind", path, "external", kinds, 2, &k, d));
+    g->kind = (gs_gear_kind)k;
+    int64_t z;
+    GS_TRY(gsi_json_int(o, "teeth", path, 3, 10000, true, 0, &z, d));
+    g->teeth = (int)z;
+    GS_TRY(gsi_json_positive(o, "module_mm", path, 1000, true, 0, &x, d));
+    g->module_m = x * 1e-3;
+    GS_TRY(gsi_json_number(o, "pressure_angle_deg", path, 5, 45, false, 20, &x, d));
+    g->pressure_angle = x * DEG;
+    GS_TRY(gsi_json_number(o, "addendum", path, 0, 3, false, g->addendum_coef, &g->addendum_coef, d));
+    GS_TRY(gsi_json_number(o, "dedendum", path, 0, 4, false, g->dedendum_coef, &g->dedendum_coef, d));
+    GS_TRY(gsi_json_number(o, "fillet", path, 0, 1, false, g->fillet_coef, &g->fillet_coef, d));
+    GS_TRY(gsi_json_number(o, "profile_shift", path, -2, 2, false, 0, &g->profile_shift, d));
+    GS_TRY(gsi_json_number(o, "thinning_mm", path, 0, 100, false, 0, &x, d));
+    g->thinning_m = x * 1e-3;
+    GS_TRY(gsi_json_positive(o, "face_width_mm", path, 1e4, false, 10, &x, d));
+    g->face_width_m = x * 1e-3;
+    GS_TRY(gsi_json_number(o, "hub_radius_mm", path, 0, 1e5, false, 0, &x, d));
+    g->hub_radius_m = x * 1e-3;
+    json_object *mat;
+    GS_TRY(gsi_json_object(o, "material", path, false, &mat, d));
+    if (mat) {
+        char mp[256];
+        gsi_path(mp, sizeof mp, path, "material");
+        GS_TRY(gsi_json_only(mat, mp, material_keys, d));
+        GS_TRY(gsi_json_positive(mat, "E", mp, 1e13, false, b->material.youngs_pa,
+                                 &b->material.youngs_pa, d));
+        GS_TRY(gsi_json_number(mat, "nu", mp, 0, 0.49, false, b->material.poisson,
+                               &b->material.poisson, d));
+        GS_TRY(gsi_json_positive(mat, "density", mp, 1e5, false, b->material.density,
+                                 &b->material.density, d));
+        int pl;
+        GS_TRY(enum_field(mat, "plane", mp, "stress", planes, 2, &pl, d));
+        b->material.plane = (gs_plane)pl;
+    }
+    json_object *md;
+    GS_TRY(gsi_json_object(o, "mesh", path, false, &md, d));
+    if (md) {
+        char mp[256];
+        int64_t v;
+        gsi_path(mp, sizeof mp, path, "mesh");
+        GS_TRY(gsi_json_only(md, mp, meshdens_keys, d));
+        GS_TRY(gsi_json_int(md, "flank", mp, 1, 256, false, 8, &v, d));
+        b->mesh.flank = (int)v;
+        GS_TRY(gsi_json_int(md, "across", mp, 1, 128, false, 4, &v, d));
+        b->mesh.across = (int)v;
+        GS_TRY(gsi_json_int(md, "rim", mp, 1, 128, false, 3, &v, d));
+        b->mesh.rim = (int)v;
+    }
+    GS_TRY(prefix_diag(gs_gear_validate(g, d), d, path));
+    double mass, inertia;
+    GS_TRY(prefix_diag(gs_gear_mass_properties(g, b->material.density, &mass, &inertia), d, path));
+    if (!b->mass_given)
+        b->mass = mass;
+    if (!b->inertia_given)
+        b->inertia = inertia;
+    return GS_OK;
+}
+
+static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *seen, gs_diag *d)
+{
+    static const char *const types[] = {"fixed_axis", "on_carrier", "held"};
+    if (json_object_get_type(o) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, path, "a joint must be an object");
+    GS_TRY(gsi_json_only(o, path, joint_keys, d));
+    char name[GS_NAME_MAX], p[256];
+    GS_TRY(gsi_json_string(o, "body", path, true, NULL, name, sizeof name, d));
+    gsi_path(p, sizeof p, path, "body");
+    int bi = gs_scene_find_body(s, name);
+    if (bi < 0)
+        return gs_diag_set(d, GS_ENOTFOUND, p, "no body named '%s'", name);
+    if (seen[bi])
+        return gs_diag_set(d, GS_ESCHEMA, p, "body '%s' has more than one joint", name);
+    seen[bi] = true;
+    gs_scene_body *b = &s->bodies[bi];
+    int t;
+    GS_TRY(enum_field(o, "type", path, NULL, types, 3, &t, d));
+    b->joint = (gs_joint_type)t;
+    if (b->joint == GS_JOINT_FIXED_AXIS) {
+        json_object *c;
+        GS_TRY(gsi_json_array(o, "centre_mm", path, false, &c, d));
+        b->centre[0] = b->centre[1] = 0;
+        if (c) {
+            gsi_path(p, sizeof p, path, "centre_mm");
+            double x, y;
+            if (json_object_array_length(c) != 2 ||
+                !gsi_json_as_double(json_object_array_get_idx(c, 0), &x) ||
+                !gsi_json_as_double(json_object_array_get_idx(c, 1), &y) || fabs(x) > 1e6 ||
+                fabs(y) > 1e6)
+                return gs_diag_set(d, GS_ESCHEMA, p, "'centre_mm' must be [x, y], finite numbers");
+            b->centre[0] = x * 1e-3;
+            b->centre[1] = y * 1e-3;
+        }
+        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to an on_carrier joint", *k);
+            }
+    } else if (b->joint == GS_JOINT_ON_CARRIER) {
+        GS_TRY(gsi_json_string(o, "carrier", path, true, NULL, name, sizeof name, d));
+        gsi_path(p, sizeof p, path, "carrier");
+        int ci = gs_scene_find_body(s, name);
+        if (ci < 0)
+            return gs_diag_set(d, GS_ENOTFOUND, p, "no body named '%s'", name);
+        if (s->bodies[ci].type != GS_BODY_CARRIER)
+            return gs_diag_set(d, GS_ERANGE, p, "'%s' is not a carrier", name);
+        if (b->type != GS_BODY_GEAR)
+            return gs_diag_set(d, GS_ERANGE, path, "only gears ride on a carrier");
+        b->carrier = ci;
+        double r, a;
+        GS_TRY(gsi_json_positive(o, "radius_mm", path, 1e6, true, 0, &r, d));
+        GS_TRY(gsi_json_number(o, "angle_deg", path, -3600, 3600, false, 0, &a, d));
+        b->carrier_radius = r * 1e-3;
+        b->carrier_angle = a * DEG;
+    } else {
+        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", "centre_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "a held joint has no '%s'", *k);
+            }
+    }
+    return GS_OK;
+}
+
+static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
+                              gs_diag *d)
+{
+    static const char *const models[] = {"kinematic", "lumped"};
+    static const char *const stypes[] = {"constant", "rectangular"};
+    if (json_object_get_type(o) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, path, "a mesh must be an object");
+    GS_TRY(gsi_json_only(o, path, gmesh_keys, d));
+    GS_TRY(gsi_json_string(o, "name", path, true, NULL, m->name, sizeof m->name, d));
+    json_object *g;
+    char p[256];
+    GS_TRY(gsi_json_array(o, "gears", path, true, &g, d));
+    gsi_path(p, sizeof p, path, "gears");
+    if (json_object_array_length(g) != 2)
+        return gs_diag_set(d, GS_ESCHEMA, p, "'gears' must name exactly two gears");
+    for (int i = 0; i < 2; i++) {
+        json_object *v = json_object_array_get_idx(g, (size_t)i);
+        if (json_object_get_type(v) != json_type_string)
+            return gs_diag_set(d, GS_ESCHEMA, p, "'gears' must hold body names");
+        int bi = gs_scene_find_body(s, json_object_get_string(v));
+        if (bi < 0)
+            return gs_diag_set(d, GS_ENOTFOUND, p, "no body named '%s'", json_object_get_string(v));
+        if (s->bodies[bi].type != GS_BODY_GEAR)
+            return gs_diag_set(d, GS_ERANGE, p, "'%s' is not a gear", s->bodies[bi].name);
+        m->gear[i] = bi;
+    }
+    if (m->gear[0] == m->gear[1])
+        return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
+    int model;
+    GS_TRY(enum_field(o, "model", path, NULL, models, 2, &model, d));
+    m->model = (gs_mesh_model)model;
+    m->damping = -1;
+    m->damping_ratio = 0.05;
+    m->backlash = 0;
+    if (m->model == GS_MESH_KINEMATIC) {
+        static const char *const no[] = {"stiffness", "damping", "damping_ratio", "backlash_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "a kinematic mesh has no '%s'", *k);
+            }
+        return GS_OK;
+    }
+    /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
+     * stiffness per mm of face width, twice that in double contact. */
+    double b1 = s->bodies[m->gear[0]].gear.face_width_m, b2 = s->bodies[m->gear[1]].gear.face_width_m;
+    double k1 = 14e9 * (b1 < b2 ? b1 : b2);
+    m->stiffness_type = GS_STIFF_RECTANGULAR;
+    m->transition = 0.05;
+    m->k_single = k1;
+    m->k_double = 2 * k1;
+    json_object *st;
+    if (json_object_object_get_ex(o, "stiffness", &st)) {
+        gsi_path(p, sizeof p, path, "stiffness");
+        double x;
+        if (json_object_get_type(st) == json_type_object) {
+            GS_TRY(gsi_json_only(st, p, stiff_keys, d));
+            int ty;
+            GS_TRY(enum_field(st, "type", p, NULL, stypes, 2, &ty, d));
+            m->stiffness_type = (gs_stiffness_type)ty;
+            if (ty == GS_STIFF_CONSTANT) {
+                GS_TRY(gsi_json_positive(st, "value", p, 1e14, true, 0, &m->k_single, d));
+                m->k_double = m->k_single;
+            } else {
+                GS_TRY(gsi_json_positive(st, "single", p, 1e14, true, 0, &m->k_single, d));
+                GS_TRY(gsi_json_positive(st, "double", p, 1e14, true, 0, &m->k_double, d));
+                GS_TRY(gsi_json_number(st, "transition", p, 1e-4, 0.5, false, 0.05, &m->transition, d));
+            }
+        } else if (gsi_json_as_double(st, &x) ||
+                   json_object_get_type(st) == json_type_double) {
+            GS_TRY(gsi_json_positive(o, "stiffness", path, 1e14, true, 0, &x, d));
+            m->stiffness_type = GS_STIFF_CONSTANT;
+            m->k_single = m->k_double = x;
+        } else {
+            return gs_diag_set(d, GS_ESCHEMA, p, "'stiffness' must be a number or an object");
+        }
+    }
+    if (json_object_object_get_ex(o, "damping", NULL) &&
+        json_object_object_get_ex(o, "damping_ratio", NULL))
+        return gs_diag_set(d, GS_ESCHEMA, path, "give 'damping' or 'damping_ratio', not both");
+    GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, -1, &m->damping, d));
+    GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, 0.05, &m->damping_ratio, d));
+    double bl;
+    GS_TRY(gsi_json_number(o, "backlash_mm", path, 0, 100, false, 0, &bl, d));
+    m->backlash = bl * 1e-3;
+    return GS_OK;
+}
+
+gs_err gs_scene_parse_load(const gs_scene *s, json_object *o, const char *path,
+                           gs_scene_load *l, gs_diag *d)
+{
+    static const char *const types[] = {"constant", "ramp", "brake", "table"};
+    memset(l, 0, sizeof *l);
+    if (!o || json_object_get_type(o) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, path, "a load must be an object");
+    GS_TRY(gsi_json_only(o, path, load_keys, d));
+    char name[GS_NAME_MAX], p[256];
+    GS_TRY(gsi_json_string(o, "body", path, true, NULL, name, sizeof name, d));
+    l->body = gs_scene_find_body(s, name);
+    gsi_path(p, sizeof p, path, "body");
+    if (l->body < 0)
+        return gs_diag_set(d, GS_ENOTFOUND, p, "no body named '%s'", name);
+    if (s->bodies[l->body].joint == GS_JOINT_HELD)
+        return gs_diag_set(d, GS_ERANGE, p, "'%s' is held and cannot take a moment", name);
+    int t;
+    GS_TRY(enum_field(o, "type", path, NULL, types, 4, &t, d));
+    l->type = (gs_load_type)t;
+    char defname[GS_NAME_MAX];
+    snprintf(defname, sizeof defname, "%.30s:%s", name, types[t]);
+    GS_TRY(gsi_json_string(o, "name", path, false, defname, l->name, sizeof l->name, d));
+    const char *need[4][3] = {{"moment", NULL, NULL}, {"moment", "ramp_time", NULL},
+                              {"coefficient", NULL, NULL}, {"times", "moments", NULL}};
+    for (int i = 0; load_keys[i]; i++) {
+        const char *k = load_keys[i];
+        if (!strcmp(k, "name") || !strcmp(k, "body") || !strcmp(k, "type"))
+            continue;
+        bool wanted = false;
+        for (int j = 0; j < 3 && need[t][j]; j++)
+            wanted |= strcmp(need[t][j], k) == 0;
+        if (!wanted && json_object_object_get_ex(o, k, NULL)) {
+            gsi_path(p, sizeof p, path, k);
+            return gs_diag_set(d, GS_ESCHEMA, p, "a %s load has no '%s'", types[t], k);
+        }
+    }
+    switch (l->type) {
+    case GS_LOAD_CONSTANT:
+        return gsi_json_number(o, "moment", path, -1e9, 1e9, true, 0, &l->moment, d);
+    case GS_LOAD_RAMP:
+        GS_TRY(gsi_json_number(o, "moment", path, -1e9, 1e9, true, 0, &l->moment, d));
+        return gsi_json_positive(o, "ramp_time", path, 1e6, true, 0, &l->ramp_time, d);
+    case GS_LOAD_BRAKE:
+        return gsi_json_number(o, "coefficient", path, 0, 1e9, true, 0, &l->coefficient, d);
+    case GS_LOAD_TABLE: {
+        json_object *tt, *mm;
+        GS_TRY(gsi_json_array(o, "times", path, true, &tt, d));
+        GS_TRY(gsi_json_array(o, "moments", path, true, &mm, d));
+        size_t n = json_object_array_length(tt);
+        gsi_path(p, sizeof p, path, "moments");
+        if (n != json_object_array_length(mm))
+            return gs_diag_set(d, GS_ESCHEMA, p, "'times' and 'moments' must have the same length");
+        gsi_path(p, sizeof p, path, "times");
+        if (n < 1 || n > MAX_TABLE)
+            return gs_diag_set(d, GS_ERANGE, p, "a table needs 1 to %d entries", MAX_TABLE);
+        l->times = gs_calloc(n, sizeof(double));
+        l->moments = gs_calloc(n, sizeof(double));
+        if (!l->times || !l->moments) {
+            gs_scene_load_clear(l);
+            return GS_ENOMEM;
+        }
+        l->n_table = (int)n;
+        for (size_t i = 0; i < n; i++) {
+            char pi[256];
+            if (!gsi_json_as_double(json_object_array_get_idx(tt, i), &l->times[i]) ||
+                (i > 0 && !(l->times[i] > l->times[i - 1]))) {
+                gsi_path_index(pi, sizeof pi, path, "times", (int)i);
+                gs_scene_load_clear(l);
+                return gs_diag_set(d, GS_ERANGE, pi, "times must be finite and increasing");
+            }
+            if (!gsi_json_as_double(json_object_array_get_idx(mm, i), &l->moments[i]) ||
+                fabs(l->moments[i]) > 1e9) {
+                gsi_path_index(pi, sizeof pi, path, "moments", (int)i);
+                gs_scene_load_clear(l);
+                return gs_diag_set(d, GS_ERANGE, pi, "moments must be finite numbers");
+            }
+        }
+        return GS_OK;
+    }
+    }
+    return GS_OK;
+}
+
+static gs_err check_train(gs_scene *s, gs_diag *d)
+{
+    char p[256];
+    for (int i = 0; i < s->n_meshes; i++) {
+        gs_scene_mesh *m = &s->meshes[i];
+        gs_scene_body *a = &s->bodies[m->gear[0]], *b = &s->bodies[m->gear[1]];
+        gsi_path_index(p, sizeof p, "", "meshes", i);
+        for (int j = 0; j < i; j++)
+            if (!strcmp(s->meshes[j].name, m->name))
+                return gs_diag_set(d, GS_ESCHEMA, p, "duplicate mesh name '%s'", m->name);
+        if (a->gear.kind == GS_GEAR_INTERNAL && b->gear.kind == GS_GEAR_INTERNAL)
+            return gs_diag_set(d, GS_EGEOMETRY, p, "two internal gears cannot mesh");
+        int ca = a->joint == GS_JOINT_ON_CARRIER ? a->carrier : -1;
+        int cb = b->joint == GS_JOINT_ON_CARRIER ? b->carrier : -1;
+        if (ca >= 0 && cb >= 0 && ca != cb)
+            return gs_diag_set(d, GS_EGEOMETRY, p, "the gears ride on different carriers");
+        if (ca >= 0 && cb >= 0)
+            return gs_diag_set(d, GS_EGEOMETRY, p, "two planets on one carrier cannot mesh");
+        /* Centre distance from the joints, measured in the carrier frame. */
+        double ctr[2][2];
+        for (int k = 0; k < 2; k++) {
+            gs_scene_body *g = &s->bodies[m->gear[k]];
+            if (g->joint == GS_JOINT_ON_CARRIER) {
+                gs_scene_body *c = &s->bodies[g->carrier];
+                ctr[k][0] = c->centre[0] + g->carrier_radius * cos(g->carrier_angle);
+                ctr[k][1] = c->centre[1] + g->carrier_radius * sin(g->carrier_angle);
+            } else {
+                ctr[k][0] = g->centre[0];
+                ctr[k][1] = g->centre[1];
+            }
+        }
+        double dist = hypot(ctr[1][0] - ctr[0][0], ctr[1][1] - ctr[0][1]);
+        double eps, alpha_w;
+        gs_err e = gs_pair_contact_ratio(&a->gear, &b->gear, dist, &eps, &alpha_w, d);
+        if (e != GS_OK)
+            return prefix_diag(e, d, p);
+    }
+    /* Planetary assembly: a carrier with planets all meshing one sun and one ring. */
+    for (int c = 0; c < s->n_bodies; c++) {
+        if (s->bodies[c].type != GS_BODY_CARRIER)
+            continue;
+        int n = 0, planet = -1, sun = -1, ring = -1;
+        for (int i = 0; i < s->n_bodies; i++)
+            if (s->bodies[i].joint == GS_JOINT_ON_CARRIER && s->bodies[i].carrier == c) {
+                n++;
+                planet = i;
+            }
+        if (n < 2 || planet < 0)
+            continue;
+        for (int i = 0; i < s->n_meshes; i++) {
+            int o = -1;
+            if (s->meshes[i].gear[0] == planet)
+                o = s->meshes[i].gear[1];
+            else if (s->meshes[i].gear[1] == planet)
+                o = s->meshes[i].gear[0];
+            if (o < 0)
+                continue;
+            if (s->bodies[o].gear.kind == GS_GEAR_INTERNAL)
+                ring = o;
+            else
+                sun = o;
+        }
+        if (sun >= 0 && ring >= 0) {
+            gs_err e = gs_planetary_check(&s->bodies[sun].gear, &s->bodies[planet].gear,
+                                          &s->bodies[ring].gear, n, d);
+            if (e != GS_OK)
+                return prefix_diag(e, d, "bodies");
+        }
+    }
+    return GS_OK;
+}
+
+gs_err gs_scene_parse(const char *text, size_t len, gs_scene **out, gs_diag *d)
+{
+    *out = NULL;
+    gs_diag_clear(d);
+    json_tokener *tok = json_tokener_new_ex(64);
+    if (!tok)
+        return GS_ENOMEM;
+    json_object *root = json_tokener_parse_ex(tok, text, (int)len);
+    enum json_tokener_error je = json_tokener_get_error(tok);
+    if (root && je == json_tokener_success && (size_t)json_tokener_get_parse_end(tok) < len) {
+        /* trailing bytes after the object: allow only whitespace */
+        for (size_t i = json_tokener_get_parse_end(tok); i < len; i++)
+            if (!strchr(" \t\r\n", text[i])) {
+                je = json_tokener_error_parse_unexpected;
+                break;
+            }
+    }
+    json_tokener_free(tok);
+    if (!root || je != json_tokener_success) {
+        json_object_put(root);
+        return gs_diag_set(d, GS_EPARSE, "", "the scene is not valid JSON: %s",
+                           json_tokener_error_desc(je));
+    }
+    gs_scene *s = NULL;
+    gs_err e = gs_scene_from_json(root, &s, d);
+    json_object_put(root);
+    *out = s;
+    return e;
+}
+
+gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
+{
+    *out = NULL;
+    if (json_object_get_type(root) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, "", "a scene must be a JSON object");
+    gs_err e = gsi_json_only(root, "", top_keys, d);
+    if (e)
+        return e;
+    gs_scene *s = gs_calloc(1, sizeof *s);
+    if (!s)
+        return GS_ENOMEM;
+#define CHECK(x)            \
+    do {                    \
+        e = (x);            \
+        if (e != GS_OK)     \
+            goto fail;      \
+    } while (0)
+    CHECK(gsi_json_string(root, "name", "", false, "scene", s->name, sizeof s->name, d));
+    json_object *arr, *o;
+    char p[256];
+    CHECK(gsi_json_array(root, "bodies", "", true, &arr, d));
+    size_t nb = json_object_array_length(arr);
+    if (nb < 1 || nb > MAX_BODIES) {
+        e = gs_diag_set(d, GS_ERANGE, "bodies", "a scene has 1 to %d bodies", MAX_BODIES);
+        goto fail;
+    }
+    s->bodies = gs_calloc(nb, sizeof *s->bodies);
+    if (!s->bodies) {
+        e = GS_ENOMEM;
+        goto fail;
+    }
+    s->n_bodies = (int)nb;
+    for (int i = 0; i < s->n_bodies; i++) {
+        gsi_path_index(p, sizeof p, "", "bodies", i);
+        s->bodies[i].joint = (gs_joint_type)-1;
+        CHECK(parse_body(json_object_array_get_idx(arr, (size_t)i), p, &s->bodies[i], d));
+        for (int j = 0; j < i; j++)
+            if (!strcmp(s->bodies[j].name, s->bodies[i].name)) {
+                gsi_path(p, sizeof p, p, "name");
+                e = gs_diag_set(d, GS_ESCHEMA, p, "duplicate body name '%s'", s->bodies[i].name);
+                goto fail;
+            }
+    }
+    CHECK(gsi_json_array(root, "joints", "", true, &arr, d));
+    bool seen[MAX_BODIES] = {false};
+    if (json_object_array_length(arr) > (size_t)MAX_BODIES) {
+        e = gs_diag_set(d, GS_ERANGE, "joints", "too many joints");
+        goto fail;
+    }
+    for (size_t i = 0; i < json_object_array_length(arr); i++) {
+        gsi_path_index(p, sizeof p, "", "joints", (int)i);
+        CHECK(parse_joint(s, json_object_array_get_idx(arr, i), p, seen, d));
+    }
+    for (int i = 0; i < s->n_bodies; i++)
+        if (!seen[i]) {
+            gsi_path_index(p, sizeof p, "", "bodies", i);
+            e = gs_diag_set(d, GS_ESCHEMA, p, "body '%s' has no joint", s->bodies[i].name);
+            goto fail;
+        }
+    for (int i = 0; i < s->n_bodies; i++) {
+        gs_scene_body *b = &s->bodies[i];
+        if (b->type == GS_BODY_CARRIER && b->joint == GS_JOINT_ON_CARRIER) {
+            gsi_path_index(p, sizeof p, "", "bodies", i);
+            e = gs_diag_set(d, GS_ERANGE, p, "a carrier turns on a fixed axis or is held");
+            goto fail;
+        }
+    }
+    CHECK(gsi_json_array(root, "meshes", "", false, &arr, d));
+    if (arr) {
+        size_t n = json_object_array_length(arr);
+        if (n > MAX_MESHES) {
+            e = gs_diag_set(d, GS_ERANGE, "meshes", "at most %d meshes", MAX_MESHES);
+            goto fail;
+        }
+        s->meshes = gs_calloc(n, sizeof *s->meshes);
+        if (!s->meshes) {
+            e = GS_ENOMEM;
+            goto fail;
+        }
+        s->n_meshes = (int)n;
+        for (int i = 0; i < s->n_meshes; i++) {
+            gsi_path_index(p, sizeof p, "", "meshes", i);
+            CHECK(parse_gear_mesh(s, json_object_array_get_idx(arr, (size_t)i), p, &s->meshes[i], d));
+        }
+    }
+    CHECK(check_train(s, d));
+    CHECK(gsi_json_array(root, "loads", "", false, &arr, d));
+    if (arr) {
+        size_t n = json_object_array_length(arr);
+        if (n > MAX_LOADS) {
+            e = gs_diag_set(d, GS_ERANGE, "loads", "at most %d loads", MAX_LOADS);
+            goto fail;
+        }
+        s->loads = gs_calloc(n, sizeof *s->loads);
+        if (!s->loads) {
+            e = GS_ENOMEM;
+            goto fail;
+        }
+        for (size_t i = 0; i < n; i++) {
+            gsi_path_index(p, sizeof p, "", "loads", (int)i);
+            CHECK(gs_scene_parse_load(s, json_object_array_get_idx(arr, i), p, &s->loads[i], d));
+            s->n_loads++;
+            for (int j = 0; j < (int)i; j++)
+                if (!strcmp(s->loads[j].name, s->loads[i].name)) {
+                    e = gs_diag_set(d, GS_ESCHEMA, p, "duplicate load name '%s'", s->loads[i].name);
+                    goto fail;
+                }
+        }
+    }
+    CHECK(gsi_json_object(root, "numerics", "", false, &o, d));
+    s->time_step = 1e-5;
+    s->newton_tol = 1e-13;
+    s->max_newton = 50;
+    if (o) {
+        int64_t v;
+        CHECK(gsi_json_only(o, "numerics", numerics_keys, d));
+        CHECK(gsi_json_positive(o, "time_step", "numerics", 1.0, false, 1e-5, &s->time_step, d));
+        if (s->time_step < 1e-12) {
+            e = gs_diag_set(d, GS_ERANGE, "numerics.time_step", "'time_step' must be at least 1e-12 s");
+            goto fail;
+        }
+        CHECK(gsi_json_number(o, "newton_tol", "numerics", 1e-16, 1e-3, false, 1e-13, &s->newton_tol, d));
+        CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
+        s->max_newton = (int)v;
+    }
+    CHECK(gsi_json_object(root, "initial", "", false, &o, d));
+    if (o) {
+        json_object_object_foreach(o, key, val)
+        {
+            gsi_path(p, sizeof p, "initial", key);
+            int bi = gs_scene_find_body(s, key);
+            if (bi < 0) {
+                e = gs_diag_set(d, GS_ENOTFOUND, p, "no body named '%s'", key);
+                goto fail;
+            }
+            if (json_object_get_type(val) != json_type_object) {
+                e = gs_diag_set(d, GS_ESCHEMA, p, "initial state of '%s' must be an object", key);
+                goto fail;
+            }
+            CHECK(gsi_json_only(val, p, initial_keys, d));
+            if (json_object_object_get_ex(val, "omega", NULL) &&
+                json_object_object_get_ex(val, "speed_rpm", NULL)) {
+                e = gs_diag_set(d, GS_ESCHEMA, p, "give 'omega' or 'speed_rpm', not both");
+                goto fail;
+            }
+            gs_scene_body *b = &s->bodies[bi];
+            double rpm;
+            CHECK(gsi_json_number(val, "angle", p, -1e6, 1e6, false, 0, &b->angle0, d));
+            CHECK(gsi_json_number(val, "omega", p, -1e6, 1e6, false, 0, &b->omega0, d));
+            CHECK(gsi_json_number(val, "speed_rpm", p, -1e7, 1e7, false, b->omega0 * GS_RPM_PER_RAD_S, &rpm, d));
+            b->omega0 = rpm / GS_RPM_PER_RAD_S;
+            if (b->joint == GS_JOINT_HELD && (b->omega0 != 0 || b->angle0 != 0)) {
+                e = gs_diag_set(d, GS_ERANGE, p, "'%s' is held and cannot move", key);
+                goto fail;
+            }
+        }
+    }
+    CHECK(gsi_json_object(root, "outputs", "", false, &o, d));
+    s->telemetry_every = 10;
+    s->record_every = 0;
+    if (o) {
+        int64_t v;
+        CHECK(gsi_json_only(o, "outputs", outputs_keys, d));
+        CHECK(gsi_json_int(o, "telemetry_every", "outputs", 1, 100000000, false, 10, &v, d));
+        s->telemetry_every = (int)v;
+        CHECK(gsi_json_int(o, "record_every", "outputs", 1, 100000000, false, v, &v, d));
+        s->record_every = (int)v;
+    }
+    if (s->record_every == 0)
+        s->record_every = s->telemetry_every;
+    s->json = gs_strdup(json_object_to_json_string_ext(root, JSON_C_TO_STRING_PLAIN));
+    if (!s->json) {
+        e = GS_ENOMEM;
+        goto fail;
+    }
+    *out = s;
+    return GS_OK;
+fail:
+#undef CHECK
+    gs_scene_free(&s);
+    return e;
+}
+
+gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d)
+{
+    size_t len;
+    char *text = gs_read_file(path, 64u << 20, &len);
+    if (!text)
+        return gs_diag_set(d, GS_EIO, "", "cannot read scene file '%s'", path);
+    gs_err e = gs_scene_parse(text, len, out, d);
+    free(text);
+    return e;
+}

@@ -1,0 +1,710 @@
+/* SPDX-License-Identifier: MIT
+ * Commands as data: one table of name, handler, whether it may run during an
+ * advance, and its allowed arguments (schemas in proto/v1/). The loop in
+ * service.c validates the envelope and the argument names and calls the
+ * handler; handlers validate values and answer with errors naming the field. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "gearsim/util.h"
+#include "scene/jsonv.h"
+#include "service/service_internal.h"
+
+static const char *const state_names[] = {"empty", "loaded", "running", "paused"};
+
+static gs_err need_loaded(gs_service *s, gs_diag *d)
+{
+    if (!gs_engine_system(s->eng))
+        return gs_diag_set(d, GS_ESTATE, "cmd", "nothing is loaded (use 'load' first)");
+    return GS_OK;
+}
+
+static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)d;
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "protocol", json_object_new_int(1));
+    json_object_object_add(o, "version", json_object_new_string("0.1.0"));
+    json_object_object_add(o, "build", json_object_new_string(__DATE__ " " __TIME__));
+    json_object_object_add(o, "session", json_object_new_string(s->session));
+    json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
+    json_object *caps = json_object_new_array();
+    static const char *const cap[] = {"rigid", "kinematic", "lumped", "record", "checkpoint", "jobs", "fetch", NULL};
+    for (int i = 0; cap[i]; i++)
+        json_object_array_add(caps, json_object_new_string(cap[i]));
+    json_object_object_add(o, "capabilities", caps);
+    json_object *lim = json_object_new_object();
+    json_object_object_add(lim, "max_message_bytes", json_object_new_int64(GSI_MAX_MESSAGE));
+    json_object_object_add(lim, "max_bodies", json_object_new_int(64));
+    json_object_object_add(lim, "max_steps_per_advance", json_object_new_int64(GSI_MAX_STEPS_PER_ADVANCE));
+    json_object_object_add(lim, "max_queued_jobs", json_object_new_int(GSI_MAX_JOBS));
+    json_object_object_add(lim, "max_fetch_bytes", json_object_new_int(1 << 20));
+    json_object_object_add(o, "limits", lim);
+    json_object *cmds = json_object_new_array();
+    for (const gsi_command *c = gsi_commands(); c->name; c++)
+        json_object_array_add(cmds, json_object_new_string(c->name));
+    json_object_object_add(o, "commands", cmds);
+    json_object *b = json_object_new_array();
+    for (const char *const *n = gs_scene_builtin_names(); *n; n++)
+        json_object_array_add(b, json_object_new_string(*n));
+    json_object_object_add(o, "builtin_scenes", b);
+    *res = o;
+    return GS_OK;
+}
+
+static json_object *scene_summary(gs_system *sys)
+{
+    static const char *const jt[] = {"fixed_axis", "on_carrier", "held"};
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "name", json_object_new_string(sys->scene->name));
+    json_object *bs = json_object_new_array();
+    for (int i = 0; i < sys->n_bodies; i++) {
+        const gs_scene_body *b = &sys->scene->bodies[i];
+        json_object *j = json_object_new_object();
+        json_object_object_add(j, "name", json_object_new_string(b->name));
+        json_object_object_add(j, "type", json_object_new_string(b->type == GS_BODY_GEAR ? "gear" : "carrier"));
+        json_object_object_add(j, "model", json_object_new_string(sys->bodies[i].ops->name));
+        json_object_object_add(j, "joint", json_object_new_string(jt[b->joint]));
+        json_object_object_add(j, "mass", json_object_new_double(b->mass));
+        json_object_object_add(j, "inertia", json_object_new_double(b->inertia));
+        json_object_object_add(j, "rank", json_object_new_int(sys->bodies[i].owner));
+        json_object_array_add(bs, j);
+    }
+    json_object_object_add(o, "bodies", bs);
+    json_object *ms = json_object_new_array();
+    for (int i = 0; i < sys->n_meshes; i++) {
+        const gs_gmesh_rt *m = &sys->meshes[i];
+        json_object *j = json_object_new_object();
+        json_object_object_add(j, "name", json_object_new_string(sys->scene->meshes[i].name));
+        json_object_object_add(j, "model", json_object_new_string(m->ops->name));
+        json_object_object_add(j, "contact_ratio", json_object_new_double(m->contact_ratio));
+        if (m->ops->n_eq == 0) {
+            json_object_object_add(j, "k_single", json_object_new_double(m->k_single));
+            json_object_object_add(j, "k_double", json_object_new_double(m->k_double));
+            json_object_object_add(j, "damping", json_object_new_double(m->damping));
+        }
+        json_object_array_add(ms, j);
+    }
+    json_object_object_add(o, "meshes", ms);
+    json_object_object_add(o, "dofs", json_object_new_int(sys->n_coords));
+    json_object_object_add(o, "time_step", json_object_new_double(sys->h));
+    if (sys->warning[0])
+        json_object_object_add(o, "warning", json_object_new_string(sys->warning));
+    return o;
+}
+
+/* Validate on rank 0 (with a diagnostic naming the field), then broadcast. */
+static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
+{
+    gs_scene *sc;
+    GS_TRY(gs_scene_parse(text, strlen(text), &sc, d));
+    gs_scene_free(&sc);
+    gs_record_close(&s->record);
+    gs_err e = gs_engine_run(s->eng, GS_OP_LOAD, text, strlen(text), d, NULL);
+    s->state = gs_engine_system(s->eng) ? SVC_LOADED : SVC_EMPTY;
+    return e;
+}
+
+static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    json_object *scene = NULL, *builtin = NULL;
+    bool has_s = json_object_object_get_ex(args, "scene", &scene);
+    bool has_b = json_object_object_get_ex(args, "builtin", &builtin);
+    if (has_s == has_b)
+        return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'scene' (an object) or 'builtin' (a name)");
+    const char *text;
+    if (has_b) {
+        if (json_object_get_type(builtin) != json_type_string)
+            return gs_diag_set(d, GS_ESCHEMA, "args.builtin", "'builtin' must be a string");
+        text = gs_scene_builtin(json_object_get_string(builtin));
+        if (!text)
+            return gs_diag_set(d, GS_ENOTFOUND, "args.builtin", "no builtin scene '%.64s'", json_object_get_string(builtin));
+    } else {
+        if (json_object_get_type(scene) != json_type_object)
+            return gs_diag_set(d, GS_ESCHEMA, "args.scene", "'scene' must be an object");
+        text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
+    }
+    gs_err e = load_scene_text(s, text, d);
+    if (e != GS_OK) {
+        if (has_s && d->field[0]) {
+            char f[sizeof d->field];
+            snprintf(f, sizeof f, "args.scene.%.140s", d->field);
+            memcpy(d->field, f, sizeof f);
+        }
+        return e;
+    }
+    gs_system *sys = gs_engine_system(s->eng);
+    *res = scene_summary(sys);
+    if (sys->warning[0]) {
+        json_object *w = json_object_new_object();
+        json_object_object_add(w, "message", json_object_new_string(sys->warning));
+        json_object_object_add(w, "parent_id", json_object_new_string(id));
+        gsi_publish(s, "warning", w);
+    }
+    return GS_OK;
+}
+
+static gs_err cmd_unload(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)res;
+    GS_TRY(need_loaded(s, d));
+    gs_record_close(&s->record);
+    gs_engine_run(s->eng, GS_OP_UNLOAD, NULL, 0, d, NULL);
+    s->state = SVC_EMPTY;
+    return GS_OK;
+}
+
+static json_object *load_names(gs_system *sys)
+{
+    json_object *a = json_object_new_array();
+    for (int i = 0; i < sys->scene->n_loads; i++)
+        json_object_array_add(a, json_object_new_string(sys->scene->loads[i].name));
+    return a;
+}
+
+static gs_err cmd_set_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    GS_TRY(need_loaded(s, d));
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *load = NULL, *rm = NULL;
+    bool has_l = json_object_object_get_ex(args, "load", &load);
+    bool has_r = json_object_object_get_ex(args, "remove", &rm);
+    if (has_l == has_r)
+        return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'load' (an object) or 'remove' (a load name)");
+    if (has_r) {
+        if (json_object_get_type(rm) != json_type_string)
+            return gs_diag_set(d, GS_ESCHEMA, "args.remove", "'remove' must be a load name");
+        const char *name = json_object_get_string(rm);
+        bool found = false;
+        for (int i = 0; i < sys->scene->n_loads; i++)
+            found |= strcmp(sys->scene->loads[i].name, name) == 0;
+        if (!found)
+            return gs_diag_set(d, GS_ENOTFOUND, "args.remove", "no load named '%.64s'", name);
+        GS_TRY(gs_engine_run(s->eng, GS_OP_REMOVE_LOAD, name, strlen(name) + 1, d, NULL));
+    } else {
+        gs_scene_load l;
+        GS_TRY(gs_scene_parse_load(sys->scene, load, "args.load", &l, d));
+        gs_scene_load_clear(&l);
+        const char *txt = json_object_to_json_string_ext(load, JSON_C_TO_STRING_PLAIN);
+        GS_TRY(gs_engine_run(s->eng, GS_OP_SET_LOAD, txt, strlen(txt) + 1, d, NULL));
+    }
+    *res = json_object_new_object();
+    json_object_object_add(*res, "loads", load_names(sys));
+    return GS_OK;
+}
+
+static gs_err cmd_advance(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    GS_TRY(need_loaded(s, d));
+    gs_system *sys = gs_engine_system(s->eng);
+    bool has_t = json_object_object_get_ex(args, "time", NULL);
+    bool has_n = json_object_object_get_ex(args, "steps", NULL);
+    if (has_t == has_n)
+        return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'time' (s) or 'steps'");
+    int64_t n;
+    if (has_t) {
+        double t;
+        GS_TRY(gsi_json_positive(args, "time", "args", 1e9, true, 0, &t, d));
+        double k = ceil(t / sys->h - 1e-9);
+        if (k > (double)GSI_MAX_STEPS_PER_ADVANCE)
+            return gs_diag_set(d, GS_ETOOBIG, "args.time", "%g s is %.3g steps; at most %lld steps per advance",
+                               t, k, (long long)GSI_MAX_STEPS_PER_ADVANCE);
+        n = (int64_t)(k < 1 ? 1 : k);
+    } else {
+        GS_TRY(gsi_json_int(args, "steps", "args", 1, GSI_MAX_STEPS_PER_ADVANCE, true, 0, &n, d));
+    }
+    s->adv = (svc_advance){.active = true, .start_step = sys->step, .target_step = sys->step + n,
+                           .wall_start = gs_now(), .job = -1};
+    snprintf(s->adv.parent_id, sizeof s->adv.parent_id, "%s", id);
+    s->state = SVC_RUNNING;
+    s->timing_step = s->timing_telemetry = s->timing_record = 0;
+    *res = json_object_new_object();
+    json_object_object_add(*res, "accepted", json_object_new_boolean(1));
+    json_object_object_add(*res, "steps", json_object_new_int64(n));
+    json_object_object_add(*res, "until_time", json_object_new_double(sys->time + (double)n * sys->h));
+    return GS_OK;
+}
+
+void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *msg)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
+    json_object_object_add(o, "cancelled", json_object_new_boolean(cancelled));
+    json_object_object_add(o, "steps", json_object_new_int64(sys ? sys->step - s->adv.start_step : 0));
+    json_object_object_add(o, "wall_seconds", json_object_new_double(gs_now() - s->adv.wall_start));
+    if (err != GS_OK) {
+        json_object *e = json_object_new_object();
+        json_object_object_add(e, "code", json_object_new_string(gs_errcode(err)));
+        json_object_object_add(e, "message", json_object_new_string(msg ? msg : gs_strerror(err)));
+        json_object_object_add(o, "error", e);
+    }
+    if (s->record)
+        gs_record_flush(s->record);
+    int job = s->adv.job;
+    s->adv.active = false;
+    s->state = sys ? SVC_LOADED : SVC_EMPTY;
+    gsi_publish(s, "done", o);
+    if (job >= 0) {
+        svc_job *j = &s->jobs[job];
+        snprintf(j->state, sizeof j->state, "%s", err != GS_OK ? "failed" : cancelled ? "cancelled" : "done");
+        if (err != GS_OK)
+            snprintf(j->error, sizeof j->error, "%.250s", msg ? msg : gs_strerror(err));
+        gs_record_close(&s->record);
+        gs_diag d;
+        gs_engine_run(s->eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+        s->state = SVC_EMPTY;
+    }
+}
+
+static gs_err cmd_pause(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id;
+    if (!s->adv.active)
+        return gs_diag_set(d, GS_ESTATE, "cmd", "no advance is running");
+    s->state = SVC_PAUSED;
+    *res = json_object_new_object();
+    json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
+    return GS_OK;
+}
+
+static gs_err cmd_resume(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id;
+    if (!s->adv.active)
+        return gs_diag_set(d, GS_ESTATE, "cmd", "no advance is paused");
+    s->state = SVC_RUNNING;
+    *res = json_object_new_object();
+    json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
+    return GS_OK;
+}
+
+static gs_err cmd_cancel(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)d;
+    bool was = s->adv.active;
+    if (was)
+        gsi_finish_advance(s, true, GS_OK, NULL);
+    *res = json_object_new_object();
+    json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
+    json_object_object_add(*res, "cancelled", json_object_new_boolean(was));
+    return GS_OK;
+}
+
+static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)d;
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "state", json_object_new_string(state_names[s->state]));
+    json_object_object_add(o, "time", json_object_new_double(sys ? sys->time : 0.0));
+    json_object_object_add(o, "step", json_object_new_int64(sys ? sys->step : 0));
+    json_object_object_add(o, "scene", sys ? json_object_new_string(sys->scene->name) : NULL);
+    json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
+    if (s->adv.active && sys) {
+        json_object *a = json_object_new_object();
+        double total = (double)(s->adv.target_step - s->adv.start_step);
+        json_object_object_add(a, "parent_id", json_object_new_string(s->adv.parent_id));
+        json_object_object_add(a, "target_step", json_object_new_int64(s->adv.target_step));
+        json_object_object_add(a, "fraction", json_object_new_double(total > 0 ? (double)(sys->step - s->adv.start_step) / total : 1.0));
+        json_object_object_add(o, "advance", a);
+    } else {
+        json_object_object_add(o, "advance", NULL);
+    }
+    json_object_object_add(o, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
+    int queued = 0;
+    for (int i = 0; i < s->n_jobs; i++)
+        queued += strcmp(s->jobs[i].state, "queued") == 0;
+    json_object_object_add(o, "jobs_queued", json_object_new_int(queued));
+    json_object *t = json_object_new_object();
+    json_object_object_add(t, "steps_per_second", json_object_new_double(s->steps_per_second));
+    json_object_object_add(t, "chunk_steps", json_object_new_int64(s->chunk_steps));
+    json_object_object_add(t, "step_seconds", json_object_new_double(s->timing_step));
+    json_object_object_add(t, "telemetry_seconds", json_object_new_double(s->timing_telemetry));
+    json_object_object_add(t, "record_seconds", json_object_new_double(s->timing_record));
+    json_object_object_add(o, "timing", t);
+    *res = o;
+    return GS_OK;
+}
+
+static gs_err cmd_state(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id;
+    GS_TRY(need_loaded(s, d));
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *o = gsi_state_json(s);
+    json_object_object_add(o, "seq", json_object_new_int64((int64_t)s->seq));
+    json_object_object_add(o, "step", json_object_new_int64(sys->step));
+    json_object_object_add(o, "time", json_object_new_double(sys->time));
+    *res = o;
+    return GS_OK;
+}
+
+static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    bool stop = false;
+    GS_TRY(gsi_json_bool(args, "stop", "args", false, &stop, d));
+    bool has_p = json_object_object_get_ex(args, "path", NULL);
+    if (stop == has_p)
+        return gs_diag_set(d, GS_ESCHEMA, "args", "give 'path' to start recording or 'stop': true to stop");
+    if (stop) {
+        gs_err e = gs_record_close(&s->record);
+        if (e != GS_OK)
+            return gs_diag_set(d, e, "path", "the record could not be completed");
+    } else {
+        GS_TRY(need_loaded(s, d));
+        char rel[600], full[PATH_MAX];
+        GS_TRY(gsi_json_string(args, "path", "args", true, NULL, rel, sizeof rel, d));
+        gs_err e = gsi_resolve_path(s, rel, full, sizeof full, true, d);
+        if (e != GS_OK) {
+            snprintf(d->field, sizeof d->field, "args.path");
+            return e;
+        }
+        gs_record *r;
+        e = gs_record_open(full, gs_engine_system(s->eng), &r, d);
+        if (e != GS_OK) {
+            snprintf(d->field, sizeof d->field, "args.path");
+            return e;
+        }
+        gs_record_close(&s->record);
+        s->record = r;
+        gs_record_sample(r, gs_engine_system(s->eng));
+        gs_record_flush(r);
+    }
+    *res = json_object_new_object();
+    json_object_object_add(*res, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
+    return GS_OK;
+}
+
+static gs_err path_arg(gs_service *s, json_object *args, bool for_write, char *full, size_t cap, gs_diag *d)
+{
+    char rel[600];
+    GS_TRY(gsi_json_string(args, "path", "args", true, NULL, rel, sizeof rel, d));
+    gs_err e = gsi_resolve_path(s, rel, full, cap, for_write, d);
+    if (e != GS_OK)
+        snprintf(d->field, sizeof d->field, "args.path");
+    return e;
+}
+
+static gs_err cmd_checkpoint(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    GS_TRY(need_loaded(s, d));
+    char full[PATH_MAX];
+    GS_TRY(path_arg(s, args, true, full, sizeof full, d));
+    if (s->adv.active && s->state != SVC_PAUSED)
+        return gs_diag_set(d, GS_ESTATE, "cmd", "pause the advance before a checkpoint");
+    char *bytes;
+    size_t len;
+    GS_TRY(gs_engine_snapshot(s->eng, &bytes, &len));
+    gs_system *sys = gs_engine_system(s->eng);
+    gs_err e = gs_checkpoint_write(full, bytes, len, sys->scene->json, sys->step, sys->time, d);
+    free(bytes);
+    if (e != GS_OK) {
+        snprintf(d->field, sizeof d->field, "args.path");
+        return e;
+    }
+    *res = json_object_new_object();
+    json_object_object_add(*res, "path", json_object_object_get(args, "path") ? json_object_get(json_object_object_get(args, "path")) : NULL);
+    json_object_object_add(*res, "step", json_object_new_int64(sys->step));
+    json_object_object_add(*res, "time", json_object_new_double(sys->time));
+    return GS_OK;
+}
+
+static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    char full[PATH_MAX];
+    GS_TRY(path_arg(s, args, false, full, sizeof full, d));
+    char *bytes;
+    size_t len;
+    gs_err e = gs_checkpoint_read(full, &bytes, &len, d);
+    if (e != GS_OK) {
+        snprintf(d->field, sizeof d->field, "args.path");
+        return e;
+    }
+    gs_record_close(&s->record);
+    e = gs_engine_run(s->eng, GS_OP_RESTORE, bytes, len, d, NULL);
+    free(bytes);
+    s->state = gs_engine_system(s->eng) ? SVC_LOADED : SVC_EMPTY;
+    if (e != GS_OK) {
+        snprintf(d->field, sizeof d->field, "args.path");
+        return e;
+    }
+    gs_system *sys = gs_engine_system(s->eng);
+    *res = json_object_new_object();
+    json_object_object_add(*res, "step", json_object_new_int64(sys->step));
+    json_object_object_add(*res, "time", json_object_new_double(sys->time));
+    return GS_OK;
+}
+
+static int cmp_at(const void *a, const void *b)
+{
+    json_object *x = *(json_object *const *)a, *y = *(json_object *const *)b;
+    double u = json_object_get_double(json_object_object_get(x, "at"));
+    double v = json_object_get_double(json_object_object_get(y, "at"));
+    return u < v ? -1 : u > v;
+}
+
+static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    int queued = 0;
+    for (int i = 0; i < s->n_jobs; i++)
+        queued += strcmp(s->jobs[i].state, "queued") == 0;
+    if (queued >= GSI_MAX_JOBS || s->n_jobs >= GSI_MAX_JOBS)
+        return gs_diag_set(d, GS_ETOOBIG, "cmd", "the job queue is full (%d jobs)", GSI_MAX_JOBS);
+    json_object *scene, *sched;
+    GS_TRY(gsi_json_object(args, "scene", "args", true, &scene, d));
+    gs_scene *sc;
+    const char *text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
+    gs_err e = gs_scene_parse(text, strlen(text), &sc, d);
+    if (e != GS_OK) {
+        char f[sizeof d->field];
+        snprintf(f, sizeof f, "args.scene%s%.140s", d->field[0] ? "." : "", d->field);
+        memcpy(d->field, f, sizeof f);
+        return e;
+    }
+    double duration;
+    e = gsi_json_positive(args, "duration", "args", 1e6, true, 0, &duration, d);
+    if (e == GS_OK && ceil(duration / sc->time_step) > (double)GSI_MAX_STEPS_PER_ADVANCE)
+        e = gs_diag_set(d, GS_ETOOBIG, "args.duration", "the job would exceed %lld steps", (long long)GSI_MAX_STEPS_PER_ADVANCE);
+    char full[PATH_MAX] = "";
+    if (e == GS_OK && json_object_object_get_ex(args, "record", NULL)) {
+        char rel[600];
+        e = gsi_json_string(args, "record", "args", true, NULL, rel, sizeof rel, d);
+        if (e == GS_OK && (e = gsi_resolve_path(s, rel, full, sizeof full, true, d)) != GS_OK)
+            snprintf(d->field, sizeof d->field, "args.record");
+    }
+    json_object *copy = NULL;
+    if (e == GS_OK)
+        e = gsi_json_array(args, "schedule", "args", false, &sched, d);
+    if (e == GS_OK && sched) {
+        size_t n = json_object_array_length(sched);
+        copy = json_object_new_array();
+        for (size_t i = 0; i < n && e == GS_OK; i++) {
+            json_object *it = json_object_array_get_idx(sched, i), *ld;
+            char p[64];
+            snprintf(p, sizeof p, "args.schedule[%zu]", i);
+            static const char *const keys[] = {"at", "load", NULL};
+            double at;
+            if (json_object_get_type(it) != json_type_object) {
+                e = gs_diag_set(d, GS_ESCHEMA, p, "a schedule entry is {at, load}");
+                break;
+            }
+            if ((e = gsi_json_only(it, p, keys, d)) != GS_OK ||
+                (e = gsi_json_number(it, "at", p, 0, duration, true, 0, &at, d)) != GS_OK ||
+                (e = gsi_json_object(it, "load", p, true, &ld, d)) != GS_OK)
+                break;
+            char lp[80];
+            snprintf(lp, sizeof lp, "%s.load", p);
+            gs_scene_load l;
+            if ((e = gs_scene_parse_load(sc, ld, lp, &l, d)) != GS_OK)
+                break;
+            gs_scene_load_clear(&l);
+            json_object *c = json_object_new_object();
+            json_object_object_add(c, "at", json_object_new_double(at));
+            json_object_object_add(c, "load", json_object_get(ld));
+            json_object_array_add(copy, c);
+        }
+        if (e == GS_OK)
+            json_object_array_sort(copy, cmp_at);
+    }
+    gs_scene_free(&sc);
+    if (e != GS_OK) {
+        json_object_put(copy);
+        return e;
+    }
+    svc_job *j = &s->jobs[s->n_jobs++];
+    memset(j, 0, sizeof *j);
+    snprintf(j->id, sizeof j->id, "job-%d", ++s->job_counter);
+    j->scene_json = gs_strdup(text);
+    j->schedule = copy;
+    j->duration = duration;
+    snprintf(j->record, sizeof j->record, "%s", full);
+    snprintf(j->state, sizeof j->state, "queued");
+    *res = json_object_new_object();
+    json_object_object_add(*res, "job", json_object_new_string(j->id));
+    json_object_object_add(*res, "position", json_object_new_int(queued));
+    return GS_OK;
+}
+
+void gsi_start_next_job(gs_service *s)
+{
+    if (s->state != SVC_EMPTY)
+        return;
+    for (int i = 0; i < s->n_jobs; i++) {
+        svc_job *j = &s->jobs[i];
+        if (strcmp(j->state, "queued") != 0)
+            continue;
+        gs_diag d;
+        gs_diag_clear(&d);
+        snprintf(j->state, sizeof j->state, "running");
+        gs_err e = load_scene_text(s, j->scene_json, &d);
+        if (e == GS_OK && j->record[0])
+            e = gs_record_open(j->record, gs_engine_system(s->eng), &s->record, &d);
+        if (e != GS_OK) {
+            snprintf(j->state, sizeof j->state, "failed");
+            snprintf(j->error, sizeof j->error, "%.250s", d.message[0] ? d.message : gs_strerror(e));
+            gs_engine_run(s->eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+            s->state = SVC_EMPTY;
+            continue;
+        }
+        gs_system *sys = gs_engine_system(s->eng);
+        if (s->record)
+            gs_record_sample(s->record, sys);
+        int64_t n = (int64_t)ceil(j->duration / sys->h - 1e-9);
+        s->adv = (svc_advance){.active = true, .start_step = sys->step, .target_step = sys->step + (n < 1 ? 1 : n),
+                               .wall_start = gs_now(), .job = i, .next_schedule = 0};
+        snprintf(s->adv.parent_id, sizeof s->adv.parent_id, "%s", j->id);
+        s->state = SVC_RUNNING;
+        return;
+    }
+}
+
+/* Apply the job's load changes whose time has come. */
+void gsi_job_between_chunks(gs_service *s)
+{
+    svc_job *j = &s->jobs[s->adv.job];
+    gs_system *sys = gs_engine_system(s->eng);
+    if (!j->schedule)
+        return;
+    int n = (int)json_object_array_length(j->schedule);
+    while (s->adv.next_schedule < n) {
+        json_object *it = json_object_array_get_idx(j->schedule, (size_t)s->adv.next_schedule);
+        double at = json_object_get_double(json_object_object_get(it, "at"));
+        if (at > sys->time + 0.5 * sys->h)
+            break;
+        const char *txt = json_object_to_json_string_ext(json_object_object_get(it, "load"), JSON_C_TO_STRING_PLAIN);
+        gs_diag d;
+        gs_engine_run(s->eng, GS_OP_SET_LOAD, txt, strlen(txt) + 1, &d, NULL);
+        s->adv.next_schedule++;
+    }
+}
+
+static gs_err cmd_jobs(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)d;
+    json_object *a = json_object_new_array();
+    for (int i = 0; i < s->n_jobs; i++) {
+        svc_job *j = &s->jobs[i];
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "job", json_object_new_string(j->id));
+        json_object_object_add(o, "state", json_object_new_string(j->state));
+        const char *rel = j->record[0] ? j->record + strlen(s->data_dir) + 1 : NULL;
+        json_object_object_add(o, "record", rel ? json_object_new_string(rel) : NULL);
+        json_object_object_add(o, "error", j->error[0] ? json_object_new_string(j->error) : NULL);
+        json_object_array_add(a, o);
+    }
+    *res = json_object_new_object();
+    json_object_object_add(*res, "jobs", a);
+    return GS_OK;
+}
+
+static char *base64(const unsigned char *in, size_t n)
+{
+    static const char tbl[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    char *out = malloc(4 * ((n + 2) / 3) + 1), *p = out;
+    if (!out)
+        return NULL;
+    for (size_t i = 0; i < n; i += 3) {
+        unsigned v = (unsigned)in[i] << 16 | (i + 1 < n ? (unsigned)in[i + 1] << 8 : 0) | (i + 2 < n ? in[i + 2] : 0);
+        *p++ = tbl[v >> 18 & 63];
+        *p++ = tbl[v >> 12 & 63];
+        *p++ = i + 1 < n ? tbl[v >> 6 & 63] : '=';
+        *p++ = i + 2 < n ? tbl[v & 63] : '=';
+    }
+    *p = '\0';
+    return out;
+}
+
+static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    char full[PATH_MAX];
+    GS_TRY(path_arg(s, args, false, full, sizeof full, d));
+    int64_t off, len;
+    GS_TRY(gsi_json_int(args, "offset", "args", 0, INT64_MAX / 2, false, 0, &off, d));
+    GS_TRY(gsi_json_int(args, "length", "args", 1, 1 << 20, false, 1 << 20, &len, d));
+    if (s->record && strcmp(full, gs_record_path(s->record)) == 0)
+        gs_record_flush(s->record);
+    FILE *f = fopen(full, "rb");
+    struct stat st;
+    if (!f || fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
+        if (f)
+            fclose(f);
+        return gs_diag_set(d, GS_ENOTFOUND, "args.path", "cannot read that file");
+    }
+    unsigned char *buf = malloc((size_t)len);
+    size_t got = 0;
+    if (buf && fseeko(f, (off_t)off, SEEK_SET) == 0)
+        got = fread(buf, 1, (size_t)len, f);
+    fclose(f);
+    char *b64 = buf ? base64(buf, got) : NULL;
+    free(buf);
+    if (!b64)
+        return GS_ENOMEM;
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "path", json_object_get(json_object_object_get(args, "path")));
+    json_object_object_add(o, "offset", json_object_new_int64(off));
+    json_object_object_add(o, "length", json_object_new_int64((int64_t)got));
+    json_object_object_add(o, "size", json_object_new_int64((int64_t)st.st_size));
+    json_object_object_add(o, "eof", json_object_new_boolean(off + (int64_t)got >= (int64_t)st.st_size));
+    json_object_object_add(o, "data_b64", json_object_new_string(b64));
+    free(b64);
+    *res = o;
+    return GS_OK;
+}
+
+static gs_err cmd_shutdown(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)args, (void)id, (void)res, (void)d;
+    s->shutdown = true;
+    return GS_OK;
+}
+
+static const char *const no_args[] = {NULL};
+static const char *const load_args[] = {"scene", "builtin", NULL};
+static const char *const set_load_args[] = {"load", "remove", NULL};
+static const char *const advance_args[] = {"time", "steps", NULL};
+static const char *const record_args[] = {"path", "stop", NULL};
+static const char *const path_args[] = {"path", NULL};
+static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
+static const char *const fetch_args[] = {"path", "offset", "length", NULL};
+
+static const gsi_command commands[] = {
+    {"hello", cmd_hello, true, no_args},
+    {"load", cmd_load, false, load_args},
+    {"unload", cmd_unload, false, no_args},
+    {"set_load", cmd_set_load, true, set_load_args},
+    {"advance", cmd_advance, false, advance_args},
+    {"pause", cmd_pause, true, no_args},
+    {"resume", cmd_resume, true, no_args},
+    {"cancel", cmd_cancel, true, no_args},
+    {"status", cmd_status, true, no_args},
+    {"state", cmd_state, true, no_args},
+    {"record", cmd_record, true, record_args},
+    {"checkpoint", cmd_checkpoint, true, path_args},
+    {"restore", cmd_restore, false, path_args},
+    {"submit", cmd_submit, true, submit_args},
+    {"jobs", cmd_jobs, true, no_args},
+    {"fetch", cmd_fetch, true, fetch_args},
+    {"shutdown", cmd_shutdown, true, no_args},
+    {NULL, NULL, false, NULL},
+};
+
+const gsi_command *gsi_commands(void) { return commands; }
+
+const gsi_command *gsi_command_find(const char *name)
+{
+    for (const gsi_command *c = commands; c->name; c++)
+        if (strcmp(c->name, name) == 0)
+            return c;
+    return NULL;
+}

@@ -1,0 +1,627 @@
+/* SPDX-License-Identifier: MIT
+ * The service loop on rank 0: one poll loop over the ROUTER socket, advance
+ * in chunks of about 20 ms so that commands are answered promptly while a
+ * long run goes on, periodic work (heartbeat, progress, jobs) in one place,
+ * every request answered — bad input included — and retried ids answered
+ * from a cache without running twice. */
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+#include <zmq.h>
+
+#include "gearsim/util.h"
+#include "scene/jsonv.h"
+#include "service/service_internal.h"
+
+static volatile sig_atomic_t stop_signal = 0;
+
+static void on_signal(int sig)
+{
+    (void)sig;
+    stop_signal = 1;
+}
+
+void gsi_publish(gs_service *s, const char *type, json_object *o)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *ev = json_object_new_object();
+    json_object_object_add(ev, "v", json_object_new_int(1));
+    json_object_object_add(ev, "type", json_object_new_string(type));
+    json_object_object_add(ev, "seq", json_object_new_int64((int64_t)++s->seq));
+    json_object_object_add(ev, "session", json_object_new_string(s->session));
+    json_object_object_add(ev, "step", json_object_new_int64(sys ? sys->step : 0));
+    json_object_object_add(ev, "time", json_object_new_double(sys ? sys->time : 0.0));
+    json_object_object_foreach(o, k, v) json_object_object_add(ev, k, json_object_get(v));
+    json_object_put(o);
+    const char *txt = json_object_to_json_string_ext(ev, JSON_C_TO_STRING_PLAIN);
+    /* A slow subscriber never slows the simulation: drop on a full queue. */
+    zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
+    zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
+    json_object_put(ev);
+}
+
+static json_object *energy_json(const gs_energy *e)
+{
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "kinetic", json_object_new_double(e->kinetic));
+    json_object_object_add(o, "potential", json_object_new_double(e->potential));
+    json_object_object_add(o, "total", json_object_new_double(e->total));
+    json_object_object_add(o, "work_in", json_object_new_double(e->work_in));
+    json_object_object_add(o, "dissipated", json_object_new_double(e->dissipated));
+    json_object_object_add(o, "balance_residual", json_object_new_double(e->balance_residual));
+    return o;
+}
+
+/* Telemetry body shared by the telemetry event and the `state` reply. */
+json_object *gsi_state_json(gs_service *s)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object *o = json_object_new_object();
+    gs_energy e;
+    gs_system_energy(sys, &e);
+    json_object_object_add(o, "energy", energy_json(&e));
+    json_object *bodies = json_object_new_array();
+    for (int i = 0; i < sys->n_bodies; i++) {
+        json_object *b = json_object_new_object();
+        json_object_object_add(b, "name", json_object_new_string(sys->scene->bodies[i].name));
+        json_object_object_add(b, "angle", json_object_new_double(gs_system_angle(sys, i)));
+        json_object_object_add(b, "omega", json_object_new_double(gs_system_omega(sys, i)));
+        json_object_object_add(b, "rpm", json_object_new_double(gs_system_rpm(sys, i)));
+        json_object_array_add(bodies, b);
+    }
+    json_object_object_add(o, "bodies", bodies);
+    json_object *meshes = json_object_new_array();
+    for (int i = 0; i < sys->n_meshes; i++) {
+        const gs_gmesh_rt *m = &sys->meshes[i];
+        json_object *j = json_object_new_object();
+        json_object_object_add(j, "name", json_object_new_string(sys->scene->meshes[i].name));
+        json_object_object_add(j, "force", json_object_new_double(isfinite(m->force) ? m->force : 0.0));
+        json_object_object_add(j, "deflection", json_object_new_double(m->deflection));
+        json_object_object_add(j, "penetration", json_object_new_double(0.0));
+        json_object_array_add(meshes, j);
+    }
+    json_object_object_add(o, "meshes", meshes);
+    return o;
+}
+
+/* Runs on rank 0 after every step of a chunk. */
+static bool step_hook(gs_engine *eng, void *user)
+{
+    gs_service *s = user;
+    gs_system *sys = gs_engine_system(eng);
+    int64_t st = sys->step;
+    if (st % sys->scene->telemetry_every == 0) {
+        double t0 = gs_now();
+        json_object *o = gsi_state_json(s);
+        if (s->adv.active)
+            json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
+        gsi_publish(s, "telemetry", o);
+        s->timing_telemetry += gs_now() - t0;
+    }
+    if (s->record && st % sys->scene->record_every == 0) {
+        double t0 = gs_now();
+        if (gs_record_sample(s->record, sys) != GS_OK) {
+            json_object *w = json_object_new_object();
+            json_object_object_add(w, "code", json_object_new_string("io_error"));
+            json_object_object_add(w, "message", json_object_new_string("recording stopped: out of memory"));
+            gsi_publish(s, "error", w);
+            gs_record_close(&s->record);
+        }
+        s->timing_record += gs_now() - t0;
+    }
+    return true;
+}
+
+gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,
+                        gs_diag *d)
+{
+    if (!rel || !rel[0])
+        return gs_diag_set(d, GS_ERANGE, "path", "the path is empty");
+    if (rel[0] == '/')
+        return gs_diag_set(d, GS_ERANGE, "path", "absolute paths are refused; paths are relative to the data directory");
+    if (strlen(rel) > 512)
+        return gs_diag_set(d, GS_ERANGE, "path", "the path is too long");
+    /* No '..' component anywhere, no control characters. */
+    const char *p = rel;
+    while (*p) {
+        const char *q = strchr(p, '/');
+        size_t n = q ? (size_t)(q - p) : strlen(p);
+        if (n == 2 && p[0] == '.' && p[1] == '.')
+            return gs_diag_set(d, GS_ERANGE, "path", "'..' is refused in paths");
+        p += n;
+        if (*p == '/')
+            p++;
+    }
+    for (p = rel; *p; p++)
+        if ((unsigned char)*p < 0x20)
+            return gs_diag_set(d, GS_ERANGE, "path", "control characters are refused in paths");
+    int n = snprintf(out, cap, "%s/%s", s->data_dir, rel);
+    if (n < 0 || (size_t)n >= cap)
+        return gs_diag_set(d, GS_ERANGE, "path", "the path is too long");
+    /* Symlinks must not lead outside: check the real path of the existing
+     * file (reads) or of its directory (writes). */
+    char probe[PATH_MAX], real[PATH_MAX];
+    snprintf(probe, sizeof probe, "%s", out);
+    if (for_write) {
+        char *slash = strrchr(probe, '/');
+        if (slash)
+            *slash = '\0';
+    }
+    if (!realpath(probe, real)) {
+        if (for_write)
+            return gs_diag_set(d, GS_ENOTFOUND, "path", "the directory of '%s' does not exist", rel);
+        return gs_diag_set(d, GS_ENOTFOUND, "path", "no file '%s' in the data directory", rel);
+    }
+    size_t dl = strlen(s->data_dir);
+    if (strncmp(real, s->data_dir, dl) != 0 || (real[dl] != '\0' && real[dl] != '/'))
+        return gs_diag_set(d, GS_ERANGE, "path", "'%s' leads outside the data directory", rel);
+    if (for_write) {
+        struct stat st;
+        if (lstat(out, &st) == 0 && S_ISLNK(st.st_mode))
+            return gs_diag_set(d, GS_ERANGE, "path", "'%s' is a symbolic link; refused", rel);
+    }
+    return GS_OK;
+}
+
+static void send_reply(gs_service *s, zmq_msg_t *ident, bool delim, const char *txt)
+{
+    zmq_msg_t copy;
+    zmq_msg_init(&copy);
+    zmq_msg_copy(&copy, ident);
+    zmq_msg_send(&copy, s->router, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+    if (delim)
+        zmq_send(s->router, "", 0, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+    zmq_send(s->router, txt, strlen(txt), ZMQ_DONTWAIT);
+}
+
+static json_object *error_reply(json_object *id, gs_err e, const gs_diag *d)
+{
+    json_object *r = json_object_new_object();
+    json_object_object_add(r, "v", json_object_new_int(1));
+    json_object_object_add(r, "id", id ? json_object_get(id) : NULL);
+    json_object_object_add(r, "ok", json_object_new_boolean(0));
+    json_object *err = json_object_new_object();
+    json_object_object_add(err, "code", json_object_new_string(gs_errcode(e)));
+    json_object_object_add(err, "message",
+                           json_object_new_string(d && d->message[0] ? d->message : gs_strerror(e)));
+    json_object_object_add(err, "field", json_object_new_string(d ? d->field : ""));
+    json_object_object_add(r, "error", err);
+    return r;
+}
+
+static void cache_key(char *out, size_t cap, zmq_msg_t *ident, const char *id)
+{
+    const unsigned char *b = zmq_msg_data(ident);
+    size_t n = zmq_msg_size(ident), k = 0;
+    for (size_t i = 0; i < n && k + 3 < cap; i++)
+        k += (size_t)snprintf(out + k, cap - k, "%02x", b[i]);
+    snprintf(out + k, cap - k, "/%s", id);
+}
+
+static const char *cache_get(gs_service *s, const char *key)
+{
+    for (int i = 0; i < GSI_CACHE; i++)
+        if (s->cache[i].reply && strcmp(s->cache[i].key, key) == 0)
+            return s->cache[i].reply;
+    return NULL;
+}
+
+static void cache_put(gs_service *s, const char *key, const char *reply)
+{
+    svc_cache_entry *c = &s->cache[s->cache_next];
+    s->cache_next = (s->cache_next + 1) % GSI_CACHE;
+    free(c->reply);
+    snprintf(c->key, sizeof c->key, "%s", key);
+    c->reply = gs_strdup(reply);
+}
+
+/* Validate the envelope, dispatch, reply. Never fails: bad input is answered. */
+static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const char *data, size_t len,
+                           bool too_big)
+{
+    gs_diag d;
+    gs_diag_clear(&d);
+    json_object *req = NULL, *reply = NULL, *idv = NULL;
+    gs_err e = GS_OK;
+    if (too_big) {
+        e = gs_diag_set(&d, GS_ETOOBIG, "", "the message exceeds %u bytes", GSI_MAX_MESSAGE);
+        goto answer;
+    }
+    json_tokener *tok = json_tokener_new_ex(64);
+    req = json_tokener_parse_ex(tok, data, (int)len);
+    enum json_tokener_error je = json_tokener_get_error(tok);
+    size_t end = req ? (size_t)json_tokener_get_parse_end(tok) : 0;
+    json_tokener_free(tok);
+    if (req)
+        for (size_t i = end; i < len; i++)
+            if (!strchr(" \t\r\n", data[i])) {
+                je = json_tokener_error_parse_unexpected;
+                break;
+            }
+    if (!req || je != json_tokener_success || memchr(data, '\0', len)) {
+        json_object_put(req);
+        req = NULL;
+        e = gs_diag_set(&d, GS_EPARSE, "", "the request is not valid JSON%s%s",
+                        je != json_tokener_success ? ": " : "",
+                        je != json_tokener_success ? json_tokener_error_desc(je) : "");
+        goto answer;
+    }
+    if (json_object_get_type(req) != json_type_object) {
+        e = gs_diag_set(&d, GS_ESCHEMA, "", "the request must be a JSON object");
+        goto answer;
+    }
+    if (json_object_object_get_ex(req, "id", &idv) && json_object_get_type(idv) != json_type_string) {
+        idv = NULL;
+        e = gs_diag_set(&d, GS_ESCHEMA, "id", "'id' must be a string");
+        goto answer;
+    }
+    static const char *const env_keys[] = {"v", "id", "cmd", "args", NULL};
+    if ((e = gsi_json_only(req, "", env_keys, &d)) != GS_OK)
+        goto answer;
+    json_object *v;
+    if (!json_object_object_get_ex(req, "v", &v)) {
+        e = gs_diag_set(&d, GS_ESCHEMA, "v", "missing required field 'v' (protocol version)");
+        goto answer;
+    }
+    if (json_object_get_type(v) != json_type_int || json_object_get_int64(v) != 1) {
+        e = gs_diag_set(&d, GS_EVERSION, "v", "protocol version %s is not supported (this daemon speaks 1)",
+                        json_object_to_json_string(v));
+        goto answer;
+    }
+    if (!idv) {
+        e = gs_diag_set(&d, GS_ESCHEMA, "id", "missing required field 'id'");
+        goto answer;
+    }
+    const char *id = json_object_get_string(idv);
+    if (strlen(id) == 0 || strlen(id) > 128) {
+        e = gs_diag_set(&d, GS_ERANGE, "id", "'id' must have 1 to 128 characters");
+        goto answer;
+    }
+    char key[320];
+    cache_key(key, sizeof key, ident, id);
+    const char *cached = cache_get(s, key);
+    if (cached) {
+        send_reply(s, ident, delim, cached);
+        json_object_put(req);
+        return;
+    }
+    json_object *cmdv, *args = NULL;
+    if (!json_object_object_get_ex(req, "cmd", &cmdv) || json_object_get_type(cmdv) != json_type_string) {
+        e = gs_diag_set(&d, GS_ESCHEMA, "cmd", "'cmd' must be a string naming a command");
+        goto answer;
+    }
+    const gsi_command *c = gsi_command_find(json_object_get_string(cmdv));
+    if (!c) {
+        e = gs_diag_set(&d, GS_EUNKNOWN, "cmd", "unknown command '%.64s'", json_object_get_string(cmdv));
+        goto answer;
+    }
+    if (json_object_object_get_ex(req, "args", &args)) {
+        if (json_object_get_type(args) != json_type_object) {
+            e = gs_diag_set(&d, GS_ESCHEMA, "args", "'args' must be an object");
+            goto answer;
+        }
+    }
+    json_object *empty = NULL;
+    if (!args)
+        args = empty = json_object_new_object();
+    if ((e = gsi_json_only(args, "args", c->args, &d)) == GS_OK) {
+        if (s->adv.active && !c->during_advance)
+            e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
+        else {
+            json_object *result = NULL;
+            e = c->handler(s, args, id, &result, &d);
+            if (e == GS_OK) {
+                reply = json_object_new_object();
+                json_object_object_add(reply, "v", json_object_new_int(1));
+                json_object_object_add(reply, "id", json_object_get(idv));
+                json_object_object_add(reply, "ok", json_object_new_boolean(1));
+                json_object_object_add(reply, "result", result ? result : json_object_new_object());
+            } else {
+                json_object_put(result);
+            }
+        }
+    }
+    json_object_put(empty);
+answer:
+    if (!reply)
+        reply = error_reply(idv, e, &d);
+    const char *txt = json_object_to_json_string_ext(reply, JSON_C_TO_STRING_PLAIN);
+    if (idv && json_object_get_type(idv) == json_type_string && e != GS_ETOOBIG) {
+        char k2[320];
+        cache_key(k2, sizeof k2, ident, json_object_get_string(idv));
+        cache_put(s, k2, txt);
+    }
+    send_reply(s, ident, delim, txt);
+    json_object_put(reply);
+    json_object_put(req);
+}
+
+/* Receive one whole multipart message from the ROUTER and answer it. */
+static void receive_one(gs_service *s)
+{
+    zmq_msg_t ident, part;
+    zmq_msg_init(&ident);
+    if (zmq_msg_recv(&ident, s->router, ZMQ_DONTWAIT) < 0) {
+        zmq_msg_close(&ident);
+        return;
+    }
+    int nparts = 0;
+    bool delim = false, too_big = false;
+    char *data = NULL;
+    size_t len = 0;
+    while (zmq_msg_more(&ident) || nparts > 0) {
+        zmq_msg_init(&part);
+        if (zmq_msg_recv(&part, s->router, 0) < 0) {
+            zmq_msg_close(&part);
+            break;
+        }
+        size_t n = zmq_msg_size(&part);
+        bool more = zmq_msg_more(&part);
+        if (nparts == 0 && n == 0 && more) {
+            delim = true; /* REQ-style envelope */
+        } else {
+            nparts++;
+            if (nparts == 1) {
+                if (n > GSI_MAX_MESSAGE)
+                    too_big = true;
+                else {
+                    data = malloc(n + 1);
+                    if (data) {
+                        memcpy(data, zmq_msg_data(&part), n);
+                        data[n] = '\0';
+                        len = n;
+                    }
+                }
+            }
+        }
+        zmq_msg_close(&part);
+        if (!more)
+            break;
+    }
+    if (nparts > 1) {
+        gs_diag d;
+        gs_diag_set(&d, GS_ESCHEMA, "", "a request is one frame; got %d", nparts);
+        json_object *r = error_reply(NULL, GS_ESCHEMA, &d);
+        send_reply(s, &ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
+        json_object_put(r);
+    } else if (nparts == 1) {
+        handle_request(s, &ident, delim, data ? data : "", data ? len : 0, too_big || !data);
+    } else {
+        gs_diag d;
+        gs_diag_set(&d, GS_EPARSE, "", "empty message");
+        json_object *r = error_reply(NULL, GS_EPARSE, &d);
+        send_reply(s, &ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
+        json_object_put(r);
+    }
+    free(data);
+    zmq_msg_close(&ident);
+}
+
+static void heartbeat(gs_service *s)
+{
+    static const char *const names[] = {"empty", "loaded", "running", "paused"};
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "state", json_object_new_string(names[s->state]));
+    gsi_publish(s, "heartbeat", o);
+}
+
+/* One chunk of the running advance, sized to about 20 ms of work. */
+static void run_chunk(gs_service *s)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    int64_t left = s->adv.target_step - sys->step;
+    if (left <= 0) {
+        gsi_finish_advance(s, false, GS_OK, NULL);
+        return;
+    }
+    if (s->adv.job >= 0)
+        gsi_job_between_chunks(s);
+    int64_t n = s->chunk_steps < left ? s->chunk_steps : left;
+    /* Stop a job's chunk at its next scheduled load change. */
+    if (s->adv.job >= 0) {
+        json_object *sch = s->jobs[s->adv.job].schedule;
+        if (sch && s->adv.next_schedule < (int)json_object_array_length(sch)) {
+            double at = json_object_get_double(json_object_object_get(
+                json_object_array_get_idx(sch, (size_t)s->adv.next_schedule), "at"));
+            int64_t k = (int64_t)ceil((at - sys->time) / sys->h - 1e-9);
+            if (k >= 1 && k < n)
+                n = k;
+        }
+    }
+    double t0 = gs_now();
+    int64_t done = 0;
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_err e = gs_engine_run(s->eng, GS_OP_STEP, &n, sizeof n, &d, &done);
+    double dt = gs_now() - t0;
+    s->timing_step += dt;
+    if (done > 0 && dt > 0) {
+        double rate = (double)done / dt;
+        s->steps_per_second = rate;
+        /* About 10 ms of work per chunk, growing at most twofold per chunk
+         * so a misjudged rate never makes `status` wait long. */
+        int64_t want = (int64_t)(0.01 * rate);
+        if (want > 2 * s->chunk_steps)
+            want = 2 * s->chunk_steps;
+        s->chunk_steps = want < 1 ? 1 : (want > 1000000 ? 1000000 : want);
+    }
+    if (s->record)
+        gs_record_flush(s->record);
+    if (e != GS_OK) {
+        gsi_finish_advance(s, false, e, e == GS_ENOCONV ? "the step's Newton iteration did not converge" : gs_strerror(e));
+        return;
+    }
+    double now = gs_now();
+    if (now - s->last_progress > 0.1 || sys->step >= s->adv.target_step) {
+        s->last_progress = now;
+        json_object *o = json_object_new_object();
+        double total = (double)(s->adv.target_step - s->adv.start_step);
+        json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
+        json_object_object_add(o, "fraction", json_object_new_double(total > 0 ? (double)(sys->step - s->adv.start_step) / total : 1.0));
+        json_object_object_add(o, "steps_per_second", json_object_new_double(s->steps_per_second));
+        gsi_publish(s, "progress", o);
+    }
+    if (sys->step >= s->adv.target_step)
+        gsi_finish_advance(s, false, GS_OK, NULL);
+}
+
+static gs_err write_connection_file(gs_service *s)
+{
+    const char *path = s->cfg->connection_file;
+    char dir[PATH_MAX];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    if (slash && slash != dir) {
+        *slash = '\0';
+        mkdir(dir, 0700);
+    }
+    json_object *o = json_object_new_object();
+    int size = gs_engine_size(s->eng);
+    json_object_object_add(o, "v", json_object_new_int(1));
+    json_object_object_add(o, "protocol", json_object_new_int(1));
+    json_object_object_add(o, "session", json_object_new_string(s->session));
+    json_object_object_add(o, "command", json_object_new_string(s->cmd_endpoint));
+    json_object_object_add(o, "telemetry", json_object_new_string(s->tel_endpoint));
+    json_object_object_add(o, "pid", json_object_new_int((int)getpid()));
+    json_object_object_add(o, "ranks", json_object_new_int(size));
+    json_object_object_add(o, "version", json_object_new_string("0.1.0"));
+    json_object_object_add(o, "data_dir", json_object_new_string(s->data_dir));
+    char tmp[PATH_MAX + 8];
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    gs_err e = GS_OK;
+    if (fd < 0) {
+        e = GS_EIO;
+    } else {
+        const char *txt = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY);
+        size_t n = strlen(txt);
+        if (write(fd, txt, n) != (ssize_t)n || write(fd, "\n", 1) != 1)
+            e = GS_EIO;
+        close(fd);
+        if (e == GS_OK && rename(tmp, path) != 0)
+            e = GS_EIO;
+    }
+    json_object_put(o);
+    return e;
+}
+
+static gs_err bind_socket(void *sock, const char *bind, int port, char *out, size_t cap)
+{
+    char ep[300];
+    if (port > 0)
+        snprintf(ep, sizeof ep, "tcp://%s:%d", bind, port);
+    else
+        snprintf(ep, sizeof ep, "tcp://%s:*", bind);
+    if (zmq_bind(sock, ep) != 0) {
+        fprintf(stderr, "gearsimd: cannot bind %s: %s\n", ep, zmq_strerror(errno));
+        return GS_EIO;
+    }
+    size_t n = cap;
+    zmq_getsockopt(sock, ZMQ_LAST_ENDPOINT, out, &n);
+    return GS_OK;
+}
+
+gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
+{
+    gs_service *s = gs_calloc(1, sizeof *s);
+    if (!s)
+        return GS_ENOMEM;
+    s->eng = eng;
+    s->cfg = cfg;
+    s->adv.job = -1;
+    s->chunk_steps = 20;
+    if (!realpath(cfg->data_dir ? cfg->data_dir : ".", s->data_dir)) {
+        fprintf(stderr, "gearsimd: data directory '%s' does not exist\n", cfg->data_dir);
+        free(s);
+        return GS_EIO;
+    }
+    FILE *ur = fopen("/dev/urandom", "rb");
+    unsigned char rnd[16] = {0};
+    if (!ur || fread(rnd, 1, sizeof rnd, ur) != sizeof rnd) {
+        double t = gs_now();
+        memcpy(rnd, &t, sizeof t);
+    }
+    if (ur)
+        fclose(ur);
+    for (int i = 0; i < 16; i++)
+        snprintf(s->session + 2 * i, 3, "%02x", rnd[i]);
+    gs_engine_set_hook(eng, step_hook, s);
+
+    s->zctx = zmq_ctx_new();
+    s->router = zmq_socket(s->zctx, ZMQ_ROUTER);
+    s->pub = zmq_socket(s->zctx, ZMQ_PUB);
+    int linger = 0, hwm = 10000, mandatory = 0;
+    int64_t maxmsg = 64ll << 20; /* hard cap; above GSI_MAX_MESSAGE the reply says too_large */
+    zmq_setsockopt(s->router, ZMQ_LINGER, &linger, sizeof linger);
+    zmq_setsockopt(s->pub, ZMQ_LINGER, &linger, sizeof linger);
+    zmq_setsockopt(s->pub, ZMQ_SNDHWM, &hwm, sizeof hwm);
+    zmq_setsockopt(s->router, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
+    zmq_setsockopt(s->router, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
+    const char *bind = cfg->bind ? cfg->bind : "127.0.0.1";
+    gs_err e = bind_socket(s->router, bind, cfg->command_port, s->cmd_endpoint, sizeof s->cmd_endpoint);
+    if (e == GS_OK)
+        e = bind_socket(s->pub, bind, cfg->telemetry_port, s->tel_endpoint, sizeof s->tel_endpoint);
+    if (e == GS_OK && write_connection_file(s) != GS_OK) {
+        fprintf(stderr, "gearsimd: cannot write the connection file '%s'\n", cfg->connection_file);
+        e = GS_EIO;
+    }
+    if (e == GS_OK) {
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = on_signal;
+        sigaction(SIGTERM, &sa, NULL);
+        sigaction(SIGINT, &sa, NULL);
+        signal(SIGPIPE, SIG_IGN);
+        fprintf(stderr, "gearsimd: %d rank(s), commands on %s, telemetry on %s\n",
+                gs_engine_size(eng), s->cmd_endpoint, s->tel_endpoint);
+    }
+    while (e == GS_OK && !s->shutdown && !stop_signal) {
+        bool running = s->adv.active && s->state == SVC_RUNNING;
+        zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
+        int rc = zmq_poll(items, 1, running ? 0 : 100);
+        if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
+            for (int i = 0; i < 256 && !s->shutdown; i++) {
+                int ev = 0;
+                size_t n = sizeof ev;
+                zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
+                if (!(ev & ZMQ_POLLIN))
+                    break;
+                receive_one(s);
+            }
+        if (s->shutdown)
+            break;
+        if (s->adv.active && s->state == SVC_RUNNING)
+            run_chunk(s);
+        else if (!s->adv.active)
+            gsi_start_next_job(s);
+        double now = gs_now();
+        if (now - s->last_heartbeat >= 1.0) {
+            s->last_heartbeat = now;
+            heartbeat(s);
+        }
+    }
+    if (s->adv.active)
+        gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");
+    gs_record_close(&s->record);
+    gs_diag d;
+    gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
+    if (cfg->connection_file)
+        unlink(cfg->connection_file);
+    zmq_close(s->router);
+    zmq_close(s->pub);
+    zmq_ctx_term(s->zctx);
+    for (int i = 0; i < GSI_CACHE; i++)
+        free(s->cache[i].reply);
+    for (int i = 0; i < s->n_jobs; i++) {
+        free(s->jobs[i].scene_json);
+        json_object_put(s->jobs[i].schedule);
+    }
+    free(s);
+    return e;
+}

@@ -1,0 +1,89 @@
+/* SPDX-License-Identifier: MIT
+ * Internal: the service's state shared by the loop (service.c) and the
+ * command handlers (commands.c). */
+#ifndef GSI_SERVICE_INTERNAL_H
+#define GSI_SERVICE_INTERNAL_H
+
+#include <json-c/json.h>
+#include <limits.h>
+
+#include "gearsim/record.h"
+#include "gearsim/service.h"
+
+#define GSI_MAX_MESSAGE (4u << 20)
+#define GSI_MAX_STEPS_PER_ADVANCE 1000000000LL
+#define GSI_MAX_JOBS 64
+#define GSI_CACHE 4096
+
+typedef enum { SVC_EMPTY, SVC_LOADED, SVC_RUNNING, SVC_PAUSED } svc_state;
+
+typedef struct svc_job {
+    char id[32];
+    char *scene_json;
+    json_object *schedule;  /* array of {at, load}, sorted by at */
+    double duration;
+    char record[PATH_MAX];
+    char state[16];         /* queued, running, done, failed */
+    char error[256];
+} svc_job;
+
+typedef struct svc_advance {
+    bool active;
+    char parent_id[160];
+    int64_t start_step, target_step;
+    double wall_start;
+    int job;                /* index of the job driving it, -1 for a client */
+    int next_schedule;
+} svc_advance;
+
+typedef struct svc_cache_entry {
+    char key[320];          /* identity hex + '/' + id */
+    char *reply;
+} svc_cache_entry;
+
+typedef struct gs_service {
+    gs_engine *eng;
+    const gs_service_config *cfg;
+    char data_dir[PATH_MAX];
+    void *zctx, *router, *pub;
+    char cmd_endpoint[256], tel_endpoint[256];
+    char session[33];
+    uint64_t seq;
+    svc_state state;
+    svc_advance adv;
+    gs_record *record;
+    int64_t chunk_steps;
+    double steps_per_second;
+    double last_progress, last_heartbeat;
+    svc_job jobs[GSI_MAX_JOBS];
+    int n_jobs, job_counter;
+    svc_cache_entry cache[GSI_CACHE];
+    int cache_next;
+    bool shutdown;
+    double timing_step, timing_telemetry, timing_record;
+} gs_service;
+
+/* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */
+void gsi_publish(gs_service *s, const char *type, json_object *o);
+json_object *gsi_state_json(gs_service *s);
+/* Resolve a client path inside the data directory; refuses absolute paths,
+ * '..' components and symlinks that lead outside. */
+gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,
+                        gs_diag *d);
+
+/* Command table (commands.c). */
+typedef gs_err (*gsi_handler)(gs_service *s, json_object *args, const char *id,
+                              json_object **result, gs_diag *d);
+typedef struct gsi_command {
+    const char *name;
+    gsi_handler handler;
+    bool during_advance;     /* may run while an advance is in progress */
+    const char *const *args; /* allowed argument names (NULL-terminated) */
+} gsi_command;
+const gsi_command *gsi_command_find(const char *name);
+const gsi_command *gsi_commands(void);
+void gsi_start_next_job(gs_service *s);
+void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *msg);
+void gsi_job_between_chunks(gs_service *s);
+
+#endif

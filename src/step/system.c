@@ -1,0 +1,406 @@
+/* SPDX-License-Identifier: MIT
+ * Building the system from a scene: joint coordinates (METHOD.md section 1),
+ * body ownership over ranks, mesh kinematics along the lines of action,
+ * loads, and the energy bookkeeping. */
+#include <lapacke.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/step.h"
+#include "gearsim/util.h"
+
+void gs_system_free(gs_system **ps)
+{
+    if (!ps || !*ps)
+        return;
+    gs_system *s = *ps;
+    for (int i = 0; s->bodies && i < s->n_bodies; i++)
+        if (s->bodies[i].ops)
+            s->bodies[i].ops->destroy(&s->bodies[i]);
+    for (int i = 0; s->meshes && i < s->n_meshes; i++) {
+        free(s->meshes[i].a);
+        free(s->meshes[i].c);
+    }
+    free(s->bodies);
+    free(s->meshes);
+    free(s->eq_rows);
+    free(s->q);
+    free(s->w);
+    free(s->work);
+    gs_scene_free(&s->scene);
+    free(s);
+    *ps = NULL;
+}
+
+/* Work weight of a body for balancing ranks: elastic bodies cost far more. */
+static double body_weight(const gs_scene_body *b)
+{
+    if (b->model == GS_MODEL_ELASTIC)
+        return 100.0;
+    return b->joint == GS_JOINT_HELD ? 0.1 : 1.0;
+}
+
+static void assign_owners(gs_system *s)
+{
+    double load[1024] = {0};
+    int nr = s->nranks > 1024 ? 1024 : s->nranks;
+    /* Greedy in body order, heaviest first is not needed for a handful of
+     * bodies; determinism is: the same scene and rank count give the same map. */
+    for (int i = 0; i < s->n_bodies; i++) {
+        int best = 0;
+        for (int r = 1; r < nr; r++)
+            if (load[r] < load[best])
+                best = r;
+        s->bodies[i].owner = best;
+        load[best] += body_weight(&s->scene->bodies[i]);
+    }
+}
+
+static void body_centre(const gs_scene *sc, int i, double c[2])
+{
+    const gs_scene_body *b = &sc->bodies[i];
+    if (b->joint == GS_JOINT_ON_CARRIER) {
+        const gs_scene_body *cb = &sc->bodies[b->carrier];
+        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
+        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
+    } else {
+        c[0] = b->centre[0];
+        c[1] = b->centre[1];
+    }
+}
+
+/* Line-of-action displacement of a mesh, measured in the frame of the carrier
+ * that one of its gears rides on (or the housing): s = sum_k sigma_k r_bk
+ * (theta_k - theta_C), sigma = +1 for an external gear, -1 for a ring. It is
+ * exact for involute gears on fixed axes in that frame. */
+static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
+{
+    const gs_scene *sc = s->scene;
+    const gs_scene_mesh *sm = &sc->meshes[m->index];
+    int n = s->n_coords;
+    m->a = gs_calloc((size_t)n, sizeof(double));
+    m->c = gs_calloc((size_t)n, sizeof(double));
+    if (!m->a || !m->c)
+        return GS_ENOMEM;
+    int carrier = -1;
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *g = &sc->bodies[sm->gear[k]];
+        if (g->joint == GS_JOINT_ON_CARRIER)
+            carrier = g->carrier;
+    }
+    int cc = carrier >= 0 ? s->bodies[carrier].coord : -1;
+    int pinion = sc->bodies[sm->gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *g = &sc->bodies[sm->gear[k]];
+        double sigma = g->gear.kind == GS_GEAR_INTERNAL ? -1.0 : 1.0;
+        double rb = gs_gear_base_radius(&g->gear);
+        int ck = s->bodies[sm->gear[k]].coord;
+        if (ck >= 0)
+            m->a[ck] += sigma * rb;
+        if (cc >= 0)
+            m->a[cc] -= sigma * rb;
+        if (k == pinion) {
+            double z = g->gear.teeth / (2 * GS_PI);
+            if (ck >= 0)
+                m->c[ck] += z;
+            if (cc >= 0)
+                m->c[cc] -= z;
+        }
+    }
+    double c0[2], c1[2];
+    body_centre(sc, sm->gear[0], c0);
+    body_centre(sc, sm->gear[1], c1);
+    double alpha_w;
+    GS_TRY(gs_pair_contact_ratio(&sc->bodies[sm->gear[0]].gear, &sc->bodies[sm->gear[1]].gear,
+                                 hypot(c1[0] - c0[0], c1[1] - c0[1]), &m->contact_ratio, &alpha_w, d));
+    bool moves = false;
+    for (int i = 0; i < n; i++)
+        moves |= m->a[i] != 0.0;
+    if (!moves) {
+        char f[64];
+        snprintf(f, sizeof f, "meshes[%d]", m->index);
+        return gs_diag_set(d, GS_ERANGE, f, "mesh '%s' connects bodies that cannot move", sm->name);
+    }
+    return GS_OK;
+}
+
+/* Make the initial speeds satisfy the kinematic rows: the M-orthogonal
+ * projection w - M^-1 G^T (G M^-1 G^T)^-1 G w, the nearest consistent state
+ * in kinetic energy. */
+static gs_err project_speeds(gs_system *s)
+{
+    int n = s->n_coords, m = s->n_eq;
+    if (m == 0)
+        return GS_OK;
+    double *minv = gs_calloc((size_t)n, sizeof(double));
+    double *S = gs_calloc((size_t)(m * m), sizeof(double));
+    double *r = gs_calloc((size_t)m, sizeof(double));
+    if (!minv || !S || !r) {
+        free(minv), free(S), free(r);
+        return GS_ENOMEM;
+    }
+    for (int i = 0; i < s->n_bodies; i++)
+        if (s->bodies[i].coord >= 0)
+            minv[s->bodies[i].coord] = 1.0 / s->bodies[i].inertia_eff;
+    double gw = 0, wn = 0;
+    for (int a = 0; a < m; a++) {
+        const double *ga = s->eq_rows + (size_t)a * n;
+        for (int b = 0; b < m; b++) {
+            const double *gb = s->eq_rows + (size_t)b * n;
+            double v = 0;
+            for (int i = 0; i < n; i++)
+                v += ga[i] * minv[i] * gb[i];
+            S[a * m + b] = v;
+        }
+        for (int i = 0; i < n; i++)
+            r[a] += ga[i] * s->w[i];
+        gw = fmax(gw, fabs(r[a]));
+    }
+    for (int i = 0; i < n; i++)
+        wn = fmax(wn, fabs(s->w[i]));
+    gs_err e = GS_OK;
+    if (gw > 0) {
+        /* Redundant rows (a closed loop of kinematic meshes) make S singular:
+         * least squares via dgelsd-free path: use the pseudo-inverse by SVD-less
+         * regularisation is not exact, so refuse such trains clearly. */
+        if (LAPACKE_dposv(LAPACK_ROW_MAJOR, 'U', m, 1, S, m, r, 1) != 0) {
+            e = GS_ESINGULAR;
+        } else {
+            for (int i = 0; i < n; i++) {
+                double v = 0;
+                for (int a = 0; a < m; a++)
+                    v += s->eq_rows[(size_t)a * n + i] * r[a];
+                s->w[i] -= minv[i] * v;
+            }
+            if (gw > 1e-12 * (wn > 0 ? wn : 1))
+                snprintf(s->warning, sizeof s->warning,
+                         "initial speeds did not satisfy the kinematic meshes and were projected onto them");
+        }
+    }
+    free(minv), free(S), free(r);
+    return e;
+}
+
+gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_diag *d)
+{
+    *out = NULL;
+    gs_system *s = gs_calloc(1, sizeof *s);
+    if (!s) {
+        gs_scene_free(&scene);
+        return GS_ENOMEM;
+    }
+    s->scene = scene;
+    s->rank = rank;
+    s->nranks = nranks < 1 ? 1 : nranks;
+    s->n_bodies = scene->n_bodies;
+    s->n_meshes = scene->n_meshes;
+    s->h = scene->time_step;
+    gs_err e = GS_ENOMEM;
+    s->bodies = gs_calloc((size_t)s->n_bodies, sizeof *s->bodies);
+    s->meshes = gs_calloc((size_t)(s->n_meshes ? s->n_meshes : 1), sizeof *s->meshes);
+    if (!s->bodies || !s->meshes)
+        goto fail;
+    for (int i = 0; i < s->n_bodies; i++) {
+        gs_body_rt *b = &s->bodies[i];
+        const gs_scene_body *sb = &scene->bodies[i];
+        b->index = i;
+        b->coord = sb->joint == GS_JOINT_HELD ? -1 : s->n_coords++;
+        b->inertia_eff = sb->inertia;
+        if (sb->type == GS_BODY_CARRIER)
+            for (int j = 0; j < s->n_bodies; j++) {
+                const gs_scene_body *p = &scene->bodies[j];
+                if (p->joint == GS_JOINT_ON_CARRIER && p->carrier == i)
+                    b->inertia_eff += p->mass * p->carrier_radius * p->carrier_radius;
+            }
+        const char *model = sb->model == GS_MODEL_ELASTIC ? "elastic" : "rigid";
+        b->ops = gs_body_ops_find(model);
+        if (!b->ops) {
+            char f[64];
+            snprintf(f, sizeof f, "bodies[%d].model", i);
+            e = gs_diag_set(d, GS_ERANGE, f, "body model '%s' is not available in this build", model);
+            b->ops = NULL;
+            goto fail;
+        }
+    }
+    assign_owners(s);
+    for (int i = 0; i < s->n_bodies; i++) {
+        e = s->bodies[i].ops->init(s, &s->bodies[i], d);
+        if (e != GS_OK) {
+            for (int j = i; j < s->n_bodies; j++)
+                s->bodies[j].ops = NULL;
+            goto fail;
+        }
+    }
+    e = GS_ENOMEM;
+    int n = s->n_coords;
+    s->q = gs_calloc((size_t)(n ? n : 1), sizeof(double));
+    s->w = gs_calloc((size_t)(n ? n : 1), sizeof(double));
+    if (!s->q || !s->w)
+        goto fail;
+    for (int i = 0; i < s->n_bodies; i++)
+        if (s->bodies[i].coord >= 0) {
+            s->q[s->bodies[i].coord] = scene->bodies[i].angle0;
+            s->w[s->bodies[i].coord] = scene->bodies[i].omega0;
+        }
+    for (int i = 0; i < s->n_meshes; i++) {
+        gs_gmesh_rt *m = &s->meshes[i];
+        m->index = i;
+        const char *model = scene->meshes[i].model == GS_MESH_KINEMATIC ? "kinematic" : "lumped";
+        m->ops = gs_gmesh_ops_find(model);
+        e = mesh_kinematics(s, m, d);
+        if (e != GS_OK)
+            goto fail;
+        double sref = 0;
+        for (int j = 0; j < n; j++)
+            sref += m->a[j] * s->q[j];
+        m->s_ref = sref;
+        e = m->ops->init(s, m, d);
+        if (e != GS_OK)
+            goto fail;
+        s->n_eq += m->ops->n_eq;
+    }
+    e = GS_ENOMEM;
+    s->eq_rows = gs_calloc((size_t)(s->n_eq * n + 1), sizeof(double));
+    if (!s->eq_rows)
+        goto fail;
+    for (int i = 0, r = 0; i < s->n_meshes; i++)
+        if (s->meshes[i].ops->n_eq == 1)
+            memcpy(s->eq_rows + (size_t)(r++) * n, s->meshes[i].a, (size_t)n * sizeof(double));
+    int kk = n + s->n_eq;
+    s->work = gs_calloc((size_t)(kk * kk + 10 * kk + n * n + 16), sizeof(double));
+    if (!s->work)
+        goto fail;
+    e = project_speeds(s);
+    if (e != GS_OK) {
+        gs_diag_set(d, e, "meshes", "the kinematic meshes over-constrain the train (a closed loop of exact ratios)");
+        goto fail;
+    }
+    gs_energy en;
+    gs_system_energy(s, &en);
+    s->energy0 = en.total;
+    *out = s;
+    return GS_OK;
+fail:
+    gs_system_free(&s);
+    return e;
+}
+
+static double load_moment(const gs_scene_load *l, double t)
+{
+    switch (l->type) {
+    case GS_LOAD_CONSTANT:
+        return l->moment;
+    case GS_LOAD_RAMP:
+        return t >= l->ramp_time ? l->moment : l->moment * t / l->ramp_time;
+    case GS_LOAD_TABLE: {
+        int n = l->n_table;
+        if (t <= l->times[0])
+            return l->moments[0];
+        if (t >= l->times[n - 1])
+            return l->moments[n - 1];
+        int lo = 0, hi = n - 1;
+        while (hi - lo > 1) {
+            int mid = (lo + hi) / 2;
+            if (l->times[mid] <= t)
+                lo = mid;
+            else
+                hi = mid;
+        }
+        double u = (t - l->times[lo]) / (l->times[hi] - l->times[lo]);
+        return l->moments[lo] + u * (l->moments[hi] - l->moments[lo]);
+    }
+    case GS_LOAD_BRAKE:
+        return 0.0;
+    }
+    return 0.0;
+}
+
+void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, double *brake)
+{
+    double M = 0, c = 0;
+    const gs_scene *sc = sys->scene;
+    for (int i = 0; i < sc->n_loads; i++) {
+        const gs_scene_load *l = &sc->loads[i];
+        if (l->body != b)
+            continue;
+        if (l->type == GS_LOAD_BRAKE)
+            c += l->coefficient;
+        else
+            M += load_moment(l, t);
+    }
+    *moment = M;
+    *brake = c;
+}
+
+gs_err gs_system_set_load(gs_system *sys, const gs_scene_load *l)
+{
+    gs_scene *sc = sys->scene;
+    for (int i = 0; i < sc->n_loads; i++)
+        if (!strcmp(sc->loads[i].name, l->name)) {
+            gs_scene_load_clear(&sc->loads[i]);
+            sc->loads[i] = *l;
+            return GS_OK;
+        }
+    if (sc->n_loads >= 256)
+        return GS_ETOOBIG;
+    gs_scene_load *nl = realloc(sc->loads, (size_t)(sc->n_loads + 1) * sizeof *nl);
+    if (!nl)
+        return GS_ENOMEM;
+    sc->loads = nl;
+    sc->loads[sc->n_loads++] = *l;
+    return GS_OK;
+}
+
+gs_err gs_system_remove_load(gs_system *sys, const char *name)
+{
+    gs_scene *sc = sys->scene;
+    for (int i = 0; i < sc->n_loads; i++)
+        if (!strcmp(sc->loads[i].name, name)) {
+            gs_scene_load_clear(&sc->loads[i]);
+            memmove(&sc->loads[i], &sc->loads[i + 1], (size_t)(sc->n_loads - i - 1) * sizeof *sc->loads);
+            sc->n_loads--;
+            return GS_OK;
+        }
+    return GS_ENOTFOUND;
+}
+
+void gs_system_energy(const gs_system *sys, gs_energy *e)
+{
+    double T = 0, V = 0;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (b->coord < 0)
+            continue;
+        double t, v;
+        b->ops->energy(sys, b, &t, &v);
+        T += t;
+        V += v;
+    }
+    for (int i = 0; i < sys->n_meshes; i++)
+        V += sys->meshes[i].ops->energy(sys, &sys->meshes[i], sys->q);
+    e->kinetic = T;
+    e->potential = V;
+    e->total = T + V;
+    e->work_in = sys->work_in;
+    e->dissipated = sys->dissipated;
+    e->balance_residual = e->total - sys->energy0 - sys->work_in + sys->dissipated;
+}
+
+double gs_system_angle(const gs_system *sys, int body)
+{
+    int c = sys->bodies[body].coord;
+    return c < 0 ? 0.0 : sys->q[c];
+}
+
+double gs_system_omega(const gs_system *sys, int body)
+{
+    int c = sys->bodies[body].coord;
+    return c < 0 ? 0.0 : sys->w[c];
+}
+
+double gs_system_rpm(const gs_system *sys, int body)
+{
+    return gs_system_omega(sys, body) * GS_RPM_PER_RAD_S;
+}
