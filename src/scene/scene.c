@@ -601,8 +601,9 @@ gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(parse_body(json_object_array_get_idx(arr, (size_t)i), p, &s->bodies[i], d));
         for (int j = 0; j < i; j++)
             if (!strcmp(s->bodies[j].name, s->bodies[i].name)) {
-                gsi_path(p, sizeof p, p, "name");
-                e = gs_diag_set(d, GS_ESCHEMA, p, "duplicate body name '%s'", s->bodies[i].name);
+                char pn[256];
+                gsi_path(pn, sizeof pn, p, "name");
+                e = gs_diag_set(d, GS_ESCHEMA, pn, "duplicate body name '%s'", s->bodies[i].name);
                 goto fail;
             }
     }

@@ -1,0 +1,101 @@
+/* SPDX-License-Identifier: MIT
+ * Scene validation: the builtin scenes parse; each bad value is refused with
+ * the right code and a field path naming it. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "gearsim/scene.h"
+
+static void builtins_parse(void **state)
+{
+    (void)state;
+    for (const char *const *n = gs_scene_builtin_names(); *n; n++) {
+        const char *t = gs_scene_builtin(*n);
+        gs_scene *s;
+        gs_diag d;
+        gs_err e = gs_scene_parse(t, strlen(t), &s, &d);
+        if (e)
+            print_error("%s: %s: %s\n", *n, d.field, d.message);
+        assert_int_equal(e, GS_OK);
+        assert_true(s->n_bodies >= 2);
+        gs_scene_free(&s);
+        assert_null(s);
+    }
+}
+
+/* Replace the first occurrence of `from` in the pair scene by `to`. */
+static gs_err parse_edit(const char *base, const char *from, const char *to, gs_diag *d)
+{
+    const char *t = gs_scene_builtin(base);
+    const char *at = strstr(t, from);
+    assert_non_null(at);
+    char buf[16384];
+    snprintf(buf, sizeof buf, "%.*s%s%s", (int)(at - t), t, to, at + strlen(from));
+    gs_scene *s = NULL;
+    gs_err e = gs_scene_parse(buf, strlen(buf), &s, d);
+    gs_scene_free(&s);
+    return e;
+}
+
+static void bad_values_name_the_field(void **state)
+{
+    (void)state;
+    struct {
+        const char *base, *from, *to;
+        gs_err code;
+        const char *field;
+    } cases[] = {
+        {"pair", "\"teeth\":20", "\"teeth\":-3", GS_ERANGE, "bodies[0].teeth"},
+        {"pair", "\"teeth\":20", "\"teeth\":\"x\"", GS_ESCHEMA, "bodies[0].teeth"},
+        {"pair", "\"module_mm\":2.5", "\"module_mm\":0", GS_ERANGE, "bodies[0].module_mm"},
+        {"pair", "\"module_mm\":2.5", "\"module_mm\":1e400", GS_ERANGE, "bodies[0].module_mm"},
+        {"pair", "\"time_step\":1e-05", "\"time_step\":-1", GS_ERANGE, "numerics.time_step"},
+        {"pair", "\"time_step\":1e-05", "\"time_step\":0", GS_ERANGE, "numerics.time_step"},
+        {"pair", "\"face_width_mm\":10", "\"face_width_mm\":10,\"colour\":1", GS_ESCHEMA, "bodies[0].colour"},
+        {"pair", "\"body\":\"pinion\",\"type\":\"fixed_axis\"", "\"body\":\"nobody\",\"type\":\"fixed_axis\"", GS_ENOTFOUND, "joints[0].body"},
+        {"pair", "\"coefficient\":0.3", "\"coefficient\":-0.3", GS_ERANGE, "loads[1].coefficient"},
+        {"pair", "\"type\":\"ramp\"", "\"type\":\"wobble\"", GS_ERANGE, "loads[0].type"},
+        {"pair", "\"centre_mm\":[62.5,0]", "\"centre_mm\":[90,0]", GS_EGEOMETRY, "meshes[0].gears"},
+        {"pair", "\"name\":\"wheel\"", "\"name\":\"pinion\"", GS_ESCHEMA, "bodies[1].name"},
+        {"planetary", "\"teeth\":72", "\"teeth\":73", GS_EGEOMETRY, ""},
+        {"planetary", "\"mass\":1.5,", "", GS_ESCHEMA, "bodies[5]"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        gs_diag d;
+        gs_diag_clear(&d);
+        gs_err e = parse_edit(cases[i].base, cases[i].from, cases[i].to, &d);
+        print_message("case %zu: %s -> code %s, field '%s': %s\n", i, cases[i].to, gs_errcode(e), d.field, d.message);
+        assert_int_equal(e, cases[i].code);
+        if (cases[i].field[0])
+            assert_string_equal(d.field, cases[i].field);
+        assert_true(strlen(d.message) > 0);
+    }
+}
+
+static void not_json(void **state)
+{
+    (void)state;
+    const char *bad[] = {"", "{", "[1,2]", "{\"bodies\":[]}trailing", "null"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        gs_scene *s;
+        gs_diag d;
+        gs_err e = gs_scene_parse(bad[i], strlen(bad[i]), &s, &d);
+        assert_true(e == GS_EPARSE || e == GS_ESCHEMA);
+        assert_null(s);
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(builtins_parse),
+        cmocka_unit_test(bad_values_name_the_field),
+        cmocka_unit_test(not_json),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
