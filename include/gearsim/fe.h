@@ -93,7 +93,8 @@ typedef struct gs_fe_model_info {
  * Errors: GS_EINVAL (NULL pointers, non-positive or non-finite E, rho,
  * thickness, nu outside (-1, 0.5), negative core inertia, node index out of
  * range), GS_EGEOMETRY (an element with zero or negative area, i.e. not
- * counter-clockwise), GS_ESINGULAR (the mass matrix of the body, theta
+ * counter-clockwise, or a node that is neither fixed nor in any element),
+ * GS_ESINGULAR (the mass matrix of the body, theta
  * included, is not positive definite: no fixed node and no core inertia),
  * GS_ENOMEM. */
 gs_err gs_fe_model_new(const gs_mesh *mesh, const gs_material *mat, double thickness_m,
@@ -220,8 +221,9 @@ gs_err gs_fe_body_step(gs_fe_body *b, double moment_nm, const double *f_nodes);
  * The compliance columns of the elastic block are cached per node for the
  * current h, so a tooth that comes back into mesh costs no solve. */
 
-/* Start a step: assemble b = 2/h M w - K q + F and solve for the free-motion
- * increment. Errors: GS_EINVAL, GS_ESTATE (no time step set, or a step
+/* Start a step: solve A dq = 2/h M w - K q + F for the free-motion
+ * increment (one sparse solve; formed as dq = h w + delta, see fe_body.c).
+ * Errors: GS_EINVAL, GS_ESTATE (no time step set, or a step
  * already begun). */
 gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_nodes);
 

@@ -6,11 +6,26 @@
  * rigid core carry zero elastic displacement (METHOD.md section 1); they are
  * listed in `fixed`. The geometry/mesh module may add fields (flank tables
  * for the contact search, etc.), but the fields below keep their meaning: the
- * FE module relies on them. */
+ * FE module relies on them.
+ *
+ * No function here is collective; meshes are plain data, read-only after
+ * creation, safe to share between threads. */
 #ifndef GEARSIM_MESH_H
 #define GEARSIM_MESH_H
 
+#include "gearsim/geometry.h"
 #include "gearsim/types.h"
+
+/* What a node is (gs_mesh.node_tag). */
+typedef enum {
+    GS_NODE_INTERIOR = 0,
+    GS_NODE_FLANK = 1,   /* on an involute flank, form point and tip corner included */
+    GS_NODE_FILLET = 2,  /* on a root fillet (its end on the root circle included) */
+    GS_NODE_ROOT = 3,    /* on a root arc */
+    GS_NODE_TIP = 4,     /* on a tip arc (corners excluded: they are flank nodes) */
+    GS_NODE_CORE = 5,    /* on the rigid-core interface circle (fixed) */
+    GS_NODE_OTHER = 6    /* on another boundary (e.g. of gs_mesh_rectangle) */
+} gs_node_tag;
 
 typedef struct gs_mesh {
     gs_index n_nodes;
@@ -23,9 +38,26 @@ typedef struct gs_mesh {
     int n_teeth;
     /* flank_ptr has 2*n_teeth+1 entries; flank s of tooth t (s = 0 left, 1 right,
      * seen from outside the tooth looking at its tip) holds the nodes
-     * flank_nodes[flank_ptr[2t+s] .. flank_ptr[2t+s+1]) ordered root to tip. */
+     * flank_nodes[flank_ptr[2t+s] .. flank_ptr[2t+s+1]) ordered root to tip.
+     *
+     * Gear meshes: tooth t is centred at polar angle 2 pi t / z. The nodes of a
+     * flank are those of its involute, from the form point (where the fillet
+     * ends) to the tip corner, both included; they lie exactly on the
+     * involute. "Outside the tooth looking at its tip" means, for an external
+     * gear, a viewer beyond the tip circle looking at the axis: s = 0 is the
+     * clockwise flank (polar angle below the tooth centre), s = 1 the
+     * counter-clockwise one. For an internal gear the viewer stands inside
+     * the ring looking outwards: s = 0 is the counter-clockwise flank, s = 1
+     * the clockwise one. "Root to tip" is increasing radius for external
+     * gears and decreasing radius for internal ones. */
     gs_index *flank_ptr;
     gs_index *flank_nodes;
+    /* Gear meshes (NULL / 0 otherwise): */
+    signed char *node_tag;   /* n_nodes gs_node_tag values */
+    gs_index n_boundary;     /* the toothed boundary as one closed loop, in order of */
+    gs_index *boundary;      /* increasing polar angle (counter-clockwise about the axis);
+                              * the material is on its left for an external gear, on its
+                              * right for an internal one. Not repeated at the end. */
 } gs_mesh;
 
 /* Free all arrays and the struct; safe on NULL; sets *m = NULL. */
@@ -35,5 +67,56 @@ void gs_mesh_free(gs_mesh **m);
  * triangles with alternating diagonals; the nodes on x = 0 are fixed (a clamp).
  * For FE verification (cantilever strip) and the contact tests. */
 gs_err gs_mesh_rectangle(double lx, double ly, int nx, int ny, gs_mesh **out);
+
+/* ------------------------------------------------------------------------ */
+/* Gear meshes (docs/GEOMETRY.md: layout, grading, refinement)              */
+/* ------------------------------------------------------------------------ */
+
+typedef struct gs_gear_mesh_opts {
+    int flank;       /* elements along the involute of each flank (>= 1; scene mesh.flank) */
+    int across;      /* elements across a tooth (>= 1; scene mesh.across) */
+    int rim;         /* element layers in the band under the teeth (>= 1; scene mesh.rim) */
+    int refine;      /* uniform refinements: every count above times 2^refine (0..8) */
+    double grading;  /* ratio of the largest to the smallest element size across a tooth
+                      * (smallest at the flanks, where teeth touch) and through the band
+                      * under the teeth (smallest at the root); 1 = uniform; 1..8 */
+} gs_gear_mesh_opts;
+
+/* flank 8, across 4, rim 3 (the scene's defaults), refine 0, grading 2. */
+void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o);
+
+/* Mesh the elastic part of a gear: for an external gear the region between
+ * the hub circle and the toothed outline, for an internal gear between the
+ * toothed outline and the outer rim circle. Fills every field of gs_mesh,
+ * including n_teeth, flank tables, node tags and the boundary loop; `fixed`
+ * is the hub (or outer rim) circle. Nodes of flanks and fillets lie exactly
+ * on the involute and on the fillet curve. The caller owns *out (free with
+ * gs_mesh_free). Errors: those of gs_gear_validate() (field named as there),
+ * GS_ERANGE with field "mesh.flank", "mesh.across", "mesh.rim", "refine" or
+ * "mesh.grading" for bad options, GS_ETOOBIG (field "refine") beyond 2^26
+ * triangles, GS_EGEOMETRY (field "mesh") if an element came out inverted,
+ * GS_ENOMEM. */
+gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh **out,
+                    gs_diag *d);
+
+/* Element quality of a mesh. Aspect ratio is circumradius / (2 inradius):
+ * 1 for an equilateral triangle, growing without bound as it degenerates. */
+typedef struct gs_mesh_quality {
+    gs_index n_tris;
+    gs_index n_bad;          /* inverted or degenerate (area <= 1e-12 longest edge^2) */
+    double area;             /* total (signed) area, m^2 */
+    double min_area, max_area;
+    double min_angle_deg, max_angle_deg;
+    double max_aspect, mean_aspect;
+    double min_edge, max_edge;
+} gs_mesh_quality;
+
+void gs_mesh_quality_eval(const gs_mesh *m, gs_mesh_quality *q);
+
+/* Topology: every edge in at most two triangles, no repeated node in a
+ * triangle, every node used. Returns the number of boundary edges in
+ * *n_boundary_edges and the number of boundary loops in *n_loops (either
+ * may be NULL). GS_EINVAL when the mesh is not a conforming 2-manifold. */
+gs_err gs_mesh_check_topology(const gs_mesh *m, gs_index *n_boundary_edges, int *n_loops);
 
 #endif

@@ -119,9 +119,10 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
     return err;
 }
 
-/* Snapshot format: magic, n_coords, step, time, work_in, dissipated, energy0,
- * q[n], w[n], then scene JSON and loads JSON, NUL-terminated. */
-#define SNAP_MAGIC 0x31534753u /* "GSS1" */
+/* Snapshot format: magic, n_coords, n_meshes, step, time, work_in,
+ * dissipated, energy0, q[n], w[n], mesh force[n_meshes] (the last step's,
+ * reported by telemetry), then scene JSON and loads JSON, NUL-terminated. */
+#define SNAP_MAGIC 0x32534753u /* "GSS2" */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -172,18 +173,20 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     char *lj = loads_json(s->scene);
     if (!lj)
         return GS_ENOMEM;
-    size_t n = (size_t)s->n_coords;
+    size_t n = (size_t)s->n_coords, nm = (size_t)s->n_meshes;
     size_t sl = strlen(s->scene->json) + 1, ll = strlen(lj) + 1;
-    size_t total = 2 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double) + 2 * n * sizeof(double) + sl + ll;
+    size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double) +
+                   (2 * n + nm) * sizeof(double) + sl + ll;
     char *b = malloc(total), *p = b;
     if (!b) {
         free(lj);
         return GS_ENOMEM;
     }
-    uint32_t magic = SNAP_MAGIC, nc = (uint32_t)n;
+    uint32_t magic = SNAP_MAGIC, nc = (uint32_t)n, nmesh = (uint32_t)nm;
 #define PUT(x, sz) (memcpy(p, (x), (sz)), p += (sz))
     PUT(&magic, sizeof magic);
     PUT(&nc, sizeof nc);
+    PUT(&nmesh, sizeof nmesh);
     PUT(&s->step, sizeof s->step);
     PUT(&s->time, sizeof(double));
     PUT(&s->work_in, sizeof(double));
@@ -191,6 +194,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     PUT(&s->energy0, sizeof(double));
     PUT(s->q, n * sizeof(double));
     PUT(s->w, n * sizeof(double));
+    for (size_t i = 0; i < nm; i++)
+        PUT(&s->meshes[i].force, sizeof(double));
     PUT(s->scene->json, sl);
     PUT(lj, ll);
 #undef PUT
@@ -202,15 +207,17 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
 
 static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
 {
-    size_t head = 2 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double);
+    size_t head = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double);
     if (len < head)
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
-    uint32_t magic, nc;
+    uint32_t magic, nc, nm;
     const char *p = b;
     memcpy(&magic, p, sizeof magic);
     memcpy(&nc, p + 4, sizeof nc);
-    p += 8;
-    if (magic != SNAP_MAGIC || len < head + 2 * (size_t)nc * sizeof(double) + 2)
+    memcpy(&nm, p + 8, sizeof nm);
+    p += 12;
+    if (magic != SNAP_MAGIC || nc > (1u << 20) || nm > (1u << 20) ||
+        len < head + (2 * (size_t)nc + nm) * sizeof(double) + 2)
         return gs_diag_set(d, GS_EIO, "path", "not a gearsim checkpoint");
     int64_t step;
     double t, wi, di, e0;
@@ -220,7 +227,8 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     memcpy(&di, p, 8), p += 8;
     memcpy(&e0, p, 8), p += 8;
     const double *q = (const double *)(const void *)p;
-    const char *scene = p + 2 * (size_t)nc * sizeof(double);
+    const double *forces = q + 2 * (size_t)nc;
+    const char *scene = p + (2 * (size_t)nc + nm) * sizeof(double);
     const char *end = b + len;
     const char *lj = memchr(scene, '\0', (size_t)(end - scene));
     if (!lj || lj + 1 >= end || !memchr(lj + 1, '\0', (size_t)(end - lj - 1)))
@@ -258,7 +266,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     json_object_put(loads);
     GS_TRY(adopt(e, sc, d));
     gs_system *s = e->sys;
-    if ((uint32_t)s->n_coords != nc) {
+    if ((uint32_t)s->n_coords != nc || (uint32_t)s->n_meshes != nm) {
         unload(e);
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene");
     }
@@ -275,6 +283,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         for (int j = 0; j < s->n_coords; j++)
             v += m->a[j] * s->q[j];
         m->deflection = v - m->s_ref;
+        memcpy(&m->force, forces + i, sizeof(double));
     }
     return GS_OK;
 }

@@ -49,11 +49,17 @@ static char *names_json(const gs_system *sys, bool meshes)
     return s;
 }
 
-static hid_t make_ds(hid_t g, const char *name, int cols, bool integer)
+/* Time and step are vectors; every other series is rows x columns, even
+ * with one body or one mesh, so readers index them the same way always. */
+static int ds_rank(int i)
+{
+    return i == DS_TIME || i == DS_STEP ? 1 : 2;
+}
+
+static hid_t make_ds(hid_t g, const char *name, int cols, bool integer, int rank)
 {
     hsize_t dims[2] = {0, (hsize_t)cols}, maxd[2] = {H5S_UNLIMITED, (hsize_t)cols};
     hsize_t chunk[2] = {256, (hsize_t)(cols > 0 ? cols : 1)};
-    int rank = cols == 1 ? 1 : 2;
     hid_t sp = H5Screate_simple(rank, dims, maxd);
     hid_t pl = H5Pcreate(H5P_DATASET_CREATE);
     H5Pset_chunk(pl, rank, chunk);
@@ -93,7 +99,7 @@ gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, g
             r->ds[i] = -1;
             continue;
         }
-        r->ds[i] = make_ds(g, ds_names[i], cols[i], i == DS_STEP);
+        r->ds[i] = make_ds(g, ds_names[i], cols[i], i == DS_STEP, ds_rank(i));
         ok = r->ds[i] >= 0;
     }
     if (ok) {
@@ -156,7 +162,7 @@ gs_err gs_record_flush(gs_record *r)
     for (int i = 0; i < DS_N; i++) {
         if (r->ds[i] < 0)
             continue;
-        int rank = r->cols[i] == 1 ? 1 : 2;
+        int rank = ds_rank(i);
         hsize_t nd[2] = {(hsize_t)(r->rows + r->nbuf), (hsize_t)r->cols[i]};
         hsize_t start[2] = {(hsize_t)r->rows, 0}, count[2] = {(hsize_t)r->nbuf, (hsize_t)r->cols[i]};
         if (H5Dset_extent(r->ds[i], nd) < 0) {

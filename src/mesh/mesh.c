@@ -15,6 +15,8 @@ void gs_mesh_free(gs_mesh **pm)
     free(m->fixed);
     free(m->flank_ptr);
     free(m->flank_nodes);
+    free(m->node_tag);
+    free(m->boundary);
     free(m);
     *pm = NULL;
 }

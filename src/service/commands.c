@@ -141,6 +141,7 @@ static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_ob
     *res = scene_summary(sys);
     if (sys->warning[0]) {
         json_object *w = json_object_new_object();
+        json_object_object_add(w, "code", json_object_new_string("projected_initial_speeds"));
         json_object_object_add(w, "message", json_object_new_string(sys->warning));
         json_object_object_add(w, "parent_id", json_object_new_string(id));
         gsi_publish(s, "warning", w);

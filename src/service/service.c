@@ -169,6 +169,41 @@ gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, b
     return GS_OK;
 }
 
+/* Strict UTF-8 (no overlongs, surrogates or code points above U+10FFFF):
+ * a request that is not text is refused before anything echoes it. */
+static bool valid_utf8(const unsigned char *p, size_t n)
+{
+    size_t i = 0;
+    while (i < n) {
+        unsigned c = p[i];
+        size_t k;
+        unsigned min, cp;
+        if (c < 0x80) {
+            i++;
+            continue;
+        } else if ((c & 0xE0) == 0xC0) {
+            k = 1, min = 0x80, cp = c & 0x1F;
+        } else if ((c & 0xF0) == 0xE0) {
+            k = 2, min = 0x800, cp = c & 0x0F;
+        } else if ((c & 0xF8) == 0xF0) {
+            k = 3, min = 0x10000, cp = c & 0x07;
+        } else {
+            return false;
+        }
+        if (i + k >= n)
+            return false;
+        for (size_t j = 1; j <= k; j++) {
+            if (i + j >= n || (p[i + j] & 0xC0) != 0x80)
+                return false;
+            cp = cp << 6 | (p[i + j] & 0x3F);
+        }
+        if (cp < min || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF))
+            return false;
+        i += k + 1;
+    }
+    return true;
+}
+
 static void send_reply(gs_service *s, zmq_msg_t *ident, bool delim, const char *txt)
 {
     zmq_msg_t copy;
@@ -244,6 +279,12 @@ static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const ch
                 je = json_tokener_error_parse_unexpected;
                 break;
             }
+    if (!valid_utf8((const unsigned char *)data, len)) {
+        json_object_put(req);
+        req = NULL;
+        e = gs_diag_set(&d, GS_EPARSE, "", "the request is not valid UTF-8 text");
+        goto answer;
+    }
     if (!req || je != json_tokener_success || memchr(data, '\0', len)) {
         json_object_put(req);
         req = NULL;

@@ -1,0 +1,57 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim fe module, library-internal: the model's data (shared with the body
+ * code), symmetric sparse kernels, and helpers for the tests and the
+ * benchmark (an annulus mesh, a bare solve timer). */
+#ifndef GEARSIM_FE_INTERNAL_H
+#define GEARSIM_FE_INTERNAL_H
+
+#include "gearsim/fe.h"
+
+/* The matrices live in one compressed-column pattern of the upper triangle of
+ * the elastic block (rows sorted, diagonal last in each column), which is
+ * exactly CHOLMOD's packed, sorted, stype = 1 layout. K and M share it: every
+ * node pair of an element contributes a full 2x2 block to both (M's
+ * off-diagonal xy entries are stored zeros). */
+struct gs_fe_model {
+    gs_index n_nodes, n_tris, n_free_nodes, ne, nnz;
+    double *xy;          /* 2 * n_nodes (copy of the mesh) */
+    gs_index *tri;       /* 3 * n_tris (copy of the mesh) */
+    gs_index *dof;       /* 2 * n_nodes: index in q, or -1 for fixed nodes */
+    gs_index *free_node; /* n_free_nodes: mesh node of free node k (dofs 2k, 2k+1) */
+    gs_index *colp;      /* ne + 1 */
+    gs_index *rowi;      /* nnz */
+    double *kx, *mx;     /* nnz values of K and M */
+    double *s;           /* ne: angular coupling vector */
+    gs_material mat;
+    double thickness, Dmat[9];
+    double area, mass, centroid[2], inertia_elastic, inertia_core, inertia_total;
+};
+
+/* y += alpha * M xm + beta * K xk on the elastic block (length ne), in one
+ * pass over the shared pattern; xm and xk may be the same vector. */
+void gsi_fe_symv2(const gs_fe_model *m, double alpha, const double *xm, double beta,
+                  const double *xk, double *y);
+
+/* x^T (alpha M + beta K) x on the elastic block, without workspace. */
+double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const double *x);
+
+/* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
+ * the elastic block, upper triangle; NULL when out of memory. */
+struct cholmod_sparse_struct;
+struct cholmod_common_struct;
+struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double alpha,
+                                                    double beta, struct cholmod_common_struct *c);
+
+/* An annulus r_in <= r <= r_out of n_r radial by n_t circumferential cells,
+ * each split into two counter-clockwise triangles (diagonals alternate), the
+ * nodes on the inner circle fixed: a gear-like rim on a rigid hub, for the
+ * tests and the benchmark until the gear mesher is there. Freed with
+ * gs_mesh_free. Errors: GS_EINVAL, GS_ENOMEM. */
+gs_err gsi_fe_mesh_annulus(double r_in, double r_out, int n_r, int n_t, gs_mesh **out);
+
+/* Time `reps` bare CHOLMOD solves (solve2, one right-hand side, preallocated
+ * workspace) on the body's current factor; returns seconds per solve, or a
+ * negative value if no factor exists. For the benchmark. */
+double gsi_fe_body_time_bare_solve(gs_fe_body *b, int reps);
+
+#endif

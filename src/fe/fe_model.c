@@ -1,0 +1,617 @@
+/* SPDX-License-Identifier: MIT
+ * The FE model of a body's elastic part (METHOD.md section 1): constant strain
+ * triangles, consistent mass, the angular coupling vector s, the inertias,
+ * elimination of the fixed (core interface) nodes, assembly into one
+ * compressed-column pattern shared by K and M; static solve and stress
+ * recovery. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cholmod.h>
+
+#include "fe/fe_internal.h"
+#include "gearsim/util.h"
+
+/* ---- element kernels ---------------------------------------------------- */
+
+/* Constitutive matrix (row-major 3x3) for (eps_xx, eps_yy, gamma_xy). */
+static void material_matrix(const gs_material *mat, double D[9])
+{
+    double E = mat->youngs_pa, nu = mat->poisson;
+    memset(D, 0, 9 * sizeof *D);
+    if (mat->plane == GS_PLANE_STRAIN) {
+        double f = E / ((1.0 + nu) * (1.0 - 2.0 * nu));
+        D[0] = D[4] = f * (1.0 - nu);
+        D[1] = D[3] = f * nu;
+        D[8] = f * (1.0 - 2.0 * nu) / 2.0;
+    } else {
+        double f = E / (1.0 - nu * nu);
+        D[0] = D[4] = f;
+        D[1] = D[3] = f * nu;
+        D[8] = f * (1.0 - nu) / 2.0;
+    }
+}
+
+/* Shape function derivatives of a triangle: dN_i/dx = b[i] / (2A),
+ * dN_i/dy = c[i] / (2A). Returns 2A (positive when counter-clockwise). */
+static double tri_geometry(const double *xy, const gs_index *t, double b[3], double c[3])
+{
+    double x[3], y[3];
+    for (int i = 0; i < 3; i++) {
+        x[i] = xy[2 * t[i]];
+        y[i] = xy[2 * t[i] + 1];
+    }
+    for (int i = 0; i < 3; i++) {
+        int j = (i + 1) % 3, k = (i + 2) % 3;
+        b[i] = y[j] - y[k];
+        c[i] = x[k] - x[j];
+    }
+    return (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
+}
+
+/* Strain-displacement matrix B (3x6, row-major) for dofs (u1 v1 u2 v2 u3 v3). */
+static void strain_matrix(const double b[3], const double c[3], double twoA, double B[18])
+{
+    memset(B, 0, 18 * sizeof *B);
+    for (int i = 0; i < 3; i++) {
+        B[0 * 6 + 2 * i] = b[i] / twoA;
+        B[1 * 6 + 2 * i + 1] = c[i] / twoA;
+        B[2 * 6 + 2 * i] = c[i] / twoA;
+        B[2 * 6 + 2 * i + 1] = b[i] / twoA;
+    }
+}
+
+/* ke = t A B^T D B (6x6 row-major). */
+static void cst_stiffness(const double B[18], const double D[9], double tA, double ke[36])
+{
+    double DB[18];
+    for (int r = 0; r < 3; r++)
+        for (int k = 0; k < 6; k++)
+            DB[r * 6 + k] = D[r * 3] * B[k] + D[r * 3 + 1] * B[6 + k] + D[r * 3 + 2] * B[12 + k];
+    for (int i = 0; i < 6; i++)
+        for (int j = 0; j < 6; j++)
+            ke[i * 6 + j] = tA * (B[i] * DB[j] + B[6 + i] * DB[6 + j] + B[12 + i] * DB[12 + j]);
+}
+
+static double worst_edge2(const double *xy, const gs_index *t)
+{
+    double w = 0;
+    for (int i = 0; i < 3; i++) {
+        const double *p = xy + 2 * t[i], *q = xy + 2 * t[(i + 1) % 3];
+        double d = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
+        if (d > w)
+            w = d;
+    }
+    return w;
+}
+
+/* ---- pattern ------------------------------------------------------------ */
+
+static int cmp_index(const void *a, const void *b)
+{
+    gs_index x = *(const gs_index *)a, y = *(const gs_index *)b;
+    return (x > y) - (x < y);
+}
+
+/* For every free node k, the sorted distinct free neighbours j <= k (itself
+ * included, last): nbp[k] .. nbp[k+1] in nb. */
+static gs_err node_graph(gs_fe_model *m, gs_index **nbp_out, gs_index **nb_out)
+{
+    gs_index nf = m->n_free_nodes;
+    gs_index *cnt = gs_calloc((size_t)nf + 1, sizeof *cnt);
+    if (!cnt)
+        return GS_ENOMEM;
+    for (gs_index e = 0; e < m->n_tris; e++)
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                gs_index fa = m->dof[2 * m->tri[3 * e + i]], fb = m->dof[2 * m->tri[3 * e + j]];
+                if (fa >= 0 && fb >= 0 && fa <= fb && (fa < fb || i == j))
+                    cnt[fb / 2 + 1]++;
+            }
+    for (gs_index k = 0; k < nf; k++)
+        cnt[k + 1] += cnt[k];
+    gs_index *raw = gs_calloc((size_t)cnt[nf], sizeof *raw);
+    gs_index *pos = gs_calloc((size_t)nf + 1, sizeof *pos);
+    if (!raw || !pos) {
+        free(cnt);
+        free(raw);
+        free(pos);
+        return GS_ENOMEM;
+    }
+    memcpy(pos, cnt, (size_t)nf * sizeof *pos);
+    for (gs_index e = 0; e < m->n_tris; e++)
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                gs_index fa = m->dof[2 * m->tri[3 * e + i]], fb = m->dof[2 * m->tri[3 * e + j]];
+                if (fa >= 0 && fb >= 0 && fa <= fb && (fa < fb || i == j))
+                    raw[pos[fb / 2]++] = fa / 2;
+            }
+    /* sort, drop duplicates, compact in place */
+    gs_index w = 0;
+    for (gs_index k = 0; k < nf; k++) {
+        gs_index a = cnt[k], z = cnt[k + 1];
+        qsort(raw + a, (size_t)(z - a), sizeof *raw, cmp_index);
+        cnt[k] = w;
+        for (gs_index p = a; p < z; p++)
+            if (p == a || raw[p] != raw[p - 1])
+                raw[w++] = raw[p];
+    }
+    cnt[nf] = w;
+    free(pos);
+    for (gs_index k = 0; k < nf; k++)
+        if (cnt[k + 1] == cnt[k]) { /* a free node in no element has no mass */
+            free(cnt);
+            free(raw);
+            return GS_EGEOMETRY;
+        }
+    *nbp_out = cnt;
+    *nb_out = raw;
+    return GS_OK;
+}
+
+static gs_index find_neighbour(const gs_index *nb, gs_index lo, gs_index hi, gs_index key)
+{
+    while (lo < hi) {
+        gs_index mid = lo + (hi - lo) / 2;
+        if (nb[mid] < key)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+/* ---- model -------------------------------------------------------------- */
+
+static gs_err check_inputs(const gs_mesh *mesh, const gs_material *mat, double t, double core)
+{
+    if (!mesh || !mat || !mesh->xy || (mesh->n_tris > 0 && !mesh->tri) ||
+        (mesh->n_fixed > 0 && !mesh->fixed))
+        return GS_EINVAL;
+    if (mesh->n_nodes < 1 || mesh->n_tris < 1 || mesh->n_fixed < 0)
+        return GS_EINVAL;
+    if (!(isfinite(mat->youngs_pa) && mat->youngs_pa > 0) ||
+        !(isfinite(mat->density) && mat->density > 0) ||
+        !(mat->poisson > -1.0 && mat->poisson < 0.5) ||
+        (mat->plane != GS_PLANE_STRESS && mat->plane != GS_PLANE_STRAIN))
+        return GS_EINVAL;
+    if (!(isfinite(t) && t > 0) || !(isfinite(core) && core >= 0))
+        return GS_EINVAL;
+    for (gs_index i = 0; i < 2 * mesh->n_nodes; i++)
+        if (!isfinite(mesh->xy[i]))
+            return GS_EINVAL;
+    for (gs_index i = 0; i < 3 * mesh->n_tris; i++)
+        if (mesh->tri[i] < 0 || mesh->tri[i] >= mesh->n_nodes)
+            return GS_EINVAL;
+    for (gs_index i = 0; i < mesh->n_fixed; i++)
+        if (mesh->fixed[i] < 0 || mesh->fixed[i] >= mesh->n_nodes)
+            return GS_EINVAL;
+    return GS_OK;
+}
+
+void gs_fe_model_free(gs_fe_model **pm)
+{
+    if (!pm || !*pm)
+        return;
+    gs_fe_model *m = *pm;
+    free(m->xy);
+    free(m->tri);
+    free(m->dof);
+    free(m->free_node);
+    free(m->colp);
+    free(m->rowi);
+    free(m->kx);
+    free(m->mx);
+    free(m->s);
+    free(m);
+    *pm = NULL;
+}
+
+static gs_err assemble(gs_fe_model *m)
+{
+    gs_index *nbp = NULL, *nb = NULL;
+    GS_TRY(node_graph(m, &nbp, &nb));
+    gs_index nf = m->n_free_nodes, ne = m->ne;
+    gs_err err = GS_ENOMEM;
+    m->colp = gs_calloc((size_t)ne + 1, sizeof *m->colp);
+    if (!m->colp)
+        goto out;
+    for (gs_index k = 0; k < nf; k++) {
+        gs_index len = nbp[k + 1] - nbp[k];
+        m->colp[2 * k + 1] = m->colp[2 * k] + 2 * len - 1;
+        m->colp[2 * k + 2] = m->colp[2 * k + 1] + 2 * len;
+    }
+    m->nnz = m->colp[ne];
+    m->rowi = gs_calloc((size_t)m->nnz, sizeof *m->rowi);
+    m->kx = gs_calloc((size_t)m->nnz, sizeof *m->kx);
+    m->mx = gs_calloc((size_t)m->nnz, sizeof *m->mx);
+    m->s = gs_calloc((size_t)ne, sizeof *m->s);
+    if (!m->rowi || !m->kx || !m->mx || !m->s)
+        goto out;
+    for (gs_index k = 0; k < nf; k++)
+        for (gs_index p = nbp[k]; p < nbp[k + 1]; p++) {
+            gs_index j = nb[p], o = 2 * (p - nbp[k]);
+            m->rowi[m->colp[2 * k] + o] = 2 * j;
+            if (j != k)
+                m->rowi[m->colp[2 * k] + o + 1] = 2 * j + 1;
+            m->rowi[m->colp[2 * k + 1] + o] = 2 * j;
+            m->rowi[m->colp[2 * k + 1] + o + 1] = 2 * j + 1;
+        }
+
+    const double rho = m->mat.density, t = m->thickness;
+    double sx = 0, sy = 0;
+    for (gs_index e = 0; e < m->n_tris; e++) {
+        const gs_index *tn = m->tri + 3 * e;
+        double b[3], c[3], B[18], ke[36];
+        double twoA = tri_geometry(m->xy, tn, b, c);
+        if (tn[0] == tn[1] || tn[1] == tn[2] || tn[0] == tn[2] ||
+            !(twoA > 1e-12 * worst_edge2(m->xy, tn))) {
+            err = GS_EGEOMETRY;
+            goto out;
+        }
+        double A = 0.5 * twoA;
+        strain_matrix(b, c, twoA, B);
+        cst_stiffness(B, m->Dmat, t * A, ke);
+        double mfac = rho * t * A / 12.0; /* consistent mass: mfac (1 + delta_ij) */
+
+        /* mass properties from the nodal interpolation, exact for linear X */
+        double X[3], Y[3];
+        for (int i = 0; i < 3; i++) {
+            X[i] = m->xy[2 * tn[i]];
+            Y[i] = m->xy[2 * tn[i] + 1];
+        }
+        double Xs = X[0] + X[1] + X[2], Ys = Y[0] + Y[1] + Y[2];
+        m->area += A;
+        sx += rho * t * A * Xs / 3.0;
+        sy += rho * t * A * Ys / 3.0;
+        m->inertia_elastic +=
+            mfac * (X[0] * X[0] + X[1] * X[1] + X[2] * X[2] + Y[0] * Y[0] + Y[1] * Y[1] +
+                    Y[2] * Y[2] + Xs * Xs + Ys * Ys);
+        for (int i = 0; i < 3; i++) {
+            gs_index fi = m->dof[2 * tn[i]];
+            if (fi < 0)
+                continue;
+            /* s_i = sum_j m_ij J X_j, J X = (-Y, X) */
+            m->s[fi] += mfac * (-Y[i] - Ys);
+            m->s[fi + 1] += mfac * (X[i] + Xs);
+        }
+
+        for (int i = 0; i < 3; i++)
+            for (int j = 0; j < 3; j++) {
+                gs_index fa = m->dof[2 * tn[i]], fb = m->dof[2 * tn[j]];
+                if (fa < 0 || fb < 0 || fa > fb || (fa == fb && i != j))
+                    continue;
+                gs_index kb = fb / 2;
+                gs_index p = find_neighbour(nb, nbp[kb], nbp[kb + 1], fa / 2) - nbp[kb];
+                double mij = (i == j) ? 2.0 * mfac : mfac;
+                for (int cj = 0; cj < 2; cj++)
+                    for (int ci = 0; ci < 2; ci++) {
+                        if (fa == fb && ci > cj)
+                            continue;
+                        gs_index q = m->colp[fb + cj] + 2 * p + ci;
+                        m->kx[q] += ke[(2 * i + ci) * 6 + 2 * j + cj];
+                        if (ci == cj)
+                            m->mx[q] += mij;
+                    }
+            }
+    }
+    m->mass = rho * t * m->area;
+    m->centroid[0] = sx / m->mass;
+    m->centroid[1] = sy / m->mass;
+    m->inertia_total = m->inertia_elastic + m->inertia_core;
+    err = GS_OK;
+out:
+    free(nbp);
+    free(nb);
+    return err;
+}
+
+gs_err gs_fe_model_new(const gs_mesh *mesh, const gs_material *mat, double thickness_m,
+                       double core_inertia, gs_fe_model **out)
+{
+    if (!out)
+        return GS_EINVAL;
+    *out = NULL;
+    GS_TRY(check_inputs(mesh, mat, thickness_m, core_inertia));
+    if (mesh->n_fixed == 0 && core_inertia == 0)
+        return GS_ESINGULAR; /* u could carry the whole rigid rotation */
+    gs_fe_model *m = gs_calloc(1, sizeof *m);
+    if (!m)
+        return GS_ENOMEM;
+    m->n_nodes = mesh->n_nodes;
+    m->n_tris = mesh->n_tris;
+    m->mat = *mat;
+    m->thickness = thickness_m;
+    m->inertia_core = core_inertia;
+    material_matrix(mat, m->Dmat);
+    m->xy = gs_calloc((size_t)(2 * m->n_nodes), sizeof *m->xy);
+    m->tri = gs_calloc((size_t)(3 * m->n_tris), sizeof *m->tri);
+    m->dof = gs_calloc((size_t)(2 * m->n_nodes), sizeof *m->dof);
+    m->free_node = gs_calloc((size_t)m->n_nodes, sizeof *m->free_node);
+    if (!m->xy || !m->tri || !m->dof || !m->free_node) {
+        gs_fe_model_free(&m);
+        return GS_ENOMEM;
+    }
+    memcpy(m->xy, mesh->xy, (size_t)(2 * m->n_nodes) * sizeof *m->xy);
+    memcpy(m->tri, mesh->tri, (size_t)(3 * m->n_tris) * sizeof *m->tri);
+    for (gs_index i = 0; i < mesh->n_fixed; i++)
+        m->dof[2 * mesh->fixed[i]] = -1;
+    for (gs_index i = 0; i < m->n_nodes; i++) {
+        if (m->dof[2 * i] < 0) {
+            m->dof[2 * i + 1] = -1;
+            continue;
+        }
+        m->free_node[m->n_free_nodes] = i;
+        m->dof[2 * i] = 2 * m->n_free_nodes;
+        m->dof[2 * i + 1] = 2 * m->n_free_nodes + 1;
+        m->n_free_nodes++;
+    }
+    m->ne = 2 * m->n_free_nodes;
+    gs_err e = assemble(m);
+    if (e != GS_OK) {
+        gs_fe_model_free(&m);
+        return e;
+    }
+    *out = m;
+    return GS_OK;
+}
+
+void gs_fe_model_get_info(const gs_fe_model *m, gs_fe_model_info *info)
+{
+    if (!m || !info)
+        return;
+    info->n_nodes = m->n_nodes;
+    info->n_tris = m->n_tris;
+    info->n_free_nodes = m->n_free_nodes;
+    info->n_elastic = m->ne;
+    info->nnz = m->nnz;
+    info->area_m2 = m->area;
+    info->mass_kg = m->mass;
+    info->centroid[0] = m->centroid[0];
+    info->centroid[1] = m->centroid[1];
+    info->inertia_elastic = m->inertia_elastic;
+    info->inertia_core = m->inertia_core;
+    info->inertia_total = m->inertia_total;
+}
+
+gs_index gs_fe_model_dof(const gs_fe_model *m, gs_index node, int comp)
+{
+    if (!m || node < 0 || node >= m->n_nodes)
+        return -1;
+    return m->dof[2 * node + (comp != 0)];
+}
+
+void gs_fe_model_coupling(const gs_fe_model *m, double *s_out)
+{
+    if (m && s_out)
+        memcpy(s_out, m->s, (size_t)m->ne * sizeof *s_out);
+}
+
+/* y += beta * K x only: the step's right-hand side, which reads one value
+ * array instead of two. */
+static void symv_k(const gs_fe_model *m, double beta, const double *x, double *y)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    const double *kx = m->kx;
+    for (gs_index j = 0; j < m->ne; j++) {
+        double bx = beta * x[j], acc = 0;
+        gs_index end = cp[j + 1] - 1; /* diagonal last */
+        for (gs_index p = cp[j]; p < end; p++) {
+            gs_index i = ri[p];
+            y[i] += kx[p] * bx;
+            acc += kx[p] * x[i];
+        }
+        y[j] += beta * acc + kx[end] * bx;
+    }
+}
+
+void gsi_fe_symv2(const gs_fe_model *m, double alpha, const double *xm, double beta,
+                  const double *xk, double *y)
+{
+    if (alpha == 0) {
+        symv_k(m, beta, xk, y);
+        return;
+    }
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    const double *kx = m->kx, *mx = m->mx;
+    for (gs_index j = 0; j < m->ne; j++) {
+        double am = alpha * xm[j], bk = beta * xk[j], acc = 0;
+        gs_index end = cp[j + 1] - 1; /* diagonal last */
+        for (gs_index p = cp[j]; p < end; p++) {
+            gs_index i = ri[p];
+            y[i] += mx[p] * am + kx[p] * bk;
+            acc += alpha * mx[p] * xm[i] + beta * kx[p] * xk[i];
+        }
+        y[j] += acc + mx[end] * am + kx[end] * bk;
+    }
+}
+
+double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const double *x)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    double off = 0, diag = 0;
+    for (gs_index j = 0; j < m->ne; j++) {
+        gs_index end = cp[j + 1] - 1;
+        double acc = 0;
+        for (gs_index p = cp[j]; p < end; p++)
+            acc += (alpha * m->mx[p] + beta * m->kx[p]) * x[ri[p]];
+        off += acc * x[j];
+        diag += (alpha * m->mx[end] + beta * m->kx[end]) * x[j] * x[j];
+    }
+    return diag + 2.0 * off;
+}
+
+gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M)
+{
+    if (!m)
+        return GS_EINVAL;
+    if (m->ne + 1 > 20000)
+        return GS_ETOOBIG;
+    gs_index n = m->ne + 1;
+    if (K)
+        memset(K, 0, (size_t)(n * n) * sizeof *K);
+    if (M)
+        memset(M, 0, (size_t)(n * n) * sizeof *M);
+    for (gs_index j = 0; j < m->ne; j++)
+        for (gs_index p = m->colp[j]; p < m->colp[j + 1]; p++) {
+            gs_index i = m->rowi[p];
+            if (K)
+                K[i + j * n] = K[j + i * n] = m->kx[p];
+            if (M)
+                M[i + j * n] = M[j + i * n] = m->mx[p];
+        }
+    if (M) {
+        for (gs_index i = 0; i < m->ne; i++)
+            M[i + m->ne * n] = M[m->ne + i * n] = m->s[i];
+        M[m->ne + m->ne * n] = m->inertia_total;
+    }
+    return GS_OK;
+}
+
+double gs_fe_model_energy(const gs_fe_model *m, const double *u_nodes)
+{
+    if (!m || !u_nodes)
+        return 0;
+    double *u = gs_calloc((size_t)m->ne, sizeof *u);
+    double e = 0;
+    if (u) {
+        for (gs_index k = 0; k < m->n_free_nodes; k++) {
+            u[2 * k] = u_nodes[2 * m->free_node[k]];
+            u[2 * k + 1] = u_nodes[2 * m->free_node[k] + 1];
+        }
+        e = gsi_fe_quadform(m, 0.0, 1.0, u);
+    }
+    free(u);
+    return 0.5 * e;
+}
+
+/* A CHOLMOD view of alpha M + beta K, allocated in common c. */
+static cholmod_sparse *combined_matrix(const gs_fe_model *m, double alpha, double beta,
+                                       cholmod_common *c)
+{
+    cholmod_sparse *A = cholmod_l_allocate_sparse((size_t)m->ne, (size_t)m->ne, (size_t)m->nnz,
+                                                  1, 1, 1, CHOLMOD_REAL, c);
+    if (!A)
+        return NULL;
+    SuiteSparse_long *Ap = A->p, *Ai = A->i;
+    double *Ax = A->x;
+    for (gs_index j = 0; j <= m->ne; j++)
+        Ap[j] = m->colp[j];
+    for (gs_index p = 0; p < m->nnz; p++) {
+        Ai[p] = m->rowi[p];
+        Ax[p] = alpha * m->mx[p] + beta * m->kx[p];
+    }
+    return A;
+}
+
+cholmod_sparse *gsi_fe_cholmod_matrix(const gs_fe_model *m, double alpha, double beta,
+                                      cholmod_common *c)
+{
+    return combined_matrix(m, alpha, beta, c);
+}
+
+gs_err gs_fe_model_static(const gs_fe_model *m, const double *f_nodes, double *u_nodes)
+{
+    if (!m || !f_nodes || !u_nodes)
+        return GS_EINVAL;
+    memset(u_nodes, 0, (size_t)(2 * m->n_nodes) * sizeof *u_nodes);
+    if (m->ne == 0)
+        return GS_OK;
+    cholmod_common c;
+    cholmod_l_start(&c);
+    c.print = 0;
+    gs_err err = GS_ENOMEM;
+    cholmod_factor *L = NULL;
+    cholmod_dense *B = NULL, *X = NULL;
+    cholmod_sparse *K = combined_matrix(m, 0.0, 1.0, &c);
+    if (!K)
+        goto out;
+    L = cholmod_l_analyze(K, &c);
+    if (!L)
+        goto out;
+    if (!cholmod_l_factorize(K, L, &c) || c.status == CHOLMOD_NOT_POSDEF) {
+        err = c.status == CHOLMOD_NOT_POSDEF ? GS_ESINGULAR : GS_ENOMEM;
+        goto out;
+    }
+    /* A K that is singular in exact arithmetic (rigid motions not held) often
+     * factorises with round-off pivots; the diagonal estimate of the
+     * reciprocal condition number is then ~1e-16. */
+    if (cholmod_l_rcond(L, &c) < 1e-13) {
+        err = GS_ESINGULAR;
+        goto out;
+    }
+    B = cholmod_l_zeros((size_t)m->ne, 1, CHOLMOD_REAL, &c);
+    if (!B)
+        goto out;
+    double *bx = B->x;
+    for (gs_index k = 0; k < m->n_free_nodes; k++) {
+        bx[2 * k] = f_nodes[2 * m->free_node[k]];
+        bx[2 * k + 1] = f_nodes[2 * m->free_node[k] + 1];
+    }
+    X = cholmod_l_solve(CHOLMOD_A, L, B, &c);
+    if (!X)
+        goto out;
+    const double *xx = X->x;
+    for (gs_index k = 0; k < m->n_free_nodes; k++) {
+        u_nodes[2 * m->free_node[k]] = xx[2 * k];
+        u_nodes[2 * m->free_node[k] + 1] = xx[2 * k + 1];
+    }
+    err = GS_OK;
+out:
+    cholmod_l_free_dense(&X, &c);
+    cholmod_l_free_dense(&B, &c);
+    cholmod_l_free_factor(&L, &c);
+    cholmod_l_free_sparse(&K, &c);
+    cholmod_l_finish(&c);
+    return err;
+}
+
+gs_err gs_fe_model_stress(const gs_fe_model *m, const double *u_nodes, double *stress,
+                          double *vm_elem, double *vm_node)
+{
+    if (!m || !u_nodes)
+        return GS_EINVAL;
+    double *wsum = NULL;
+    if (vm_node) {
+        wsum = gs_calloc((size_t)m->n_nodes, sizeof *wsum);
+        if (!wsum)
+            return GS_ENOMEM;
+        memset(vm_node, 0, (size_t)m->n_nodes * sizeof *vm_node);
+    }
+    const double nu = m->mat.poisson;
+    for (gs_index e = 0; e < m->n_tris; e++) {
+        const gs_index *tn = m->tri + 3 * e;
+        double b[3], c[3], B[18], ue[6], eps[3] = {0, 0, 0}, sg[3];
+        double twoA = tri_geometry(m->xy, tn, b, c);
+        strain_matrix(b, c, twoA, B);
+        for (int i = 0; i < 3; i++) {
+            bool fixed = m->dof[2 * tn[i]] < 0;
+            ue[2 * i] = fixed ? 0.0 : u_nodes[2 * tn[i]];
+            ue[2 * i + 1] = fixed ? 0.0 : u_nodes[2 * tn[i] + 1];
+        }
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 6; k++)
+                eps[r] += B[r * 6 + k] * ue[k];
+        for (int r = 0; r < 3; r++)
+            sg[r] = m->Dmat[3 * r] * eps[0] + m->Dmat[3 * r + 1] * eps[1] + m->Dmat[3 * r + 2] * eps[2];
+        if (stress)
+            memcpy(stress + 3 * e, sg, sizeof sg);
+        double sz = m->mat.plane == GS_PLANE_STRAIN ? nu * (sg[0] + sg[1]) : 0.0;
+        double vm = sqrt(0.5 * ((sg[0] - sg[1]) * (sg[0] - sg[1]) + (sg[1] - sz) * (sg[1] - sz) +
+                                (sz - sg[0]) * (sz - sg[0])) +
+                         3.0 * sg[2] * sg[2]);
+        if (vm_elem)
+            vm_elem[e] = vm;
+        if (vm_node)
+            for (int i = 0; i < 3; i++) {
+                vm_node[tn[i]] += 0.5 * twoA * vm;
+                wsum[tn[i]] += 0.5 * twoA;
+            }
+    }
+    if (vm_node)
+        for (gs_index i = 0; i < m->n_nodes; i++)
+            vm_node[i] = wsum[i] > 0 ? vm_node[i] / wsum[i] : 0.0;
+    free(wsum);
+    return GS_OK;
+}

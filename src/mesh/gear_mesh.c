@@ -1,0 +1,1099 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: conforming linear-triangle meshes of the elastic part of a gear
+ * (docs/GEOMETRY.md, "Meshes").
+ *
+ * One tooth sector (from the middle of one space to the middle of the next)
+ * is meshed once, in the frame of tooth 0, as four structured blocks filled
+ * by transfinite interpolation:
+ *
+ *   T   the tooth above the chord joining its two form points: `across`
+ *       elements between the flanks, `flank` along them;
+ *   R   under T, down to the band circle R0: `across` x `rim`;
+ *   S+- the two space sides: fillet + root arc on top, R0 below: `rim`
+ *       layers.
+ *
+ * The sector is then copied round the gear (nodes on the sector sides and
+ * their order shared), and the region between the band circle and the hub
+ * (or, for a ring, the outer rim) is filled with concentric rings whose
+ * node count may halve from one ring to the next, each pair of rings joined
+ * by a "zipper" of triangles. Sizes: uniform in arc length along a flank;
+ * across a tooth and down the band graded so the smallest elements sit at
+ * the flanks and the root (where teeth touch and bend); the rings grow
+ * geometrically away from the teeth. Refinement multiplies every count by
+ * 2^refine with all boundary nodes of the coarser mesh kept (nested). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/mesh.h"
+#include "gearsim/util.h"
+
+/* ------------------------------------------------------------------------ */
+/* Growable node and triangle lists                                         */
+/* ------------------------------------------------------------------------ */
+
+typedef struct {
+    double *xy;
+    signed char *tag;
+    gs_index n, cap;
+} nodes_t;
+
+typedef struct {
+    gs_index *t;
+    gs_index n, cap;
+} tris_t;
+
+static gs_index node_add(nodes_t *nb, double x, double y, int tag)
+{
+    if (nb->n == nb->cap) {
+        gs_index nc = nb->cap ? 2 * nb->cap : 256;
+        double *xy = realloc(nb->xy, (size_t)nc * 2 * sizeof *xy);
+        if (!xy)
+            return -1;
+        nb->xy = xy;
+        signed char *tg = realloc(nb->tag, (size_t)nc);
+        if (!tg)
+            return -1;
+        nb->tag = tg;
+        nb->cap = nc;
+    }
+    nb->xy[2 * nb->n] = x;
+    nb->xy[2 * nb->n + 1] = y;
+    nb->tag[nb->n] = (signed char)tag;
+    return nb->n++;
+}
+
+static int tri_add(tris_t *tb, gs_index a, gs_index b, gs_index c)
+{
+    if (tb->n == tb->cap) {
+        gs_index nc = tb->cap ? 2 * tb->cap : 512;
+        gs_index *t = realloc(tb->t, (size_t)nc * 3 * sizeof *t);
+        if (!t)
+            return -1;
+        tb->t = t;
+        tb->cap = nc;
+    }
+    tb->t[3 * tb->n] = a;
+    tb->t[3 * tb->n + 1] = b;
+    tb->t[3 * tb->n + 2] = c;
+    tb->n++;
+    return 0;
+}
+
+static double tri_area(const double *xy, gs_index a, gs_index b, gs_index c)
+{
+    double ax = xy[2 * a], ay = xy[2 * a + 1];
+    return 0.5 * ((xy[2 * b] - ax) * (xy[2 * c + 1] - ay) - (xy[2 * b + 1] - ay) * (xy[2 * c] - ax));
+}
+
+/* 4 sqrt(3) A / (sum of squared edges): 1 equilateral, <= 0 inverted. */
+static double tri_shape(const double *xy, gs_index a, gs_index b, gs_index c)
+{
+    double A = tri_area(xy, a, b, c);
+    double s = 0.0;
+    gs_index v[3] = {a, b, c};
+    for (int k = 0; k < 3; k++) {
+        gs_index p = v[k], q = v[(k + 1) % 3];
+        double dx = xy[2 * q] - xy[2 * p], dy = xy[2 * q + 1] - xy[2 * p + 1];
+        s += dx * dx + dy * dy;
+    }
+    return s > 0 ? 4.0 * sqrt(3.0) * A / s : -1.0;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Distributions on [0, 1] (nested: u = i/n and u = 2i/2n give one point)  */
+/* ------------------------------------------------------------------------ */
+
+/* Smallest steps at both ends; largest / smallest = g. */
+static double grade_both(double u, double g)
+{
+    if (g <= 1.0 + 1e-12)
+        return u;
+    double dl = acosh(sqrt(g));
+    return 0.5 * (1.0 + tanh(dl * (2.0 * u - 1.0)) / tanh(dl));
+}
+
+/* Smallest steps at u = 1; largest / smallest = g. */
+static double grade_top(double u, double g)
+{
+    if (g <= 1.0 + 1e-12)
+        return u;
+    double dl = acosh(sqrt(g));
+    return tanh(dl * u) / tanh(dl);
+}
+
+/* ------------------------------------------------------------------------ */
+/* Blocks                                                                   */
+/* ------------------------------------------------------------------------ */
+
+static void chord_params(const nodes_t *nb, const gs_index *ids, int n, double *t)
+{
+    t[0] = 0.0;
+    for (int i = 1; i <= n; i++) {
+        double dx = nb->xy[2 * ids[i]] - nb->xy[2 * ids[i - 1]];
+        double dy = nb->xy[2 * ids[i] + 1] - nb->xy[2 * ids[i - 1] + 1];
+        t[i] = t[i - 1] + hypot(dx, dy);
+    }
+    for (int i = 1; i <= n; i++)
+        t[i] /= t[n];
+}
+
+/* Fill a block (ni x nj cells) from its four sides by discrete transfinite
+ * interpolation and triangulate it. bot/top run i = 0..ni, lef/rig run
+ * j = 0..nj; corners shared. id receives the (ni+1)(nj+1) node ids, row j
+ * at id[j (ni+1) + i]. Each quad is split along the diagonal that gives the
+ * better worst triangle. */
+static int tfi_block(nodes_t *nb, tris_t *tb, int ni, int nj, const gs_index *bot,
+                     const gs_index *top, const gs_index *lef, const gs_index *rig, gs_index *id)
+{
+    double *xb = malloc((size_t)(ni + 1) * sizeof *xb), *xt = malloc((size_t)(ni + 1) * sizeof *xt);
+    double *yl = malloc((size_t)(nj + 1) * sizeof *yl), *yr = malloc((size_t)(nj + 1) * sizeof *yr);
+    int rc = -1;
+    if (!xb || !xt || !yl || !yr)
+        goto out;
+    chord_params(nb, bot, ni, xb);
+    chord_params(nb, top, ni, xt);
+    chord_params(nb, lef, nj, yl);
+    chord_params(nb, rig, nj, yr);
+    const int w = ni + 1;
+    for (int i = 0; i <= ni; i++) {
+        id[i] = bot[i];
+        id[nj * w + i] = top[i];
+    }
+    for (int j = 0; j <= nj; j++) {
+        id[j * w] = lef[j];
+        id[j * w + ni] = rig[j];
+    }
+    double p00[2] = {nb->xy[2 * bot[0]], nb->xy[2 * bot[0] + 1]};
+    double p10[2] = {nb->xy[2 * bot[ni]], nb->xy[2 * bot[ni] + 1]};
+    double p01[2] = {nb->xy[2 * top[0]], nb->xy[2 * top[0] + 1]};
+    double p11[2] = {nb->xy[2 * top[ni]], nb->xy[2 * top[ni] + 1]};
+    for (int j = 1; j < nj; j++)
+        for (int i = 1; i < ni; i++) {
+            /* Intersection of the lines joining matching side parameters. */
+            double dxi = xt[i] - xb[i], deta = yr[j] - yl[j];
+            double den = 1.0 - dxi * deta;
+            double xi = (xb[i] + yl[j] * dxi) / den;
+            double eta = (yl[j] + xb[i] * deta) / den;
+            double P[2];
+            for (int c = 0; c < 2; c++) {
+                double B = nb->xy[2 * bot[i] + c], T = nb->xy[2 * top[i] + c];
+                double L = nb->xy[2 * lef[j] + c], R = nb->xy[2 * rig[j] + c];
+                P[c] = (1 - eta) * B + eta * T + (1 - xi) * L + xi * R -
+                       ((1 - xi) * (1 - eta) * p00[c] + xi * (1 - eta) * p10[c] +
+                        (1 - xi) * eta * p01[c] + xi * eta * p11[c]);
+            }
+            gs_index k = node_add(nb, P[0], P[1], GS_NODE_INTERIOR);
+            if (k < 0)
+                goto out;
+            id[j * w + i] = k;
+        }
+    /* Orientation of the block from its boundary polygon. */
+    double A = 0.0;
+    {
+        gs_index prev = id[0];
+        for (int s = 1; s <= 2 * (ni + nj); s++) {
+            int i, j;
+            if (s <= ni) {
+                i = s;
+                j = 0;
+            } else if (s <= ni + nj) {
+                i = ni;
+                j = s - ni;
+            } else if (s <= 2 * ni + nj) {
+                i = ni - (s - ni - nj);
+                j = nj;
+            } else {
+                i = 0;
+                j = nj - (s - 2 * ni - nj);
+            }
+            gs_index cur = id[j * w + i];
+            A += nb->xy[2 * prev] * nb->xy[2 * cur + 1] - nb->xy[2 * cur] * nb->xy[2 * prev + 1];
+            prev = cur;
+        }
+    }
+    for (int j = 0; j < nj; j++)
+        for (int i = 0; i < ni; i++) {
+            gs_index a = id[j * w + i], b = id[j * w + i + 1];
+            gs_index c = id[(j + 1) * w + i + 1], e = id[(j + 1) * w + i];
+            if (A < 0) {
+                gs_index t = b;
+                b = e;
+                e = t;
+            }
+            double q1 = fmin(tri_shape(nb->xy, a, b, c), tri_shape(nb->xy, a, c, e));
+            double q2 = fmin(tri_shape(nb->xy, a, b, e), tri_shape(nb->xy, b, c, e));
+            int r = q1 >= q2 ? (tri_add(tb, a, b, c) | tri_add(tb, a, c, e))
+                             : (tri_add(tb, a, b, e) | tri_add(tb, b, c, e));
+            if (r)
+                goto out;
+        }
+    rc = 0;
+out:
+    free(xb);
+    free(xt);
+    free(yl);
+    free(yr);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* The sector template                                                      */
+/* ------------------------------------------------------------------------ */
+
+typedef struct {
+    nodes_t nd;
+    tris_t tr;
+    int nside;              /* nodes on each sector side (rim + 1) */
+    gs_index *left, *right; /* sector sides from R0 to the space centre */
+    int nbot;
+    gs_index *bottom;       /* R0 arc from -pi/z to +pi/z */
+    int nflank;
+    gs_index *flank_cw, *flank_ccw; /* form point -> tip corner */
+    int nbnd;
+    gs_index *bnd;          /* profile from S- to S+, both included */
+} sector_t;
+
+static void sector_free(sector_t *s)
+{
+    free(s->nd.xy);
+    free(s->nd.tag);
+    free(s->tr.t);
+    free(s->left);
+    free(s->right);
+    free(s->bottom);
+    free(s->flank_cw);
+    free(s->flank_ccw);
+    free(s->bnd);
+}
+
+/* Counts and shapes fixed at refine 0 (so that refinement is nested). */
+typedef struct {
+    int nf, na, nr, ns;           /* at the requested refinement; nr = all layers of R, S */
+    int nband;                    /* layers of nr in the band below the root circle */
+    double grading;
+    double R0;                    /* band circle */
+    double psiB;                  /* angle of the R/S block corner on R0 */
+    double lfil;                  /* fillet length */
+    double tfil[1025], sfil[1025];/* fillet parameter vs arc length fraction */
+    double fR[1025], fpsi[1025];  /* fillet samples: radius and polar angle */
+} plan_t;
+
+static double fillet_t_at(const plan_t *pl, double frac)
+{
+    /* invert the monotone table sfil(tfil) */
+    int lo = 0, hi = 1024;
+    while (hi - lo > 1) {
+        int mid = (lo + hi) / 2;
+        if (pl->sfil[mid] <= frac)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    double den = pl->sfil[hi] - pl->sfil[lo];
+    double w = den > 0 ? (frac - pl->sfil[lo]) / den : 0.0;
+    return pl->tfil[lo] + w * (pl->tfil[hi] - pl->tfil[lo]);
+}
+
+/* Smallest polar angle of the fillet between radius R and the form point
+ * (the fillet part "above" R, seen from the rim). */
+static double fillet_envelope(const plan_t *pl, const gs_gear_geom *g, double R)
+{
+    double env = g->psi_form;
+    for (int i = 0; i <= 1024; i++) {
+        int above = g->internal ? pl->fR[i] <= R : pl->fR[i] >= R;
+        if (above && pl->fpsi[i] < env)
+            env = pl->fpsi[i];
+    }
+    return env;
+}
+
+static gs_err make_plan(const gs_gear_geom *g, const gs_gear_mesh_opts *o, plan_t *pl, gs_diag *d)
+{
+    const int L = 1 << o->refine;
+    double m = g->m;
+    /* Fillet arc-length table (dense polyline; the nodes themselves are
+     * evaluated exactly on the curve). */
+    double P[2], T[2], Q[2];
+    gs_gear_fillet_point(g, 0.0, Q, T);
+    pl->tfil[0] = 0.0;
+    pl->sfil[0] = 0.0;
+    for (int i = 1; i <= 1024; i++) {
+        pl->tfil[i] = i / 1024.0;
+        gs_gear_fillet_point(g, pl->tfil[i], P, T);
+        pl->sfil[i] = pl->sfil[i - 1] + hypot(P[0] - Q[0], P[1] - Q[1]);
+        Q[0] = P[0];
+        Q[1] = P[1];
+    }
+    pl->lfil = pl->sfil[1024];
+    for (int i = 0; i <= 1024; i++) {
+        gs_gear_fillet_point(g, pl->tfil[i], P, T);
+        pl->fR[i] = hypot(P[0], P[1]);
+        pl->fpsi[i] = atan2(P[1], P[0]);
+    }
+    for (int i = 1; i <= 1024; i++)
+        pl->sfil[i] /= pl->lfil;
+    double rb = g->rb;
+    double lflank = fabs(g->ra * g->ra - g->r_form * g->r_form) / (2.0 * rb);
+    double h = lflank / o->flank;
+    /* Fillet and root arc are meshed as one curve, uniformly in arc length
+     * (nodes exactly on whichever piece they fall); the root arc alone is
+     * often a sliver (0.06 m for the standard rack). */
+    double lroot = g->rf * (g->half_pitch - g->psi_root);
+    int ns0 = (int)lround((pl->lfil + lroot) / h);
+    pl->nf = o->flank * L;
+    pl->na = o->across * L;
+    /* R and S reach from the band circle up to the form radius: the band
+     * gets `rim` layers, the height of the fillet as many more as fit at
+     * the flank's element size. */
+    int nx0 = (int)lround(fabs(g->r_form - g->rf) / h);
+    pl->nband = o->rim * L;
+    pl->nr = (o->rim + nx0) * L;
+    pl->ns = (ns0 < 2 ? 2 : ns0) * L;
+    pl->grading = o->grading;
+    /* Band under the teeth: about a module and a quarter deep, or the whole
+     * rim when what would be left is thin. */
+    double rim = g->internal ? g->hub - g->rf : g->rf - g->hub;
+    double tb = fmin(rim, 1.25 * m);
+    if (rim - tb < 0.75 * tb)
+        tb = rim;
+    pl->R0 = tb == rim ? g->hub : g->internal ? g->rf + tb : g->rf - tb;
+    /* Corner B of the under-tooth block on R0: the line B-F bisects the
+     * angle between the tooth's base chord and the fillet at the form point
+     * F, so the three blocks meeting at F share its straight angle. */
+    double F[2], tf[2];
+    gs_gear_fillet_point(g, 0.0, F, tf);
+    double u[2] = {0.0, -1.0}; /* from F+ towards F- */
+    double dx = u[0] + tf[0], dy = u[1] + tf[1], dn = hypot(dx, dy);
+    dx /= dn;
+    dy /= dn;
+    /* |F + l d| = R0, l > 0 */
+    double bq = F[0] * dx + F[1] * dy, cq = F[0] * F[0] + F[1] * F[1] - pl->R0 * pl->R0;
+    double disc = bq * bq - cq;
+    double psiB;
+    if (disc > 0) {
+        double l = g->internal ? -bq + sqrt(disc) : -bq - sqrt(disc);
+        if (l <= 0)
+            l = -bq + sqrt(disc);
+        psiB = atan2(F[1] + l * dy, F[0] + l * dx);
+    } else {
+        psiB = 0.5 * g->psi_form;
+    }
+    double lo = 0.15 * g->half_pitch, hi = 0.8 * g->half_pitch;
+    if (psiB < lo)
+        psiB = lo;
+    if (psiB > hi)
+        psiB = hi;
+    /* B must lie on the tooth side of every fillet point (an undercut fillet
+     * dips towards the tooth centre). */
+    double env = fillet_envelope(pl, g, pl->R0);
+    if (psiB > 0.9 * env)
+        psiB = 0.9 * env;
+    if (psiB < 0.02 * g->half_pitch)
+        return gs_diag_set(d, GS_EGEOMETRY, "mesh",
+                           "cannot place the under-tooth block: the fillet cuts too deep into "
+                           "the tooth");
+    pl->psiB = psiB;
+    return GS_OK;
+}
+
+/* Ids of a side of nodes created along a straight segment A->B with
+ * distribution fr[0..n] (fr[0] = 0, fr[n] = 1); ends given. */
+static int line_nodes(nodes_t *nb, gs_index a, gs_index b, int n, const double *fr, gs_index *ids)
+{
+    ids[0] = a;
+    ids[n] = b;
+    double ax = nb->xy[2 * a], ay = nb->xy[2 * a + 1], bx = nb->xy[2 * b], by = nb->xy[2 * b + 1];
+    for (int i = 1; i < n; i++) {
+        ids[i] = node_add(nb, ax + fr[i] * (bx - ax), ay + fr[i] * (by - ay), GS_NODE_INTERIOR);
+        if (ids[i] < 0)
+            return -1;
+    }
+    return 0;
+}
+
+/* Nodes of the interface between R and S (and of R's other side, mirrored
+ * by `sgn` = -1): along the line B -> F, then pulled towards the tooth
+ * centre wherever the fillet dips below the line. */
+static int interface_side(nodes_t *nb, const gs_gear_geom *g, const plan_t *pl, gs_index a,
+                          gs_index b, double sgn, const double *fr, gs_index *ids)
+{
+    if (line_nodes(nb, a, b, pl->nr, fr, ids))
+        return -1;
+    for (int j = 1; j < pl->nr; j++) {
+        double *P = nb->xy + 2 * ids[j];
+        double R = hypot(P[0], P[1]), ps = sgn * atan2(P[1], P[0]);
+        double lim = 0.9 * fillet_envelope(pl, g, R);
+        if (ps > lim) {
+            P[0] = R * cos(lim);
+            P[1] = sgn * R * sin(lim);
+        }
+    }
+    return 0;
+}
+
+#define NEW_ARR(p, n)                                           \
+    do {                                                        \
+        (p) = gs_calloc((size_t)(n), sizeof *(p));              \
+        if (!(p))                                               \
+            goto nomem;                                         \
+    } while (0)
+
+#define ADD(dst, x, y, tag)                                     \
+    do {                                                        \
+        (dst) = node_add(&s->nd, (x), (y), (tag));              \
+        if ((dst) < 0)                                          \
+            goto nomem;                                         \
+    } while (0)
+
+static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
+{
+    const int nf = pl->nf, na = pl->na, nr = pl->nr, ns = pl->ns;
+    const double hp = g->half_pitch, R0 = pl->R0, rb = g->rb;
+    gs_index *fl_lo = NULL, *fl_hi = NULL, *tip = NULL, *chord = NULL, *rbot = NULL;
+    gs_index *rl = NULL, *rr = NULL, *stop_hi = NULL, *stop_lo = NULL, *sbot_hi = NULL,
+             *sbot_lo = NULL, *sr_hi = NULL, *sr_lo = NULL, *idT = NULL, *idR = NULL,
+             *idS = NULL;
+    double *fa = NULL, *fr = NULL, *fi = NULL;
+    NEW_ARR(fl_lo, nf + 1);
+    NEW_ARR(fl_hi, nf + 1);
+    NEW_ARR(tip, na + 1);
+    NEW_ARR(chord, na + 1);
+    NEW_ARR(rbot, na + 1);
+    NEW_ARR(rl, nr + 1);
+    NEW_ARR(rr, nr + 1);
+    NEW_ARR(stop_hi, ns + 1);
+    NEW_ARR(stop_lo, ns + 1);
+    NEW_ARR(sbot_hi, ns + 1);
+    NEW_ARR(sbot_lo, ns + 1);
+    NEW_ARR(sr_hi, nr + 1);
+    NEW_ARR(sr_lo, nr + 1);
+    NEW_ARR(idT, (size_t)(na + 1) * (nf + 1));
+    NEW_ARR(idR, (size_t)(na + 1) * (nr + 1));
+    NEW_ARR(idS, (size_t)(ns + 1) * (nr + 1));
+    NEW_ARR(fa, na + 1);
+    NEW_ARR(fr, nr + 1);
+    NEW_ARR(fi, nr + 1);
+    for (int i = 0; i <= na; i++)
+        fa[i] = grade_both((double)i / na, pl->grading);
+    /* fr: the radial line at the space centre, graded towards the root;
+     * fi: the R/S interface, `nband` graded layers up to about the root
+     * circle, then equal steps up the fillet's height to the form point. */
+    for (int j = 0; j <= nr; j++)
+        fr[j] = grade_top((double)j / nr, pl->grading);
+    {
+        const int nb = pl->nband;
+        double fb = 1.0;
+        if (nr > nb) {
+            fb = fabs(g->rf - R0) / fabs(g->r_form - R0);
+            fb = fb < 0.2 ? 0.2 : fb > 0.9 ? 0.9 : fb;
+        }
+        for (int j = 0; j <= nr; j++)
+            fi[j] = j <= nb ? fb * grade_top((double)j / nb, pl->grading)
+                            : fb + (1.0 - fb) * (j - nb) / (nr - nb);
+    }
+
+    /* Flanks: uniform in involute arc length (rb phi^2 / 2 = (R^2 - rb^2) / (2 rb)). */
+    double lf = (g->r_form * g->r_form - rb * rb), la = (g->ra * g->ra - rb * rb);
+    for (int j = 0; j <= nf; j++) {
+        double R = j == 0 ? g->r_form : j == nf ? g->ra : sqrt(rb * rb + lf + (la - lf) * j / nf);
+        double P[2], T[2];
+        gs_gear_flank_point(g, R, P, T);
+        ADD(fl_hi[j], P[0], P[1], GS_NODE_FLANK);
+        ADD(fl_lo[j], P[0], -P[1], GS_NODE_FLANK);
+    }
+    /* Tip arc C- -> C+ and the chord F- -> F+, graded like the across lines. */
+    tip[0] = fl_lo[nf];
+    tip[na] = fl_hi[nf];
+    chord[0] = fl_lo[0];
+    chord[na] = fl_hi[0];
+    for (int i = 1; i < na; i++) {
+        double ps = -g->psi_tip + 2.0 * g->psi_tip * fa[i];
+        ADD(tip[i], g->ra * cos(ps), g->ra * sin(ps), GS_NODE_TIP);
+    }
+    if (line_nodes(&s->nd, chord[0], chord[na], na, fa, chord))
+        goto nomem;
+    /* R0 arc under the tooth. */
+    for (int i = 0; i <= na; i++) {
+        double ps = -pl->psiB + 2.0 * pl->psiB * fa[i];
+        ADD(rbot[i], R0 * cos(ps), R0 * sin(ps), GS_NODE_INTERIOR);
+    }
+    if (interface_side(&s->nd, g, pl, rbot[0], chord[0], -1.0, fi, rl) ||
+        interface_side(&s->nd, g, pl, rbot[na], chord[na], 1.0, fi, rr))
+        goto nomem;
+    /* Space sides: top = fillet then root arc, one curve at equal arc
+     * length steps; bottom on R0 at equal angles. */
+    double lroot = g->rf * (hp - g->psi_root), ltot = pl->lfil + lroot;
+    stop_hi[0] = fl_hi[0];
+    stop_lo[0] = fl_lo[0];
+    for (int k = 1; k <= ns; k++) {
+        double P[2], T[2];
+        int tag;
+        double sk = ltot * k / ns;
+        if (k < ns && sk < pl->lfil) {
+            gs_gear_fillet_point(g, fillet_t_at(pl, sk / pl->lfil), P, T);
+            tag = GS_NODE_FILLET;
+        } else {
+            double ps = k == ns ? hp : g->psi_root + (sk - pl->lfil) / g->rf;
+            P[0] = g->rf * cos(ps);
+            P[1] = g->rf * sin(ps);
+            tag = sk == pl->lfil ? GS_NODE_FILLET : GS_NODE_ROOT;
+        }
+        ADD(stop_hi[k], P[0], P[1], tag);
+        ADD(stop_lo[k], P[0], -P[1], tag);
+    }
+    sbot_hi[0] = rbot[na];
+    sbot_lo[0] = rbot[0];
+    for (int k = 1; k <= ns; k++) {
+        double ps = k == ns ? hp : pl->psiB + (hp - pl->psiB) * k / ns;
+        ADD(sbot_hi[k], R0 * cos(ps), R0 * sin(ps), GS_NODE_INTERIOR);
+        ADD(sbot_lo[k], R0 * cos(ps), -R0 * sin(ps), GS_NODE_INTERIOR);
+    }
+    if (line_nodes(&s->nd, sbot_hi[ns], stop_hi[ns], nr, fr, sr_hi) ||
+        line_nodes(&s->nd, sbot_lo[ns], stop_lo[ns], nr, fr, sr_lo))
+        goto nomem;
+    /* Mirror the lower sides exactly (TFI would only give round-off symmetry
+     * on the sector sides, and those must coincide with the neighbour's). */
+    for (int j = 0; j <= nr; j++) {
+        s->nd.xy[2 * sr_lo[j]] = s->nd.xy[2 * sr_hi[j]];
+        s->nd.xy[2 * sr_lo[j] + 1] = -s->nd.xy[2 * sr_hi[j] + 1];
+    }
+    /* Blocks. */
+    if (tfi_block(&s->nd, &s->tr, na, nf, chord, tip, fl_lo, fl_hi, idT) ||
+        tfi_block(&s->nd, &s->tr, na, nr, rbot, chord, rl, rr, idR) ||
+        tfi_block(&s->nd, &s->tr, ns, nr, sbot_hi, stop_hi, rr, sr_hi, idS) ||
+        tfi_block(&s->nd, &s->tr, ns, nr, sbot_lo, stop_lo, rl, sr_lo, idS))
+        goto nomem;
+    /* Lists for assembly. */
+    s->nside = nr + 1;
+    NEW_ARR(s->left, nr + 1);
+    NEW_ARR(s->right, nr + 1);
+    memcpy(s->left, sr_lo, (size_t)(nr + 1) * sizeof *sr_lo);
+    memcpy(s->right, sr_hi, (size_t)(nr + 1) * sizeof *sr_hi);
+    s->nbot = 2 * ns + na + 1;
+    NEW_ARR(s->bottom, s->nbot);
+    {
+        int k = 0;
+        for (int i = ns; i >= 1; i--)
+            s->bottom[k++] = sbot_lo[i];
+        for (int i = 0; i <= na; i++)
+            s->bottom[k++] = rbot[i];
+        for (int i = 1; i <= ns; i++)
+            s->bottom[k++] = sbot_hi[i];
+    }
+    s->nflank = nf + 1;
+    NEW_ARR(s->flank_cw, nf + 1);
+    NEW_ARR(s->flank_ccw, nf + 1);
+    memcpy(s->flank_cw, fl_lo, (size_t)(nf + 1) * sizeof *fl_lo);
+    memcpy(s->flank_ccw, fl_hi, (size_t)(nf + 1) * sizeof *fl_hi);
+    s->nbnd = 2 * ns + 2 * nf + na + 1;
+    NEW_ARR(s->bnd, s->nbnd);
+    {
+        int k = 0;
+        for (int i = ns; i >= 1; i--)
+            s->bnd[k++] = stop_lo[i];
+        for (int j = 0; j < nf; j++)
+            s->bnd[k++] = fl_lo[j];
+        for (int i = 0; i < na; i++)
+            s->bnd[k++] = tip[i];
+        for (int j = nf; j >= 0; j--)
+            s->bnd[k++] = fl_hi[j];
+        for (int i = 1; i <= ns; i++)
+            s->bnd[k++] = stop_hi[i];
+    }
+    free(fl_lo);
+    free(fl_hi);
+    free(tip);
+    free(chord);
+    free(rbot);
+    free(rl);
+    free(rr);
+    free(stop_hi);
+    free(stop_lo);
+    free(sbot_hi);
+    free(sbot_lo);
+    free(sr_hi);
+    free(sr_lo);
+    free(idT);
+    free(idR);
+    free(idS);
+    free(fa);
+    free(fr);
+    free(fi);
+    return GS_OK;
+nomem:
+    free(fl_lo);
+    free(fl_hi);
+    free(tip);
+    free(chord);
+    free(rbot);
+    free(rl);
+    free(rr);
+    free(stop_hi);
+    free(stop_lo);
+    free(sbot_hi);
+    free(sbot_lo);
+    free(sr_hi);
+    free(sr_lo);
+    free(idT);
+    free(idR);
+    free(idS);
+    free(fa);
+    free(fr);
+    free(fi);
+    return GS_ENOMEM;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Rings between the band and the hub                                       */
+/* ------------------------------------------------------------------------ */
+
+typedef struct {
+    int n;
+    double *R;     /* radii, R[0] = R0 ... R[n-1] = hub */
+    gs_index *N;   /* node counts at refine 0 */
+} rings_t;
+
+/* Rings at refine 0: element size grows by 1.3 per ring away from the
+ * teeth; the count may at most halve from one ring to the next. */
+static int plan_rings(const gs_gear_geom *g, double R0, gs_index N0, double h0, rings_t *rp)
+{
+    const double grow = 1.3;
+    int cap = 64;
+    rp->R = malloc((size_t)cap * sizeof *rp->R);
+    rp->N = malloc((size_t)cap * sizeof *rp->N);
+    if (!rp->R || !rp->N)
+        return -1;
+    double dir = g->internal ? 1.0 : -1.0, hub = g->hub;
+    rp->n = 1;
+    rp->R[0] = R0;
+    rp->N[0] = N0;
+    if (fabs(hub - R0) <= 1e-12 * hub)
+        return 0;
+    double R = R0, h = h0;
+    gs_index N = N0;
+    for (;;) {
+        double hn = h * grow;
+        double Rn = R + dir * hn;
+        int last = g->internal ? Rn >= hub - 0.5 * hn : Rn <= hub + 0.5 * hn;
+        if (last)
+            Rn = hub;
+        gs_index want = (gs_index)llround(2.0 * GS_PI * Rn / hn);
+        gs_index lo = (N + 1) / 2;
+        if (want < 12)
+            want = 12;
+        if (want < lo)
+            want = lo;
+        if (want > N)
+            want = N;
+        if (rp->n == cap) {
+            cap *= 2;
+            double *nR = realloc(rp->R, (size_t)cap * sizeof *nR);
+            if (!nR)
+                return -1;
+            rp->R = nR;
+            gs_index *nN = realloc(rp->N, (size_t)cap * sizeof *nN);
+            if (!nN)
+                return -1;
+            rp->N = nN;
+        }
+        rp->R[rp->n] = Rn;
+        rp->N[rp->n] = want;
+        rp->n++;
+        if (last)
+            break;
+        R = Rn;
+        h = hn;
+        N = want;
+    }
+    return 0;
+}
+
+/* Angles of a closed loop of nodes, unwrapped to increase from `from`
+ * (which is within pi of the first node's angle); out has n + 1 entries,
+ * the last one closing the loop (first + 2 pi). */
+static void loop_angles(const nodes_t *nb, const gs_index *L, gs_index n, double from, double *out)
+{
+    double prev = atan2(nb->xy[2 * L[0] + 1], nb->xy[2 * L[0]]);
+    double d0 = prev - from;
+    out[0] = from + d0 - 2 * GS_PI * floor(d0 / (2 * GS_PI) + 0.5);
+    for (gs_index k = 1; k < n; k++) {
+        double a = atan2(nb->xy[2 * L[k] + 1], nb->xy[2 * L[k]]);
+        double da = a - prev;
+        da -= 2 * GS_PI * floor(da / (2 * GS_PI));
+        out[k] = out[k - 1] + da;
+        prev = a;
+    }
+    out[n] = out[0] + 2 * GS_PI;
+}
+
+/* Triangulate the band between two closed loops of nodes on concentric
+ * circles, each in increasing angle: walk both, always advancing on the
+ * loop whose next edge midpoint comes first in angle. Counter-clockwise
+ * triangles; `a_outer` says which loop has the larger radius. */
+static int zipper(nodes_t *nb, tris_t *tb, const gs_index *A, gs_index na, const gs_index *B,
+                  gs_index nbn, int a_outer)
+{
+    double *aa = malloc((size_t)(na + 1) * sizeof *aa), *ab = malloc((size_t)(nbn + 1) * sizeof *ab);
+    gs_index *Br = malloc((size_t)nbn * sizeof *Br);
+    int rc = -1;
+    if (!aa || !ab || !Br)
+        goto out;
+    double a0 = atan2(nb->xy[2 * A[0] + 1], nb->xy[2 * A[0]]);
+    loop_angles(nb, A, na, a0, aa);
+    /* Start B at its node nearest in angle to A[0]. */
+    gs_index j0 = 0;
+    double best = 1e300;
+    for (gs_index j = 0; j < nbn; j++) {
+        double t = atan2(nb->xy[2 * B[j] + 1], nb->xy[2 * B[j]]) - a0;
+        t -= 2 * GS_PI * floor(t / (2 * GS_PI) + 0.5);
+        if (fabs(t) < best) {
+            best = fabs(t);
+            j0 = j;
+        }
+    }
+    for (gs_index j = 0; j < nbn; j++)
+        Br[j] = B[(j0 + j) % nbn];
+    loop_angles(nb, Br, nbn, a0, ab);
+    gs_index i = 0, j = 0;
+    while (i < na || j < nbn) {
+        gs_index ia = A[i % na], ia1 = A[(i + 1) % na];
+        gs_index jb = Br[j % nbn], jb1 = Br[(j + 1) % nbn];
+        int adv_a = i == na ? 0 : j == nbn ? 1 : aa[i] + aa[i + 1] < ab[j] + ab[j + 1];
+        int r;
+        if (adv_a) {
+            r = a_outer ? tri_add(tb, ia, ia1, jb) : tri_add(tb, ia1, ia, jb);
+            i++;
+        } else {
+            r = a_outer ? tri_add(tb, jb1, jb, ia) : tri_add(tb, jb, jb1, ia);
+            j++;
+        }
+        if (r)
+            goto out;
+    }
+    rc = 0;
+out:
+    free(aa);
+    free(ab);
+    free(Br);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Smoothing of poor elements                                               */
+/* ------------------------------------------------------------------------ */
+
+/* Smart Laplacian smoothing: an interior node touching an element of shape
+ * below `thresh` moves towards the mean of its neighbours, by the largest of
+ * the steps 1, 1/2, 1/4 that raises its worst incident shape. Boundary
+ * nodes never move (they lie on the exact curves), nodes of good elements
+ * neither (that keeps the grading). */
+static int smooth_poor(nodes_t *nb, const tris_t *tb, int iters, double thresh)
+{
+    gs_index n = nb->n;
+    gs_index *cnt = calloc((size_t)n + 1, sizeof *cnt);
+    gs_index *adj = malloc((size_t)(3 * tb->n + 1) * sizeof *adj);
+    if (!cnt || !adj) {
+        free(cnt);
+        free(adj);
+        return -1;
+    }
+    /* node -> incident triangles (CSR) */
+    for (gs_index t = 0; t < tb->n; t++)
+        for (int k = 0; k < 3; k++)
+            cnt[tb->t[3 * t + k] + 1]++;
+    for (gs_index i = 0; i < n; i++)
+        cnt[i + 1] += cnt[i];
+    gs_index *pos = malloc((size_t)n * sizeof *pos);
+    if (!pos) {
+        free(cnt);
+        free(adj);
+        return -1;
+    }
+    memcpy(pos, cnt, (size_t)n * sizeof *pos);
+    for (gs_index t = 0; t < tb->n; t++)
+        for (int k = 0; k < 3; k++)
+            adj[pos[tb->t[3 * t + k]]++] = t;
+    free(pos);
+    for (int it = 0; it < iters; it++) {
+        gs_index moved = 0;
+        for (gs_index v = 0; v < n; v++) {
+            if (nb->tag[v] != GS_NODE_INTERIOR)
+                continue;
+            double worst = 1e300, cx = 0.0, cy = 0.0;
+            gs_index deg = 0;
+            for (gs_index q = cnt[v]; q < cnt[v + 1]; q++) {
+                const gs_index *T = tb->t + 3 * adj[q];
+                double sh = tri_shape(nb->xy, T[0], T[1], T[2]);
+                if (sh < worst)
+                    worst = sh;
+                for (int k = 0; k < 3; k++)
+                    if (T[k] != v) {
+                        cx += nb->xy[2 * T[k]];
+                        cy += nb->xy[2 * T[k] + 1];
+                        deg++;
+                    }
+            }
+            if (worst >= thresh || deg == 0)
+                continue;
+            cx /= (double)deg;
+            cy /= (double)deg;
+            double x0 = nb->xy[2 * v], y0 = nb->xy[2 * v + 1];
+            for (double w = 1.0; w > 0.2; w *= 0.5) {
+                nb->xy[2 * v] = x0 + w * (cx - x0);
+                nb->xy[2 * v + 1] = y0 + w * (cy - y0);
+                double nw = 1e300;
+                for (gs_index q = cnt[v]; q < cnt[v + 1]; q++) {
+                    const gs_index *T = tb->t + 3 * adj[q];
+                    double sh = tri_shape(nb->xy, T[0], T[1], T[2]);
+                    if (sh < nw)
+                        nw = sh;
+                }
+                if (nw > worst) {
+                    moved++;
+                    goto next;
+                }
+            }
+            nb->xy[2 * v] = x0;
+            nb->xy[2 * v + 1] = y0;
+        next:;
+        }
+        if (!moved)
+            break;
+    }
+    free(cnt);
+    free(adj);
+    return 0;
+}
+
+/* ------------------------------------------------------------------------ */
+/* Assembly                                                                 */
+/* ------------------------------------------------------------------------ */
+
+void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o)
+{
+    o->flank = 8;
+    o->across = 4;
+    o->rim = 3;
+    o->refine = 0;
+    o->grading = 2.0;
+}
+
+static gs_err check_opts(const gs_gear_mesh_opts *o, gs_diag *d)
+{
+    if (o->flank < 1 || o->flank > 1000)
+        return gs_diag_set(d, GS_ERANGE, "mesh.flank", "elements along a flank: 1 to 1000 (got %d)",
+                           o->flank);
+    if (o->across < 1 || o->across > 1000)
+        return gs_diag_set(d, GS_ERANGE, "mesh.across",
+                           "elements across a tooth: 1 to 1000 (got %d)", o->across);
+    if (o->rim < 1 || o->rim > 1000)
+        return gs_diag_set(d, GS_ERANGE, "mesh.rim", "element layers in the rim: 1 to 1000 (got %d)",
+                           o->rim);
+    if (o->refine < 0 || o->refine > 8)
+        return gs_diag_set(d, GS_ERANGE, "refine", "refinement level: 0 to 8 (got %d)", o->refine);
+    if (!(o->grading >= 1.0 && o->grading <= 8.0))
+        return gs_diag_set(d, GS_ERANGE, "mesh.grading", "grading: 1 to 8 (got %g)", o->grading);
+    return GS_OK;
+}
+
+gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh **out,
+                    gs_diag *d)
+{
+    *out = NULL;
+    gs_gear_mesh_opts def;
+    if (!o) {
+        gs_gear_mesh_opts_defaults(&def);
+        o = &def;
+    }
+    GS_TRY(check_opts(o, d));
+    gs_gear_geom g;
+    GS_TRY(gs_gear_geometry(p, &g, d));
+    plan_t *pl = malloc(sizeof *pl);
+    if (!pl)
+        return GS_ENOMEM;
+    gs_err e = make_plan(&g, o, pl, d);
+    if (e != GS_OK) {
+        free(pl);
+        return e;
+    }
+    /* Size guard before allocating: triangles per sector ~ 2 (na nf + (na +
+     * 2 ns) nr), plus the rings (bounded by a few times the band's). */
+    {
+        double per = 2.0 * ((double)pl->na * pl->nf + (double)(pl->na + 2 * pl->ns) * pl->nr);
+        if (per * g.z * 4.0 > (double)(1 << 26)) {
+            free(pl);
+            return gs_diag_set(d, GS_ETOOBIG, "refine",
+                               "the mesh would have about %.3g triangles (limit %d)",
+                               per * g.z * 4.0, 1 << 26);
+        }
+    }
+    sector_t sec;
+    memset(&sec, 0, sizeof sec);
+    nodes_t nd = {0};
+    tris_t tr = {0};
+    rings_t rp = {0};
+    gs_mesh *m = NULL;
+    gs_index *map = NULL, *first_left = NULL, *prev_right = NULL, *ring0 = NULL, *ringA = NULL,
+             *ringB = NULL;
+    signed char *where = NULL; /* -1 left side, +1 right side, 0 other; pos in side_pos */
+    int *side_pos = NULL;
+    e = build_sector(&g, pl, &sec);
+    if (e != GS_OK)
+        goto fail;
+    e = GS_ENOMEM;
+    const int z = g.z;
+    const gs_index nl = sec.nd.n;
+    map = malloc((size_t)nl * sizeof *map);
+    where = calloc((size_t)nl, 1);
+    side_pos = calloc((size_t)nl, sizeof *side_pos);
+    first_left = malloc((size_t)sec.nside * sizeof *first_left);
+    prev_right = malloc((size_t)sec.nside * sizeof *prev_right);
+    if (!map || !where || !side_pos || !first_left || !prev_right)
+        goto fail;
+    for (int j = 0; j < sec.nside; j++) {
+        where[sec.left[j]] = -1;
+        side_pos[sec.left[j]] = j;
+        where[sec.right[j]] = 1;
+        side_pos[sec.right[j]] = j;
+    }
+    m = gs_calloc(1, sizeof *m);
+    if (!m)
+        goto fail;
+    m->n_teeth = z;
+    m->flank_ptr = malloc((size_t)(2 * z + 1) * sizeof *m->flank_ptr);
+    m->flank_nodes = malloc((size_t)(2 * z) * sec.nflank * sizeof *m->flank_nodes);
+    m->n_boundary = (gs_index)z * (sec.nbnd - 1);
+    m->boundary = malloc((size_t)m->n_boundary * sizeof *m->boundary);
+    gs_index n0 = (gs_index)z * (sec.nbot - 1);
+    ring0 = malloc((size_t)n0 * sizeof *ring0);
+    if (!m->flank_ptr || !m->flank_nodes || !m->boundary || !ring0)
+        goto fail;
+    for (int k = 0; k < z; k++) {
+        double ang = 2.0 * GS_PI * k / z, c = cos(ang), sn = sin(ang);
+        for (gs_index l = 0; l < nl; l++) {
+            if (where[l] == -1 && k > 0) {
+                map[l] = prev_right[side_pos[l]];
+                continue;
+            }
+            if (where[l] == 1 && k == z - 1) {
+                map[l] = first_left[side_pos[l]];
+                continue;
+            }
+            double x = sec.nd.xy[2 * l], y = sec.nd.xy[2 * l + 1];
+            map[l] = node_add(&nd, c * x - sn * y, sn * x + c * y, sec.nd.tag[l]);
+            if (map[l] < 0)
+                goto fail;
+        }
+        for (int j = 0; j < sec.nside; j++) {
+            if (k == 0)
+                first_left[j] = map[sec.left[j]];
+            prev_right[j] = map[sec.right[j]];
+        }
+        for (gs_index t = 0; t < sec.tr.n; t++)
+            if (tri_add(&tr, map[sec.tr.t[3 * t]], map[sec.tr.t[3 * t + 1]], map[sec.tr.t[3 * t + 2]]))
+                goto fail;
+        /* s = 0 is the clockwise flank for an external gear, the
+         * counter-clockwise one for a ring (viewer inside the ring). */
+        const gs_index *f0 = g.internal ? sec.flank_ccw : sec.flank_cw;
+        const gs_index *f1 = g.internal ? sec.flank_cw : sec.flank_ccw;
+        for (int q = 0; q < sec.nflank; q++) {
+            m->flank_nodes[(2 * k) * sec.nflank + q] = map[f0[q]];
+            m->flank_nodes[(2 * k + 1) * sec.nflank + q] = map[f1[q]];
+        }
+        for (int q = 0; q + 1 < sec.nbnd; q++)
+            m->boundary[(gs_index)k * (sec.nbnd - 1) + q] = map[sec.bnd[q]];
+        for (int q = 0; q + 1 < sec.nbot; q++)
+            ring0[(gs_index)k * (sec.nbot - 1) + q] = map[sec.bottom[q]];
+    }
+    for (int t = 0; t <= 2 * z; t++)
+        m->flank_ptr[t] = (gs_index)t * sec.nflank;
+    /* Rings from the band circle to the hub / outer rim. */
+    {
+        const int L = 1 << o->refine;
+        gs_index n0_base = n0 / L;
+        /* mean spacing on R0 vs the band's deepest layer: start from the larger */
+        double h0 = 2.0 * GS_PI * pl->R0 / (double)n0_base;
+        double band = fabs(g.rf - pl->R0) * grade_top(1.0 / o->rim, o->grading);
+        if (band > h0)
+            h0 = band;
+        if (plan_rings(&g, pl->R0, n0_base, h0, &rp))
+            goto fail;
+        gs_index nA = n0;
+        ringA = ring0;
+        ring0 = NULL;
+        for (int k = 0; k + 1 < rp.n; k++) {
+            for (int sub = 1; sub <= L; sub++) {
+                double R = rp.R[k] + (rp.R[k + 1] - rp.R[k]) * sub / L;
+                gs_index nB = (sub == L ? rp.N[k + 1] : rp.N[k]) * L;
+                ringB = malloc((size_t)nB * sizeof *ringB);
+                if (!ringB)
+                    goto fail;
+                int last = k + 2 == rp.n && sub == L;
+                for (gs_index q = 0; q < nB; q++) {
+                    double a = -GS_PI / z + 2.0 * GS_PI * q / nB;
+                    ringB[q] = node_add(&nd, R * cos(a), R * sin(a),
+                                        last ? GS_NODE_CORE : GS_NODE_INTERIOR);
+                    if (ringB[q] < 0)
+                        goto fail;
+                }
+                if (zipper(&nd, &tr, ringA, nA, ringB, nB, !g.internal))
+                    goto fail;
+                free(ringA);
+                ringA = ringB;
+                ringB = NULL;
+                nA = nB;
+            }
+        }
+        /* ringA is the core interface. */
+        m->n_fixed = nA;
+        m->fixed = ringA;
+        ringA = NULL;
+        for (gs_index q = 0; q < m->n_fixed; q++)
+            nd.tag[m->fixed[q]] = GS_NODE_CORE;
+    }
+    if (smooth_poor(&nd, &tr, 12, 0.5))
+        goto fail;
+    m->n_nodes = nd.n;
+    m->xy = nd.xy;
+    m->node_tag = nd.tag;
+    m->n_tris = tr.n;
+    m->tri = tr.t;
+    nd.xy = NULL;
+    nd.tag = NULL;
+    tr.t = NULL;
+    /* Every triangle must have come out counter-clockwise and not flat. */
+    {
+        gs_mesh_quality q;
+        gs_mesh_quality_eval(m, &q);
+        if (q.n_bad > 0) {
+            e = gs_diag_set(d, GS_EGEOMETRY, "mesh",
+                            "%lld of %lld elements came out inverted or flat (%d teeth, module "
+                            "%g mm, shift %g): try other mesh counts",
+                            (long long)q.n_bad, (long long)q.n_tris, z, g.m * 1e3,
+                            p->profile_shift);
+            goto fail;
+        }
+    }
+    e = GS_OK;
+    *out = m;
+    m = NULL;
+fail:
+    gs_mesh_free(&m);
+    sector_free(&sec);
+    free(nd.xy);
+    free(nd.tag);
+    free(tr.t);
+    free(rp.R);
+    free(rp.N);
+    free(map);
+    free(where);
+    free(side_pos);
+    free(first_left);
+    free(prev_right);
+    free(ring0);
+    free(ringA);
+    free(ringB);
+    free(pl);
+    return e;
+}

@@ -1,0 +1,191 @@
+# SPDX-License-Identifier: MIT
+"""Start a real gearsimd under mpirun for an integration test, and always tear it down.
+
+    with Daemon(ranks=2) as d:          # temp dir with conn.json and the data dir
+        c = d.client()                  # a gearsim.Client on that connection file
+        ...
+
+Teardown: `shutdown` command, then SIGTERM to the process group we started,
+then SIGKILL, each with a timeout; an atexit hook covers crashes of the test.
+GEARSIM_FAKE_DAEMON=1 runs tests/integration/fakedaemon.py instead (for
+testing the clients themselves, never to judge the daemon)."""
+import atexit
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SOURCE_ROOT = os.environ.get("GEARSIM_SOURCE_ROOT") or os.path.abspath(os.path.join(HERE, "..", ".."))
+BUILD_ROOT = os.environ.get("GEARSIM_BUILD_ROOT") or os.path.join(SOURCE_ROOT, "build")
+sys.path.insert(0, os.path.join(SOURCE_ROOT, "clients", "python"))
+
+import gearsim  # noqa: E402
+
+MPI_ENV = {
+    "OMPI_ALLOW_RUN_AS_ROOT": "1",
+    "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1",
+    "OMPI_MCA_rmaps_base_oversubscribe": "1",
+    "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
+    "HDF5_USE_FILE_LOCKING": "FALSE",
+}
+FAKE = os.environ.get("GEARSIM_FAKE_DAEMON") == "1"
+_live = []
+
+
+def gearsimd_path():
+    return os.path.join(BUILD_ROOT, "src", "daemon", "gearsimd")
+
+
+def scene_path(name):
+    """deploy/scenes/<name>.json of the checkout."""
+    return os.path.join(SOURCE_ROOT, "deploy", "scenes", name + ".json")
+
+
+def load_scene(name):
+    with open(scene_path(name)) as f:
+        return json.load(f)
+
+
+class DaemonError(RuntimeError):
+    pass
+
+
+class Daemon:
+    """One gearsimd run in its own temporary directory (also its data dir)."""
+
+    def __init__(self, ranks=1, extra_args=(), startup_timeout=60.0, keep=None):
+        self.ranks = ranks
+        self.extra_args = list(extra_args)
+        self.startup_timeout = startup_timeout
+        self.keep = os.environ.get("GEARSIM_KEEP_TMP") == "1" if keep is None else keep
+        self.proc = None
+        self.dir = None
+        self.hello = None
+        self.returncode = None
+
+    # ---------------------------------------------------------------- start
+    def command(self):
+        if FAKE:
+            return [sys.executable, os.path.join(HERE, "fakedaemon.py"),
+                    "--connection-file", self.conn_file, "--data-dir", self.dir] + self.extra_args
+        return ["mpirun", "-n", str(self.ranks), gearsimd_path(),
+                "--connection-file", self.conn_file, "--data-dir", self.dir] + self.extra_args
+
+    def start(self):
+        if not FAKE and not os.access(gearsimd_path(), os.X_OK):
+            raise DaemonError(f"{gearsimd_path()} is not built")
+        self.dir = tempfile.mkdtemp(prefix="gearsim-it-")
+        self.conn_file = os.path.join(self.dir, "conn.json")
+        env = dict(os.environ, **MPI_ENV)
+        self._out = open(os.path.join(self.dir, "daemon.out"), "wb")
+        self._err = open(os.path.join(self.dir, "daemon.err"), "wb")
+        self.proc = subprocess.Popen(self.command(), cwd=self.dir, env=env, stdin=subprocess.DEVNULL,
+                                     stdout=self._out, stderr=self._err, start_new_session=True)
+        _live.append(self)
+        deadline = time.monotonic() + self.startup_timeout
+        while not os.path.exists(self.conn_file):
+            if self.proc.poll() is not None:
+                raise DaemonError(f"gearsimd exited with {self.proc.returncode} before writing "
+                                  f"its connection file:\n{self.log_tail()}")
+            if time.monotonic() > deadline:
+                raise DaemonError(f"no connection file after {self.startup_timeout:g} s:\n{self.log_tail()}")
+            time.sleep(0.05)
+        last = None
+        while True:
+            try:
+                with gearsim.Client(self.conn_file, timeout=2.0, retries=0) as c:
+                    self.hello = c.hello()
+                break
+            except gearsim.GearsimError as e:   # half-written file, or not answering yet
+                last = e
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                raise DaemonError(f"gearsimd does not answer hello ({last}):\n{self.log_tail()}")
+            time.sleep(0.1)
+        with open(self.conn_file) as f:
+            self.connection = json.load(f)
+        return self
+
+    def client(self, **kw):
+        return gearsim.Client(self.conn_file, **kw)
+
+    def path(self, rel):
+        """Absolute path of a file in the daemon's data directory."""
+        return os.path.join(self.dir, rel)
+
+    def alive(self):
+        return self.proc is not None and self.proc.poll() is None
+
+    def log_tail(self, n=4000):
+        out = []
+        for name in ("daemon.out", "daemon.err"):
+            try:
+                with open(os.path.join(self.dir, name), "rb") as f:
+                    data = f.read()[-n:].decode(errors="replace")
+                out.append(f"--- {name} ---\n{data}")
+            except OSError:
+                pass
+        return "\n".join(out)
+
+    # ---------------------------------------------------------------- stop
+    def _signal(self, sig):
+        try:
+            os.killpg(self.proc.pid, sig)   # the group we created with start_new_session
+        except ProcessLookupError:
+            pass
+
+    def stop(self, graceful=True):
+        """Shutdown command, then SIGTERM, then SIGKILL. Returns how it ended:
+        'shutdown', 'sigterm', 'sigkill' or 'exited' (already gone)."""
+        if self.proc is None:
+            return "exited"
+        how = "exited"
+        if self.proc.poll() is None and graceful:
+            try:
+                with gearsim.Client(self.conn_file, timeout=5.0, retries=0) as c:
+                    c.shutdown()
+                self.proc.wait(timeout=20)
+                how = "shutdown"
+            except (gearsim.GearsimError, subprocess.TimeoutExpired):
+                pass
+        if self.proc.poll() is None:
+            self._signal(signal.SIGTERM)
+            try:
+                self.proc.wait(timeout=10)
+                how = "sigterm"
+            except subprocess.TimeoutExpired:
+                pass
+        if self.proc.poll() is None:
+            self._signal(signal.SIGKILL)
+            self.proc.wait(timeout=10)
+            how = "sigkill"
+        # ranks that outlived mpirun would still be in our process group
+        self._signal(signal.SIGKILL)
+        self.returncode = self.proc.returncode
+        self.proc = None
+        for f in (self._out, self._err):
+            f.close()
+        if self in _live:
+            _live.remove(self)
+        if self.dir and not self.keep:
+            shutil.rmtree(self.dir, ignore_errors=True)
+        return how
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+
+@atexit.register
+def _teardown_all():
+    for d in list(_live):
+        try:
+            d.stop(graceful=False)
+        except Exception:   # noqa: BLE001 - best effort at exit
+            pass

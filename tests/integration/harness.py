@@ -1,0 +1,228 @@
+# SPDX-License-Identifier: MIT
+"""Tiny test harness shared by the integration tests: named checks, a final
+`N passed, N failed` line, and a non-zero exit status on failure."""
+import json
+import sys
+import time
+import traceback
+
+import zmq
+
+
+class Results:
+    def __init__(self, title):
+        self.title = title
+        self.passed = 0
+        self.failed = 0
+        self.failures = []
+        print(f"# {title}", flush=True)
+
+    def check(self, name, cond, detail=""):
+        if cond:
+            self.passed += 1
+            print(f"ok - {name}", flush=True)
+        else:
+            self.failed += 1
+            self.failures.append(name)
+            msg = f"FAIL - {name}"
+            if detail:
+                msg += ": " + str(detail)[:2000]
+            print(msg, flush=True)
+        return bool(cond)
+
+    def note(self, text):
+        print(f"# {text}", flush=True)
+
+    def skip(self, name, reason):
+        print(f"skip - {name}: {reason}", flush=True)
+
+    def guard(self, name, fn, *args, **kw):
+        """Run fn; an exception counts as a failure of `name`. Returns fn's value or None."""
+        try:
+            return fn(*args, **kw)
+        except Exception as e:  # noqa: BLE001 - report and continue with the next case
+            self.check(name, False, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=4)}")
+            return None
+
+    def finish(self):
+        if self.failures:
+            print("# failed: " + ", ".join(self.failures))
+        print(f"{self.passed} passed, {self.failed} failed", flush=True)
+        sys.exit(1 if self.failed else 0)
+
+
+class RawDealer:
+    """A bare DEALER socket for sending arbitrary bytes and frames to the daemon."""
+
+    def __init__(self, conn_file, ctx=None):
+        with open(conn_file) as f:
+            self.info = json.load(f)
+        self.ctx = ctx or zmq.Context.instance()
+        self.sock = self.ctx.socket(zmq.DEALER)
+        self.sock.setsockopt(zmq.LINGER, 0)
+        self.sock.connect(self.info["command"])
+
+    def send(self, data):
+        if isinstance(data, str):
+            data = data.encode()
+        self.sock.send(data)
+
+    def send_json(self, obj):
+        self.send(json.dumps(obj, separators=(",", ":")))
+
+    def send_multipart(self, frames):
+        self.sock.send_multipart([f.encode() if isinstance(f, str) else f for f in frames])
+
+    def recv(self, timeout=10.0):
+        """The next reply as (frames, parsed last frame or None); (None, None) on timeout."""
+        if not self.sock.poll(int(timeout * 1000)):
+            return None, None
+        frames = self.sock.recv_multipart()
+        try:
+            return frames, json.loads(frames[-1])
+        except ValueError:
+            return frames, None
+
+    def request(self, obj, timeout=10.0):
+        t0 = time.monotonic()
+        self.send_json(obj)
+        frames, reply = self.recv(timeout)
+        return reply, time.monotonic() - t0
+
+    def close(self):
+        self.sock.close(0)
+
+
+class Probe:
+    """Raw DEALER + SUB sockets that keep every message as received, for
+    checking the daemon's bytes against the schemas. Events are collected
+    whenever the probe waits for something."""
+
+    def __init__(self, conn_file, ctx=None, subscribe=True, prefix="p"):
+        from protoschema import strict_loads
+        self._loads = strict_loads
+        with open(conn_file) as f:
+            self.info = json.load(f)
+        self.ctx = ctx or zmq.Context.instance()
+        self.dealer = self.ctx.socket(zmq.DEALER)
+        self.dealer.setsockopt(zmq.LINGER, 0)
+        self.dealer.connect(self.info["command"])
+        self.sub = None
+        self.events = []        # (frames, parsed or None, error text or None)
+        self.event_times = []   # arrival time (time.monotonic()) of each event
+        self.replies = {}       # id -> (frames, parsed, error)
+        self.stray = []         # replies whose id we did not expect
+        self.n = 0
+        self.prefix = prefix
+        if subscribe:
+            self.subscribe()
+
+    def subscribe(self, timeout=10.0):
+        self.sub = self.ctx.socket(zmq.SUB)
+        self.sub.setsockopt(zmq.LINGER, 0)
+        self.sub.setsockopt(zmq.RCVHWM, 1000000)
+        self.sub.setsockopt(zmq.SUBSCRIBE, b"")
+        self.sub.connect(self.info["telemetry"])
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self.pump(0.2)
+            if any(p and p.get("type") == "heartbeat" for _, p, _ in self.events):
+                return True
+        raise TimeoutError("no heartbeat within %g s" % timeout)
+
+    def _parse(self, frames):
+        try:
+            return self._loads(frames[-1]), None
+        except (ValueError, UnicodeDecodeError) as e:
+            return None, f"{type(e).__name__}: {e}"
+
+    def pump(self, timeout=0.0):
+        """Receive whatever is waiting (up to timeout s for the first message)."""
+        poller = zmq.Poller()
+        poller.register(self.dealer, zmq.POLLIN)
+        if self.sub is not None:
+            poller.register(self.sub, zmq.POLLIN)
+        got = 0
+        wait = int(timeout * 1000)
+        while True:
+            ready = dict(poller.poll(wait))
+            if not ready:
+                return got
+            wait = 0
+            if self.sub in ready:
+                frames = self.sub.recv_multipart()
+                parsed, err = self._parse(frames)
+                self.events.append((frames, parsed, err))
+                self.event_times.append(time.monotonic())
+                got += 1
+            if self.dealer in ready:
+                frames = self.dealer.recv_multipart()
+                parsed, err = self._parse(frames)
+                rid = parsed.get("id") if isinstance(parsed, dict) else None
+                if rid in self.replies and self.replies[rid] is None:
+                    self.replies[rid] = (frames, parsed, err)
+                else:
+                    self.stray.append((frames, parsed, err))
+                got += 1
+
+    def send(self, cmd, args=None, rid=None, raw=None):
+        """Send a request (or raw bytes/frames); returns the id expected in the reply."""
+        if rid is None:
+            self.n += 1
+            rid = f"{self.prefix}{self.n}"
+        self.replies[rid] = None
+        if raw is not None:
+            if isinstance(raw, list):
+                self.dealer.send_multipart(raw)
+            else:
+                self.dealer.send(raw)
+        else:
+            msg = {"v": 1, "id": rid, "cmd": cmd}
+            if args is not None:
+                msg["args"] = args
+            self.dealer.send(json.dumps(msg, separators=(",", ":")).encode())
+        return rid
+
+    def wait(self, rid, timeout=30.0):
+        """(frames, parsed, parse error) of the reply to rid; raises TimeoutError."""
+        deadline = time.monotonic() + timeout
+        while self.replies.get(rid) is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"no reply to {rid} within {timeout:g} s")
+            self.pump(min(left, 0.5))
+        return self.replies[rid]
+
+    def wait_stray(self, timeout=10.0):
+        """The next reply with an unexpected id (e.g. null after bad JSON)."""
+        deadline = time.monotonic() + timeout
+        while not self.stray:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(f"no reply within {timeout:g} s")
+            self.pump(min(left, 0.5))
+        return self.stray.pop(0)
+
+    def call(self, cmd, args=None, timeout=30.0):
+        """Send and wait; returns the parsed reply."""
+        return self.wait(self.send(cmd, args), timeout)[1]
+
+    def wait_event(self, pred, timeout=60.0, start=0):
+        """First parsed event at index >= start satisfying pred; raises TimeoutError."""
+        deadline = time.monotonic() + timeout
+        i = start
+        while True:
+            while i < len(self.events):
+                p = self.events[i][1]
+                if p is not None and pred(p):
+                    return p
+                i += 1
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError("event not seen within %g s" % timeout)
+            self.pump(min(left, 0.5))
+
+    def close(self):
+        self.dealer.close(0)
+        if self.sub is not None:
+            self.sub.close(0)
