@@ -24,7 +24,7 @@ trap cleanup EXIT
 for _ in $(seq 100); do [ -f "$out/gearsimd.json" ] && break; sleep 0.1; done
 [ -f "$out/gearsimd.json" ] || { cat "$out/gearsimd.log"; echo "the daemon did not start"; exit 1; }
 gearctl=(/usr/bin/python3 clients/python/gearctl --connection-file "$out/gearsimd.json")
-"${gearctl[@]}" run builtin:planetary --until 0.2 --record demo.h5 --telemetry "$out/demo.jsonl" --live
+"${gearctl[@]}" run builtin:planetary --until 0.2 --record "$out/demo.h5" --telemetry "$out/demo.jsonl" --live
 "${gearctl[@]}" plot "$out/demo.h5" -o "$out/demo.png"
 "${gearctl[@]}" shutdown
 wait "$daemon" || true
