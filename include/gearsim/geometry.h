@@ -87,8 +87,9 @@ double gs_gear_hub_radius(const gs_gear_params *p);
  * the exact outline) for a density (kg/m^3) and the face width: mass (kg),
  * polar moment about the axis (kg m^2). For an internal gear: the annulus
  * between the outer rim radius (hub radius) and the toothed inner boundary.
- * Errors: those of gs_gear_validate(); GS_EINVAL (field "density") for a
- * density that is not positive and finite. */
+ * Errors: those of gs_gear_validate() (without a diag: validate first for
+ * the field), GS_EINVAL for a density that is not positive and finite.
+ * mass or inertia may be NULL. */
 gs_err gs_gear_mass_properties(const gs_gear_params *p, double density, double *mass,
                                double *inertia);
 

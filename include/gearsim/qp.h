@@ -36,13 +36,20 @@ typedef struct gs_qp gs_qp;
 /* Tolerances. All are relative, so the solver is invariant to scaling a row,
  * the objective or x. Defaults from gs_qp_options_default(). */
 typedef struct gs_qp_options {
-    /* A constraint counts as violated when its residual is below
-     * -feas_tol * (|b_i| + |n_i| |x|), n_i its row, b_i its right-hand side.
-     * The final x satisfies every row to that tolerance. Default 1e-12. */
+    /* A row n_i^T x >= b_i counts as violated when its residual is below
+     * -feas_tol * (|b_i| + |n_i| (|x| + |x0|)), x0 = H^{-1} c the
+     * unconstrained minimiser (x is computed as x0 plus a correction, so its
+     * round-off scales with both). The final x satisfies every row to that
+     * tolerance. A row that is a combination sum_k r_k n_k of active rows is
+     * judged with sum_k |r_k| (|b_k| + |n_k| (|x| + |x0|)) added to the
+     * scale: consistent redundant equalities and duplicated contact rows
+     * are degenerate, not infeasible. Default 1e-12. */
     double feas_tol;
-    /* A row is linearly dependent on the active rows when the part of
-     * L^{-1} n_i orthogonal to the active rows' is below dep_tol times its
-     * norm (the sine of the angle, in the metric of H^{-1}). Default 1e-11. */
+    /* A row is linearly dependent on the active rows when its part outside
+     * their span, in the metric of H^{-1} (|J2^T n_i|, see docs/QP.md), is
+     * below dep_tol * (|L^{-1} n_i| + sum_k |r_k| |L^{-1} n_k|): its own size
+     * plus that of the combination expressing it through the active rows.
+     * Default 1e-11. */
     double dep_tol;
     /* H is rejected (GS_ESINGULAR) when LAPACK's reciprocal 1-norm condition
      * estimate is below this. Default 100 * DBL_EPSILON (2.2e-14). */
@@ -87,8 +94,9 @@ typedef struct gs_qp_result {
     int n_eq_dependent; /* equality rows skipped as dependent on earlier ones
                          * (consistent, lambda_eq = 0 for them) */
     int n_weak;         /* inequalities outside the active set with zero
-                         * residual (to feas_tol): the solution is degenerate,
-                         * multipliers may not be unique */
+                         * residual (to feas_tol), or dependent on the active
+                         * rows and holding to round-off: the solution is
+                         * degenerate, the multipliers may not be unique */
     int conflict_eq;    /* GS_EINFEASIBLE: the equality row found inconsistent, or -1 */
     int conflict_in;    /* GS_EINFEASIBLE: the inequality row that cannot be
                          * satisfied together with the active set, or -1 */

@@ -3,23 +3,29 @@
  * (docs/GEOMETRY.md, "Meshes").
  *
  * One tooth sector (from the middle of one space to the middle of the next)
- * is meshed once, in the frame of tooth 0, as four structured blocks filled
- * by transfinite interpolation:
+ * is meshed once, in the frame of tooth 0, as four blocks, each filled row
+ * by row (rows placed by transfinite interpolation of the block's sides,
+ * consecutive rows joined by a zipper, so a row may have more or fewer
+ * elements than the next):
  *
- *   T   the tooth above the chord joining its two form points: `across`
- *       elements between the flanks, `flank` along them;
- *   R   under T, down to the band circle R0: `across` x `rim`;
- *   S+- the two space sides: fillet + root arc on top, R0 below: `rim`
- *       layers.
+ *   T   the tooth above the chord joining its two form points: `flank`
+ *       rows along the flanks, `across` elements at the chord, fewer
+ *       towards a narrower tip;
+ *   R   under T, down to the band circle R0 (`rim` graded layers below the
+ *       root circle plus layers for the fillet's height);
+ *   S+- the two space sides, meshed sideways: rows from R0 up to the
+ *       fillet and root arc, from the R/S interface to the space centre
+ *       line (`rim` layers).
  *
  * The sector is then copied round the gear (nodes on the sector sides and
  * their order shared), and the region between the band circle and the hub
  * (or, for a ring, the outer rim) is filled with concentric rings whose
  * node count may halve from one ring to the next, each pair of rings joined
- * by a "zipper" of triangles. Sizes: uniform in arc length along a flank;
- * across a tooth and down the band graded so the smallest elements sit at
- * the flanks and the root (where teeth touch and bend); the rings grow
- * geometrically away from the teeth. Refinement multiplies every count by
+ * by a zipper. Sizes: uniform in arc length along a flank; across a tooth
+ * and down the band graded so the smallest elements sit at the flanks and
+ * the root (where teeth touch and bend); the rings grow geometrically away
+ * from the teeth. Poor elements are then smoothed (interior nodes only).
+ * Refinement multiplies every count by
  * 2^refine with all boundary nodes of the coarser mesh kept (nested). */
 #include <math.h>
 #include <stdlib.h>
@@ -138,102 +144,150 @@ static void chord_params(const nodes_t *nb, const gs_index *ids, int n, double *
         t[i] /= t[n];
 }
 
-/* Fill a block (ni x nj cells) from its four sides by discrete transfinite
- * interpolation and triangulate it. bot/top run i = 0..ni, lef/rig run
- * j = 0..nj; corners shared. id receives the (ni+1)(nj+1) node ids, row j
- * at id[j (ni+1) + i]. Each quad is split along the diagonal that gives the
- * better worst triangle. */
-static int tfi_block(nodes_t *nb, tris_t *tb, int ni, int nj, const gs_index *bot,
-                     const gs_index *top, const gs_index *lef, const gs_index *rig, gs_index *id)
+/* Point of a polyline (node ids, chord-length parameters t) at parameter u. */
+static void poly_eval(const nodes_t *nb, const gs_index *ids, const double *t, int n, double u,
+                      double P[2])
 {
-    double *xb = malloc((size_t)(ni + 1) * sizeof *xb), *xt = malloc((size_t)(ni + 1) * sizeof *xt);
-    double *yl = malloc((size_t)(nj + 1) * sizeof *yl), *yr = malloc((size_t)(nj + 1) * sizeof *yr);
+    int k = 0;
+    while (k < n - 1 && t[k + 1] < u)
+        k++;
+    double den = t[k + 1] - t[k];
+    double w = den > 0 ? (u - t[k]) / den : 0.0;
+    w = w < 0 ? 0 : w > 1 ? 1 : w;
+    for (int c = 0; c < 2; c++)
+        P[c] = (1 - w) * nb->xy[2 * ids[k] + c] + w * nb->xy[2 * ids[k + 1] + c];
+}
+
+/* Parameter of the polyline's node at fractional index u * n. */
+static double frac_param(const double *t, int n, double u)
+{
+    double x = u * n;
+    int k = (int)floor(x);
+    if (k >= n)
+        return 1.0;
+    if (k < 0)
+        return 0.0;
+    return t[k] + (x - k) * (t[k + 1] - t[k]);
+}
+
+/* A four-sided patch meshed row by row. Row j (0..nrow) runs from the left
+ * side node lef[j] to the right side node rig[j] with cnt[j] elements; row
+ * 0 is `bot`, row nrow is `top`. Nodes of the rows in between are placed
+ * by transfinite interpolation of the four sides (Coons patch), their
+ * spacing blended from the bottom's and the top's; consecutive rows are
+ * joined by a zipper (two rows of different counts is what lets a block
+ * change its resolution: a tooth narrowing to its tip, a fillet finer than
+ * the rim below it). */
+static int layered_block(nodes_t *nb, tris_t *tb, int nrow, const int *cnt, const gs_index *bot,
+                         const gs_index *top, const gs_index *lef, const gs_index *rig)
+{
+    const int nb0 = cnt[0], nt = cnt[nrow];
+    int maxc = 0;
+    for (int j = 0; j <= nrow; j++)
+        maxc = cnt[j] > maxc ? cnt[j] : maxc;
+    double *xb = malloc((size_t)(nb0 + 1) * sizeof *xb), *xt = malloc((size_t)(nt + 1) * sizeof *xt);
+    double *yl = malloc((size_t)(nrow + 1) * sizeof *yl), *yr = malloc((size_t)(nrow + 1) * sizeof *yr);
+    double *xa = malloc((size_t)(maxc + 1) * sizeof *xa), *xn = malloc((size_t)(maxc + 1) * sizeof *xn);
+    gs_index *ra = malloc((size_t)(maxc + 1) * sizeof *ra), *rn = malloc((size_t)(maxc + 1) * sizeof *rn);
     int rc = -1;
-    if (!xb || !xt || !yl || !yr)
+    if (!xb || !xt || !yl || !yr || !xa || !xn || !ra || !rn)
         goto out;
-    chord_params(nb, bot, ni, xb);
-    chord_params(nb, top, ni, xt);
-    chord_params(nb, lef, nj, yl);
-    chord_params(nb, rig, nj, yr);
-    const int w = ni + 1;
-    for (int i = 0; i <= ni; i++) {
-        id[i] = bot[i];
-        id[nj * w + i] = top[i];
-    }
-    for (int j = 0; j <= nj; j++) {
-        id[j * w] = lef[j];
-        id[j * w + ni] = rig[j];
-    }
+    chord_params(nb, bot, nb0, xb);
+    chord_params(nb, top, nt, xt);
+    chord_params(nb, lef, nrow, yl);
+    chord_params(nb, rig, nrow, yr);
     double p00[2] = {nb->xy[2 * bot[0]], nb->xy[2 * bot[0] + 1]};
-    double p10[2] = {nb->xy[2 * bot[ni]], nb->xy[2 * bot[ni] + 1]};
+    double p10[2] = {nb->xy[2 * bot[nb0]], nb->xy[2 * bot[nb0] + 1]};
     double p01[2] = {nb->xy[2 * top[0]], nb->xy[2 * top[0] + 1]};
-    double p11[2] = {nb->xy[2 * top[ni]], nb->xy[2 * top[ni] + 1]};
-    for (int j = 1; j < nj; j++)
-        for (int i = 1; i < ni; i++) {
-            /* Intersection of the lines joining matching side parameters. */
-            double dxi = xt[i] - xb[i], deta = yr[j] - yl[j];
-            double den = 1.0 - dxi * deta;
-            double xi = (xb[i] + yl[j] * dxi) / den;
-            double eta = (yl[j] + xb[i] * deta) / den;
-            double P[2];
-            for (int c = 0; c < 2; c++) {
-                double B = nb->xy[2 * bot[i] + c], T = nb->xy[2 * top[i] + c];
-                double L = nb->xy[2 * lef[j] + c], R = nb->xy[2 * rig[j] + c];
-                P[c] = (1 - eta) * B + eta * T + (1 - xi) * L + xi * R -
-                       ((1 - xi) * (1 - eta) * p00[c] + xi * (1 - eta) * p10[c] +
-                        (1 - xi) * eta * p01[c] + xi * eta * p11[c]);
-            }
-            gs_index k = node_add(nb, P[0], P[1], GS_NODE_INTERIOR);
-            if (k < 0)
-                goto out;
-            id[j * w + i] = k;
-        }
-    /* Orientation of the block from its boundary polygon. */
+    double p11[2] = {nb->xy[2 * top[nt]], nb->xy[2 * top[nt] + 1]};
+    /* Orientation of the patch: signed area of its boundary polygon. */
     double A = 0.0;
     {
-        gs_index prev = id[0];
-        for (int s = 1; s <= 2 * (ni + nj); s++) {
-            int i, j;
-            if (s <= ni) {
-                i = s;
-                j = 0;
-            } else if (s <= ni + nj) {
-                i = ni;
-                j = s - ni;
-            } else if (s <= 2 * ni + nj) {
-                i = ni - (s - ni - nj);
-                j = nj;
-            } else {
-                i = 0;
-                j = nj - (s - 2 * ni - nj);
-            }
-            gs_index cur = id[j * w + i];
-            A += nb->xy[2 * prev] * nb->xy[2 * cur + 1] - nb->xy[2 * cur] * nb->xy[2 * prev + 1];
-            prev = cur;
-        }
+        double px = p00[0], py = p00[1];
+#define ACC(id)                                                              \
+    do {                                                                     \
+        double qx = nb->xy[2 * (id)], qy = nb->xy[2 * (id) + 1];             \
+        A += px * qy - qx * py;                                              \
+        px = qx;                                                             \
+        py = qy;                                                             \
+    } while (0)
+        for (int i = 1; i <= nb0; i++)
+            ACC(bot[i]);
+        for (int j = 1; j <= nrow; j++)
+            ACC(rig[j]);
+        for (int i = nt - 1; i >= 0; i--)
+            ACC(top[i]);
+        for (int j = nrow - 1; j >= 0; j--)
+            ACC(lef[j]);
+#undef ACC
     }
-    for (int j = 0; j < nj; j++)
-        for (int i = 0; i < ni; i++) {
-            gs_index a = id[j * w + i], b = id[j * w + i + 1];
-            gs_index c = id[(j + 1) * w + i + 1], e = id[(j + 1) * w + i];
-            if (A < 0) {
-                gs_index t = b;
-                b = e;
-                e = t;
+    const int ccw = A > 0;
+    for (int i = 0; i <= nb0; i++) {
+        ra[i] = bot[i];
+        xa[i] = xb[i];
+    }
+    for (int j = 1; j <= nrow; j++) {
+        const int n = cnt[j];
+        if (j == nrow) {
+            for (int i = 0; i <= n; i++) {
+                rn[i] = top[i];
+                xn[i] = xt[i];
             }
-            double q1 = fmin(tri_shape(nb->xy, a, b, c), tri_shape(nb->xy, a, c, e));
-            double q2 = fmin(tri_shape(nb->xy, a, b, e), tri_shape(nb->xy, b, c, e));
-            int r = q1 >= q2 ? (tri_add(tb, a, b, c) | tri_add(tb, a, c, e))
-                             : (tri_add(tb, a, b, e) | tri_add(tb, b, c, e));
+        } else {
+            double e0 = 0.5 * (yl[j] + yr[j]);
+            rn[0] = lef[j];
+            rn[n] = rig[j];
+            xn[0] = 0.0;
+            xn[n] = 1.0;
+            for (int i = 1; i < n; i++) {
+                double u = (double)i / n;
+                double xi = (1 - e0) * frac_param(xb, nb0, u) + e0 * frac_param(xt, nt, u);
+                double eta = (1 - xi) * yl[j] + xi * yr[j];
+                double B[2], T[2], P[2];
+                poly_eval(nb, bot, xb, nb0, xi, B);
+                poly_eval(nb, top, xt, nt, xi, T);
+                for (int c = 0; c < 2; c++) {
+                    double L = nb->xy[2 * lef[j] + c], R = nb->xy[2 * rig[j] + c];
+                    P[c] = (1 - eta) * B[c] + eta * T[c] + (1 - xi) * L + xi * R -
+                           ((1 - xi) * (1 - eta) * p00[c] + xi * (1 - eta) * p10[c] +
+                            (1 - xi) * eta * p01[c] + xi * eta * p11[c]);
+                }
+                rn[i] = node_add(nb, P[0], P[1], GS_NODE_INTERIOR);
+                if (rn[i] < 0)
+                    goto out;
+                xn[i] = xi;
+            }
+        }
+        /* zipper rows (ra, xa, cnt[j-1]) and (rn, xn, n) by parameter */
+        int i = 0, k = 0, na_ = cnt[j - 1];
+        while (i < na_ || k < n) {
+            int adv_lo = i == na_ ? 0 : k == n ? 1 : xa[i] + xa[i + 1] < xn[k] + xn[k + 1];
+            int r;
+            if (adv_lo) {
+                r = ccw ? tri_add(tb, ra[i], ra[i + 1], rn[k]) : tri_add(tb, ra[i + 1], ra[i], rn[k]);
+                i++;
+            } else {
+                r = ccw ? tri_add(tb, rn[k + 1], rn[k], ra[i]) : tri_add(tb, rn[k], rn[k + 1], ra[i]);
+                k++;
+            }
             if (r)
                 goto out;
         }
+        for (int q = 0; q <= n; q++) {
+            ra[q] = rn[q];
+            xa[q] = xn[q];
+        }
+    }
     rc = 0;
 out:
     free(xb);
     free(xt);
     free(yl);
     free(yr);
+    free(xa);
+    free(xn);
+    free(ra);
+    free(rn);
     return rc;
 }
 
@@ -271,6 +325,10 @@ static void sector_free(sector_t *s)
 typedef struct {
     int nf, na, nr, ns;           /* at the requested refinement; nr = all layers of R, S */
     int nband;                    /* layers of nr in the band below the root circle */
+    double fband;                 /* fraction of the R/S interface taken by the band */
+    int ntip;                     /* elements on the tip arc */
+    double gtip;                  /* flank steps shrink towards a thin tip by this ratio */
+    int nrb;                      /* elements on the band circle under R (under each S: ns) */
     double grading;
     double R0;                    /* band circle */
     double psiB;                  /* angle of the R/S block corner on R0 */
@@ -335,7 +393,9 @@ static gs_err make_plan(const gs_gear_geom *g, const gs_gear_mesh_opts *o, plan_
         pl->sfil[i] /= pl->lfil;
     double rb = g->rb;
     double lflank = fabs(g->ra * g->ra - g->r_form * g->r_form) / (2.0 * rb);
-    double h = lflank / o->flank;
+    /* Reference element size at the surface: the flank's share, but not
+     * below half the tooth height's (an undercut can leave a short involute). */
+    double h = fmax(lflank, 0.5 * fabs(g->ra - g->rf)) / o->flank;
     /* Fillet and root arc are meshed as one curve, uniformly in arc length
      * (nodes exactly on whichever piece they fall); the root arc alone is
      * often a sliver (0.06 m for the standard rack). */
@@ -394,6 +454,28 @@ static gs_err make_plan(const gs_gear_geom *g, const gs_gear_mesh_opts *o, plan_
                            "cannot place the under-tooth block: the fillet cuts too deep into "
                            "the tooth");
     pl->psiB = psiB;
+    /* Counts fixed at refine 0, then scaled, so refinement is nested. */
+    int na0 = o->across, nr0 = o->rim + nx0;
+    double wtip = 2.0 * g->ra * sin(g->psi_tip), wch = 2.0 * g->r_form * sin(g->psi_form);
+    int ntip0 = (int)lround(na0 * wtip / wch);
+    pl->ntip = (ntip0 < 1 ? 1 : ntip0 > na0 ? na0 : ntip0) * L;
+    /* A tip thinner than the flank step would leave needle-like elements at
+     * the top: shrink the flank steps towards the tip (ratio up to 4). */
+    pl->gtip = h / fmax(wtip, 1e-12 * h);
+    pl->gtip = pl->gtip < 1 ? 1 : pl->gtip > 4 ? 4 : pl->gtip;
+    pl->fband = 1.0;
+    if (pl->nr > pl->nband) {
+        double fb = fabs(g->rf - pl->R0) / fabs(g->r_form - pl->R0);
+        pl->fband = fb < 0.2 ? 0.2 : fb > 0.9 ? 0.9 : fb;
+    }
+    /* Band circle spacing: the deepest layer's thickness, so the elements
+     * there are about square and the rings below start smoothly. */
+    double lay_c = fabs(g->rf - pl->R0) * grade_top(1.0 / nr0, o->grading);
+    double lay_i = pl->fband * fabs(g->r_form - pl->R0) * grade_top(1.0 / o->rim, o->grading);
+    double hR0 = 0.5 * (lay_c + lay_i);
+    int nrb0 = (int)lround(2.0 * psiB * pl->R0 / hR0);
+    nrb0 = nrb0 < (na0 + 3) / 4 ? (na0 + 3) / 4 : nrb0 > 4 * na0 ? 4 * na0 : nrb0;
+    pl->nrb = (nrb0 < 1 ? 1 : nrb0) * L;
     return GS_OK;
 }
 
@@ -413,21 +495,37 @@ static int line_nodes(nodes_t *nb, gs_index a, gs_index b, int n, const double *
 }
 
 /* Nodes of the interface between R and S (and of R's other side, mirrored
- * by `sgn` = -1): along the line B -> F, then pulled towards the tooth
- * centre wherever the fillet dips below the line. */
+ * by `sgn` = -1), from B on the band circle to the form point F: a
+ * quadratic Bezier curve that arrives at F along the bisector of the angle
+ * between the tooth's base chord and the fillet (so the blocks T, R and S
+ * share the straight angle at F fairly), then pulled towards the tooth
+ * centre wherever an undercut fillet dips below it. */
 static int interface_side(nodes_t *nb, const gs_gear_geom *g, const plan_t *pl, gs_index a,
                           gs_index b, double sgn, const double *fr, gs_index *ids)
 {
-    if (line_nodes(nb, a, b, pl->nr, fr, ids))
-        return -1;
+    ids[0] = a;
+    ids[pl->nr] = b;
+    double B[2] = {nb->xy[2 * a], sgn * nb->xy[2 * a + 1]};
+    double F[2] = {nb->xy[2 * b], sgn * nb->xy[2 * b + 1]};
+    double Q[2], tf[2];
+    gs_gear_fillet_point(g, 0.0, Q, tf);
+    double dx = tf[0], dy = tf[1] - 1.0, dn = hypot(dx, dy);
+    dx /= dn;
+    dy /= dn;
+    double lam = 0.4 * hypot(F[0] - B[0], F[1] - B[1]);
+    if (dy < 0 && lam * -dy > 0.6 * F[1]) /* keep the two sides apart */
+        lam = 0.6 * F[1] / -dy;
+    double C[2] = {F[0] + lam * dx, F[1] + lam * dy};
     for (int j = 1; j < pl->nr; j++) {
-        double *P = nb->xy + 2 * ids[j];
-        double R = hypot(P[0], P[1]), ps = sgn * atan2(P[1], P[0]);
+        double u = fr[j], w0 = (1 - u) * (1 - u), w1 = 2 * u * (1 - u), w2 = u * u;
+        double x = w0 * B[0] + w1 * C[0] + w2 * F[0], y = w0 * B[1] + w1 * C[1] + w2 * F[1];
+        double R = hypot(x, y), ps = atan2(y, x);
         double lim = 0.9 * fillet_envelope(pl, g, R);
-        if (ps > lim) {
-            P[0] = R * cos(lim);
-            P[1] = sgn * R * sin(lim);
-        }
+        if (ps > lim)
+            ps = lim;
+        ids[j] = node_add(nb, R * cos(ps), sgn * R * sin(ps), GS_NODE_INTERIOR);
+        if (ids[j] < 0)
+            return -1;
     }
     return 0;
 }
@@ -446,83 +544,99 @@ static int interface_side(nodes_t *nb, const gs_gear_geom *g, const plan_t *pl, 
             goto nomem;                                         \
     } while (0)
 
+/* Row counts of a block going from n0 (row 0) to n1 (row nrow): geometric
+ * in between, so that each row changes by about the same factor. */
+static void ramp_counts(int nrow, int n0, int n1, int *cnt)
+{
+    for (int j = 0; j <= nrow; j++) {
+        double v = n0 * pow((double)n1 / n0, (double)j / nrow);
+        cnt[j] = (int)lround(v);
+        if (cnt[j] < 1)
+            cnt[j] = 1;
+    }
+    cnt[0] = n0;
+    cnt[nrow] = n1;
+}
+
 static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
 {
     const int nf = pl->nf, na = pl->na, nr = pl->nr, ns = pl->ns;
+    const int ntip = pl->ntip, nrb = pl->nrb, nsb = pl->ns, nc = pl->nband;
     const double hp = g->half_pitch, R0 = pl->R0, rb = g->rb;
     gs_index *fl_lo = NULL, *fl_hi = NULL, *tip = NULL, *chord = NULL, *rbot = NULL;
     gs_index *rl = NULL, *rr = NULL, *stop_hi = NULL, *stop_lo = NULL, *sbot_hi = NULL,
-             *sbot_lo = NULL, *sr_hi = NULL, *sr_lo = NULL, *idT = NULL, *idR = NULL,
-             *idS = NULL;
+             *sbot_lo = NULL, *sr_hi = NULL, *sr_lo = NULL;
     double *fa = NULL, *fr = NULL, *fi = NULL;
+    int *cT = NULL, *cR = NULL, *cS = NULL;
     NEW_ARR(fl_lo, nf + 1);
     NEW_ARR(fl_hi, nf + 1);
-    NEW_ARR(tip, na + 1);
+    NEW_ARR(tip, ntip + 1);
     NEW_ARR(chord, na + 1);
-    NEW_ARR(rbot, na + 1);
+    NEW_ARR(rbot, nrb + 1);
     NEW_ARR(rl, nr + 1);
     NEW_ARR(rr, nr + 1);
     NEW_ARR(stop_hi, ns + 1);
     NEW_ARR(stop_lo, ns + 1);
-    NEW_ARR(sbot_hi, ns + 1);
-    NEW_ARR(sbot_lo, ns + 1);
-    NEW_ARR(sr_hi, nr + 1);
-    NEW_ARR(sr_lo, nr + 1);
-    NEW_ARR(idT, (size_t)(na + 1) * (nf + 1));
-    NEW_ARR(idR, (size_t)(na + 1) * (nr + 1));
-    NEW_ARR(idS, (size_t)(ns + 1) * (nr + 1));
+    NEW_ARR(sbot_hi, nsb + 1);
+    NEW_ARR(sbot_lo, nsb + 1);
+    NEW_ARR(sr_hi, nc + 1);
+    NEW_ARR(sr_lo, nc + 1);
     NEW_ARR(fa, na + 1);
     NEW_ARR(fr, nr + 1);
     NEW_ARR(fi, nr + 1);
+    NEW_ARR(cT, nf + 1);
+    NEW_ARR(cR, nr + 1);
+    NEW_ARR(cS, ns + 1);
     for (int i = 0; i <= na; i++)
         fa[i] = grade_both((double)i / na, pl->grading);
     /* fr: the radial line at the space centre, graded towards the root;
      * fi: the R/S interface, `nband` graded layers up to about the root
      * circle, then equal steps up the fillet's height to the form point. */
+    for (int j = 0; j <= nc; j++)
+        fr[j] = grade_top((double)j / nc, pl->grading);
     for (int j = 0; j <= nr; j++)
-        fr[j] = grade_top((double)j / nr, pl->grading);
-    {
-        const int nb = pl->nband;
-        double fb = 1.0;
-        if (nr > nb) {
-            fb = fabs(g->rf - R0) / fabs(g->r_form - R0);
-            fb = fb < 0.2 ? 0.2 : fb > 0.9 ? 0.9 : fb;
-        }
-        for (int j = 0; j <= nr; j++)
-            fi[j] = j <= nb ? fb * grade_top((double)j / nb, pl->grading)
-                            : fb + (1.0 - fb) * (j - nb) / (nr - nb);
-    }
+        fi[j] = j <= pl->nband ? pl->fband * grade_top((double)j / pl->nband, pl->grading)
+                               : pl->fband + (1.0 - pl->fband) * (j - pl->nband) / (nr - pl->nband);
 
-    /* Flanks: uniform in involute arc length (rb phi^2 / 2 = (R^2 - rb^2) / (2 rb)). */
+    /* Flanks: uniform in involute arc length (rb phi^2 / 2 = (R^2 - rb^2) / (2 rb)),
+     * graded towards a thin tip. */
     double lf = (g->r_form * g->r_form - rb * rb), la = (g->ra * g->ra - rb * rb);
     for (int j = 0; j <= nf; j++) {
-        double R = j == 0 ? g->r_form : j == nf ? g->ra : sqrt(rb * rb + lf + (la - lf) * j / nf);
+        double u = grade_top((double)j / nf, pl->gtip);
+        double R = j == 0 ? g->r_form : j == nf ? g->ra : sqrt(rb * rb + lf + (la - lf) * u);
         double P[2], T[2];
         gs_gear_flank_point(g, R, P, T);
         ADD(fl_hi[j], P[0], P[1], GS_NODE_FLANK);
         ADD(fl_lo[j], P[0], -P[1], GS_NODE_FLANK);
     }
-    /* Tip arc C- -> C+ and the chord F- -> F+, graded like the across lines. */
+    /* Tip arc C- -> C+ (graded like the across lines) and the chord F- -> F+. */
     tip[0] = fl_lo[nf];
-    tip[na] = fl_hi[nf];
-    chord[0] = fl_lo[0];
-    chord[na] = fl_hi[0];
-    for (int i = 1; i < na; i++) {
-        double ps = -g->psi_tip + 2.0 * g->psi_tip * fa[i];
+    tip[ntip] = fl_hi[nf];
+    for (int i = 1; i < ntip; i++) {
+        double ps = -g->psi_tip + 2.0 * g->psi_tip * grade_both((double)i / ntip, pl->grading);
         ADD(tip[i], g->ra * cos(ps), g->ra * sin(ps), GS_NODE_TIP);
     }
+    chord[0] = fl_lo[0];
+    chord[na] = fl_hi[0];
     if (line_nodes(&s->nd, chord[0], chord[na], na, fa, chord))
         goto nomem;
-    /* R0 arc under the tooth. */
-    for (int i = 0; i <= na; i++) {
-        double ps = -pl->psiB + 2.0 * pl->psiB * fa[i];
+    /* Band circle: equal angles under the tooth and under each space side. */
+    for (int i = 0; i <= nrb; i++) {
+        double ps = -pl->psiB + 2.0 * pl->psiB * i / nrb;
         ADD(rbot[i], R0 * cos(ps), R0 * sin(ps), GS_NODE_INTERIOR);
     }
+    sbot_hi[0] = rbot[nrb];
+    sbot_lo[0] = rbot[0];
+    for (int k = 1; k <= nsb; k++) {
+        double ps = k == nsb ? hp : pl->psiB + (hp - pl->psiB) * k / nsb;
+        ADD(sbot_hi[k], R0 * cos(ps), R0 * sin(ps), GS_NODE_INTERIOR);
+        ADD(sbot_lo[k], R0 * cos(ps), -R0 * sin(ps), GS_NODE_INTERIOR);
+    }
     if (interface_side(&s->nd, g, pl, rbot[0], chord[0], -1.0, fi, rl) ||
-        interface_side(&s->nd, g, pl, rbot[na], chord[na], 1.0, fi, rr))
+        interface_side(&s->nd, g, pl, rbot[nrb], chord[na], 1.0, fi, rr))
         goto nomem;
-    /* Space sides: top = fillet then root arc, one curve at equal arc
-     * length steps; bottom on R0 at equal angles. */
+    /* Space sides: fillet then root arc, one curve at equal arc length
+     * steps (each node exactly on the piece it falls on). */
     double lroot = g->rf * (hp - g->psi_root), ltot = pl->lfil + lroot;
     stop_hi[0] = fl_hi[0];
     stop_lo[0] = fl_lo[0];
@@ -542,43 +656,78 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
         ADD(stop_hi[k], P[0], P[1], tag);
         ADD(stop_lo[k], P[0], -P[1], tag);
     }
-    sbot_hi[0] = rbot[na];
-    sbot_lo[0] = rbot[0];
-    for (int k = 1; k <= ns; k++) {
-        double ps = k == ns ? hp : pl->psiB + (hp - pl->psiB) * k / ns;
-        ADD(sbot_hi[k], R0 * cos(ps), R0 * sin(ps), GS_NODE_INTERIOR);
-        ADD(sbot_lo[k], R0 * cos(ps), -R0 * sin(ps), GS_NODE_INTERIOR);
-    }
-    if (line_nodes(&s->nd, sbot_hi[ns], stop_hi[ns], nr, fr, sr_hi) ||
-        line_nodes(&s->nd, sbot_lo[ns], stop_lo[ns], nr, fr, sr_lo))
+    if (line_nodes(&s->nd, sbot_hi[nsb], stop_hi[ns], nc, fr, sr_hi) ||
+        line_nodes(&s->nd, sbot_lo[nsb], stop_lo[ns], nc, fr, sr_lo))
         goto nomem;
-    /* Mirror the lower sides exactly (TFI would only give round-off symmetry
-     * on the sector sides, and those must coincide with the neighbour's). */
-    for (int j = 0; j <= nr; j++) {
+    /* The sector sides are shared with the neighbours: make them exact
+     * mirror images of each other. */
+    for (int j = 0; j <= nc; j++) {
         s->nd.xy[2 * sr_lo[j]] = s->nd.xy[2 * sr_hi[j]];
         s->nd.xy[2 * sr_lo[j] + 1] = -s->nd.xy[2 * sr_hi[j] + 1];
     }
-    /* Blocks. */
-    if (tfi_block(&s->nd, &s->tr, na, nf, chord, tip, fl_lo, fl_hi, idT) ||
-        tfi_block(&s->nd, &s->tr, na, nr, rbot, chord, rl, rr, idR) ||
-        tfi_block(&s->nd, &s->tr, ns, nr, sbot_hi, stop_hi, rr, sr_hi, idS) ||
-        tfi_block(&s->nd, &s->tr, ns, nr, sbot_lo, stop_lo, rl, sr_lo, idS))
+    /* Row counts: the tooth narrows to its tip, keep elements about as wide
+     * as at its base; R and S go from the band circle's spacing to their
+     * top's. */
+    {
+        double w0 = hypot(s->nd.xy[2 * fl_hi[0]] - s->nd.xy[2 * fl_lo[0]],
+                          s->nd.xy[2 * fl_hi[0] + 1] - s->nd.xy[2 * fl_lo[0] + 1]);
+        for (int j = 0; j <= nf; j++) {
+            double w = hypot(s->nd.xy[2 * fl_hi[j]] - s->nd.xy[2 * fl_lo[j]],
+                             s->nd.xy[2 * fl_hi[j] + 1] - s->nd.xy[2 * fl_lo[j] + 1]);
+            int c = (int)lround(na * w / w0);
+            cT[j] = c < ntip ? ntip : c > na ? na : c;
+        }
+        cT[0] = na;
+        cT[nf] = ntip;
+        for (int j = nf - 1; j >= 1; j--) /* no row more than twice the next */
+            if (cT[j] > 2 * cT[j + 1])
+                cT[j] = 2 * cT[j + 1];
+    }
+    ramp_counts(nr, nrb, na, cR);
+    /* S is meshed "sideways": its rows run from the band circle up to the
+     * fillet and root, from the R/S interface (nr elements) to the space
+     * centre line (`rim` elements), each with about as many elements as its
+     * length asks for. So a tall fillet beside a thin band needs no thin
+     * layers near the root. */
+    {
+        double l0 = hypot(s->nd.xy[2 * stop_hi[0]] - s->nd.xy[2 * sbot_hi[0]],
+                          s->nd.xy[2 * stop_hi[0] + 1] - s->nd.xy[2 * sbot_hi[0] + 1]);
+        for (int k = 0; k <= ns; k++) {
+            double lk = hypot(s->nd.xy[2 * stop_hi[k]] - s->nd.xy[2 * sbot_hi[k]],
+                              s->nd.xy[2 * stop_hi[k] + 1] - s->nd.xy[2 * sbot_hi[k] + 1]);
+            int c = (int)lround(nr * lk / l0);
+            cS[k] = c < nc ? nc : c > nr ? nr : c;
+        }
+        cS[0] = nr;
+        cS[ns] = nc;
+        /* at most halve or double from one row to the next (end rows fixed) */
+        for (int k = 1; k < ns; k++)
+            if (cS[k] < (cS[k - 1] + 1) / 2)
+                cS[k] = (cS[k - 1] + 1) / 2;
+        for (int k = ns - 1; k >= 1; k--)
+            if (cS[k] > 2 * cS[k + 1])
+                cS[k] = 2 * cS[k + 1];
+    }
+    if (layered_block(&s->nd, &s->tr, nf, cT, chord, tip, fl_lo, fl_hi) ||
+        layered_block(&s->nd, &s->tr, nr, cR, rbot, chord, rl, rr) ||
+        layered_block(&s->nd, &s->tr, ns, cS, rr, sr_hi, sbot_hi, stop_hi) ||
+        layered_block(&s->nd, &s->tr, ns, cS, rl, sr_lo, sbot_lo, stop_lo))
         goto nomem;
     /* Lists for assembly. */
-    s->nside = nr + 1;
-    NEW_ARR(s->left, nr + 1);
-    NEW_ARR(s->right, nr + 1);
-    memcpy(s->left, sr_lo, (size_t)(nr + 1) * sizeof *sr_lo);
-    memcpy(s->right, sr_hi, (size_t)(nr + 1) * sizeof *sr_hi);
-    s->nbot = 2 * ns + na + 1;
+    s->nside = nc + 1;
+    NEW_ARR(s->left, nc + 1);
+    NEW_ARR(s->right, nc + 1);
+    memcpy(s->left, sr_lo, (size_t)(nc + 1) * sizeof *sr_lo);
+    memcpy(s->right, sr_hi, (size_t)(nc + 1) * sizeof *sr_hi);
+    s->nbot = 2 * nsb + nrb + 1;
     NEW_ARR(s->bottom, s->nbot);
     {
         int k = 0;
-        for (int i = ns; i >= 1; i--)
+        for (int i = nsb; i >= 1; i--)
             s->bottom[k++] = sbot_lo[i];
-        for (int i = 0; i <= na; i++)
+        for (int i = 0; i <= nrb; i++)
             s->bottom[k++] = rbot[i];
-        for (int i = 1; i <= ns; i++)
+        for (int i = 1; i <= nsb; i++)
             s->bottom[k++] = sbot_hi[i];
     }
     s->nflank = nf + 1;
@@ -586,7 +735,7 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
     NEW_ARR(s->flank_ccw, nf + 1);
     memcpy(s->flank_cw, fl_lo, (size_t)(nf + 1) * sizeof *fl_lo);
     memcpy(s->flank_ccw, fl_hi, (size_t)(nf + 1) * sizeof *fl_hi);
-    s->nbnd = 2 * ns + 2 * nf + na + 1;
+    s->nbnd = 2 * ns + 2 * nf + ntip + 1;
     NEW_ARR(s->bnd, s->nbnd);
     {
         int k = 0;
@@ -594,12 +743,17 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
             s->bnd[k++] = stop_lo[i];
         for (int j = 0; j < nf; j++)
             s->bnd[k++] = fl_lo[j];
-        for (int i = 0; i < na; i++)
+        for (int i = 0; i < ntip; i++)
             s->bnd[k++] = tip[i];
         for (int j = nf; j >= 0; j--)
             s->bnd[k++] = fl_hi[j];
         for (int i = 1; i <= ns; i++)
             s->bnd[k++] = stop_hi[i];
+    }
+    gs_err e = GS_OK;
+    if (0) {
+    nomem:
+        e = GS_ENOMEM;
     }
     free(fl_lo);
     free(fl_hi);
@@ -614,34 +768,13 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
     free(sbot_lo);
     free(sr_hi);
     free(sr_lo);
-    free(idT);
-    free(idR);
-    free(idS);
     free(fa);
     free(fr);
     free(fi);
-    return GS_OK;
-nomem:
-    free(fl_lo);
-    free(fl_hi);
-    free(tip);
-    free(chord);
-    free(rbot);
-    free(rl);
-    free(rr);
-    free(stop_hi);
-    free(stop_lo);
-    free(sbot_hi);
-    free(sbot_lo);
-    free(sr_hi);
-    free(sr_lo);
-    free(idT);
-    free(idR);
-    free(idS);
-    free(fa);
-    free(fr);
-    free(fi);
-    return GS_ENOMEM;
+    free(cT);
+    free(cR);
+    free(cS);
+    return e;
 }
 
 /* ------------------------------------------------------------------------ */
@@ -909,6 +1042,23 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     GS_TRY(check_opts(o, d));
     gs_gear_geom g;
     GS_TRY(gs_gear_geometry(p, &g, d));
+    /* Mesh the gear at a reference module of 10 mm and scale the result:
+     * every size is a multiple of the module, so meshes of any module are
+     * then exactly the same shape (round-off included, which the smoothing's
+     * accept/reject comparisons would otherwise amplify). */
+    const double mref = 0.01, scale = g.m / mref;
+    {
+        gs_gear_params pu = *p;
+        pu.module_m = mref;
+        pu.thinning_m = p->thinning_m / scale;
+        pu.hub_radius_m = p->hub_radius_m > 0 ? p->hub_radius_m / scale : 0.0;
+        pu.face_width_m = 0.01;
+        gs_gear_geom gu;
+        if (gs_gear_geometry(&pu, &gu, NULL) != GS_OK)
+            return gs_diag_set(d, GS_EINTERNAL, "module_mm",
+                               "the gear scaled to the reference module is not valid");
+        g = gu;
+    }
     plan_t *pl = malloc(sizeof *pl);
     if (!pl)
         return GS_ENOMEM;
@@ -1012,11 +1162,8 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     {
         const int L = 1 << o->refine;
         gs_index n0_base = n0 / L;
-        /* mean spacing on R0 vs the band's deepest layer: start from the larger */
+        /* the band circle's spacing is about its layer's thickness */
         double h0 = 2.0 * GS_PI * pl->R0 / (double)n0_base;
-        double band = fabs(g.rf - pl->R0) * grade_top(1.0 / o->rim, o->grading);
-        if (band > h0)
-            h0 = band;
         if (plan_rings(&g, pl->R0, n0_base, h0, &rp))
             goto fail;
         gs_index nA = n0;
@@ -1052,8 +1199,10 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         for (gs_index q = 0; q < m->n_fixed; q++)
             nd.tag[m->fixed[q]] = GS_NODE_CORE;
     }
-    if (smooth_poor(&nd, &tr, 12, 0.5))
+    if (smooth_poor(&nd, &tr, 40, 0.6))
         goto fail;
+    for (gs_index i = 0; i < 2 * nd.n; i++)
+        nd.xy[i] *= scale;
     m->n_nodes = nd.n;
     m->xy = nd.xy;
     m->node_tag = nd.tag;
@@ -1066,11 +1215,17 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     {
         gs_mesh_quality q;
         gs_mesh_quality_eval(m, &q);
+        int loops = 0;
+        gs_err te = gs_mesh_check_topology(m, NULL, &loops);
+        if (te == GS_ENOMEM)
+            goto fail;
+        if (te != GS_OK || loops != 2)
+            q.n_bad = q.n_bad > 0 ? q.n_bad : 1;
         if (q.n_bad > 0) {
             e = gs_diag_set(d, GS_EGEOMETRY, "mesh",
                             "%lld of %lld elements came out inverted or flat (%d teeth, module "
                             "%g mm, shift %g): try other mesh counts",
-                            (long long)q.n_bad, (long long)q.n_tris, z, g.m * 1e3,
+                            (long long)q.n_bad, (long long)q.n_tris, z, scale * mref * 1e3,
                             p->profile_shift);
             goto fail;
         }

@@ -7,11 +7,13 @@
  * nact linearly independent rows n_i (equalities first, never released), and
  * the workspace keeps J = L^{-T} Q with J^T N_A = [R; 0], R upper triangular
  * nact x nact: then H^{-1} = J J^T, the columns of J2 = J(:, nact:) span the
- * null space of N_A^T in the H-metric, and adding or dropping a row is a
- * sequence of Givens rotations on columns of J (and rows of R), O(n^2).
- * The pair (x, u) is always the minimiser on the manifold N_A^T x = b_A with
- * its multipliers u (>= 0 for inequalities): the dual objective rises with
- * every full step, so the method terminates. */
+ * null space of N_A^T in the H-metric. Adding a row is one Householder
+ * reflection of the columns nact: of J; dropping one, Givens rotations of
+ * adjacent columns of J and rows of R; both O(n^2). The pair (x, u) is
+ * always the minimiser on the manifold N_A^T x = b_A with its multipliers u
+ * (>= 0 for inequalities): the dual objective rises with every full step,
+ * so the method terminates. The final pair is recomputed from the factors
+ * and refined against the data (recompute, refine_kkt). */
 #include <cblas.h>
 #include <float.h>
 #include <lapacke.h>
@@ -32,12 +34,14 @@ struct gs_qp {
     double *R;      /* n*n column-major, upper nact x nact used */
     double *d, *z, *r, *u, *v, *x, *x0; /* n each */
     double *an;     /* n: |L^{-1} n_k| of the active rows, by position */
+    double *hv, *hw; /* n: Householder vector and product */
     double dn;      /* |L^{-1} np| of the last direction() */
+    double x0n;     /* |x0|, x0 = H^{-1} c */
     int *act;       /* n: active rows; id < n_eq equality id, else inequality id - n_eq */
     double *s;      /* in_max: residuals G x - g */
     double *nrm_in; /* in_max: row norms of G */
     double *nrm_eq; /* eq_max: row norms of E */
-    unsigned char *in_act; /* in_max: 0 free, 1 active, 2 parked (see below) */
+    unsigned char *in_act; /* in_max: 0 free, 1 active, 2 parked (see solve_state) */
 };
 
 /* State of one solve, to keep the helpers' argument lists short. */
@@ -87,12 +91,15 @@ gs_err gs_qp_new(int n_max, int max_eq, int max_ineq, gs_qp **out)
     q->x0 = gs_calloc(n, sizeof(double));
     q->act = gs_calloc(n, sizeof(int));
     q->an = gs_calloc(n, sizeof(double));
+    q->hv = gs_calloc(n, sizeof(double));
+    q->hw = gs_calloc(n, sizeof(double));
     q->s = gs_calloc((size_t)max_ineq, sizeof(double));
     q->nrm_in = gs_calloc((size_t)max_ineq, sizeof(double));
     q->nrm_eq = gs_calloc((size_t)max_eq, sizeof(double));
     q->in_act = gs_calloc((size_t)max_ineq, 1);
     if (!q->U || !q->J0 || !q->J || !q->R || !q->d || !q->z || !q->r || !q->u || !q->v ||
-        !q->x || !q->x0 || !q->act || !q->an || !q->s || !q->nrm_in || !q->nrm_eq || !q->in_act) {
+        !q->x || !q->x0 || !q->act || !q->an || !q->hv || !q->hw || !q->s || !q->nrm_in ||
+        !q->nrm_eq || !q->in_act) {
         gs_qp_free(&q);
         return GS_ENOMEM;
     }
@@ -118,6 +125,8 @@ void gs_qp_free(gs_qp **qp)
     free(q->x0);
     free(q->act);
     free(q->an);
+    free(q->hv);
+    free(q->hw);
     free(q->s);
     free(q->nrm_in);
     free(q->nrm_eq);
@@ -223,7 +232,15 @@ static const double *row_of(const solve_state *st, int id, double *b)
     return p->G + (size_t)id * st->n;
 }
 
-/* Round-off scale of a row that step_vectors found to be the combination
+/* Scale of |x| for round-off: x = x0 + H^{-1} N_A u is computed with an
+ * error relative to the larger of its terms, and may be much smaller than
+ * them (a vertex at the origin), so the residual tolerances use |x| + |x0|. */
+static double x_scale(const solve_state *st)
+{
+    return cblas_dnrm2(st->n, st->q->x, 1) + st->q->x0n;
+}
+
+/* Round-off scale of a row that direction() found to be the combination
  * sum_k r_k n_k of the active rows: its residual inherits the residuals of
  * those rows weighted by |r_k|, so "holds to round-off" means
  * |s| <= feas_tol * (own scale + this). */
@@ -273,21 +290,29 @@ static double direction(solve_state *st, const double *np, int *dependent)
 }
 
 /* Append row id (whose d = J^T n was just computed by direction) to the active
- * set: rotate d(nact:) onto its first entry, applying the rotations to the
- * columns of J, and make d(0:nact] the new column of R. */
+ * set: a Householder reflection P maps d(nact:) onto its first entry, the
+ * columns nact: of J are multiplied by P (J^T N_A keeps its zeros below R,
+ * since P only mixes those columns), and d(0:nact] becomes the new column of
+ * R. One reflection is 4 n (n - nact) flops in two BLAS-2 calls, against
+ * 6 n (n - nact) in n - nact Givens rotations, and as stable. */
 static void add_row(solve_state *st, int id, double mult)
 {
     gs_qp *q = st->q;
-    int n = st->n, k = st->nact;
+    const int n = st->n, k = st->nact, m = n - k;
     double *d = q->d;
-    for (int j = n - 1; j > k; j--) {
-        if (d[j] == 0.0)
-            continue;
-        double h = hypot(d[j - 1], d[j]);
-        double cs = d[j - 1] / h, sn = d[j] / h;
-        d[j - 1] = h;
-        d[j] = 0.0;
-        cblas_drot(n, q->J + (size_t)(j - 1) * n, 1, q->J + (size_t)j * n, 1, cs, sn);
+    if (m > 1) {
+        double *v = q->hv, *w = q->hw;
+        double alpha = cblas_dnrm2(m, d + k, 1);
+        if (alpha > 0.0) {
+            double beta = d[k] >= 0.0 ? -alpha : alpha; /* new d[k], no cancellation */
+            memcpy(v, d + k, (size_t)m * sizeof(double));
+            v[0] -= beta;
+            double tau = 1.0 / (-beta * v[0]); /* 2 / v^T v */
+            cblas_dgemv(CblasColMajor, CblasNoTrans, n, m, 1.0, q->J + (size_t)k * n, n, v, 1, 0.0,
+                        w, 1);
+            cblas_dger(CblasColMajor, n, m, -tau, w, 1, v, 1, q->J + (size_t)k * n, n);
+            d[k] = beta;
+        }
     }
     memcpy(q->R + (size_t)k * n, d, (size_t)(k + 1) * sizeof(double));
     q->act[k] = id;
@@ -329,8 +354,8 @@ static void drop_row(solve_state *st, int k)
         a[0] = h;
         a[1] = 0.0;
         if (j + 1 < m - 1)
-            cblas_drot(m - 2 - j, q->R + j + (size_t)(j + 1) * n, n, q->R + j + 1 + (size_t)(j + 1) * n,
-                       n, cs, sn);
+            cblas_drot(m - 2 - j, q->R + j + (size_t)(j + 1) * n, n,
+                       q->R + j + 1 + (size_t)(j + 1) * n, n, cs, sn);
         cblas_drot(n, q->J + (size_t)j * n, 1, q->J + (size_t)(j + 1) * n, 1, cs, sn);
     }
     st->nact--;
@@ -353,8 +378,54 @@ static void recompute(solve_state *st)
     }
     cblas_dtrsv(CblasColMajor, CblasUpper, CblasTrans, CblasNonUnit, k, q->R, n, q->v, 1);
     cblas_dgemv(CblasColMajor, CblasNoTrans, n, k, 1.0, q->J, n, q->v, 1, 1.0, q->x, 1);
+    /* One step of iterative refinement on the active rows' residuals. */
+    double *w = q->d;
+    for (int i = 0; i < k; i++) {
+        double b;
+        const double *row = row_of(st, q->act[i], &b);
+        w[i] = b - cblas_ddot(n, row, 1, q->x, 1);
+    }
+    cblas_dtrsv(CblasColMajor, CblasUpper, CblasTrans, CblasNonUnit, k, q->R, n, w, 1);
+    cblas_daxpy(k, 1.0, w, 1, q->v, 1);
+    cblas_dgemv(CblasColMajor, CblasNoTrans, n, k, 1.0, q->J, n, w, 1, 1.0, q->x, 1);
     memcpy(q->u, q->v, (size_t)k * sizeof(double));
     cblas_dtrsv(CblasColMajor, CblasUpper, CblasNoTrans, CblasNonUnit, k, q->R, n, q->u, 1);
+}
+
+/* One step of iterative refinement of the whole KKT system of the active
+ * set, with residuals from the data (H = U^T U, the rows themselves), so
+ * that the drift of J and R over many rotations does not reach the answer:
+ *     r1 = c - H x + N_A u,  r2 = b_A - N_A^T x,
+ *     w = J^T r1,  R du = R^{-T} r2 - w(0:k),  dx = J2 w(k:) + J1 R^{-T} r2. */
+static void refine_kkt(solve_state *st)
+{
+    gs_qp *q = st->q;
+    const int n = st->n, k = st->nact;
+    double *r1 = q->z, *w = q->d, *r2 = q->v, *t = q->r;
+    /* r1 = c - U^T (U x) + sum_i u_i n_i; r2 = b - N^T x */
+    memcpy(t, q->x, (size_t)n * sizeof(double));
+    cblas_dtrmv(CblasColMajor, CblasUpper, CblasNoTrans, CblasNonUnit, n, q->U, n, t, 1);
+    cblas_dtrmv(CblasColMajor, CblasUpper, CblasTrans, CblasNonUnit, n, q->U, n, t, 1);
+    for (int i = 0; i < n; i++)
+        r1[i] = st->p->c[i] - t[i];
+    for (int i = 0; i < k; i++) {
+        double b;
+        const double *row = row_of(st, q->act[i], &b);
+        cblas_daxpy(n, q->u[i], row, 1, r1, 1);
+        r2[i] = b - cblas_ddot(n, row, 1, q->x, 1);
+    }
+    cblas_dgemv(CblasColMajor, CblasTrans, n, n, 1.0, q->J, n, r1, 1, 0.0, w, 1);
+    if (k > 0) {
+        cblas_dtrsv(CblasColMajor, CblasUpper, CblasTrans, CblasNonUnit, k, q->R, n, r2, 1);
+        for (int i = 0; i < k; i++)
+            t[i] = r2[i] - w[i];
+        cblas_dtrsv(CblasColMajor, CblasUpper, CblasNoTrans, CblasNonUnit, k, q->R, n, t, 1);
+        cblas_daxpy(k, 1.0, t, 1, q->u, 1);
+        cblas_dgemv(CblasColMajor, CblasNoTrans, n, k, 1.0, q->J, n, r2, 1, 1.0, q->x, 1);
+    }
+    if (k < n)
+        cblas_dgemv(CblasColMajor, CblasNoTrans, n, n - k, 1.0, q->J + (size_t)k * n, n, w + k, 1,
+                    1.0, q->x, 1);
 }
 
 /* While an active inequality has a multiplier below -thr (thr relative to the
@@ -394,7 +465,7 @@ static int most_violated(solve_state *st)
     if (p->n_in == 0)
         return -1;
     cblas_dgemv(CblasRowMajor, CblasNoTrans, p->n_in, n, 1.0, p->G, n, q->x, 1, 0.0, q->s, 1);
-    double xn = cblas_dnrm2(n, q->x, 1);
+    double xn = x_scale(st);
     int best = -1;
     double worst = 0.0;
     for (int j = 0; j < p->n_in; j++) {
@@ -476,6 +547,7 @@ gs_err gs_qp_solve_factored(gs_qp *q, const gs_qp_problem *p, const int *warm, i
     cblas_dtrsv(CblasColMajor, CblasUpper, CblasTrans, CblasNonUnit, n, q->U, n, q->x0, 1);
     cblas_dtrsv(CblasColMajor, CblasUpper, CblasNoTrans, CblasNonUnit, n, q->U, n, q->x0, 1);
     memcpy(q->x, q->x0, (size_t)n * sizeof(double));
+    q->x0n = cblas_dnrm2(n, q->x0, 1);
     memcpy(q->J, q->J0, nn * sizeof(double));
 
     /* Equalities: each is a full step of the method (its multiplier may take
@@ -484,14 +556,13 @@ gs_err gs_qp_solve_factored(gs_qp *q, const gs_qp_problem *p, const int *warm, i
     for (int i = 0; i < p->n_eq; i++) {
         const double *row = p->E + (size_t)i * n;
         double s = cblas_ddot(n, row, 1, q->x, 1) - p->e[i];
-        double tol = o->feas_tol * (fabs(p->e[i]) + q->nrm_eq[i] * cblas_dnrm2(n, q->x, 1));
+        double tol = o->feas_tol * (fabs(p->e[i]) + q->nrm_eq[i] * x_scale(&st));
         int dependent;
         double d2 = direction(&st, row, &dependent);
         if (dependent) {
             /* A combination of earlier rows: consistent, to the round-off
              * of that combination, or the equalities contradict. */
-            double xn = cblas_dnrm2(n, q->x, 1);
-            if (fabs(s) > tol + o->feas_tol * combination_scale(&st, xn)) {
+            if (fabs(s) > tol + o->feas_tol * combination_scale(&st, x_scale(&st))) {
                 r->conflict_eq = i;
                 return GS_EINFEASIBLE;
             }
@@ -573,7 +644,7 @@ gs_err gs_qp_solve_factored(gs_qp *q, const gs_qp_problem *p, const int *warm, i
                  * unless the violation is only the round-off of that
                  * combination (degenerate, e.g. a duplicated row): then
                  * park the row until the active set shrinks. */
-                double xn = cblas_dnrm2(n, q->x, 1);
+                double xn = x_scale(&st);
                 double sc = fabs(bp) + q->nrm_in[pj] * xn + combination_scale(&st, xn);
                 if (fabs(s) > o->feas_tol * sc) {
                     r->conflict_in = pj;
@@ -603,6 +674,10 @@ gs_err gs_qp_solve_factored(gs_qp *q, const gs_qp_problem *p, const int *warm, i
         }
     }
 
+    /* Polish the final pair against the data (see refine_kkt). */
+    if (st.nact > 0)
+        refine_kkt(&st);
+
     /* Outputs. */
     memcpy(r->x, q->x, (size_t)n * sizeof(double));
     if (r->lambda_eq)
@@ -623,12 +698,16 @@ gs_err gs_qp_solve_factored(gs_qp *q, const gs_qp_problem *p, const int *warm, i
             r->n_active++;
         }
     }
-    /* most_violated left s = G x - g for the final x. */
-    double xn = cblas_dnrm2(n, q->x, 1);
-    for (int j = 0; j < p->n_in; j++)
-        if (q->in_act[j] == 2 ||
-            (q->in_act[j] == 0 && fabs(q->s[j]) <= o->feas_tol * (fabs(p->g[j]) + q->nrm_in[j] * xn)))
+    if (p->n_in > 0) {
+        cblas_dgemv(CblasRowMajor, CblasNoTrans, p->n_in, n, 1.0, p->G, n, q->x, 1, 0.0, q->s, 1);
+        cblas_daxpy(p->n_in, -1.0, p->g, 1, q->s, 1);
+    }
+    double xn = x_scale(&st);
+    for (int j = 0; j < p->n_in; j++) {
+        double tol = o->feas_tol * (fabs(p->g[j]) + q->nrm_in[j] * xn);
+        if (q->in_act[j] == 2 || (q->in_act[j] == 0 && fabs(q->s[j]) <= tol))
             r->n_weak++;
+    }
     /* Objective 1/2 |U x|^2 - c^T x. */
     memcpy(q->v, q->x, (size_t)n * sizeof(double));
     cblas_dtrmv(CblasColMajor, CblasUpper, CblasNoTrans, CblasNonUnit, n, q->U, n, q->v, 1);

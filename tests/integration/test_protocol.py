@@ -218,6 +218,8 @@ def online():
                 {"pair", "planetary"} <= set(res.get("builtin_scenes", [])), res.get("builtin_scenes"))
         R.check("hello: ranks = 2", res.get("ranks") == 2, res.get("ranks"))
 
+        for cmd in ("hello", "status", "jobs"):
+            call(probe, cmd, {}, what=f"{cmd} with empty args")
         st, _ = call(probe, "status", what="status (empty)")
         R.check("status (empty): state is empty", (st or {}).get("result", {}).get("state") == "empty", st)
         call(probe, "state", what="state (empty)", expect_ok=None)
@@ -312,7 +314,9 @@ def online():
         fr = [probe.events[i][1]["fraction"] for i in idx]
         R.check("progress fraction does not decrease", all(b >= a for a, b in zip(fr, fr[1:])), fr)
         r, _ = call(probe, "cancel", what="cancel (nothing running)")
-        call(probe, "advance", {"time": 0.001}, what="advance by time")
+        r, rid = call(probe, "advance", {"time": 0.001}, what="advance by time")
+        done = wait_done(probe, rid)
+        R.check("advance by 0.001 s: 100 steps", done.get("steps") == 100, done)
         call(probe, "record", {"stop": True}, what="record (stop)")
 
         r, _ = call(probe, "checkpoint", {"path": "cp.h5"})

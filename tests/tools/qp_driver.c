@@ -144,8 +144,10 @@ int main(int argc, char **argv)
         }
         size_t un = (size_t)n;
         double *H = malloc(un * un * sizeof(double)), *c = malloc(un * sizeof(double));
-        double *E = malloc((un * neq + 1) * sizeof(double)), *e = malloc((neq + 1) * sizeof(double));
-        double *G = malloc((un * nin + 1) * sizeof(double)), *g = malloc((nin + 1) * sizeof(double));
+        double *E = malloc((un * neq + 1) * sizeof(double));
+        double *e = malloc((neq + 1) * sizeof(double));
+        double *G = malloc((un * nin + 1) * sizeof(double));
+        double *g = malloc((nin + 1) * sizeof(double));
         int *warm = malloc((nwarm + 1) * sizeof(int));
         double *x = malloc(un * sizeof(double)), *leq = malloc((neq + 1) * sizeof(double));
         double *lin = malloc((nin + 1) * sizeof(double));
