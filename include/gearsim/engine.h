@@ -27,6 +27,7 @@ typedef enum {
     GS_OP_REMOVE_LOAD, /* payload: load name */
     GS_OP_RESTORE,     /* payload: gs_engine_snapshot serialisation */
     GS_OP_SHUTDOWN,
+    GS_OP_SNAPSHOT,    /* internal: owners send body states to rank 0 */
 } gs_op;
 
 typedef struct gs_engine gs_engine;
@@ -51,7 +52,14 @@ gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs
 gs_err gs_engine_serve(gs_engine *e);
 
 /* Full state as bytes (rank 0, owned by the caller), restorable with
- * GS_OP_RESTORE so that the run continues bit for bit. */
+ * GS_OP_RESTORE so that the run continues bit for bit. With bodies that keep
+ * state of their own (elastic) on other ranks this broadcasts an operation:
+ * call it only where gs_engine_run may be called. */
 gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len);
+
+/* Rank 0: the field snapshot of body `body` gathered after the current step
+ * (u: 2 n nodal displacements, body frame, then vm: n nodal von Mises
+ * stresses), or NULL when the scene records no fields or this step has none. */
+const double *gs_engine_fields(const gs_engine *e, int body);
 
 #endif

@@ -249,6 +249,11 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
  * Errors: GS_ESTATE (no step begun). */
 gs_err gs_fe_body_end_step(gs_fe_body *b);
 
+/* Abandon a begun step (the global solve failed): the state stays that of
+ * the step's start, interface forces are dropped. Safe when no step is
+ * begun. */
+void gs_fe_body_cancel_step(gs_fe_body *b);
+
 /* ---- state, energies, diagnostics ---- */
 
 double gs_fe_body_theta(const gs_fe_body *b);

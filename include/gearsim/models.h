@@ -2,12 +2,13 @@
  * gearsim: fidelity levels as implementations of operations tables
  * (METHOD.md section 7, STYLE.md convention 5).
  *
- * A body model (rigid; elastic later) presents its rigid coordinate to the
- * step solver through a condensed interface: per step it returns H and rhs
- * such that its coordinate increment d obeys  H d - rhs = f,  f being the
- * generalised force the meshes and joints apply. For a rigid body
- * H = 2/h^2 I + c/h and rhs = 2/h I w + M(t_mid); an elastic body gives the
- * inverse of its condensed compliance. A mesh model (kinematic, lumped;
+ * A body model (rigid, elastic) presents its rigid coordinate (and, for
+ * contact, a few nodal displacements) to the step solver through a condensed
+ * interface: per step it returns the compliance C and free increment d0 such
+ * that its interface increments obey d = d0 + C f,  f being the generalised
+ * forces the meshes, joints and contacts apply. For a rigid body
+ * 1/C = 2/h^2 I + c/h and d0 = C (2/h I w + M(t_mid)); an elastic body gives
+ * the entries of the inverse of its step matrix (METHOD.md section 4). A mesh model (kinematic, lumped;
  * impact and contact later) contributes equality rows and/or a potential
  * with its discrete gradient (METHOD.md section 2). The step solver knows
  * only these tables. */
@@ -23,14 +24,40 @@ typedef struct gs_gmesh_rt gs_gmesh_rt;
 
 typedef struct gs_body_ops {
     const char *name;
-    /* Build model data for body `index` of the system's scene. */
+    /* Build model data for body `index` of the system's scene (every rank;
+     * heavy per-step data such as a factorisation only on the owner). */
     gs_err (*init)(gs_system *sys, gs_body_rt *b, gs_diag *d);
     void (*destroy)(gs_body_rt *b);
-    /* Condensed interface for the step from t to t+h (owner rank only). */
-    void (*interface)(const gs_system *sys, const gs_body_rt *b, double h, double *H, double *rhs);
-    /* Kinetic and potential energy of the body's own state (rigid energy uses
-     * the system's w; elastic bodies add their internal parts). */
+    /* Condensed interface for the step from t to t+h (owner rank only;
+     * called for held bodies too). The body's interface unknowns are its
+     * coordinate (when it has one) and the x, y displacements of the plan's
+     * nodes for it (sys->plan, step.h); their increments obey
+     * d = d0 + C f,  f the generalised forces of meshes, joints and contact,
+     * d0 the free increment, C the compliance (symmetric positive definite).
+     * Writes C (n_dof^2, column-major), d0 (n_dof) and the nodes' current
+     * displacements (2 n_nodes, body frame) into rec. A failure is reported
+     * as a non-finite C[0]. */
+    void (*interface)(const gs_system *sys, gs_body_rt *b, double h, double *rec);
+    /* Owner rank, after the solve: complete the body's own step under the
+     * interface forces f (n_dof, same order). NULL: nothing to do (a rigid
+     * body's state is the system's q, w). */
+    gs_err (*finish)(const gs_system *sys, gs_body_rt *b, const double *f);
+    /* Kinetic and potential energy of the body's own state (owner rank;
+     * rigid bodies use the system's w, which every rank holds). */
     void (*energy)(const gs_system *sys, const gs_body_rt *b, double *T, double *V);
+    /* Internal state beyond the rigid coordinate, for snapshots: its size in
+     * doubles (every rank, same value), save and load (owner rank). NULL
+     * when the model has none. */
+    size_t (*state_size)(const gs_body_rt *b);
+    void (*save)(const gs_body_rt *b, double *x);
+    gs_err (*load)(gs_body_rt *b, const double *x);
+    /* Field snapshot (owner rank): nodal displacements u (2 n, body frame)
+     * and von Mises stress vm (n) on the body's mesh; n = field_nodes().
+     * NULL when the model has no fields. */
+    gs_index (*field_nodes)(const gs_body_rt *b);
+    void (*fields)(const gs_body_rt *b, double *u, double *vm);
+    /* The body's mesh (every rank), NULL for models without one. */
+    const struct gs_mesh *(*mesh)(const gs_body_rt *b);
 } gs_body_ops;
 
 typedef struct gs_gmesh_ops {
@@ -45,7 +72,18 @@ typedef struct gs_gmesh_ops {
     void (*force)(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq,
                   double h, double *g, double *J, double *diss, double *force);
     double (*energy)(const gs_system *sys, const gs_gmesh_rt *m, const double *q);
+    /* Contact meshes: no force or potential; the step adds their
+     * linearised non-penetration rows and solves a QP (src/step/contact_step.c).
+     * destroy frees m->contact; may be NULL. */
+    bool contact;
+    void (*destroy)(gs_gmesh_rt *m);
 } gs_gmesh_ops;
+
+/* The FE mesh of a scene gear at its scene mesh density (elastic bodies;
+ * the outline of a rigid gear in a contact mesh). d->message says why it
+ * failed; the caller names the field. */
+struct gs_mesh;
+gs_err gs_scene_gear_mesh(const gs_scene_body *sb, struct gs_mesh **out, gs_diag *d);
 
 /* Registered implementations, by name (the scene's `model`). */
 const gs_body_ops *gs_body_ops_find(const char *name);

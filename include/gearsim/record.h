@@ -8,10 +8,41 @@
  *               bodies (JSON list), mesh_force and mesh_deflection
  *               (n x meshes) with attribute meshes.
  * Rows are buffered and appended at gs_record_flush(); everything flushed is
- * on disk (H5Fflush) and readable by a serial reader. Not collective. */
+ * on disk (H5Fflush) and readable by a serial reader. Not collective.
+ *
+ * Field snapshots of elastic bodies (docs/RECORD.md, "Field snapshots"); only
+ * present after gs_record_add_meshes(), a record without them is laid out
+ * exactly as above. For body <name> (T = frames written, n = nodes):
+ *   /bodies        attr names (JSON list, in the order given to add_meshes)
+ *   /bodies/<name> attrs index (int), centre_m (double[2])
+ *     nodes        (n, 2)    float64  body (material) frame, m
+ *     triangles    (m, 3)    int64    counter-clockwise, 0-based
+ *     fixed        (k)       int64    nodes of the rigid-core interface
+ *     node_tag     (n)       int8     gs_node_tag (zeros for non-gear meshes)
+ *   /fields        attr names (JSON list, same order)
+ *   /fields/<name>
+ *     time         (T)       float64  s
+ *     step         (T)       int64
+ *     theta        (T)       float64  rotation of the body, rad
+ *     displacement (T, n, 3) float64  u in the body frame, m; third column 0
+ *                                     (XDMF vectors have 3 components)
+ *     von_mises    (T, n)    float64  Pa; NaN in frames given without stress
+ *     position     (T, n, 2) float64  centre + R(theta) (nodes + u), scene frame
+ * The field datasets are extendable and chunked by frame (several frames per
+ * chunk only when a frame is under 64 KiB). Frames are written directly (no
+ * buffering beyond one frame of scratch) and made durable by gs_record_flush();
+ * the length of `time` is the number of complete frames (it is extended last).
+ * With bodies, an XDMF 3 file sits beside the record (same base name, ".xmf",
+ * refers to the record by base name): a Temporal collection with, per distinct
+ * frame time, a Spatial collection holding a grid per body (its latest frame at
+ * or before that time). It is rewritten atomically (tmp + rename) by
+ * add_meshes, gs_record_flush and gs_record_close, and lists only flushed
+ * frames. ParaView 5.11: open it with the "XDMF Reader"; its Xdmf3 readers
+ * cannot read a HyperSlab geometry (docs/RECORD.md). */
 #ifndef GEARSIM_RECORD_H
 #define GEARSIM_RECORD_H
 
+#include "gearsim/mesh.h"
 #include "gearsim/step.h"
 
 typedef struct gs_record gs_record;
@@ -24,6 +55,40 @@ gs_err gs_record_flush(gs_record *r);
 gs_err gs_record_close(gs_record **r);
 const char *gs_record_path(const gs_record *r);
 int64_t gs_record_rows(const gs_record *r);
+
+/* An elastic body whose fields will be recorded. */
+typedef struct gs_record_mesh {
+    const char *name;      /* body name (group name): 1-200 characters, unique, none of
+                            * / : < > & " ' or control characters, not "." */
+    const gs_mesh *mesh;   /* borrowed for the call (the nodes are copied) */
+    double centre[2];      /* axis position in the scene frame, m */
+} gs_record_mesh;
+
+/* Declare the elastic bodies whose fields will be recorded: writes
+ * /bodies/<name>/{nodes, triangles, fixed, node_tag}, creates the empty
+ * /fields/<name>/ datasets, flushes and writes the XDMF file (no frames yet).
+ * Call once, after gs_record_open and before the first field frame.
+ * Errors: GS_EINVAL (field "bodies[i].name" or "bodies[i].mesh", or "bodies"
+ * when n < 1), GS_ESTATE (field "bodies") on a second call, GS_ENOMEM,
+ * GS_EIO (field "path"). */
+gs_err gs_record_add_meshes(gs_record *r, const gs_record_mesh *bodies, int n, gs_diag *d);
+
+/* Number of bodies declared by gs_record_add_meshes (0 before). */
+int gs_record_n_meshes(const gs_record *r);
+
+/* Append one field frame of body `body` (index into the array given to
+ * add_meshes) at (step, time): rotation theta (rad), nodal displacements u
+ * (2 * n_nodes, body frame, m) and nodal von Mises stress vm (n_nodes, Pa;
+ * NULL stores NaN). Written to the file at once (one frame per call, by
+ * hyperslab); durable and listed in the XDMF at the next gs_record_flush.
+ * Bodies may be recorded at different steps. Errors: GS_ESTATE before
+ * add_meshes, GS_EINVAL (bad body index, NULL u), GS_EIO; a failed frame is
+ * not counted and the next one takes its place. */
+gs_err gs_record_field_frame(gs_record *r, int body, int64_t step, double time, double theta,
+                             const double *u, const double *vm);
+
+/* Frames written for body `body` (0 if out of range). */
+int64_t gs_record_field_frames(const gs_record *r, int body);
 
 /* Checkpoint files: the engine snapshot bytes in an HDF5 file with the scene
  * as an attribute for people who look inside. */

@@ -16,7 +16,7 @@
 typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
 typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
 typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
-typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1 } gs_mesh_model;
+typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1, GS_MESH_CONTACT = 2 } gs_mesh_model;
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
 
@@ -24,6 +24,8 @@ typedef struct gs_mesh_density {
     int flank;   /* elements along a flank */
     int across;  /* elements across a tooth */
     int rim;     /* radial element layers in the rim */
+    int refine;  /* uniform refinements: counts times 2^refine */
+    double grading; /* largest / smallest element size across a tooth */
 } gs_mesh_density;
 
 typedef struct gs_scene_body {
@@ -44,6 +46,8 @@ typedef struct gs_scene_body {
     double carrier_angle;      /* rad */
     /* initial state */
     double angle0, omega0;
+    double tip_load;           /* N: elastic bodies start in the static deflection under a
+                                * tangential load on the tip of tooth 0 (0: undeformed) */
 } gs_scene_body;
 
 typedef struct gs_scene_mesh {
@@ -56,6 +60,9 @@ typedef struct gs_scene_mesh {
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */
+    /* contact: */
+    int one_pass;              /* flank slaves on one gear only (default: both gears) */
+    int predict;               /* also constrain nodes predicted to touch within the step */
 } gs_scene_mesh;
 
 typedef struct gs_scene_load {
@@ -80,6 +87,7 @@ typedef struct gs_scene {
     int max_newton;
     int telemetry_every;
     int record_every;
+    int fields_every;          /* steps between field snapshots of elastic bodies (0: none) */
     char *json;                /* the scene as given, canonical JSON text (owned) */
 } gs_scene;
 

@@ -20,6 +20,8 @@ struct gs_body_rt {
     double inertia_eff;      /* I + sum m d^2 of planets for a carrier */
     const gs_body_ops *ops;
     void *model;             /* model data (elastic: FE body) */
+    double T, V;             /* kinetic and potential energy of the body's own state,
+                              * as the owner last reported it (gs_system_sync_energy) */
 };
 
 struct gs_gmesh_rt {
@@ -33,11 +35,33 @@ struct gs_gmesh_rt {
     double transition;       /* width of the single/double stiffness change, fraction of a cycle */
     double force;            /* last step's force along the line of action, N */
     double deflection;       /* s - s_ref at the end of the last step, m */
+    /* contact meshes: */
+    void *contact;           /* model data (the search, meshes of rigid gears) */
+    int n_active;            /* constraints with a positive multiplier in the last step */
+    int n_rows;              /* constraints in the last step */
+    double penetration;      /* deepest penetration at the last step's start, m (>= 0) */
 };
+
+/* What crosses ranks in one step, identical on every rank (src/step/plan.c).
+ * Body i offers n_dof[i] interface unknowns: its coordinate (when it has
+ * one) then the x, y displacements of nodes[i][0 .. n_nodes[i]), the nodes
+ * the contact search found near the other gear. Its record at rec_off[i]
+ * holds the compliance block C (n_dof^2, column-major), the free increment
+ * d0 (n_dof) and the current displacements of its nodes (2 n_nodes); the
+ * solution gives back its interface forces f (n_dof) at sol_off[i]. */
+typedef struct gs_step_plan {
+    int *n_nodes;
+    gs_index **nodes;
+    size_t *cap_nodes;
+    int *n_dof;
+    size_t *rec_off, *sol_off;
+    size_t rec_size, sol_size;
+} gs_step_plan;
 
 /* Energy bookkeeping (J). balance_residual = total - total0 - work_in + dissipated. */
 typedef struct gs_energy {
     double kinetic, potential, total, work_in, dissipated, balance_residual;
+    double elastic;          /* the part of potential stored in elastic bodies */
 } gs_energy;
 
 struct gs_system {
@@ -57,6 +81,11 @@ struct gs_system {
     int last_iterations;
     char warning[256];       /* set at build time, e.g. projected initial speeds */
     double *work;            /* scratch owned by the solver */
+    int n_contact;           /* contact meshes: the step is then a QP */
+    gs_step_plan plan;
+    void *solver;            /* rank 0 scratch of the contact solve (src/step/contact_step.c) */
+    double *buf;             /* records and solution of gs_step_serial */
+    size_t buf_cap;
 };
 
 /* Build the system from a parsed scene; takes ownership of the scene.
@@ -71,22 +100,47 @@ gs_err gs_system_remove_load(gs_system *sys, const char *name);
 /* Sum of the non-brake moments on body b at time t, and the brake coefficient. */
 void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, double *brake);
 
-/* Records: 2 doubles (H, rhs) per body, zero for bodies not owned by this rank. */
-void gs_step_records(const gs_system *sys, double *rec);
-/* Solve on rank 0: from all records, the increment dq (n_coords) plus, at
- * dq[n_coords], the mesh dissipation of the step and at dq[n_coords+1+m] the
- * force of mesh m. Size of dq: gs_step_solution_size(). */
-gs_err gs_step_solve(gs_system *sys, const double *rec, double *dq);
-int gs_step_solution_size(const gs_system *sys);
-/* Apply on every rank: update q, w, time, step, work and dissipation. */
-void gs_step_apply(gs_system *sys, const double *dq);
-/* One step in one process. */
+/* The step is four calls; gs_step_serial() makes them in one process.
+ *
+ *   gs_step_prepare   every rank: the contact search from the rigid state,
+ *                     the plan (sizes of the records and the solution)
+ *   gs_step_records   every rank: the records of its own bodies (zeros
+ *                     elsewhere, so that a sum over ranks assembles them);
+ *                     begins the bodies' own steps
+ *   gs_step_solve     rank 0: from all records, the solution
+ *   gs_step_apply     every rank: update the rigid state, finish the own
+ *                     bodies' steps with their interface forces
+ *
+ * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
+ * meshes' forces (n_meshes), per mesh the contact figures (n_active,
+ * n_rows, penetration), then the bodies' interface forces (plan.sol_off). */
+gs_err gs_step_prepare(gs_system *sys);
+void gs_step_records(gs_system *sys, double *rec);
+gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol);
+gs_err gs_step_apply(gs_system *sys, const double *sol);
 gs_err gs_step_serial(gs_system *sys);
+/* Offsets in the solution. */
+static inline size_t gs_sol_mesh_force(const gs_system *s, int m) { return (size_t)(s->n_coords + 1 + m); }
+static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
+{
+    return (size_t)(s->n_coords + 1 + s->n_meshes + 3 * m);
+}
 
-/* Energies of the current state; body energies from this rank's bodies only
- * when `own_only` (for a reduction), else from all. */
+/* Energies of the current state. Bodies with their own state (elastic)
+ * contribute what their owner last reported in b->T, b->V: after a step on
+ * several ranks, call gs_system_sync_energy (collective in the engine) first. */
 void gs_system_energy(const gs_system *sys, gs_energy *e);
+/* Owner side of the energy report: b->T, b->V of this rank's bodies with own
+ * state into buf (2 per body, zeros elsewhere), for a sum over ranks. */
+void gs_system_energy_report(const gs_system *sys, double *buf);
+/* Adopt the summed report on every rank. */
+void gs_system_energy_adopt(gs_system *sys, const double *buf);
+/* True when some body keeps state of its own (elastic): then energies and
+ * snapshots need the owners. */
+bool gs_system_has_body_state(const gs_system *sys);
 double gs_system_rpm(const gs_system *sys, int body);
+/* Axis position (scene frame, m) and rotation (rad) of a body now. */
+void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta);
 double gs_system_angle(const gs_system *sys, int body);
 double gs_system_omega(const gs_system *sys, int body);
 

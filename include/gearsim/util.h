@@ -9,6 +9,11 @@
 double gs_now(void);
 /* calloc that returns NULL for n*size overflow instead of wrapping. */
 void *gs_calloc(size_t n, size_t size);
+/* Grow an array to hold at least n elements of `size` bytes: returns p when
+ * its capacity *cap (in elements) suffices, else a larger block (at least
+ * twice the old capacity) with *cap updated; NULL when allocation fails
+ * (p is then still valid and still the caller's). */
+void *gs_grow(void *p, size_t *cap, size_t n, size_t size);
 /* strdup into a fresh allocation; NULL on failure or NULL input. */
 char *gs_strdup(const char *s);
 /* Read a whole file into a NUL-terminated buffer (owned by the caller).

@@ -15,6 +15,24 @@ double gs_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+void *gs_grow(void *p, size_t *cap, size_t n, size_t size)
+{
+    if (n <= *cap && p)
+        return p;
+    size_t c = *cap > SIZE_MAX / 4 ? n : 2 * *cap;
+    if (c < n)
+        c = n;
+    if (c < 16)
+        c = 16;
+    if (size == 0 || c > SIZE_MAX / size)
+        return NULL;
+    void *q = realloc(p, c * size);
+    if (!q)
+        return NULL;
+    *cap = c;
+    return q;
+}
+
 void *gs_calloc(size_t n, size_t size)
 {
     if (n == 0 || size == 0)

@@ -15,7 +15,12 @@ struct gs_engine {
     gs_engine_step_hook hook;
     void *hook_user;
     double *rec, *sol;
-    int rec_n, sol_n;
+    size_t rec_n, sol_n;    /* capacities */
+    double *ebuf;           /* 2 per body: energy reports */
+    double **field;         /* per body with fields (rank 0): u (2n) then vm (n) */
+    int64_t field_step;     /* step of the fields held, -1 none */
+    double *states;         /* rank 0: gathered body states for a snapshot */
+    size_t n_states;
 };
 
 gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
@@ -32,10 +37,130 @@ gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
 
 static void unload(gs_engine *e)
 {
+    if (e->field && e->sys)
+        for (int i = 0; i < e->sys->n_bodies; i++)
+            free(e->field[i]);
+    free(e->field);
+    e->field = NULL;
+    free(e->states);
+    e->states = NULL;
+    e->n_states = 0;
     gs_system_free(&e->sys);
     free(e->rec);
     free(e->sol);
-    e->rec = e->sol = NULL;
+    free(e->ebuf);
+    e->rec = e->sol = e->ebuf = NULL;
+}
+
+/* Owners report the energies of bodies with their own state; every rank
+ * adopts the sum (one value is non-zero per body: the sum is exact). */
+static gs_err sync_energy(gs_engine *e, gs_err err)
+{
+    gs_system *s = e->sys;
+    if (e->size == 1 || !gs_system_has_body_state(s))
+        return err;
+    /* The last slot carries a failure of any owner, so that every rank stops
+     * at the same step. */
+    int n = 2 * s->n_bodies;
+    gs_system_energy_report(s, e->ebuf);
+    e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
+    MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1, MPI_DOUBLE, MPI_SUM, e->comm);
+    gs_system_energy_adopt(s, e->ebuf);
+    if (err == GS_OK && e->ebuf[n] != 0.0)
+        err = GS_EINTERNAL;
+    return err;
+}
+
+/* Move n doubles of body b's data from its owner to rank 0: `fill` runs on
+ * the owner into buf (rank 0's buf receives). Collective over the engine. */
+static void to_root(gs_engine *e, const gs_body_rt *b, double *buf, size_t n,
+                    void (*fill)(const gs_body_rt *, double *, size_t))
+{
+    if (b->owner == e->rank)
+        fill(b, buf, n);
+    if (e->size == 1 || b->owner == 0)
+        return;
+    if (e->rank == b->owner)
+        MPI_Send(buf, (int)n, MPI_DOUBLE, 0, 7, e->comm);
+    else if (e->rank == 0)
+        MPI_Recv(buf, (int)n, MPI_DOUBLE, b->owner, 7, e->comm, MPI_STATUS_IGNORE);
+}
+
+static void fill_fields(const gs_body_rt *b, double *buf, size_t n)
+{
+    gs_index nn = b->ops->field_nodes(b);
+    (void)n;
+    b->ops->fields(b, buf, buf + 2 * nn);
+}
+
+static void fill_state(const gs_body_rt *b, double *buf, size_t n)
+{
+    (void)n;
+    b->ops->save(b, buf);
+}
+
+/* Field snapshots of every body with fields, to rank 0 (collective). */
+static gs_err gather_fields(gs_engine *e)
+{
+    gs_system *s = e->sys;
+    double *tmp = NULL;
+    for (int i = 0; i < s->n_bodies; i++) {
+        gs_body_rt *b = &s->bodies[i];
+        if (!b->ops->fields)
+            continue;
+        size_t n = 3 * (size_t)b->ops->field_nodes(b);
+        double *buf = e->rank == 0 ? e->field[i] : NULL;
+        if (!buf) {
+            free(tmp);
+            tmp = malloc(n * sizeof(double));
+            if (!tmp)
+                MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
+            buf = tmp;
+        }
+        to_root(e, b, buf, n, fill_fields);
+    }
+    free(tmp);
+    e->field_step = s->step;
+    return GS_OK;
+}
+
+static size_t states_size(const gs_system *s)
+{
+    size_t n = 0;
+    for (int i = 0; i < s->n_bodies; i++)
+        if (s->bodies[i].ops->state_size)
+            n += s->bodies[i].ops->state_size(&s->bodies[i]);
+    return n;
+}
+
+/* Body states from their owners into e->states on rank 0 (collective). */
+static gs_err gather_states(gs_engine *e)
+{
+    gs_system *s = e->sys;
+    if (!s)
+        return GS_ESTATE;
+    size_t total = states_size(s), off = 0;
+    free(e->states);
+    e->states = gs_calloc(total ? total : 1, sizeof(double));
+    if (!e->states)
+        MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
+    e->n_states = total;
+    for (int i = 0; i < s->n_bodies; i++) {
+        gs_body_rt *b = &s->bodies[i];
+        if (!b->ops->state_size)
+            continue;
+        size_t n = b->ops->state_size(b);
+        to_root(e, b, e->states + off, n, fill_state);
+        off += n;
+    }
+    return GS_OK;
+}
+
+const double *gs_engine_fields(const gs_engine *e, int body)
+{
+    if (!e->sys || !e->field || body < 0 || body >= e->sys->n_bodies || e->field_step != e->sys->step)
+        return NULL;
+    return e->field[body];
 }
 
 void gs_engine_free(gs_engine **pe)
@@ -59,46 +184,111 @@ void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user)
 
 static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
 {
-    gs_system *sys;
-    GS_TRY(gs_system_new(sc, e->rank, e->size, &sys, d));
+    gs_system *sys = NULL;
+    gs_err err0 = gs_system_new(sc, e->rank, e->size, &sys, d);
+    if (e->size > 1) {
+        /* Owners build more than the others (factorisations): all ranks
+         * agree on success, or none adopts the scene. */
+        int bad = err0 != GS_OK;
+        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        if (bad && err0 == GS_OK) {
+            gs_system_free(&sys);
+            return gs_diag_set(d, GS_EINTERNAL, "scene", "another rank could not build the scene");
+        }
+    }
+    if (err0 != GS_OK)
+        return err0;
     unload(e);
     e->sys = sys;
-    e->rec_n = 2 * sys->n_bodies;
-    e->sol_n = gs_step_solution_size(sys) + 1;
-    e->rec = gs_calloc((size_t)e->rec_n, sizeof(double));
-    e->sol = gs_calloc((size_t)e->sol_n, sizeof(double));
-    if (!e->rec || !e->sol) {
+    e->rec_n = sys->plan.rec_size;
+    e->sol_n = sys->plan.sol_size + 1;
+    e->rec = gs_calloc(e->rec_n, sizeof(double));
+    e->sol = gs_calloc(e->sol_n, sizeof(double));
+    e->ebuf = gs_calloc((size_t)(2 * sys->n_bodies + 1), sizeof(double));
+    e->field = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
+    e->field_step = -1;
+    if (!e->rec || !e->sol || !e->ebuf || !e->field) {
         unload(e);
         return GS_ENOMEM;
     }
+    for (int i = 0; e->rank == 0 && sys->scene->fields_every > 0 && i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (!b->ops->fields)
+            continue;
+        e->field[i] = gs_calloc(3 * (size_t)b->ops->field_nodes(b), sizeof(double));
+        if (!e->field[i]) {
+            unload(e);
+            return GS_ENOMEM;
+        }
+    }
+    /* The initial energy of bodies with their own state is known to their
+     * owners only. */
+    gs_err err = sync_energy(e, GS_OK);
+    if (err != GS_OK) {
+        unload(e);
+        return err;
+    }
+    gs_energy en;
+    gs_system_energy(sys, &en);
+    sys->energy0 = en.total;
     return GS_OK;
 }
 
 /* One distributed step: records reduced to rank 0 (each rank fills only its
  * own bodies, the others are exact zeros, so the sum is exact and the result
  * independent of the rank count), solve there, broadcast, apply. */
+static gs_err reserve(gs_engine *e)
+{
+    const gs_step_plan *p = &e->sys->plan;
+    double *r = gs_grow(e->rec, &e->rec_n, p->rec_size, sizeof(double));
+    if (!r)
+        return GS_ENOMEM;
+    e->rec = r;
+    r = gs_grow(e->sol, &e->sol_n, p->sol_size + 1, sizeof(double));
+    if (!r)
+        return GS_ENOMEM;
+    e->sol = r;
+    return GS_OK;
+}
+
 static gs_err dist_step(gs_engine *e)
 {
     gs_system *s = e->sys;
+    /* The plan is the same on every rank (contact search from the rigid
+     * state); a failure there is too, so ranks stay in step. */
+    gs_err err = gs_step_prepare(s);
+    if (err == GS_OK)
+        err = reserve(e);
+    if (e->size > 1) {
+        int bad = err != GS_OK;
+        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        if (bad)
+            return err != GS_OK ? err : GS_ENOMEM;
+    } else if (err != GS_OK) {
+        return err;
+    }
+    int rn = (int)s->plan.rec_size, n = (int)s->plan.sol_size;
     gs_step_records(s, e->rec);
     if (e->size > 1) {
         if (e->rank == 0)
-            MPI_Reduce(MPI_IN_PLACE, e->rec, e->rec_n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Reduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
         else
-            MPI_Reduce(e->rec, NULL, e->rec_n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Reduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
     }
-    int n = e->sol_n - 1;
     if (e->rank == 0) {
-        gs_err err = gs_step_solve(s, e->rec, e->sol);
+        err = gs_step_solve(s, e->rec, e->sol);
         e->sol[n] = (double)err;
     }
     if (e->size > 1)
-        MPI_Bcast(e->sol, e->sol_n, MPI_DOUBLE, 0, e->comm);
-    gs_err err = (gs_err)(int)e->sol[n];
+        MPI_Bcast(e->sol, n + 1, MPI_DOUBLE, 0, e->comm);
+    err = (gs_err)(int)e->sol[n];
     if (err != GS_OK)
         return err;
-    gs_step_apply(s, e->sol);
-    return GS_OK;
+    err = sync_energy(e, gs_step_apply(s, e->sol));
+    int fe = s->scene->fields_every;
+    if (fe > 0 && s->step % fe == 0)
+        gather_fields(e);
+    return err;
 }
 
 static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
@@ -120,9 +310,11 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 }
 
 /* Snapshot format: magic, n_coords, n_meshes, step, time, work_in,
- * dissipated, energy0, q[n], w[n], mesh force[n_meshes] (the last step's,
- * reported by telemetry), then scene JSON and loads JSON, NUL-terminated. */
-#define SNAP_MAGIC 0x32534753u /* "GSS2" */
+ * dissipated, energy0, q[n], w[n], per mesh force, contacts, rows,
+ * penetration (the last step's, reported by telemetry), n_states (as a double), the body states (elastic:
+ * q then w of each FE body, in body order), then scene JSON and loads JSON,
+ * NUL-terminated. */
+#define SNAP_MAGIC 0x34534753u /* "GSS4" */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -170,13 +362,18 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     gs_system *s = e->sys;
     if (!s)
         return GS_ESTATE;
+    if (gs_system_has_body_state(s)) {
+        gs_diag d;
+        GS_TRY(gs_engine_run(e, GS_OP_SNAPSHOT, NULL, 0, &d, NULL));
+    }
+    size_t ns = gs_system_has_body_state(s) ? e->n_states : 0;
     char *lj = loads_json(s->scene);
     if (!lj)
         return GS_ENOMEM;
     size_t n = (size_t)s->n_coords, nm = (size_t)s->n_meshes;
     size_t sl = strlen(s->scene->json) + 1, ll = strlen(lj) + 1;
     size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double) +
-                   (2 * n + nm) * sizeof(double) + sl + ll;
+                   (2 * n + 4 * nm + 1 + ns) * sizeof(double) + sl + ll;
     char *b = malloc(total), *p = b;
     if (!b) {
         free(lj);
@@ -194,8 +391,15 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     PUT(&s->energy0, sizeof(double));
     PUT(s->q, n * sizeof(double));
     PUT(s->w, n * sizeof(double));
-    for (size_t i = 0; i < nm; i++)
-        PUT(&s->meshes[i].force, sizeof(double));
+    for (size_t i = 0; i < nm; i++) {
+        const gs_gmesh_rt *m = &s->meshes[i];
+        double ct[4] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration};
+        PUT(ct, sizeof ct);
+    }
+    double nsd = (double)ns;
+    PUT(&nsd, sizeof nsd);
+    if (ns)
+        PUT(e->states, ns * sizeof(double));
     PUT(s->scene->json, sl);
     PUT(lj, ll);
 #undef PUT
@@ -217,7 +421,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     memcpy(&nm, p + 8, sizeof nm);
     p += 12;
     if (magic != SNAP_MAGIC || nc > (1u << 20) || nm > (1u << 20) ||
-        len < head + (2 * (size_t)nc + nm) * sizeof(double) + 2)
+        len < head + (2 * (size_t)nc + 4 * (size_t)nm + 1) * sizeof(double) + 2)
         return gs_diag_set(d, GS_EIO, "path", "not a gearsim checkpoint");
     int64_t step;
     double t, wi, di, e0;
@@ -228,7 +432,14 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     memcpy(&e0, p, 8), p += 8;
     const double *q = (const double *)(const void *)p;
     const double *forces = q + 2 * (size_t)nc;
-    const char *scene = p + (2 * (size_t)nc + nm) * sizeof(double);
+    double nsd;
+    memcpy(&nsd, p + (2 * (size_t)nc + 4 * (size_t)nm) * sizeof(double), sizeof nsd);
+    size_t avail = (len - head) / sizeof(double) - (2 * (size_t)nc + 4 * (size_t)nm + 1);
+    if (!(nsd >= 0) || nsd > (double)avail)
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
+    size_t ns = (size_t)nsd;
+    const double *states = forces + 4 * (size_t)nm + 1;
+    const char *scene = p + (2 * (size_t)nc + 4 * (size_t)nm + 1 + ns) * sizeof(double);
     const char *end = b + len;
     const char *lj = memchr(scene, '\0', (size_t)(end - scene));
     if (!lj || lj + 1 >= end || !memchr(lj + 1, '\0', (size_t)(end - lj - 1)))
@@ -266,9 +477,38 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     json_object_put(loads);
     GS_TRY(adopt(e, sc, d));
     gs_system *s = e->sys;
-    if ((uint32_t)s->n_coords != nc || (uint32_t)s->n_meshes != nm) {
+    if ((uint32_t)s->n_coords != nc || (uint32_t)s->n_meshes != nm ||
+        (gs_system_has_body_state(s) ? states_size(s) : 0) != ns) {
         unload(e);
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene");
+    }
+    gs_err lerr = GS_OK;
+    for (int i = 0, off = 0; i < s->n_bodies; i++) {
+        gs_body_rt *b = &s->bodies[i];
+        if (!b->ops->state_size)
+            continue;
+        double *x = malloc(b->ops->state_size(b) * sizeof(double));
+        if (!x) {
+            lerr = GS_ENOMEM;
+        } else {
+            /* The payload is not aligned for doubles: copy out. */
+            memcpy(x, (const char *)states + (size_t)off * sizeof(double),
+                   b->ops->state_size(b) * sizeof(double));
+            if (b->owner == e->rank) {
+                gs_err le = b->ops->load(b, x);
+                if (le == GS_OK)
+                    b->ops->energy(s, b, &b->T, &b->V);
+                else if (lerr == GS_OK)
+                    lerr = le;
+            }
+            free(x);
+        }
+        off += (int)b->ops->state_size(b);
+    }
+    lerr = sync_energy(e, lerr);
+    if (lerr != GS_OK) {
+        unload(e);
+        return gs_diag_set(d, lerr, "path", "the checkpoint's body states could not be restored");
     }
     memcpy(s->q, q, nc * sizeof(double));
     memcpy(s->w, q + nc, nc * sizeof(double));
@@ -283,7 +523,12 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         for (int j = 0; j < s->n_coords; j++)
             v += m->a[j] * s->q[j];
         m->deflection = v - m->s_ref;
-        memcpy(&m->force, forces + i, sizeof(double));
+        double ct[4];
+        memcpy(ct, (const char *)forces + 4 * (size_t)i * sizeof(double), sizeof ct);
+        m->force = ct[0];
+        m->n_active = (int)ct[1];
+        m->n_rows = (int)ct[2];
+        m->penetration = ct[3];
     }
     return GS_OK;
 }
@@ -330,6 +575,8 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         return gs_system_remove_load(e->sys, payload);
     case GS_OP_RESTORE:
         return restore(e, payload, len, d);
+    case GS_OP_SNAPSHOT:
+        return gather_states(e);
     }
     return GS_EINVAL;
 }

@@ -451,6 +451,19 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     return GS_OK;
 }
 
+void gs_fe_body_cancel_step(gs_fe_body *b)
+{
+    if (!b || !b->in_step)
+        return;
+    for (gs_index k = 0; k < b->n_touched; k++) {
+        gs_index i = b->touched[k];
+        b->fi[i] = 0;
+        b->tmark[i] = 0;
+    }
+    b->n_touched = 0;
+    b->in_step = false;
+}
+
 gs_err gs_fe_body_step(gs_fe_body *b, double moment_nm, const double *f_nodes)
 {
     GS_TRY(gs_fe_body_begin_step(b, moment_nm, f_nodes));

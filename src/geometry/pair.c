@@ -251,10 +251,18 @@ gs_err gs_pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, doubl
     GS_TRY(gs_pair_tight_centre_distance(g1, g2, &info->a_tight, d));
     const double m = A.m, al = A.alpha;
     info->base_pitch = GS_PI * m * cos(al);
-    if (a < info->a_tight * (1.0 - 1e-9))
+    /* External pairs overlap below the tight-mesh distance; an internal
+     * pair overlaps above it (moving the pinion outwards pushes its teeth
+     * into the narrowing ring spaces). */
+    if (!internal && a < info->a_tight * (1.0 - 1e-9))
         return gs_diag_set(d, GS_EGEOMETRY, "gears",
                            "centre distance %.6g mm is below the tight-mesh distance %.6g mm: "
                            "the teeth would overlap",
+                           a * 1e3, info->a_tight * 1e3);
+    if (internal && a > info->a_tight * (1.0 + 1e-9))
+        return gs_diag_set(d, GS_EGEOMETRY, "gears",
+                           "centre distance %.6g mm is above the tight-mesh distance %.6g mm of this "
+                           "internal pair: the teeth would overlap",
                            a * 1e3, info->a_tight * 1e3);
     double c = internal ? (fabs(A.rb - B.rb)) / a : (A.rb + B.rb) / a;
     if (c > 1.0)
@@ -414,9 +422,15 @@ gs_err gs_planetary_check(const gs_gear_params *sun, const gs_gear_params *plane
     double a1, a2;
     GS_TRY(gs_pair_tight_centre_distance(sun, planet, &a1, d));
     GS_TRY(gs_pair_tight_centre_distance(planet, ring, &a2, d));
-    /* Shifted sets may differ a little (one mesh gets some backlash); more
-     * than 0.02 module means the tooth counts do not fit together. */
-    if (fabs(a1 - a2) > 0.02 * sun->module_m)
+    /* A carrier radius a works for both meshes when a1 <= a <= a2 (the ring
+     * pair overlaps above its tight distance). Tooth thinning opens that
+     * interval by about t / (2 tan alpha) per mesh; shifted sets may differ
+     * a little more (one mesh gets some backlash); beyond 0.02 module the
+     * tooth counts do not fit together. */
+    double open = (sun->thinning_m + 2 * planet->thinning_m + ring->thinning_m) /
+                  (2 * tan(sun->pressure_angle));
+    double tol = 0.02 * sun->module_m;
+    if (a1 - a2 > tol || a2 - a1 > tol + 1.05 * open)
         return gs_diag_set(d, GS_EGEOMETRY, "gears",
                            "sun-planet and planet-ring centre distances differ (%.6g mm vs "
                            "%.6g mm): with standard gears z_ring must be z_sun + 2 z_planet "

@@ -16,16 +16,19 @@ static void rigid_destroy(gs_body_rt *b)
     (void)b;
 }
 
-/* H d - rhs = f with H = 2/h^2 I + c/h, rhs = 2/h I w + M(t + h/2):
+/* d = d0 + C f with 1/C = 2/h^2 I + c/h and d0 = C (2/h I w + M(t + h/2)):
  * the midpoint momentum equation with the brake -c d/h taken implicitly. */
-static void rigid_interface(const gs_system *sys, const gs_body_rt *b, double h, double *H,
-                            double *rhs)
+static void rigid_interface(const gs_system *sys, gs_body_rt *b, double h, double *rec)
 {
+    if (b->coord < 0)
+        return;
+    double *C = &rec[0], *d0 = &rec[1];
     double M, c;
     gs_system_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
     double I = b->inertia_eff;
-    *H = 2.0 / (h * h) * I + c / h;
-    *rhs = 2.0 / h * I * sys->w[b->coord] + M;
+    double H = 2.0 / (h * h) * I + c / h;
+    *C = 1.0 / H;
+    *d0 = (2.0 / h * I * sys->w[b->coord] + M) / H;
 }
 
 static void rigid_energy(const gs_system *sys, const gs_body_rt *b, double *T, double *V)

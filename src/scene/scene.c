@@ -24,17 +24,17 @@ static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth"
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", NULL};
 static const char *const material_keys[] = {"E", "nu", "density", "plane", NULL};
-static const char *const meshdens_keys[] = {"flank", "across", "rim", NULL};
+static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
-                                         "damping_ratio", "backlash_mm", NULL};
+                                         "damping_ratio", "backlash_mm", "passes", "constrain", NULL};
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
 static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", NULL};
-static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", NULL};
-static const char *const outputs_keys[] = {"telemetry_every", "record_every", NULL};
+static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
+static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every", NULL};
 
 int gs_scene_find_body(const gs_scene *s, const char *name)
 {
@@ -135,7 +135,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     b->type = (gs_body_type)t;
     b->model = (gs_body_model)m;
     b->material = gs_material_steel();
-    b->mesh = (gs_mesh_density){8, 4, 3};
+    b->mesh = (gs_mesh_density){8, 4, 3, 0, 2.0};
     double x;
     b->mass_given = json_object_object_get_ex(o, "mass", NULL);
     b->inertia_given = json_object_object_get_ex(o, "inertia", NULL);
@@ -212,6 +212,9 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         b->mesh.across = (int)v;
         GS_TRY(gsi_json_int(md, "rim", mp, 1, 128, false, 3, &v, d));
         b->mesh.rim = (int)v;
+        GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, 0, &v, d));
+        b->mesh.refine = (int)v;
+        GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, 2.0, &b->mesh.grading, d));
     }
     GS_TRY(prefix_diag(gs_gear_validate(g, d), d, path));
     double mass, inertia;
@@ -293,8 +296,10 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
 static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                               gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped"};
+    static const char *const models[] = {"kinematic", "lumped", "contact"};
     static const char *const stypes[] = {"constant", "rectangular"};
+    static const char *const passes[] = {"two", "one"};
+    static const char *const constrain[] = {"touching", "predicted"};
     if (json_object_get_type(o) != json_type_object)
         return gs_diag_set(d, GS_ESCHEMA, path, "a mesh must be an object");
     GS_TRY(gsi_json_only(o, path, gmesh_keys, d));
@@ -319,20 +324,37 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(enum_field(o, "model", path, NULL, models, 2, &model, d));
+    GS_TRY(enum_field(o, "model", path, NULL, models, 3, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
     m->backlash = 0;
-    if (m->model == GS_MESH_KINEMATIC) {
+    if (m->model != GS_MESH_CONTACT) {
+        static const char *const no[] = {"passes", "constrain", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to contact meshes", *k);
+            }
+    }
+    if (m->model == GS_MESH_KINEMATIC || m->model == GS_MESH_CONTACT) {
         static const char *const no[] = {"stiffness", "damping", "damping_ratio", "backlash_mm", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
-                return gs_diag_set(d, GS_ESCHEMA, p, "a kinematic mesh has no '%s'", *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "a %s mesh has no '%s'", models[model], *k);
             }
+    }
+    if (m->model == GS_MESH_CONTACT) {
+        int v;
+        GS_TRY(enum_field(o, "passes", path, "two", passes, 2, &v, d));
+        m->one_pass = v;
+        GS_TRY(enum_field(o, "constrain", path, "touching", constrain, 2, &v, d));
+        m->predict = v;
         return GS_OK;
     }
+    if (m->model == GS_MESH_KINEMATIC)
+        return GS_OK;
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
      * stiffness per mm of face width, twice that in double contact. */
     double b1 = s->bodies[m->gear[0]].gear.face_width_m, b2 = s->bodies[m->gear[1]].gear.face_width_m;
@@ -715,6 +737,13 @@ gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
             CHECK(gsi_json_number(val, "omega", p, -1e6, 1e6, false, 0, &b->omega0, d));
             CHECK(gsi_json_number(val, "speed_rpm", p, -1e7, 1e7, false, b->omega0 * GS_RPM_PER_RAD_S, &rpm, d));
             b->omega0 = rpm / GS_RPM_PER_RAD_S;
+            CHECK(gsi_json_number(val, "tip_load", p, -1e8, 1e8, false, 0, &b->tip_load, d));
+            if (b->tip_load != 0 && b->model != GS_MODEL_ELASTIC) {
+                char f[300];
+                gsi_path(f, sizeof f, p, "tip_load");
+                e = gs_diag_set(d, GS_ERANGE, f, "'%s' is rigid: a tip load needs model 'elastic'", key);
+                goto fail;
+            }
             if (b->joint == GS_JOINT_HELD && (b->omega0 != 0 || b->angle0 != 0)) {
                 e = gs_diag_set(d, GS_ERANGE, p, "'%s' is held and cannot move", key);
                 goto fail;
@@ -731,6 +760,8 @@ gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         s->telemetry_every = (int)v;
         CHECK(gsi_json_int(o, "record_every", "outputs", 1, 100000000, false, v, &v, d));
         s->record_every = (int)v;
+        CHECK(gsi_json_int(o, "fields_every", "outputs", 0, 100000000, false, 0, &v, d));
+        s->fields_every = (int)v;
     }
     if (s->record_every == 0)
         s->record_every = s->telemetry_every;

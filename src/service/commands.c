@@ -9,6 +9,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
 #include "service/service_internal.h"
@@ -32,7 +33,8 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "session", json_object_new_string(s->session));
     json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
     json_object *caps = json_object_new_array();
-    static const char *const cap[] = {"rigid", "kinematic", "lumped", "record", "checkpoint", "jobs", "fetch", NULL};
+    static const char *const cap[] = {"rigid", "elastic", "kinematic", "lumped", "contact", "fields", "record",
+                                      "checkpoint", "jobs", "fetch", NULL};
     for (int i = 0; cap[i]; i++)
         json_object_array_add(caps, json_object_new_string(cap[i]));
     json_object_object_add(o, "capabilities", caps);
@@ -368,7 +370,7 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
             return e;
         }
         gs_record *r;
-        e = gs_record_open(full, gs_engine_system(s->eng), &r, d);
+        e = gsi_record_open(s, full, &r, d);
         if (e != GS_OK) {
             snprintf(d->field, sizeof d->field, "args.path");
             return e;
@@ -549,7 +551,7 @@ void gsi_start_next_job(gs_service *s)
         snprintf(j->state, sizeof j->state, "running");
         gs_err e = load_scene_text(s, j->scene_json, &d);
         if (e == GS_OK && j->record[0])
-            e = gs_record_open(j->record, gs_engine_system(s->eng), &s->record, &d);
+            e = gsi_record_open(s, j->record, &s->record, &d);
         if (e != GS_OK) {
             snprintf(j->state, sizeof j->state, "failed");
             snprintf(j->error, sizeof j->error, "%.250s", d.message[0] ? d.message : gs_strerror(e));
@@ -678,6 +680,59 @@ static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
 static const char *const fetch_args[] = {"path", "offset", "length", NULL};
+static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", NULL};
+
+/* Quasi-static mesh stiffness and transmission error of one mesh of the
+ * loaded scene (docs/STIFFNESS.md): rank 0 alone, no inertia, the run's
+ * state untouched. Blocks the service for its duration (seconds), so it is
+ * refused while an advance runs. */
+static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    GS_TRY(need_loaded(s, d));
+    if (s->adv.active)
+        return gs_diag_set(d, GS_EBUSY, "cmd", "the stiffness analysis is refused while an advance runs");
+    gs_system *sys = gs_engine_system(s->eng);
+    char name[GS_NAME_MAX];
+    GS_TRY(gsi_json_string(args, "mesh", "args", true, NULL, name, sizeof name, d));
+    int mi = -1;
+    for (int i = 0; i < sys->scene->n_meshes; i++)
+        if (!strcmp(sys->scene->meshes[i].name, name))
+            mi = i;
+    if (mi < 0)
+        return gs_diag_set(d, GS_ENOTFOUND, "args.mesh", "no mesh named '%s'", name);
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    int64_t v;
+    GS_TRY(gsi_json_int(args, "positions", "args", 1, 720, false, o.positions, &v, d));
+    o.positions = (int)v;
+    GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
+    o.refine = (int)v;
+    GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
+    char full[PATH_MAX] = "";
+    if (json_object_object_get_ex(args, "path", NULL))
+        GS_TRY(path_arg(s, args, true, full, sizeof full, d));
+    gs_stiffness_result r;
+    gs_err e = gs_stiffness_analyse(sys->scene, mi, &o, &r, d);
+    if (e != GS_OK) {
+        if (!strchr(d->field, '.'))
+            snprintf(d->field, sizeof d->field, "args.mesh");
+        return e;
+    }
+    if (full[0]) {
+        e = gs_stiffness_write_h5(full, sys->scene, &r, d);
+        if (e != GS_OK) {
+            gs_stiffness_result_clear(&r);
+            snprintf(d->field, sizeof d->field, "args.path");
+            return e;
+        }
+    }
+    *res = gs_stiffness_json(&r, sys->scene);
+    if (full[0])
+        json_object_object_add(*res, "path", json_object_get(json_object_object_get(args, "path")));
+    gs_stiffness_result_clear(&r);
+    return GS_OK;
+}
 
 static const gsi_command commands[] = {
     {"hello", cmd_hello, true, no_args},
@@ -696,6 +751,7 @@ static const gsi_command commands[] = {
     {"submit", cmd_submit, true, submit_args},
     {"jobs", cmd_jobs, true, no_args},
     {"fetch", cmd_fetch, true, fetch_args},
+    {"stiffness", cmd_stiffness, true, stiffness_args},
     {"shutdown", cmd_shutdown, true, no_args},
     {NULL, NULL, false, NULL},
 };

@@ -51,6 +51,7 @@ static json_object *energy_json(const gs_energy *e)
     json_object *o = json_object_new_object();
     json_object_object_add(o, "kinetic", json_object_new_double(e->kinetic));
     json_object_object_add(o, "potential", json_object_new_double(e->potential));
+    json_object_object_add(o, "elastic", json_object_new_double(e->elastic));
     json_object_object_add(o, "total", json_object_new_double(e->total));
     json_object_object_add(o, "work_in", json_object_new_double(e->work_in));
     json_object_object_add(o, "dissipated", json_object_new_double(e->dissipated));
@@ -83,11 +84,57 @@ json_object *gsi_state_json(gs_service *s)
         json_object_object_add(j, "name", json_object_new_string(sys->scene->meshes[i].name));
         json_object_object_add(j, "force", json_object_new_double(isfinite(m->force) ? m->force : 0.0));
         json_object_object_add(j, "deflection", json_object_new_double(m->deflection));
-        json_object_object_add(j, "penetration", json_object_new_double(0.0));
+        json_object_object_add(j, "penetration", json_object_new_double(m->penetration));
+        if (m->ops->contact) {
+            json_object_object_add(j, "contacts", json_object_new_int(m->n_active));
+            json_object_object_add(j, "rows", json_object_new_int(m->n_rows));
+        }
         json_object_array_add(meshes, j);
     }
     json_object_object_add(o, "meshes", meshes);
     return o;
+}
+
+gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    GS_TRY(gs_record_open(path, sys, out, d));
+    if (sys->scene->fields_every <= 0)
+        return GS_OK;
+    gs_record_mesh bm[64];
+    int n = 0;
+    for (int i = 0; i < sys->n_bodies && n < 64; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (!b->ops->fields)
+            continue;
+        double th;
+        bm[n].name = sys->scene->bodies[i].name;
+        bm[n].mesh = b->ops->mesh(b);
+        gs_system_body_pose(sys, i, bm[n].centre, &th);
+        n++;
+    }
+    gs_err e = n ? gs_record_add_meshes(*out, bm, n, d) : GS_OK;
+    if (e != GS_OK)
+        gs_record_close(out);
+    return e;
+}
+
+/* Field snapshots of the elastic bodies, gathered by the engine this step. */
+static gs_err record_fields(gs_service *s, gs_system *sys)
+{
+    for (int i = 0, k = 0; i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (!b->ops->fields)
+            continue;
+        const double *f = gs_engine_fields(s->eng, i);
+        if (f) {
+            gs_index nn = b->ops->field_nodes(b);
+            GS_TRY(gs_record_field_frame(s->record, k, sys->step, sys->time, gs_system_angle(sys, i),
+                                         f, f + 2 * nn));
+        }
+        k++;
+    }
+    return GS_OK;
 }
 
 /* Runs on rank 0 after every step of a chunk. */
@@ -103,6 +150,18 @@ static bool step_hook(gs_engine *eng, void *user)
             json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
         gsi_publish(s, "telemetry", o);
         s->timing_telemetry += gs_now() - t0;
+    }
+    int fe = sys->scene->fields_every;
+    if (s->record && fe > 0 && st % fe == 0 && gs_record_n_meshes(s->record) > 0) {
+        double t0 = gs_now();
+        if (record_fields(s, sys) != GS_OK) {
+            json_object *w = json_object_new_object();
+            json_object_object_add(w, "code", json_object_new_string("io_error"));
+            json_object_object_add(w, "message", json_object_new_string("recording stopped: field snapshot failed"));
+            gsi_publish(s, "error", w);
+            gs_record_close(&s->record);
+        }
+        s->timing_record += gs_now() - t0;
     }
     if (s->record && st % sys->scene->record_every == 0) {
         double t0 = gs_now();

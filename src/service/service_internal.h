@@ -66,6 +66,9 @@ typedef struct gs_service {
 /* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */
 void gsi_publish(gs_service *s, const char *type, json_object *o);
 json_object *gsi_state_json(gs_service *s);
+/* Open the run record at `path` for the loaded system, with the meshes of
+ * its elastic bodies when the scene records field snapshots. */
+gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d);
 /* Resolve a client path inside the data directory; refuses absolute paths,
  * '..' components and symlinks that lead outside. */
 gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,

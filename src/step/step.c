@@ -1,33 +1,40 @@
 /* SPDX-License-Identifier: MIT
  * The midpoint (energy-momentum) step of METHOD.md section 2 on the rigid
- * coordinates: each body gives H d - rhs = f (src/models), the meshes give
- * equality rows and discrete-gradient forces, and rank 0 solves
+ * coordinates: each body gives its condensed compliance C and free
+ * increment d0, d = d0 + C f (src/models), the meshes give equality rows and
+ * discrete-gradient forces, and rank 0 solves
  *
- *     H dq - rhs + g(dq) = G^T lambda,     G dq = 0
+ *     dq - d0 + C (g(dq) - G^T lambda) = 0,     G dq = 0
  *
+ * (the compliance form: a body that nothing touches keeps its free
+ * increment bit for bit, and its interface force (dq - d0)/C is exactly 0)
  * by Newton's method on the small KKT system (LAPACK, dense). The discrete
  * gradient makes the energy identity exact for the converged increment, so
  * the balance residual is the Newton residual times dq: round-off. */
 #include <lapacke.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "gearsim/step.h"
+#include "step_internal.h"
 
-void gs_step_records(const gs_system *sys, double *rec)
+/* Records of the bodies this rank owns (every body when `all`); the
+ * others' blocks are zero so that a sum over ranks assembles them. */
+static void records(gs_system *sys, double *rec, bool all)
 {
+    memset(rec, 0, sys->plan.rec_size * sizeof(double));
     for (int i = 0; i < sys->n_bodies; i++) {
-        const gs_body_rt *b = &sys->bodies[i];
-        rec[2 * i] = rec[2 * i + 1] = 0.0;
-        if (b->coord < 0 || b->owner != sys->rank)
+        gs_body_rt *b = &sys->bodies[i];
+        if (!all && b->owner != sys->rank)
             continue;
-        b->ops->interface(sys, b, sys->h, &rec[2 * i], &rec[2 * i + 1]);
+        b->ops->interface(sys, b, sys->h, rec + sys->plan.rec_off[i]);
     }
 }
 
-int gs_step_solution_size(const gs_system *sys)
+void gs_step_records(gs_system *sys, double *rec)
 {
-    return sys->n_coords + 1 + sys->n_meshes;
+    records(sys, rec, false);
 }
 
 static double maxabs(const double *x, int n)
@@ -38,10 +45,10 @@ static double maxabs(const double *x, int n)
     return m;
 }
 
-/* Residual F = -(H dq - rhs + g(dq) - G^T lambda; G dq) and the mesh
+/* Residual F = -(dq - d0 + C (g(dq) - G^T lambda); G dq) and the mesh
  * Jacobian J at (dq, lambda); returns max |F| over the momentum rows and its
  * scale. Mesh dissipation and forces go to out[n], out[n+1+i]. */
-static double residual(gs_system *sys, const double *H, const double *rhs, const double *dq,
+static double residual(gs_system *sys, const double *C, const double *d0, const double *dq,
                        const double *lambda, double *g, double *J, double *F, double *out,
                        double *scale)
 {
@@ -62,8 +69,8 @@ static double residual(gs_system *sys, const double *H, const double *rhs, const
         double gl = 0;
         for (int a = 0; a < m; a++)
             gl += sys->eq_rows[(size_t)a * n + i] * lambda[a];
-        F[i] = -(H[i] * dq[i] - rhs[i] + g[i] - gl);
-        sc = fmax(sc, fmax(fabs(H[i] * dq[i]), fmax(fabs(rhs[i]), fabs(g[i]))));
+        F[i] = -(dq[i] - d0[i] + C[i] * (g[i] - gl));
+        sc = fmax(sc, fmax(fabs(dq[i]), fmax(fabs(d0[i]), fabs(C[i] * g[i]))));
     }
     for (int a = 0; a < m; a++) {
         double v = 0;
@@ -75,12 +82,12 @@ static double residual(gs_system *sys, const double *H, const double *rhs, const
     return maxabs(F, n);
 }
 
-gs_err gs_step_solve(gs_system *sys, const double *rec, double *out)
+static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
 {
     int n = sys->n_coords, m = sys->n_eq, k = n + m;
-    double *H = sys->work;            /* n: diagonal of the bodies' H */
-    double *rhs = H + n;              /* n */
-    double *dq = rhs + n;             /* n */
+    double *C = sys->work;            /* n: the bodies' compliances */
+    double *d0 = C + n;               /* n: their free increments */
+    double *dq = d0 + n;              /* n */
     double *g = dq + n;               /* n */
     double *F = g + n;                /* k: Newton right-hand side */
     double *J = F + k;                /* n*n: mesh Jacobian */
@@ -92,24 +99,28 @@ gs_err gs_step_solve(gs_system *sys, const double *rec, double *out)
     if (m > 512)
         return GS_ETOOBIG;
     for (int i = 0; i < n; i++)
-        H[i] = rhs[i] = 0.0;
+        C[i] = d0[i] = 0.0;
     for (int i = 0; i < sys->n_bodies; i++) {
         int c = sys->bodies[i].coord;
         if (c < 0)
             continue;
-        H[c] += rec[2 * i];
-        rhs[c] += rec[2 * i + 1];
+        /* A body that could not form its step reports a non-finite C. */
+        const double *r = rec + sys->plan.rec_off[i];
+        if (!(r[0] > 0) || !isfinite(r[0]) || !isfinite(r[1]))
+            return GS_ESINGULAR;
+        C[c] = r[0];
+        d0[c] = r[1];
     }
     /* Start from the free motion of each body: deterministic, no hidden state. */
     for (int i = 0; i < n; i++)
-        dq[i] = rhs[i] / H[i];
+        dq[i] = d0[i];
     for (int i = 0; i < m; i++)
         lambda[i] = 0.0;
     bool nonlinear = false;
     for (int i = 0; i < sys->n_meshes; i++)
         nonlinear |= sys->meshes[i].ops->n_eq == 0;
     double scale;
-    double fres = residual(sys, H, rhs, dq, lambda, g, J, F, out, &scale);
+    double fres = residual(sys, C, d0, dq, lambda, g, J, F, out, &scale);
     int it;
     gs_err status = GS_ENOCONV;
     bool small_step = false;
@@ -122,12 +133,12 @@ gs_err gs_step_solve(gs_system *sys, const double *rec, double *out)
         }
         memset(K, 0, (size_t)k * k * sizeof(double));
         for (int i = 0; i < n; i++) {
-            K[i * k + i] = H[i];
+            K[i * k + i] = 1.0;
             for (int j = 0; j < n; j++)
-                K[i * k + j] += J[i * n + j];
+                K[i * k + j] += C[i] * J[i * n + j];
             for (int a = 0; a < m; a++) {
                 double v = sys->eq_rows[(size_t)a * n + i];
-                K[i * k + n + a] = -v;
+                K[i * k + n + a] = -C[i] * v;
                 K[(n + a) * k + i] = v;
             }
         }
@@ -139,7 +150,7 @@ gs_err gs_step_solve(gs_system *sys, const double *rec, double *out)
         for (int ls = 0; ls < 30; ls++) {
             for (int i = 0; i < k; i++)
                 trial[i] = (i < n ? dq[i] : lambda[i - n]) + t * F[i];
-            ft = residual(sys, H, rhs, trial, trial + n, g, J, Ft, out, &st);
+            ft = residual(sys, C, d0, trial, trial + n, g, J, Ft, out, &st);
             if (ft < fres || ft <= sys->scene->newton_tol * st || !nonlinear)
                 break;
             t *= 0.5;
@@ -159,11 +170,42 @@ gs_err gs_step_solve(gs_system *sys, const double *rec, double *out)
     for (int i = 0, a = 0; i < sys->n_meshes; i++)
         if (sys->meshes[i].ops->n_eq == 1)
             out[n + 1 + i] = lambda[a++];
+    /* Interface forces f = (d - d0) / C: exactly zero for a body nothing
+     * touches, and the body lands exactly on d. */
+    for (int i = 0; i < sys->n_bodies; i++) {
+        int c = sys->bodies[i].coord;
+        if (c >= 0)
+            out[sys->plan.sol_off[i]] = (dq[c] - d0[c]) / C[c];
+    }
     return GS_OK;
 }
 
-void gs_step_apply(gs_system *sys, const double *sol)
+gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol)
 {
+    memset(sol, 0, sys->plan.sol_size * sizeof(double));
+    if (sys->n_contact > 0)
+        return gsi_contact_solve(sys, rec, sol);
+    return newton_solve(sys, rec, sol);
+}
+
+/* Finish the bodies' own steps (this rank's, or all when `all`). */
+static gs_err finish(gs_system *sys, const double *sol, bool all)
+{
+    gs_err err = GS_OK;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        gs_body_rt *b = &sys->bodies[i];
+        if ((!all && b->owner != sys->rank) || !b->ops->finish)
+            continue;
+        gs_err e = b->ops->finish(sys, b, sol + sys->plan.sol_off[i]);
+        if (err == GS_OK)
+            err = e;
+    }
+    return err;
+}
+
+static gs_err apply(gs_system *sys, const double *sol, bool all)
+{
+    gs_err err = finish(sys, sol, all);
     int n = sys->n_coords;
     double h = sys->h, tm = sys->time + 0.5 * h;
     for (int i = 0; i < sys->n_bodies; i++) {
@@ -186,26 +228,38 @@ void gs_step_apply(gs_system *sys, const double *sol)
         for (int j = 0; j < n; j++)
             s += me->a[j] * sys->q[j];
         me->deflection = s - me->s_ref;
-        me->force = sol[n + 1 + i];
+        me->force = sol[gs_sol_mesh_force(sys, i)];
+        const double *ct = sol + gs_sol_mesh_contact(sys, i);
+        me->n_active = (int)ct[0];
+        me->n_rows = (int)ct[1];
+        me->penetration = ct[2];
     }
     sys->step++;
-    sys->time += h;
+    sys->time = (double)sys->step * h;
+    return err;
+}
+
+gs_err gs_step_apply(gs_system *sys, const double *sol)
+{
+    return apply(sys, sol, false);
 }
 
 gs_err gs_step_serial(gs_system *sys)
 {
-    double rec[2 * 64];
-    double sol[64 + 1 + 256];
-    if (sys->n_bodies > 64 || gs_step_solution_size(sys) > (int)(sizeof sol / sizeof sol[0]))
-        return GS_ETOOBIG;
-    /* In one process this rank plays every owner. */
-    for (int i = 0; i < sys->n_bodies; i++) {
-        const gs_body_rt *b = &sys->bodies[i];
-        rec[2 * i] = rec[2 * i + 1] = 0.0;
-        if (b->coord >= 0)
-            b->ops->interface(sys, b, sys->h, &rec[2 * i], &rec[2 * i + 1]);
+    GS_TRY(gs_step_prepare(sys));
+    size_t need = sys->plan.rec_size + sys->plan.sol_size;
+    if (need > sys->buf_cap) {
+        double *nb = realloc(sys->buf, need * sizeof(double));
+        if (!nb)
+            return GS_ENOMEM;
+        sys->buf = nb;
+        sys->buf_cap = need;
     }
-    GS_TRY(gs_step_solve(sys, rec, sol));
-    gs_step_apply(sys, sol);
-    return GS_OK;
+    double *rec = sys->buf, *sol = rec + sys->plan.rec_size;
+    /* In one process this rank plays every owner. */
+    records(sys, rec, true);
+    gs_err e = gs_step_solve(sys, rec, sol);
+    if (e != GS_OK)
+        return e;
+    return apply(sys, sol, true);
 }

@@ -10,6 +10,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "step_internal.h"
 
 void gs_system_free(gs_system **ps)
 {
@@ -20,9 +21,14 @@ void gs_system_free(gs_system **ps)
         if (s->bodies[i].ops)
             s->bodies[i].ops->destroy(&s->bodies[i]);
     for (int i = 0; s->meshes && i < s->n_meshes; i++) {
+        if (s->meshes[i].ops && s->meshes[i].ops->destroy)
+            s->meshes[i].ops->destroy(&s->meshes[i]);
         free(s->meshes[i].a);
         free(s->meshes[i].c);
     }
+    gsi_contact_free(s);
+    gsi_plan_free(&s->plan, s->n_bodies);
+    free(s->buf);
     free(s->bodies);
     free(s->meshes);
     free(s->eq_rows);
@@ -225,6 +231,9 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         }
     }
     assign_owners(s);
+    e = gsi_plan_new(s);
+    if (e != GS_OK)
+        goto fail;
     for (int i = 0; i < s->n_bodies; i++) {
         e = s->bodies[i].ops->init(s, &s->bodies[i], d);
         if (e != GS_OK) {
@@ -247,8 +256,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         m->index = i;
-        const char *model = scene->meshes[i].model == GS_MESH_KINEMATIC ? "kinematic" : "lumped";
-        m->ops = gs_gmesh_ops_find(model);
+        static const char *const names[] = {"kinematic", "lumped", "contact"};
+        m->ops = gs_gmesh_ops_find(names[scene->meshes[i].model]);
         e = mesh_kinematics(s, m, d);
         if (e != GS_OK)
             goto fail;
@@ -260,7 +269,17 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         if (e != GS_OK)
             goto fail;
         s->n_eq += m->ops->n_eq;
+        s->n_contact += m->ops->contact;
     }
+    for (int i = 0; s->n_contact && i < s->n_meshes; i++)
+        if (s->meshes[i].ops->n_eq == 0 && !s->meshes[i].ops->contact) {
+            char f[64];
+            snprintf(f, sizeof f, "meshes[%d].model", i);
+            e = gs_diag_set(d, GS_ERANGE, f,
+                            "mesh '%s': lumped meshes cannot be combined with contact meshes in one "
+                            "scene in this version", scene->meshes[i].name);
+            goto fail;
+        }
     e = GS_ENOMEM;
     s->eq_rows = gs_calloc((size_t)(s->n_eq * n + 1), sizeof(double));
     if (!s->eq_rows)
@@ -275,6 +294,12 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     e = project_speeds(s);
     if (e != GS_OK) {
         gs_diag_set(d, e, "meshes", "the kinematic meshes over-constrain the train (a closed loop of exact ratios)");
+        goto fail;
+    }
+    /* A first plan, so that sizes are known before the first step. */
+    e = gs_step_prepare(s);
+    if (e != GS_OK) {
+        gs_diag_set(d, e, "meshes", "the contact search failed on the initial state");
         goto fail;
     }
     gs_energy en;
@@ -366,11 +391,46 @@ gs_err gs_system_remove_load(gs_system *sys, const char *name)
     return GS_ENOTFOUND;
 }
 
-void gs_system_energy(const gs_system *sys, gs_energy *e)
+bool gs_system_has_body_state(const gs_system *sys)
 {
-    double T = 0, V = 0;
+    for (int i = 0; i < sys->n_bodies; i++)
+        if (sys->bodies[i].ops->state_size)
+            return true;
+    return false;
+}
+
+void gs_system_energy_report(const gs_system *sys, double *buf)
+{
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
+        bool mine = b->ops->state_size && b->owner == sys->rank;
+        buf[2 * i] = mine ? b->T : 0.0;
+        buf[2 * i + 1] = mine ? b->V : 0.0;
+    }
+}
+
+void gs_system_energy_adopt(gs_system *sys, const double *buf)
+{
+    for (int i = 0; i < sys->n_bodies; i++) {
+        gs_body_rt *b = &sys->bodies[i];
+        if (!b->ops->state_size)
+            continue;
+        b->T = buf[2 * i];
+        b->V = buf[2 * i + 1];
+    }
+}
+
+void gs_system_energy(const gs_system *sys, gs_energy *e)
+{
+    double T = 0, V = 0, Ve = 0;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (b->ops->state_size) {
+            T += b->T;
+            V += b->V;
+            Ve += b->V;
+            continue;
+        }
         if (b->coord < 0)
             continue;
         double t, v;
@@ -382,10 +442,28 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
         V += sys->meshes[i].ops->energy(sys, &sys->meshes[i], sys->q);
     e->kinetic = T;
     e->potential = V;
+    e->elastic = Ve;
     e->total = T + V;
     e->work_in = sys->work_in;
     e->dissipated = sys->dissipated;
     e->balance_residual = e->total - sys->energy0 - sys->work_in + sys->dissipated;
+}
+
+void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta)
+{
+    const gs_scene_body *b = &sys->scene->bodies[body];
+    if (b->joint == GS_JOINT_ON_CARRIER) {
+        /* The planet's polar position turns with the carrier. */
+        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
+        int kc = sys->bodies[b->carrier].coord;
+        double a = b->carrier_angle + (kc >= 0 ? sys->q[kc] : 0.0);
+        c[0] = cb->centre[0] + b->carrier_radius * cos(a);
+        c[1] = cb->centre[1] + b->carrier_radius * sin(a);
+    } else {
+        body_centre(sys->scene, body, c);
+    }
+    int k = sys->bodies[body].coord;
+    *theta = k >= 0 ? sys->q[k] : 0.0;
 }
 
 double gs_system_angle(const gs_system *sys, int body)

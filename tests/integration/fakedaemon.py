@@ -84,7 +84,7 @@ class Fake:
     # -------------------------------------------------------------- model
     def energy(self):
         ke = sum(0.5 * self.inertia * w * w for w in self.omega)
-        return {"kinetic": ke, "potential": 0.0, "total": ke, "work_in": self.work,
+        return {"kinetic": ke, "potential": 0.0, "elastic": 0.0, "total": ke, "work_in": self.work,
                 "dissipated": self.diss, "balance_residual": ke - self.work + self.diss}
 
     def snapshot(self):

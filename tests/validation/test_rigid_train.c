@@ -19,28 +19,15 @@
 #include <json-c/json.h>
 
 #include "gearsim/step.h"
+#include "scene_build.h"
 
 /* Load a builtin scene, edit it with a callback, build the system. */
 static gs_system *build(const char *builtin, void (*edit)(json_object *))
 {
-    json_object *root = json_tokener_parse(gs_scene_builtin(builtin));
-    assert_non_null(root);
+    json_object *root = vt_scene(builtin);
     if (edit)
         edit(root);
-    const char *txt = json_object_to_json_string(root);
-    gs_scene *sc;
-    gs_diag d;
-    gs_err e = gs_scene_parse(txt, strlen(txt), &sc, &d);
-    if (e != GS_OK)
-        print_error("scene: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    json_object_put(root);
-    gs_system *sys;
-    e = gs_system_new(sc, 0, 1, &sys, &d);
-    if (e != GS_OK)
-        print_error("system: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    return sys;
+    return vt_system(root);
 }
 
 static void set_mesh_model(json_object *root, const char *model)

@@ -1,0 +1,45 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: static solves of an elastic body with its stiffness factored once
+ * (the quasi-static mesh stiffness of docs/STIFFNESS.md; METHOD.md section 1).
+ *
+ * gs_fe_model_static() factorises K on every call; this object keeps the
+ * sparse Cholesky factor of the elastic block K (fixed nodes held, no theta)
+ * so that many right-hand sides and compliance columns cost one pair of
+ * triangular solves each. Dofs are named as in fe.h: gs_fe_dof_node(node,
+ * comp) in mesh numbering; fixed nodes are immovable (zero rows and columns).
+ *
+ * The model must outlive the object. Not thread-safe (one object per thread);
+ * not collective. */
+#ifndef GEARSIM_FE_STATIC_H
+#define GEARSIM_FE_STATIC_H
+
+#include "gearsim/fe.h"
+
+typedef struct gs_fe_static gs_fe_static;
+
+/* Factor K of model m once. Errors: GS_EINVAL (NULL), GS_ESINGULAR (K not
+ * positive definite: too few fixed nodes), GS_ENOMEM. */
+gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out);
+
+/* Free; safe on NULL; sets *s = NULL. */
+void gs_fe_static_free(gs_fe_static **s);
+
+/* nrhs static solutions K u = f at once: f_nodes and u_nodes hold nrhs
+ * consecutive blocks of 2 * n_nodes values (x, y per mesh node, body frame).
+ * Forces on fixed nodes are ignored, their displacements set to zero.
+ * Errors: GS_EINVAL, GS_ENOMEM. */
+gs_err gs_fe_static_solve(gs_fe_static *s, int nrhs, const double *f_nodes, double *u_nodes);
+
+/* Columns of the static compliance K^{-1}: for each of the n dofs in `cols`
+ * (gs_fe_dof_node numbering) the response at the n_rows dofs `rows`, written
+ * to out[j * n_rows + i] = (K^{-1})[rows[i], cols[j]] (column-major). A
+ * fixed node's dof gives zero rows / columns. The columns are solved in
+ * batches (one multi-right-hand-side solve each).
+ * Errors: GS_EINVAL (NULL, a dof out of range), GS_ENOMEM. */
+gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_index n_rows,
+                            const gs_index *rows, double *out);
+
+/* Right-hand sides solved so far (one per column and per solved load case). */
+long gs_fe_static_solves(const gs_fe_static *s);
+
+#endif

@@ -1,0 +1,139 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: quasi-static mesh stiffness and static transmission error of a
+ * gear pair with elastic FE bodies and frictionless contact
+ * (docs/STIFFNESS.md; METHOD.md sections 1, 3, 5 and 7 rung 3).
+ *
+ * The pair of a scene mesh is rolled slowly through one mesh cycle (no
+ * inertia). At each of N roll positions the driver (gear 0 of the mesh unless
+ * chosen otherwise) carries the moment T about its axis, the other gear's hub
+ * is held; both gears are elastic FE bodies (plane stress or strain and
+ * material from the scene, cores fixed) and the driver's rigid rotation delta
+ * beyond its kinematic (mesh phase) position is an unknown. The static
+ * contact problem keeps the gap (g0 + G (delta, u) >= 0) and is solved in the
+ * contact forces by a QP on the static Delassus matrix; the linearisation is
+ * repeated at the deformed position until delta settles (the split of the
+ * load between nearly parallel rows of one contact is degenerate and is not
+ * used as a criterion).
+ *
+ * Sign of the transmission error: s = sign(T), r_b1 the driver's base radius;
+ *   te_raw = r_b1 s delta         from the kinematic position (um)
+ *   te0    = r_b1 s delta0        the no-load position where the first gap
+ *                                 closes (rigid bodies; backlash, thinning and
+ *                                 the chords of the flank polylines)
+ *   te     = te_raw - te0         > 0: the driver runs ahead of the
+ *                                 unloaded kinematic position (the driven
+ *                                 gear lags), along the line of action.
+ * Mesh stiffness per mm of face width: k = F / te / b with F = |T| / r_b1 and
+ * b the smaller face width (mm); the tangent stiffness k_tan = (F - F/2) /
+ * (te_raw(T) - te_raw(T/2)) / b needs no offset at all.
+ *
+ * Not collective; allocates; the scene is only read. */
+#ifndef GEARSIM_STIFFNESS_H
+#define GEARSIM_STIFFNESS_H
+
+#include "gearsim/scene.h"
+#include "gearsim/types.h"
+
+/* Tooth pairs kept per position (more are summed into pairs but not listed). */
+#define GS_STIFF_MAX_PAIRS 6
+
+typedef struct gs_stiffness_opts {
+    int positions;     /* roll positions over one mesh cycle (one driver pitch), >= 1;
+                        * default 24 */
+    double torque_nm;  /* moment on the driver, signed (+ counter-clockwise); 0 selects
+                        * the default: the scene's constant / ramp load on the driver
+                        * (table: its largest moment), else a line load of
+                        * 200 N/mm along the line of action, T = 200 b r_b1 */
+    int driver;        /* gear of the mesh (0 or 1) that carries T; default 0 */
+    int refine;        /* -1 (default): the scene's mesh density; else refinement level
+                        * for both gears (0..6) */
+    double phase;      /* start of the roll in driver pitches beyond the driver's scene
+                        * angle (default 0); the roll advances in the torque direction */
+    int tangent;       /* 1 (default): also solve at T/2 for te_half and k_tan */
+    int max_iter;      /* linearisations per load case (default 12) */
+} gs_stiffness_opts;
+
+void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
+
+typedef struct gs_stiffness_pair {
+    int tooth[2];      /* tooth of the driver, of the driven gear */
+    double force_n;    /* its share of the torque / r_b1, N along the line of action */
+} gs_stiffness_pair;
+
+typedef struct gs_stiffness_point {
+    double roll;          /* position in the mesh cycle, [0, 1) */
+    double angle_rad;     /* driver's kinematic rotation from the first position, rad
+                           * (in the torque direction) */
+    double delta_rad;     /* driver's loaded rotation beyond its kinematic angle (signed) */
+    double te_um;         /* te_raw - te0 (header) */
+    double te_raw_um;
+    double te0_um;
+    double k;             /* F / te / b, N/(mm um) */
+    double te_half_um;    /* te_raw at T/2 (NaN without the tangent option) */
+    double k_tan;         /* F/2 / (te_raw - te_half) / b (NaN without it) */
+    int pairs;            /* tooth pairs carrying at least 1 % of F */
+    int n_pair;           /* entries of pair[], by decreasing force */
+    gs_stiffness_pair pair[GS_STIFF_MAX_PAIRS];
+    int rows;             /* contact rows in the last QP */
+    int active;           /* rows with a positive force */
+    int iterations;       /* linearisations at T */
+    int converged;        /* 1 when delta settled (two changes below 1e-7 of the
+                           * elastic rotation) at T (and T/2) */
+    double penetration_um; /* deepest gap < 0 re-evaluated at the final deformed position */
+} gs_stiffness_point;
+
+typedef struct gs_stiffness_result {
+    char mesh_name[GS_NAME_MAX];
+    int mesh_index;
+    int driver;           /* gear of the mesh that carries the torque */
+    int body[2];          /* scene body indices: driver, driven */
+    int teeth[2];         /* tooth counts: driver, driven */
+    int refine[2];        /* refinement used for each */
+    gs_index nodes[2];    /* FE nodes of each */
+    int positions;
+    gs_stiffness_point *pt; /* positions entries (owned; gs_stiffness_result_clear) */
+    double torque_nm;     /* T actually used (signed) */
+    double force_n;       /* F = |T| / r_b1 */
+    double base_radius_m; /* r_b1 */
+    double face_width_mm; /* b */
+    double contact_ratio; /* of the involute flanks (gs_pair_contact_ratio) */
+    double k_min, k_mean, k_max;     /* of k over the positions */
+    double k_tan_mean;               /* NaN without the tangent option */
+    double te_min, te_mean, te_max;  /* of te_um */
+    double frac_multi;    /* fraction of positions with 2 or more pairs in contact */
+    long solves;          /* right-hand sides solved (both bodies) */
+    double seconds;       /* wall time of the analysis */
+} gs_stiffness_result;
+
+/* Analyse mesh mesh_index of scene sc (o may be NULL: defaults). out is
+ * overwritten (call gs_stiffness_result_clear on it afterwards; it need not
+ * be initialised). Gears on carriers are placed at the carrier's scene angle.
+ * Errors (d names the field): GS_EINVAL (NULL), GS_ERANGE ("meshes" index,
+ * "positions", "driver", "refine", "torque": zero T or no load given and no
+ * default possible), the errors of meshing, of the FE model (GS_ESINGULAR),
+ * of the contact search and of the QP (GS_EINFEASIBLE when no contact row can
+ * carry the torque), GS_ENOMEM. */
+gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *o,
+                            gs_stiffness_result *out, gs_diag *d);
+
+/* Free the arrays of a result and zero it; safe on a zeroed result. */
+void gs_stiffness_result_clear(gs_stiffness_result *r);
+
+/* Write the result to an HDF5 file (created or truncated): group /stiffness
+ * with datasets roll, angle_deg, te_um, te_raw_um, te0_um, k, te_half_um,
+ * k_tan (doubles, one per position), pairs (int), pair_tooth (positions x
+ * GS_STIFF_MAX_PAIRS x 2 ints, -1 when unused), pair_force_n (positions x
+ * GS_STIFF_MAX_PAIRS); attributes scene (the scene JSON, sc may be NULL),
+ * mesh, driver, torque_nm, force_n, face_width_mm, base_radius_m,
+ * contact_ratio, k_min, k_mean, k_max, te_min, te_mean, te_max.
+ * Errors: GS_EINVAL, GS_EIO (d names "out"). */
+gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stiffness_result *r,
+                             gs_diag *d);
+
+/* The result as a JSON object (owned by the caller, json_object_put): the
+ * document `gearsim-stiffness --json` prints and the service's `stiffness`
+ * command returns (docs/STIFFNESS.md). s is the analysed scene. */
+struct json_object;
+struct json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s);
+
+#endif

@@ -1,0 +1,944 @@
+/* SPDX-License-Identifier: MIT
+ * Quasi-static mesh stiffness and static transmission error of a gear pair
+ * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ *
+ * Per load case the unknowns are the contact forces lambda (one per contact
+ * row i, gap g_i) and the driver's rotation delta; the elastic displacements
+ * are condensed with the static compliance C_b = K_b^{-1} of each body,
+ * restricted to its boundary loop (columns computed once per node and
+ * cached). Linearised at the current state (delta_k, u_k):
+ *     g_i(delta, u) ~ gbar_i + a_i delta + B_i u,
+ *     gbar_i = g_i(q_k) - a_i delta_k - B_i u_k,   a_i = dg_i/dtheta_driver,
+ * and u = C B^T lambda. The minimum of the total potential energy
+ * 1/2 u^T K u - T delta under g >= 0 has the dual
+ *     minimise 1/2 lambda^T W lambda + gbar^T lambda,  W = B C B^T,
+ *     subject to a^T lambda = -T (torque balance), lambda >= 0,
+ * whose equality multiplier is -delta. Solved with the Goldfarb-Idnani QP;
+ * then the gaps are re-evaluated at the deformed position and the step
+ * repeats until delta settles (twice below 1e-7 of the elastic rotation). */
+#include <hdf5.h>
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/contact.h"
+#include "gearsim/fe.h"
+#include "gearsim/fe_static.h"
+#include "gearsim/mesh.h"
+#include "gearsim/qp.h"
+#include "gearsim/stiffness.h"
+#include "gearsim/util.h"
+
+void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
+{
+    o->positions = 24;
+    o->torque_nm = 0.0;
+    o->driver = 0;
+    o->refine = -1;
+    o->phase = 0.0;
+    o->tangent = 1;
+    o->max_iter = 12;
+}
+
+void gs_stiffness_result_clear(gs_stiffness_result *r)
+{
+    if (!r)
+        return;
+    free(r->pt);
+    memset(r, 0, sizeof *r);
+}
+
+/* One elastic body: mesh, model, factor, and the compliance columns of its
+ * boundary nodes restricted to the boundary dofs. */
+typedef struct sbody {
+    const gs_scene_body *sb;
+    gs_mesh *mesh;
+    gs_fe_model *model;
+    gs_fe_static *fs;
+    gs_index nb;          /* boundary nodes */
+    gs_index *bpos;       /* n_nodes: position on the boundary loop, or -1 */
+    gs_index *bdof;       /* 2 nb: boundary dofs (gs_fe_dof_node) */
+    double **col;         /* 2 nb: column of boundary dof j restricted to the boundary dofs */
+    double *u;            /* 2 n_nodes: current displacement (boundary nodes only) */
+    double *v;            /* scratch 2 nb */
+    double c[2];          /* axis */
+} sbody;
+
+static void sbody_free(sbody *b)
+{
+    if (b->col)
+        for (gs_index j = 0; j < 2 * b->nb; j++)
+            free(b->col[j]);
+    free(b->col);
+    free(b->bpos);
+    free(b->bdof);
+    free(b->u);
+    free(b->v);
+    gs_fe_static_free(&b->fs);
+    gs_fe_model_free(&b->model);
+    gs_mesh_free(&b->mesh);
+}
+
+static void body_centre(const gs_scene *s, int i, double c[2])
+{
+    const gs_scene_body *b = &s->bodies[i];
+    if (b->joint == GS_JOINT_ON_CARRIER) {
+        const gs_scene_body *cb = &s->bodies[b->carrier];
+        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
+        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
+    } else if (b->joint == GS_JOINT_FIXED_AXIS) {
+        c[0] = b->centre[0];
+        c[1] = b->centre[1];
+    } else {
+        c[0] = c[1] = 0.0;
+    }
+}
+
+static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_diag *d)
+{
+    char field[64];
+    snprintf(field, sizeof field, "bodies[%d]", bi);
+    b->sb = &sc->bodies[bi];
+    if (b->sb->type != GS_BODY_GEAR)
+        return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
+    body_centre(sc, bi, b->c);
+    gs_gear_mesh_opts o;
+    gs_gear_mesh_opts_defaults(&o);
+    o.flank = b->sb->mesh.flank;
+    o.across = b->sb->mesh.across;
+    o.rim = b->sb->mesh.rim;
+    o.refine = refine >= 0 ? refine : b->sb->mesh.refine;
+    o.grading = b->sb->mesh.grading;
+    gs_diag md;
+    gs_diag_clear(&md);
+    gs_err e = gs_gear_mesh(&b->sb->gear, &o, &b->mesh, &md);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
+                           md.field);
+    e = gs_fe_model_new(b->mesh, &b->sb->material, b->sb->gear.face_width_m, 0.0, &b->model);
+    if (e == GS_OK)
+        e = gs_fe_static_new(b->model, &b->fs);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "static finite element model of '%s' failed: %s",
+                           b->sb->name, gs_strerror(e));
+    gs_index n = b->mesh->n_nodes;
+    b->nb = b->mesh->n_boundary;
+    b->bpos = malloc((size_t)n * sizeof *b->bpos);
+    b->bdof = malloc((size_t)(2 * b->nb) * sizeof *b->bdof);
+    b->col = gs_calloc((size_t)(2 * b->nb), sizeof *b->col);
+    b->u = gs_calloc((size_t)(2 * n), sizeof *b->u);
+    b->v = gs_calloc((size_t)(2 * b->nb), sizeof *b->v);
+    if (!b->bpos || !b->bdof || !b->col || !b->u || !b->v)
+        return GS_ENOMEM;
+    for (gs_index i = 0; i < n; i++)
+        b->bpos[i] = -1;
+    for (gs_index k = 0; k < b->nb; k++) {
+        b->bpos[b->mesh->boundary[k]] = k;
+        b->bdof[2 * k] = gs_fe_dof_node(b->mesh->boundary[k], 0);
+        b->bdof[2 * k + 1] = gs_fe_dof_node(b->mesh->boundary[k], 1);
+    }
+    return GS_OK;
+}
+
+/* Make sure the columns of the listed nodes (mesh numbering) are cached. */
+static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
+{
+    gs_index *miss = malloc((size_t)(2 * n + 1) * sizeof *miss);
+    if (!miss)
+        return GS_ENOMEM;
+    int nm = 0;
+    for (int i = 0; i < n; i++) {
+        gs_index k = b->bpos[nodes[i]];
+        if (k < 0) {
+            free(miss);
+            return GS_EINTERNAL;
+        }
+        if (b->col[2 * k])
+            continue;
+        bool dup = false;
+        for (int j = 0; j < nm && !dup; j++)
+            dup = miss[j] == b->bdof[2 * k];
+        if (dup)
+            continue;
+        miss[nm++] = b->bdof[2 * k];
+        miss[nm++] = b->bdof[2 * k + 1];
+    }
+    gs_err e = GS_OK;
+    if (nm > 0) {
+        size_t len = (size_t)(2 * b->nb);
+        double *out = malloc((size_t)nm * len * sizeof *out);
+        if (!out) {
+            free(miss);
+            return GS_ENOMEM;
+        }
+        e = gs_fe_static_columns(b->fs, nm, miss, 2 * b->nb, b->bdof, out);
+        for (int j = 0; j < nm && e == GS_OK; j++) {
+            gs_index k = b->bpos[miss[j] / 2];
+            int comp = (int)(miss[j] % 2);
+            double *c = malloc(len * sizeof *c);
+            if (!c) {
+                e = GS_ENOMEM;
+                break;
+            }
+            memcpy(c, out + (size_t)j * len, len * sizeof *c);
+            b->col[2 * k + comp] = c;
+        }
+        free(out);
+    }
+    free(miss);
+    return e;
+}
+
+/* Tooth of a node of a gear from its polar angle (tooth t centred at 2 pi t / z). */
+static int node_tooth(const gs_mesh *m, int z, gs_index node)
+{
+    double ang = atan2(m->xy[2 * node + 1], m->xy[2 * node]);
+    long t = lround(ang / (2.0 * GS_PI / z));
+    return (int)(((t % z) + z) % z);
+}
+
+/* Working state of one analysis. */
+typedef struct work {
+    sbody b[2];            /* 0 driver, 1 driven */
+    int si[2];             /* search gear index of driver, driven */
+    gs_contact_search *search;
+    double theta0[2];      /* kinematic angles of the current position */
+    double rb, sgn;
+    /* rows */
+    int cap;
+    gs_contact_row *row;
+    const gs_contact_candidate **cand;
+    double *H, *cvec, *x, *lam_in, *Gm, *gz, *V[2], *gbar, *a;
+    int n_prev;            /* 1 when the last linearisation changed delta by little */
+    gs_qp *qp;
+    int qp_n;
+} work;
+
+static void work_free(work *w)
+{
+    for (int k = 0; k < 2; k++) {
+        sbody_free(&w->b[k]);
+        free(w->V[k]);
+    }
+    gs_contact_search_free(&w->search);
+    free(w->row);
+    free(w->cand);
+    free(w->H);
+    free(w->cvec);
+    free(w->x);
+    free(w->lam_in);
+    free(w->Gm);
+    free(w->gz);
+    free(w->gbar);
+    free(w->a);
+    gs_qp_free(&w->qp);
+}
+
+static gs_err work_reserve(work *w, int n)
+{
+    if (n <= w->cap)
+        return GS_OK;
+    int c = n > 2 * w->cap ? n : 2 * w->cap;
+    size_t cn = (size_t)c;
+#define GROW(p, count)                                         \
+    do {                                                       \
+        void *q_ = realloc((p), (count) * sizeof *(p));        \
+        if (!q_)                                               \
+            return GS_ENOMEM;                                  \
+        (p) = q_;                                              \
+    } while (0)
+    GROW(w->row, cn);
+    GROW(w->cand, cn);
+    GROW(w->H, cn * cn);
+    GROW(w->Gm, cn * cn);
+    GROW(w->cvec, cn);
+    GROW(w->x, cn);
+    GROW(w->lam_in, cn);
+    GROW(w->gz, cn);
+    GROW(w->gbar, cn);
+    GROW(w->a, cn);
+    for (int k = 0; k < 2; k++)
+        GROW(w->V[k], cn * (size_t)(2 * w->b[k].nb));
+#undef GROW
+    w->cap = c;
+    return GS_OK;
+}
+
+static void set_poses(const work *w, double delta, gs_contact_pose pose[2])
+{
+    for (int k = 0; k < 2; k++) {
+        int s = w->si[k];
+        pose[s].c[0] = w->b[k].c[0];
+        pose[s].c[1] = w->b[k].c[1];
+        pose[s].theta = w->theta0[k] + (k == 0 ? delta : 0.0);
+        pose[s].u = w->b[k].u;
+    }
+}
+
+/* Search and evaluate at the current state; keep the rows the driver's
+ * rotation in the torque direction closes (a_i s < 0) and any row already
+ * penetrated. Returns their number in *nr and the smallest gap in *gmin. */
+static gs_err collect(work *w, double delta, int *nr, double *gmin)
+{
+    gs_contact_pose pose[2];
+    set_poses(w, delta, pose);
+    const gs_contact_candidate *cand;
+    gs_index nc;
+    GS_TRY(gs_contact_search_run(w->search, pose, &cand, &nc, NULL));
+    GS_TRY(work_reserve(w, (int)nc + 1));
+    int n = 0;
+    double lo = INFINITY;
+    double tiny = 1e-6 * w->rb;
+    for (gs_index j = 0; j < nc; j++) {
+        gs_contact_row r;
+        GS_TRY(gs_contact_eval(w->search, pose, &cand[j], &r));
+        double a = r.dg_dtheta[w->si[0]];
+        if (!(a * w->sgn < -tiny || r.gap.g < 0.0))
+            continue;
+        if (r.gap.g < lo)
+            lo = r.gap.g;
+        w->row[n] = r;
+        w->cand[n] = &cand[j];
+        n++;
+    }
+    *nr = n;
+    *gmin = lo;
+    return GS_OK;
+}
+
+/* Per row: the body-k nodes and their dg/du. */
+static int row_nodes(const work *w, const gs_contact_row *r, int k, gs_index *node, double (*g)[2])
+{
+    int n = 0;
+    for (int t = 0; t < r->n_nodes; t++)
+        if (r->body[t] == w->si[k]) {
+            node[n] = r->node[t];
+            g[n][0] = r->dg_du[t][0];
+            g[n][1] = r->dg_du[t][1];
+            n++;
+        }
+    return n;
+}
+
+/* One load case from the current state (delta in *delta, displacements in
+ * the bodies): iterate linearisations. Fills lambda in w->x, the rows in
+ * w->row (nr), and the outcome. */
+static gs_err solve_load(work *w, double T, int max_iter, double delta0, double *delta, int *nr_out,
+                         int *iters, int *converged, double *pen, gs_diag *d)
+{
+    int nr = 0;
+    *converged = 0;
+    w->n_prev = 0;
+    for (int it = 0; it < max_iter; it++) {
+        double gmin;
+        GS_TRY(collect(w, *delta, &nr, &gmin));
+        if (nr == 0)
+            return gs_diag_set(d, GS_EINFEASIBLE, "meshes",
+                               "no contact row can carry the torque at this position");
+        /* Columns of every node in a row. */
+        for (int k = 0; k < 2; k++) {
+            gs_index nodes[4 * 512];
+            int nn = 0;
+            for (int i = 0; i < nr; i++) {
+                gs_index nd[4];
+                double gg[4][2];
+                int m = row_nodes(w, &w->row[i], k, nd, gg);
+                for (int t = 0; t < m; t++) {
+                    if (nn == (int)(sizeof nodes / sizeof nodes[0])) {
+                        GS_TRY(sbody_need(&w->b[k], nn, nodes));
+                        nn = 0;
+                    }
+                    nodes[nn++] = nd[t];
+                }
+            }
+            GS_TRY(sbody_need(&w->b[k], nn, nodes));
+        }
+        /* V_k[:, j] = C_k B_kj^T on the boundary dofs; W = sum_k B_k V_k. */
+        size_t n = (size_t)nr;
+        memset(w->H, 0, n * n * sizeof *w->H);
+        for (int k = 0; k < 2; k++) {
+            sbody *b = &w->b[k];
+            size_t len = (size_t)(2 * b->nb);
+            for (int j = 0; j < nr; j++) {
+                double *vj = w->V[k] + (size_t)j * len;
+                memset(vj, 0, len * sizeof *vj);
+                gs_index nd[4];
+                double gg[4][2];
+                int m = row_nodes(w, &w->row[j], k, nd, gg);
+                for (int t = 0; t < m; t++) {
+                    gs_index p = b->bpos[nd[t]];
+                    const double *c0 = b->col[2 * p], *c1 = b->col[2 * p + 1];
+                    for (size_t q = 0; q < len; q++)
+                        vj[q] += c0[q] * gg[t][0] + c1[q] * gg[t][1];
+                }
+            }
+            for (int i = 0; i < nr; i++) {
+                gs_index nd[4];
+                double gg[4][2];
+                int m = row_nodes(w, &w->row[i], k, nd, gg);
+                for (int j = 0; j <= i; j++) {
+                    const double *vj = w->V[k] + (size_t)j * len;
+                    double s = 0.0;
+                    for (int t = 0; t < m; t++) {
+                        gs_index p = b->bpos[nd[t]];
+                        s += gg[t][0] * vj[2 * p] + gg[t][1] * vj[2 * p + 1];
+                    }
+                    w->H[(size_t)i * n + (size_t)j] += s;
+                }
+            }
+        }
+        double dmax = 0.0;
+        for (int i = 0; i < nr; i++)
+            dmax = fmax(dmax, w->H[(size_t)i * n + (size_t)i]);
+        for (int i = 0; i < nr; i++) {
+            w->H[(size_t)i * n + (size_t)i] += 1e-9 * dmax;
+            for (int j = 0; j < i; j++)
+                w->H[(size_t)j * n + (size_t)i] = w->H[(size_t)i * n + (size_t)j];
+        }
+        /* Linear term and constraint data. */
+        for (int i = 0; i < nr; i++) {
+            const gs_contact_row *r = &w->row[i];
+            double a = r->dg_dtheta[w->si[0]];
+            double bu = 0.0;
+            for (int t = 0; t < r->n_nodes; t++) {
+                const sbody *b = &w->b[r->body[t] == w->si[0] ? 0 : 1];
+                bu += r->dg_du[t][0] * b->u[2 * r->node[t]] + r->dg_du[t][1] * b->u[2 * r->node[t] + 1];
+            }
+            w->a[i] = a;
+            w->gbar[i] = r->gap.g - a * *delta - bu;
+            w->cvec[i] = -w->gbar[i];
+            w->gz[i] = 0.0;
+        }
+        memset(w->Gm, 0, n * n * sizeof *w->Gm);
+        for (int i = 0; i < nr; i++)
+            w->Gm[(size_t)i * n + (size_t)i] = 1.0;
+        if (!w->qp || w->qp_n < nr) {
+            gs_qp_free(&w->qp);
+            GS_TRY(gs_qp_new(w->cap, 1, w->cap, &w->qp));
+            w->qp_n = w->cap;
+        }
+        double e = -T, lam_eq = 0.0;
+        gs_qp_problem p = {.n = nr, .H = w->H, .c = w->cvec, .n_eq = 1, .E = w->a, .e = &e,
+                           .n_in = nr, .G = w->Gm, .g = w->gz};
+        gs_qp_result res;
+        memset(&res, 0, sizeof res);
+        res.x = w->x;
+        res.lambda_eq = &lam_eq;
+        res.lambda_in = w->lam_in;
+        gs_err qe = gs_qp_solve(w->qp, &p, NULL, 0, &res);
+        if (qe != GS_OK)
+            return gs_diag_set(d, qe, "meshes", "static contact QP failed (%d rows): %s", nr,
+                               gs_strerror(qe));
+        double dnew = -lam_eq;
+        /* Displacements of the boundary nodes. */
+        for (int k = 0; k < 2; k++) {
+            sbody *b = &w->b[k];
+            size_t len = (size_t)(2 * b->nb);
+            memset(b->v, 0, len * sizeof *b->v);
+            for (int j = 0; j < nr; j++) {
+                double l = w->x[j];
+                if (l <= 0.0)
+                    continue;
+                const double *vj = w->V[k] + (size_t)j * len;
+                for (size_t q = 0; q < len; q++)
+                    b->v[q] += l * vj[q];
+            }
+            for (gs_index q = 0; q < b->nb; q++) {
+                gs_index node = b->mesh->boundary[q];
+                b->u[2 * node] = b->v[2 * q];
+                b->u[2 * node + 1] = b->v[2 * q + 1];
+            }
+        }
+        /* Settled when delta changed by less than 1e-7 of the elastic
+         * rotation twice in a row. The active set is not a criterion: the
+         * two passes give two nearly parallel rows per flank contact, whose
+         * split of the load is degenerate (the QP may flip between them)
+         * while delta, the gaps and the force per tooth pair do not move. */
+        double scale = fabs(dnew - delta0) + 1e-9 / w->rb;
+        bool small = fabs(dnew - *delta) <= 1e-7 * scale;
+        *delta = dnew;
+        *iters = it + 1;
+        *nr_out = nr;
+        if (small && it > 0 && w->n_prev == 1) {
+            *converged = 1;
+            break;
+        }
+        w->n_prev = small ? 1 : 0;
+    }
+    /* Penetration left at the final deformed position: the solution's rows
+     * re-evaluated there (the candidates stay valid: no search since). */
+    gs_contact_pose pose[2];
+    set_poses(w, *delta, pose);
+    double lo = 0.0;
+    for (int i = 0; i < *nr_out; i++) {
+        gs_contact_row r;
+        GS_TRY(gs_contact_eval(w->search, pose, w->cand[i], &r));
+        if (r.gap.g < lo)
+            lo = r.gap.g;
+    }
+    *pen = -lo;
+    return GS_OK;
+}
+
+static int cmp_pair(const void *pa, const void *pb)
+{
+    const gs_stiffness_pair *a = pa, *b = pb;
+    return (a->force_n < b->force_n) - (a->force_n > b->force_n);
+}
+
+/* Tooth pairs of the solution in w->x / w->row (nr rows). */
+static void pairs_of(const work *w, int nr, double F, gs_stiffness_point *pt)
+{
+    gs_stiffness_pair acc[64];
+    int na = 0;
+    for (int i = 0; i < nr; i++) {
+        double l = w->x[i];
+        if (l <= 0.0)
+            continue;
+        const gs_contact_candidate *c = w->cand[i];
+        gs_index mnode = c->window[c->n_window / 2];
+        int tooth[2];
+        for (int k = 0; k < 2; k++) {
+            const sbody *b = &w->b[k];
+            tooth[k] = c->slave == w->si[k] ? c->slave_tooth
+                                            : node_tooth(b->mesh, b->sb->gear.teeth, mnode);
+        }
+        double f = -l * w->a[i] * w->sgn / w->rb;
+        int j = 0;
+        while (j < na && (acc[j].tooth[0] != tooth[0] || acc[j].tooth[1] != tooth[1]))
+            j++;
+        if (j == na) {
+            if (na == 64)
+                continue;
+            acc[na].tooth[0] = tooth[0];
+            acc[na].tooth[1] = tooth[1];
+            acc[na].force_n = 0.0;
+            na++;
+        }
+        acc[j].force_n += f;
+    }
+    qsort(acc, (size_t)na, sizeof acc[0], cmp_pair);
+    pt->pairs = 0;
+    for (int j = 0; j < na; j++)
+        if (acc[j].force_n >= 0.01 * F)
+            pt->pairs++;
+    while (na > 0 && acc[na - 1].force_n < 1e-6 * F)
+        na--; /* round-off shares */
+    pt->n_pair = na < GS_STIFF_MAX_PAIRS ? na : GS_STIFF_MAX_PAIRS;
+    for (int j = 0; j < pt->n_pair; j++)
+        pt->pair[j] = acc[j];
+}
+
+static double default_torque(const gs_scene *sc, int body, double rb, double b_m)
+{
+    for (int i = 0; i < sc->n_loads; i++) {
+        const gs_scene_load *l = &sc->loads[i];
+        if (l->body != body)
+            continue;
+        if (l->type == GS_LOAD_CONSTANT || l->type == GS_LOAD_RAMP)
+            if (l->moment != 0.0)
+                return l->moment;
+        if (l->type == GS_LOAD_TABLE) {
+            double best = 0.0;
+            for (int k = 0; k < l->n_table; k++)
+                if (fabs(l->moments[k]) > fabs(best))
+                    best = l->moments[k];
+            if (best != 0.0)
+                return best;
+        }
+    }
+    return 200.0 * (b_m * 1e3) * rb; /* 200 N/mm line load */
+}
+
+gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
+                            gs_stiffness_result *out, gs_diag *d)
+{
+    if (!sc || !out)
+        return gs_diag_set(d, GS_EINVAL, "", "NULL scene or result");
+    memset(out, 0, sizeof *out);
+    gs_stiffness_opts o;
+    if (opt)
+        o = *opt;
+    else
+        gs_stiffness_opts_defaults(&o);
+    if (mesh_index < 0 || mesh_index >= sc->n_meshes)
+        return gs_diag_set(d, GS_ERANGE, "meshes", "mesh index %d: the scene has %d meshes",
+                           mesh_index, sc->n_meshes);
+    if (o.positions < 1 || o.positions > 100000)
+        return gs_diag_set(d, GS_ERANGE, "positions", "positions must be 1..100000, not %d",
+                           o.positions);
+    if (o.driver != 0 && o.driver != 1)
+        return gs_diag_set(d, GS_ERANGE, "driver", "driver must be gear 0 or 1 of the mesh");
+    if (o.refine < -1 || o.refine > 6)
+        return gs_diag_set(d, GS_ERANGE, "refine", "refine must be -1 (scene) or 0..6");
+    if (!isfinite(o.torque_nm) || !isfinite(o.phase))
+        return gs_diag_set(d, GS_ERANGE, "torque", "torque and phase must be finite");
+    if (o.max_iter < 1)
+        o.max_iter = 12;
+    double t_start = gs_now();
+    const gs_scene_mesh *sm = &sc->meshes[mesh_index];
+    work w;
+    memset(&w, 0, sizeof w);
+    gs_err e = GS_OK;
+    int bidx[2] = {sm->gear[o.driver], sm->gear[1 - o.driver]};
+    w.si[0] = o.driver;
+    w.si[1] = 1 - o.driver;
+    for (int k = 0; k < 2 && e == GS_OK; k++)
+        e = sbody_init(sc, bidx[k], o.refine, &w.b[k], d);
+    if (e != GS_OK)
+        goto done;
+    const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;
+    {
+        gs_contact_opts co;
+        gs_contact_opts_defaults(&co);
+        co.passes = sm->one_pass ? GS_CONTACT_ONE_PASS : GS_CONTACT_TWO_PASS;
+        const gs_mesh *m[2];
+        m[w.si[0]] = w.b[0].mesh;
+        m[w.si[1]] = w.b[1].mesh;
+        gs_diag cd;
+        gs_diag_clear(&cd);
+        e = gs_contact_search_new(m[0], &sc->bodies[sm->gear[0]].gear, m[1],
+                                  &sc->bodies[sm->gear[1]].gear, &co, &w.search, &cd);
+        if (e != GS_OK) {
+            gs_diag_set(d, e, "meshes", "contact search of '%s': %s", sm->name, cd.message);
+            goto done;
+        }
+    }
+    w.rb = gs_gear_base_radius(gA);
+    double bw = fmin(gA->face_width_m, gB->face_width_m);
+    double T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
+    w.sgn = T > 0 ? 1.0 : -1.0;
+    double F = fabs(T) / w.rb, bmm = bw * 1e3;
+    snprintf(out->mesh_name, sizeof out->mesh_name, "%s", sm->name);
+    out->mesh_index = mesh_index;
+    out->driver = o.driver;
+    for (int k = 0; k < 2; k++) {
+        out->body[k] = bidx[k];
+        out->teeth[k] = w.b[k].sb->gear.teeth;
+        out->refine[k] = o.refine >= 0 ? o.refine : w.b[k].sb->mesh.refine;
+        out->nodes[k] = w.b[k].mesh->n_nodes;
+    }
+    out->torque_nm = T;
+    out->force_n = F;
+    out->base_radius_m = w.rb;
+    out->face_width_mm = bmm;
+    {
+        double a = hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]);
+        double cr = NAN;
+        if (gs_pair_contact_ratio(gA, gB, a, &cr, NULL, NULL) == GS_OK)
+            out->contact_ratio = cr;
+        else
+            out->contact_ratio = NAN;
+    }
+    out->positions = o.positions;
+    out->pt = gs_calloc((size_t)o.positions, sizeof *out->pt);
+    if (!out->pt) {
+        e = GS_ENOMEM;
+        goto done;
+    }
+    double pitch = 2.0 * GS_PI / gA->teeth;
+    /* The driven gear's kinematic angle: the mesh phase nearest to its
+     * expected rotation (ratio z_A / z_B; opposite sense for an external
+     * pair, same sense for an internal one), so the same tooth pairs follow
+     * each other whatever the number of positions. */
+    double thB_first = gs_pair_mesh_phase(gA, w.b[0].c, w.b[0].sb->angle0 + w.sgn * o.phase * pitch,
+                                          gB, w.b[1].c, w.b[1].sb->angle0);
+    double ratio = (double)gA->teeth / gB->teeth *
+                   (gA->kind == GS_GEAR_INTERNAL || gB->kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
+    for (int j = 0; j < o.positions; j++) {
+        gs_stiffness_point *pt = &out->pt[j];
+        double roll = (double)j / o.positions;
+        pt->roll = roll;
+        pt->angle_rad = roll * pitch;
+        w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
+        w.theta0[1] = gs_pair_mesh_phase(gA, w.b[0].c, w.theta0[0], gB, w.b[1].c,
+                                         thB_first + ratio * w.sgn * roll * pitch);
+        for (int k = 0; k < 2; k++)
+            memset(w.b[k].u, 0, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
+        /* No-load closing rotation: rigid bodies turned until the first row
+         * closes, the rows re-evaluated at each new angle (with backlash the
+         * linearisation at the kinematic angle alone is too crude). */
+        int nr;
+        double gmin, delta0 = 0.0;
+        for (int it = 0; it < 30; it++) {
+            e = collect(&w, delta0, &nr, &gmin);
+            if (e != GS_OK)
+                goto done;
+            double close = INFINITY;
+            for (int i = 0; i < nr; i++) {
+                double a = w.row[i].dg_dtheta[w.si[0]];
+                if (a * w.sgn < -1e-6 * w.rb)
+                    close = fmin(close, w.row[i].gap.g / fabs(a));
+            }
+            if (!isfinite(close)) {
+                e = gs_diag_set(d, GS_EINFEASIBLE, "meshes",
+                                "'%s' at roll %.3f: no flank closes in the torque direction",
+                                sm->name, roll);
+                goto done;
+            }
+            delta0 += w.sgn * close;
+            if (fabs(close) * w.rb < 1e-12)
+                break;
+        }
+        double delta = delta0;
+        int iters = 0, conv = 0;
+        double pen = 0.0;
+        e = solve_load(&w, T, o.max_iter, delta0, &delta, &nr, &iters, &conv, &pen, d);
+        if (e != GS_OK)
+            goto done;
+        pt->delta_rad = delta;
+        pt->te_raw_um = w.rb * w.sgn * delta * 1e6;
+        pt->te0_um = w.rb * w.sgn * delta0 * 1e6;
+        pt->te_um = pt->te_raw_um - pt->te0_um;
+        pt->k = F / pt->te_um / bmm;
+        pt->rows = nr;
+        pt->active = 0;
+        for (int i = 0; i < nr; i++)
+            pt->active += w.x[i] > 0.0;
+        pt->iterations = iters;
+        pt->converged = conv;
+        pt->penetration_um = pen * 1e6;
+        pairs_of(&w, nr, F, pt);
+        pt->te_half_um = NAN;
+        pt->k_tan = NAN;
+        if (o.tangent) {
+            double dh = delta;
+            int ih, ch;
+            double ph;
+            e = solve_load(&w, 0.5 * T, o.max_iter, delta0, &dh, &nr, &ih, &ch, &ph, d);
+            if (e != GS_OK)
+                goto done;
+            pt->te_half_um = w.rb * w.sgn * dh * 1e6;
+            pt->k_tan = 0.5 * F / (pt->te_raw_um - pt->te_half_um) / bmm;
+            pt->converged = pt->converged && ch;
+        }
+    }
+    /* Summary. */
+    out->k_min = out->te_min = INFINITY;
+    out->k_max = out->te_max = -INFINITY;
+    double ks = 0, ts = 0, kt = 0;
+    int multi = 0;
+    for (int j = 0; j < o.positions; j++) {
+        const gs_stiffness_point *pt = &out->pt[j];
+        out->k_min = fmin(out->k_min, pt->k);
+        out->k_max = fmax(out->k_max, pt->k);
+        out->te_min = fmin(out->te_min, pt->te_um);
+        out->te_max = fmax(out->te_max, pt->te_um);
+        ks += pt->k;
+        ts += pt->te_um;
+        kt += pt->k_tan;
+        multi += pt->pairs >= 2;
+    }
+    out->k_mean = ks / o.positions;
+    out->te_mean = ts / o.positions;
+    out->k_tan_mean = o.tangent ? kt / o.positions : NAN;
+    out->frac_multi = (double)multi / o.positions;
+    out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
+    out->seconds = gs_now() - t_start;
+done:
+    work_free(&w);
+    if (e != GS_OK) {
+        if (d && !d->message[0])
+            gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));
+        gs_stiffness_result_clear(out);
+    }
+    return e;
+}
+
+/* ------------------------------------------------------------------------ */
+/* HDF5                                                                      */
+/* ------------------------------------------------------------------------ */
+
+static herr_t put_string_attr(hid_t loc, const char *name, const char *value)
+{
+    hid_t t = H5Tcopy(H5T_C_S1);
+    H5Tset_size(t, strlen(value) + 1);
+    hid_t sp = H5Screate(H5S_SCALAR);
+    hid_t a = H5Acreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
+    herr_t st = a < 0 ? -1 : H5Awrite(a, t, value);
+    if (a >= 0)
+        H5Aclose(a);
+    H5Sclose(sp);
+    H5Tclose(t);
+    return st;
+}
+
+static herr_t put_attr(hid_t loc, const char *name, hid_t type, const void *v)
+{
+    hid_t sp = H5Screate(H5S_SCALAR);
+    hid_t a = H5Acreate2(loc, name, type, sp, H5P_DEFAULT, H5P_DEFAULT);
+    herr_t st = a < 0 ? -1 : H5Awrite(a, type, v);
+    if (a >= 0)
+        H5Aclose(a);
+    H5Sclose(sp);
+    return st;
+}
+
+static herr_t put_ds(hid_t g, const char *name, hid_t type, int rank, const hsize_t *dims,
+                     const void *data)
+{
+    hid_t sp = H5Screate_simple(rank, dims, NULL);
+    hid_t ds = H5Dcreate2(g, name, type, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    herr_t st = ds < 0 ? -1 : H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+    if (ds >= 0)
+        H5Dclose(ds);
+    H5Sclose(sp);
+    return st;
+}
+
+gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stiffness_result *r,
+                             gs_diag *d)
+{
+    if (!path || !r || (r->positions > 0 && !r->pt))
+        return gs_diag_set(d, GS_EINVAL, "out", "NULL path or empty result");
+    int n = r->positions;
+    size_t nn = n > 0 ? (size_t)n : 1;
+    double *col = malloc(nn * 8 * sizeof *col);
+    int *pairs = malloc(nn * sizeof *pairs);
+    int *pt_tooth = malloc(nn * GS_STIFF_MAX_PAIRS * 2 * sizeof *pt_tooth);
+    double *pf = malloc(nn * GS_STIFF_MAX_PAIRS * sizeof *pf);
+    if (!col || !pairs || !pt_tooth || !pf) {
+        free(col);
+        free(pairs);
+        free(pt_tooth);
+        free(pf);
+        return GS_ENOMEM;
+    }
+    for (int j = 0; j < n; j++) {
+        const gs_stiffness_point *p = &r->pt[j];
+        double v[8] = {p->roll, p->angle_rad * 180.0 / GS_PI, p->te_um, p->te_raw_um, p->te0_um,
+                       p->k, p->te_half_um, p->k_tan};
+        for (int c = 0; c < 8; c++)
+            col[(size_t)c * nn + (size_t)j] = v[c];
+        pairs[j] = p->pairs;
+        for (int q = 0; q < GS_STIFF_MAX_PAIRS; q++) {
+            bool used = q < p->n_pair;
+            pt_tooth[((size_t)j * GS_STIFF_MAX_PAIRS + (size_t)q) * 2] = used ? p->pair[q].tooth[0] : -1;
+            pt_tooth[((size_t)j * GS_STIFF_MAX_PAIRS + (size_t)q) * 2 + 1] =
+                used ? p->pair[q].tooth[1] : -1;
+            pf[(size_t)j * GS_STIFF_MAX_PAIRS + (size_t)q] = used ? p->pair[q].force_n : 0.0;
+        }
+    }
+    gs_err err = GS_EIO;
+    hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    hid_t g = f < 0 ? -1 : H5Gcreate2(f, "stiffness", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (g >= 0) {
+        static const char *const names[8] = {"roll", "angle_deg", "te_um", "te_raw_um",
+                                             "te0_um", "k", "te_half_um", "k_tan"};
+        hsize_t d1[1] = {(hsize_t)n}, d2[2] = {(hsize_t)n, GS_STIFF_MAX_PAIRS},
+                d3[3] = {(hsize_t)n, GS_STIFF_MAX_PAIRS, 2};
+        herr_t st = 0;
+        for (int c = 0; c < 8; c++)
+            st |= put_ds(g, names[c], H5T_NATIVE_DOUBLE, 1, d1, col + (size_t)c * nn);
+        st |= put_ds(g, "pairs", H5T_NATIVE_INT, 1, d1, pairs);
+        st |= put_ds(g, "pair_tooth", H5T_NATIVE_INT, 3, d3, pt_tooth);
+        st |= put_ds(g, "pair_force_n", H5T_NATIVE_DOUBLE, 2, d2, pf);
+        st |= put_string_attr(g, "scene", sc && sc->json ? sc->json : "");
+        st |= put_string_attr(g, "mesh", r->mesh_name);
+        st |= put_attr(g, "driver", H5T_NATIVE_INT, &r->driver);
+        st |= put_attr(g, "teeth", H5T_NATIVE_INT, &r->teeth[0]);
+        st |= put_attr(g, "teeth_driven", H5T_NATIVE_INT, &r->teeth[1]);
+        st |= put_attr(g, "refine", H5T_NATIVE_INT, &r->refine[0]);
+        const struct {
+            const char *name;
+            double v;
+        } sc_attr[] = {{"torque_nm", r->torque_nm},         {"force_n", r->force_n},
+                       {"face_width_mm", r->face_width_mm}, {"base_radius_m", r->base_radius_m},
+                       {"contact_ratio", r->contact_ratio}, {"k_min", r->k_min},
+                       {"k_mean", r->k_mean},               {"k_max", r->k_max},
+                       {"te_min", r->te_min},               {"te_mean", r->te_mean},
+                       {"te_max", r->te_max}};
+        for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
+            st |= put_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
+        if (st >= 0)
+            err = GS_OK;
+        H5Gclose(g);
+    }
+    if (f >= 0 && H5Fclose(f) < 0)
+        err = GS_EIO;
+    free(col);
+    free(pairs);
+    free(pt_tooth);
+    free(pf);
+    if (err != GS_OK)
+        return gs_diag_set(d, err, "out", "cannot write %s", path);
+    return GS_OK;
+}
+
+/* JSON number, or null for NaN / infinity. */
+static json_object *json_num(double v)
+{
+    return isfinite(v) ? json_object_new_double(v) : NULL;
+}
+
+json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
+{
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "mesh", json_object_new_string(r->mesh_name));
+    json_object_object_add(o, "driver", json_object_new_string(s->bodies[r->body[0]].name));
+    json_object_object_add(o, "driven", json_object_new_string(s->bodies[r->body[1]].name));
+    json_object *teeth = json_object_new_array();
+    json_object_array_add(teeth, json_object_new_int(r->teeth[0]));
+    json_object_array_add(teeth, json_object_new_int(r->teeth[1]));
+    json_object_object_add(o, "teeth", teeth);
+    json_object *ref = json_object_new_array();
+    json_object_array_add(ref, json_object_new_int(r->refine[0]));
+    json_object_array_add(ref, json_object_new_int(r->refine[1]));
+    json_object_object_add(o, "refine", ref);
+    json_object *nodes = json_object_new_array();
+    json_object_array_add(nodes, json_object_new_int64(r->nodes[0]));
+    json_object_array_add(nodes, json_object_new_int64(r->nodes[1]));
+    json_object_object_add(o, "nodes", nodes);
+    json_object_object_add(o, "positions", json_object_new_int(r->positions));
+    json_object_object_add(o, "torque_nm", json_num(r->torque_nm));
+    json_object_object_add(o, "force_n", json_num(r->force_n));
+    json_object_object_add(o, "base_radius_mm", json_num(r->base_radius_m * 1e3));
+    json_object_object_add(o, "face_width_mm", json_num(r->face_width_mm));
+    json_object_object_add(o, "contact_ratio", json_num(r->contact_ratio));
+    json_object_object_add(o, "units", json_object_new_string("k: N/(mm um) per mm face width; te: um along the line of action"));
+    json_object *pts = json_object_new_array();
+    for (int j = 0; j < r->positions; j++) {
+        const gs_stiffness_point *p = &r->pt[j];
+        json_object *q = json_object_new_object();
+        json_object_object_add(q, "roll", json_num(p->roll));
+        json_object_object_add(q, "angle_deg", json_num(p->angle_rad * 180.0 / 3.14159265358979323846));
+        json_object_object_add(q, "k", json_num(p->k));
+        json_object_object_add(q, "te_um", json_num(p->te_um));
+        json_object_object_add(q, "te_raw_um", json_num(p->te_raw_um));
+        json_object_object_add(q, "te0_um", json_num(p->te0_um));
+        json_object_object_add(q, "k_tan", json_num(p->k_tan));
+        json_object_object_add(q, "pairs", json_object_new_int(p->pairs));
+        json_object *fa = json_object_new_array();
+        for (int k = 0; k < p->n_pair; k++) {
+            json_object *pp = json_object_new_object();
+            json_object *tt = json_object_new_array();
+            json_object_array_add(tt, json_object_new_int(p->pair[k].tooth[0]));
+            json_object_array_add(tt, json_object_new_int(p->pair[k].tooth[1]));
+            json_object_object_add(pp, "teeth", tt);
+            json_object_object_add(pp, "force_n", json_num(p->pair[k].force_n));
+            json_object_array_add(fa, pp);
+        }
+        json_object_object_add(q, "pair_forces", fa);
+        json_object_object_add(q, "converged", json_object_new_boolean(p->converged));
+        json_object_object_add(q, "penetration_um", json_num(p->penetration_um));
+        json_object_array_add(pts, q);
+    }
+    json_object_object_add(o, "points", pts);
+    json_object *k = json_object_new_object();
+    json_object_object_add(k, "min", json_num(r->k_min));
+    json_object_object_add(k, "mean", json_num(r->k_mean));
+    json_object_object_add(k, "max", json_num(r->k_max));
+    json_object_object_add(k, "tangent_mean", json_num(r->k_tan_mean));
+    json_object_object_add(o, "k", k);
+    json_object *te = json_object_new_object();
+    json_object_object_add(te, "min", json_num(r->te_min));
+    json_object_object_add(te, "mean", json_num(r->te_mean));
+    json_object_object_add(te, "max", json_num(r->te_max));
+    json_object_object_add(te, "peak_to_peak", json_num(r->te_max - r->te_min));
+    json_object_object_add(o, "te_um", te);
+    json_object_object_add(o, "fraction_multi_pair", json_num(r->frac_multi));
+    json_object_object_add(o, "seconds", json_num(r->seconds));
+    return o;
+}

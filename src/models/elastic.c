@@ -1,0 +1,325 @@
+/* SPDX-License-Identifier: MIT
+ * Elastic body model: a gear meshed with finite elements (src/mesh), its
+ * constant matrices (src/fe model, built on every rank: cheap, and every
+ * rank then knows the inertia and can recover stresses) and, on the owner
+ * rank only, the body in the step with its Cholesky factor and compliance
+ * cache (src/fe body). METHOD.md sections 1, 2 and 4.
+ *
+ * Interface to the step solver: the body's rotation and, when a contact
+ * mesh found them near the other gear, the displacements of a few flank
+ * nodes (the plan, step.h). Per step the owner solves for the free motion
+ * and offers the free increments d0 and the compliance block C of A^-1 at
+ * those unknowns (from the per-node cache: teeth come back every turn), the
+ * condensed midpoint equation d = d0 + C f. After the global solve the
+ * interface forces f are applied back and the step ends (q += dq,
+ * w = 2 dq / h - w for every elastic unknown). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/fe.h"
+#include "gearsim/mesh.h"
+#include "gearsim/step.h"
+#include "gearsim/util.h"
+
+typedef struct elastic {
+    gs_mesh *mesh;
+    gs_fe_model *model;
+    gs_fe_body *body;       /* owner rank only */
+    gs_index ne;            /* elastic unknowns */
+    double h, c;            /* time step and brake the body is factorised for */
+    gs_index *dofs;         /* interface dofs of this step (FE body names) */
+    size_t cap_dofs;
+    bool begun;             /* a step is begun in the FE body */
+} elastic;
+
+static void elastic_destroy(gs_body_rt *b)
+{
+    elastic *el = b->model;
+    if (!el)
+        return;
+    gs_fe_body_free(&el->body);
+    gs_fe_model_free(&el->model);
+    free(el->dofs);
+    gs_mesh_free(&el->mesh);
+    free(el);
+    b->model = NULL;
+}
+
+/* The static deflection under a tangential load F spread evenly over the tip
+ * of tooth 0 (tip arc and both tip corners): a reproducible elastic
+ * disturbance for free-vibration runs. */
+static gs_err tip_deflection(const elastic *el, double F, double *u)
+{
+    const gs_mesh *m = el->mesh;
+    gs_index nn = m->n_nodes;
+    double *f = gs_calloc((size_t)(2 * nn), sizeof(double));
+    gs_index *sel = gs_calloc((size_t)nn, sizeof(gs_index));
+    if (!f || !sel) {
+        free(f), free(sel);
+        return GS_ENOMEM;
+    }
+    gs_index k = 0;
+    /* Tip corners: the last node of each flank of tooth 0 (root to tip). */
+    sel[k++] = m->flank_nodes[m->flank_ptr[1] - 1];
+    sel[k++] = m->flank_nodes[m->flank_ptr[2] - 1];
+    double half = GS_PI / m->n_teeth;
+    for (gs_index i = 0; i < nn; i++) {
+        if (!m->node_tag || m->node_tag[i] != GS_NODE_TIP)
+            continue;
+        double a = atan2(m->xy[2 * i + 1], m->xy[2 * i]);
+        if (fabs(a) < half)
+            sel[k++] = i;
+    }
+    for (gs_index j = 0; j < k; j++) {
+        gs_index i = sel[j];
+        double x = m->xy[2 * i], y = m->xy[2 * i + 1], r = hypot(x, y);
+        f[2 * i] += -F / (double)k * y / r;
+        f[2 * i + 1] += F / (double)k * x / r;
+    }
+    gs_err e = gs_fe_model_static(el->model, f, u);
+    free(f), free(sel);
+    return e;
+}
+
+static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
+{
+    const gs_scene_body *sb = &sys->scene->bodies[b->index];
+    char field[160];
+    snprintf(field, sizeof field, "bodies[%d].mesh", b->index);
+    if (sb->type != GS_BODY_GEAR)
+        return gs_diag_set(d, GS_ERANGE, field, "only gears can be elastic");
+    elastic *el = gs_calloc(1, sizeof *el);
+    if (!el)
+        return GS_ENOMEM;
+    b->model = el;
+    gs_diag md;
+    gs_err e = gs_scene_gear_mesh(sb, &el->mesh, &md);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", sb->name, md.message, md.field);
+    /* Rigid core: the solid hub disc of an external gear; a ring's elastic
+     * part reaches its outer rim, which is fixed (held or on its bearing). */
+    const gs_gear_params *g = &sb->gear;
+    double core = 0.0;
+    if (g->kind == GS_GEAR_EXTERNAL) {
+        double rh = gs_gear_hub_radius(g);
+        core = 0.5 * GS_PI * sb->material.density * g->face_width_m * rh * rh * rh * rh;
+    }
+    e = gs_fe_model_new(el->mesh, &sb->material, g->face_width_m, 0.0, &el->model);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "finite element model of '%s' failed: %s", sb->name,
+                           gs_strerror(e));
+    gs_fe_model_info info;
+    gs_fe_model_get_info(el->model, &info);
+    if (sb->inertia_given) {
+        core = sb->inertia - info.inertia_elastic;
+        if (core < 0) {
+            snprintf(field, sizeof field, "bodies[%d].inertia", b->index);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "'%s': inertia %.6g kg m^2 is below that of its elastic part (%.6g)",
+                               sb->name, sb->inertia, info.inertia_elastic);
+        }
+    }
+    gs_fe_model_free(&el->model);
+    e = gs_fe_model_new(el->mesh, &sb->material, g->face_width_m, core, &el->model);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "finite element model of '%s' failed: %s", sb->name,
+                           gs_strerror(e));
+    gs_fe_model_get_info(el->model, &info);
+    el->ne = info.n_elastic;
+    b->inertia_eff = info.inertia_total;
+    if (b->owner != sys->rank)
+        return GS_OK;
+    GS_TRY(gs_fe_body_new(el->model, &el->body));
+    double *u0 = NULL;
+    if (sb->tip_load != 0.0) {
+        u0 = gs_calloc((size_t)(2 * el->mesh->n_nodes), sizeof(double));
+        if (!u0)
+            return GS_ENOMEM;
+        e = tip_deflection(el, sb->tip_load, u0);
+        if (e != GS_OK) {
+            free(u0);
+            snprintf(field, sizeof field, "initial.%s.tip_load", sb->name);
+            return gs_diag_set(d, e, field, "static deflection of '%s' failed", sb->name);
+        }
+    }
+    e = gs_fe_body_set_state(el->body, b->coord >= 0 ? sb->angle0 : 0.0,
+                             b->coord >= 0 ? sb->omega0 : 0.0, u0, NULL);
+    free(u0);
+    if (e == GS_OK && b->coord < 0)
+        e = gs_fe_body_hold_theta(el->body, true);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "cannot set the state of '%s'", sb->name);
+    double T, V;
+    b->ops->energy(sys, b, &T, &V);
+    b->T = T;
+    b->V = V;
+    return GS_OK;
+}
+
+/* The interface unknowns in FE body names: theta (when the body has a
+ * coordinate), then x, y of the plan's nodes. */
+static gs_err interface_dofs(const gs_system *sys, const gs_body_rt *b, elastic *el, int *n)
+{
+    const gs_step_plan *p = &sys->plan;
+    int nd = p->n_dof[b->index], k = 0;
+    gs_index *nw = gs_grow(el->dofs, &el->cap_dofs, (size_t)nd, sizeof(gs_index));
+    if (!nw)
+        return GS_ENOMEM;
+    el->dofs = nw;
+    if (b->coord >= 0)
+        el->dofs[k++] = GS_FE_DOF_THETA;
+    for (int j = 0; j < p->n_nodes[b->index]; j++) {
+        el->dofs[k++] = gs_fe_dof_node(p->nodes[b->index][j], 0);
+        el->dofs[k++] = gs_fe_dof_node(p->nodes[b->index][j], 1);
+    }
+    *n = k;
+    return GS_OK;
+}
+
+static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+{
+    elastic *el = b->model;
+    double M = 0, c = 0;
+    if (b->coord >= 0)
+        gs_system_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
+    if (el->begun) /* the previous global solve failed: start again */
+        gs_fe_body_cancel_step(el->body);
+    el->begun = false;
+    gs_err e = GS_OK;
+    if (h != el->h || c != el->c) {
+        e = gs_fe_body_set_step(el->body, h, c);
+        if (e == GS_OK) {
+            el->h = h;
+            el->c = c;
+        } else {
+            el->h = 0;
+        }
+    }
+    if (e == GS_OK)
+        e = gs_fe_body_begin_step(el->body, M, NULL);
+    el->begun = e == GS_OK;
+    int n = 0;
+    if (e == GS_OK)
+        e = interface_dofs(sys, b, el, &n);
+    if (e == GS_OK && n > 0) {
+        e = gs_fe_body_compliance(el->body, n, el->dofs, rec);
+        if (e == GS_OK)
+            e = gs_fe_body_increment(el->body, n, el->dofs, rec + (size_t)n * n);
+        /* Current displacements of the nodes (body frame). */
+        const double *q = gs_fe_body_q(el->body);
+        const gs_step_plan *p = &sys->plan;
+        double *u = rec + (size_t)n * n + n;
+        for (int j = 0; e == GS_OK && j < p->n_nodes[b->index]; j++)
+            for (int comp = 0; comp < 2; comp++) {
+                gs_index k = gs_fe_model_dof(el->model, p->nodes[b->index][j], comp);
+                u[2 * j + comp] = k >= 0 ? q[k] : 0.0;
+            }
+    }
+    if (e != GS_OK || (n > 0 && !(rec[0] > 0)))
+        rec[0] = NAN;
+}
+
+static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *f)
+{
+    elastic *el = b->model;
+    if (!el->begun)
+        return GS_ESTATE;
+    int n = sys->plan.n_dof[b->index];
+    bool any = false;
+    for (int k = 0; k < n; k++)
+        any |= f[k] != 0.0;
+    /* The dofs are still those of interface() (the plan has not changed). */
+    if (any)
+        GS_TRY(gs_fe_body_apply(el->body, n, el->dofs, f));
+    el->begun = false;
+    GS_TRY(gs_fe_body_end_step(el->body));
+    b->ops->energy(sys, b, &b->T, &b->V);
+    return GS_OK;
+}
+
+static void elastic_energy(const gs_system *sys, const gs_body_rt *b, double *T, double *V)
+{
+    (void)sys;
+    const elastic *el = b->model;
+    if (!el->body) { /* not the owner: the last reported values */
+        *T = b->T;
+        *V = b->V;
+        return;
+    }
+    *T = gs_fe_body_kinetic(el->body);
+    *V = gs_fe_body_elastic(el->body);
+}
+
+/* Snapshot state: q then w of the FE body (ne + 1 each, theta last). */
+static size_t elastic_state_size(const gs_body_rt *b)
+{
+    const elastic *el = b->model;
+    return 2 * (size_t)(el->ne + 1);
+}
+
+static void elastic_save(const gs_body_rt *b, double *x)
+{
+    const elastic *el = b->model;
+    size_t n = (size_t)(el->ne + 1);
+    memcpy(x, gs_fe_body_q(el->body), n * sizeof(double));
+    memcpy(x + n, gs_fe_body_w(el->body), n * sizeof(double));
+}
+
+static gs_err elastic_load(gs_body_rt *b, const double *x)
+{
+    elastic *el = b->model;
+    gs_index nn = el->mesh->n_nodes, ne = el->ne;
+    double *u = gs_calloc((size_t)(4 * nn), sizeof(double));
+    if (!u)
+        return GS_ENOMEM;
+    double *v = u + 2 * nn;
+    for (gs_index i = 0; i < nn; i++)
+        for (int c = 0; c < 2; c++) {
+            gs_index k = gs_fe_model_dof(el->model, i, c);
+            if (k >= 0) {
+                u[2 * i + c] = x[k];
+                v[2 * i + c] = x[ne + 1 + k];
+            }
+        }
+    gs_fe_body_cancel_step(el->body);
+    el->begun = false;
+    gs_err e = gs_fe_body_set_state(el->body, x[ne], x[2 * ne + 1], u, v);
+    free(u);
+    return e;
+}
+
+static gs_index elastic_field_nodes(const gs_body_rt *b)
+{
+    const elastic *el = b->model;
+    return el->mesh->n_nodes;
+}
+
+static void elastic_fields(const gs_body_rt *b, double *u, double *vm)
+{
+    const elastic *el = b->model;
+    gs_fe_body_nodal(el->body, u, NULL);
+    gs_fe_model_stress(el->model, u, NULL, NULL, vm);
+}
+
+static const gs_mesh *elastic_mesh(const gs_body_rt *b)
+{
+    const elastic *el = b->model;
+    return el ? el->mesh : NULL;
+}
+
+const gs_body_ops gsi_body_elastic = {
+    .name = "elastic",
+    .init = elastic_init,
+    .destroy = elastic_destroy,
+    .interface = elastic_interface,
+    .finish = elastic_finish,
+    .energy = elastic_energy,
+    .state_size = elastic_state_size,
+    .save = elastic_save,
+    .load = elastic_load,
+    .field_nodes = elastic_field_nodes,
+    .fields = elastic_fields,
+    .mesh = elastic_mesh,
+};

@@ -1,0 +1,367 @@
+/* SPDX-License-Identifier: MIT
+ * The step with contact meshes (METHOD.md sections 3 and 4), rank 0.
+ *
+ * Every body offered its compliance block C over its interface unknowns
+ * (coordinate, candidate node displacements), its free increment d0 and the
+ * current displacements of those nodes (src/step/plan.c, records). Here:
+ *
+ *  1. every candidate of every contact mesh is evaluated at the current
+ *     positions (Rvachev gap g and its gradient, src/contact); a candidate
+ *     becomes a constraint row when it touches or penetrates (g <= 0), or,
+ *     with `constrain: predicted`, when the free motion would take it there
+ *     (g + grad g . d0 <= 0);
+ *  2. the unknowns are the rigid coordinates and the displacements of the
+ *     nodes that enter some row; each body's block of the Hessian is the
+ *     inverse of the matching sub-block of its compliance (the compliance of
+ *     a subset of unknowns is the sub-block of the compliance: exact static
+ *     condensation of every other unknown of the body);
+ *  3. the QP  min 1/2 (x - d0)^T H (x - d0)  subject to the kinematic rows
+ *     E x = 0 and the linearised, homogeneous contact rows G x >= 0 is solved
+ *     by Goldfarb-Idnani (src/qp);
+ *  4. the interface forces f = E^T mu + G^T lambda go back to the bodies
+ *     (exactly zero for a body no row touches), the rigid increments are x.
+ * The rows drop g(x_n): the reaction does no work (lambda^T G x = 0 by
+ * complementarity), so frictionless contact conserves energy exactly. */
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "contact/contact_mesh.h"
+#include "gearsim/qp.h"
+#include "gearsim/util.h"
+#include "step_internal.h"
+
+typedef struct row_ref {
+    int mesh;
+    gs_contact_row r;
+} row_ref;
+
+typedef struct solver {
+    double **u;          /* per body: full nodal displacement array (elastic gears in contact) */
+    row_ref *rows;
+    int n_rows;
+    size_t cap_rows;
+    int *unk;            /* per body, per plan dof: global unknown, -1 unused */
+    size_t cap_unk;
+    size_t *base;        /* per body: offset of its plan dofs in unk */
+    size_t cap_base;
+    int *sel;            /* scratch: selected dofs of one body */
+    size_t cap_sel;
+    double *H, *c, *E, *e, *G, *g, *x, *lam_eq, *lam_in, *S, *f;
+    size_t cap[11];      /* capacities of the eleven arrays above, in that order of reserve() */
+    gs_qp *qp;
+    int qp_n, qp_eq, qp_in;
+} solver;
+
+void gsi_contact_free(gs_system *sys)
+{
+    solver *s = sys->solver;
+    if (!s)
+        return;
+    for (int i = 0; s->u && i < sys->n_bodies; i++)
+        free(s->u[i]);
+    free(s->u);
+    free(s->rows);
+    free(s->unk);
+    free(s->base);
+    free(s->sel);
+    free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
+    free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
+    gs_qp_free(&s->qp);
+    free(s);
+    sys->solver = NULL;
+}
+
+static solver *get_solver(gs_system *sys)
+{
+    if (sys->solver)
+        return sys->solver;
+    solver *s = gs_calloc(1, sizeof *s);
+    if (!s)
+        return NULL;
+    s->u = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
+    if (!s->u) {
+        free(s);
+        return NULL;
+    }
+    sys->solver = s;
+    return s;
+}
+
+/* Grow a scratch array of doubles to n (capacity in *cap). */
+static bool grow(double **p, size_t *cap, size_t n)
+{
+    double *q = gs_grow(*p, cap, n, sizeof(double));
+    if (!q)
+        return false;
+    *p = q;
+    return true;
+}
+
+/* Dense arrays for N unknowns, ne equality rows and ni contact rows. */
+static gs_err reserve(solver *s, int N, int ne, int ni, int maxdof)
+{
+    size_t n = (size_t)N, m = (size_t)(ne + ni) + 1;
+    if (!grow(&s->H, &s->cap[0], n * n) || !grow(&s->c, &s->cap[1], n) || !grow(&s->x, &s->cap[2], n) ||
+        !grow(&s->E, &s->cap[3], m * n) || !grow(&s->e, &s->cap[4], m) || !grow(&s->G, &s->cap[5], m * n) ||
+        !grow(&s->g, &s->cap[6], m) || !grow(&s->lam_eq, &s->cap[7], m) || !grow(&s->lam_in, &s->cap[8], m) ||
+        !grow(&s->f, &s->cap[9], n) || !grow(&s->S, &s->cap[10], (size_t)maxdof * (size_t)maxdof))
+        return GS_ENOMEM;
+    return GS_OK;
+}
+
+static gs_err add_row(solver *s, int mesh, const gs_contact_row *r)
+{
+    row_ref *nr = gs_grow(s->rows, &s->cap_rows, (size_t)s->n_rows + 1, sizeof *nr);
+    if (!nr)
+        return GS_ENOMEM;
+    s->rows = nr;
+    s->rows[s->n_rows].mesh = mesh;
+    s->rows[s->n_rows].r = *r;
+    s->n_rows++;
+    return GS_OK;
+}
+
+/* Plan dof of component comp of plan node k of body i. */
+static int node_dof(const gs_system *sys, int i, int k, int comp)
+{
+    return (sys->bodies[i].coord >= 0 ? 1 : 0) + 2 * k + comp;
+}
+
+/* Evaluate the candidates of contact mesh mi at the current positions and
+ * keep those that become rows; returns the deepest penetration. */
+static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
+{
+    gsi_contact_mesh *cm = sys->meshes[mi].contact;
+    const gs_step_plan *p = &sys->plan;
+    gs_contact_pose pose[2];
+    for (int k = 0; k < 2; k++) {
+        gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
+        pose[k].u = cm->elastic[k] ? s->u[cm->body[k]] : NULL;
+    }
+    *pen = 0.0;
+    for (gs_index j = 0; j < cm->n_cand; j++) {
+        gs_contact_row r;
+        GS_TRY(gs_contact_eval(cm->search, pose, &cm->cand[j], &r));
+        double g = r.gap.g;
+        if (-g > *pen)
+            *pen = -g;
+        bool take = g <= 0.0;
+        if (!take && cm->predict) {
+            /* The free motion's change of g, linearised. */
+            double dg = 0.0;
+            for (int k = 0; k < 2; k++) {
+                int b = cm->body[k];
+                if (sys->bodies[b].coord >= 0) {
+                    int nd = p->n_dof[b];
+                    dg += r.dg_dtheta[k] * rec[p->rec_off[b] + (size_t)nd * nd];
+                }
+            }
+            for (int t = 0; t < r.n_nodes; t++) {
+                int gk = r.body[t], b = cm->body[gk];
+                if (!cm->elastic[gk])
+                    continue;
+                int pk = gsi_plan_find(p, b, r.node[t]);
+                if (pk < 0)
+                    continue;
+                int nd = p->n_dof[b];
+                const double *d0 = rec + p->rec_off[b] + (size_t)nd * nd;
+                dg += r.dg_du[t][0] * d0[node_dof(sys, b, pk, 0)] +
+                      r.dg_du[t][1] * d0[node_dof(sys, b, pk, 1)];
+            }
+            take = g + dg <= 0.0;
+        }
+        if (take)
+            GS_TRY(add_row(s, mi, &r));
+    }
+    return GS_OK;
+}
+
+gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
+{
+    solver *s = get_solver(sys);
+    if (!s)
+        return GS_ENOMEM;
+    const gs_step_plan *p = &sys->plan;
+    int n = sys->n_coords, nb = sys->n_bodies;
+    /* 0. Records: sanity, and the nodes' current displacements. */
+    size_t total_dof = 0;
+    int maxdof = 1;
+    for (int i = 0; i < nb; i++) {
+        int nd = p->n_dof[i];
+        total_dof += (size_t)nd;
+        if (nd > maxdof)
+            maxdof = nd;
+        const double *r = rec + p->rec_off[i];
+        if (nd > 0 && (!(r[0] > 0) || !isfinite(r[0])))
+            return GS_ESINGULAR;
+        if (p->n_nodes[i] == 0)
+            continue;
+        const gs_mesh *m = sys->bodies[i].ops->mesh(&sys->bodies[i]);
+        if (!s->u[i]) {
+            s->u[i] = gs_calloc(2 * (size_t)m->n_nodes, sizeof(double));
+            if (!s->u[i])
+                return GS_ENOMEM;
+        }
+        const double *u = r + (size_t)nd * nd + nd;
+        for (int k = 0; k < p->n_nodes[i]; k++) {
+            s->u[i][2 * p->nodes[i][k]] = u[2 * k];
+            s->u[i][2 * p->nodes[i][k] + 1] = u[2 * k + 1];
+        }
+    }
+    /* 1. Rows. */
+    s->n_rows = 0;
+    for (int mi = 0; mi < sys->n_meshes; mi++) {
+        if (!sys->meshes[mi].ops->contact)
+            continue;
+        double pen;
+        int before = s->n_rows;
+        GS_TRY(collect_rows(sys, s, mi, rec, &pen));
+        double *ct = sol + gs_sol_mesh_contact(sys, mi);
+        ct[1] = s->n_rows - before;
+        ct[2] = pen;
+    }
+    /* 2. Unknowns: coordinates, then the nodes that enter a row. */
+    int *nu = gs_grow(s->unk, &s->cap_unk, total_dof + 1, sizeof(int));
+    if (!nu)
+        return GS_ENOMEM;
+    s->unk = nu;
+    size_t *base = gs_grow(s->base, &s->cap_base, (size_t)nb, sizeof(size_t));
+    if (!base)
+        return GS_ENOMEM;
+    s->base = base;
+    int *unk = s->unk;
+    for (int i = 0, off = 0; i < nb; i++) {
+        base[i] = (size_t)off;
+        for (int k = 0; k < p->n_dof[i]; k++)
+            unk[off + k] = -1;
+        if (sys->bodies[i].coord >= 0)
+            unk[off] = sys->bodies[i].coord;
+        off += p->n_dof[i];
+    }
+    int N = n;
+    for (int r = 0; r < s->n_rows; r++) {
+        const gs_contact_row *cr = &s->rows[r].r;
+        const gsi_contact_mesh *cm = sys->meshes[s->rows[r].mesh].contact;
+        for (int t = 0; t < cr->n_nodes; t++) {
+            int gk = cr->body[t], b = cm->body[gk];
+            int pk = cm->elastic[gk] ? gsi_plan_find(p, b, cr->node[t]) : -1;
+            if (pk < 0)
+                continue;
+            for (int comp = 0; comp < 2; comp++) {
+                int *u = &unk[base[b] + (size_t)node_dof(sys, b, pk, comp)];
+                if (*u < 0)
+                    *u = N++;
+            }
+        }
+    }
+    int ne = sys->n_eq, ni = s->n_rows;
+    GS_TRY(reserve(s, N, ne, ni, maxdof));
+    gs_err err = GS_OK;
+    /* 3. Hessian blocks: inverses of the compliance sub-blocks. */
+    memset(s->H, 0, (size_t)N * N * sizeof(double));
+    memset(s->c, 0, (size_t)N * sizeof(double));
+    int *sel = gs_grow(s->sel, &s->cap_sel, (size_t)maxdof, sizeof(int));
+    if (!sel)
+        return GS_ENOMEM;
+    s->sel = sel;
+    for (int i = 0; i < nb && err == GS_OK; i++) {
+        int nd = p->n_dof[i], k = 0;
+        for (int a = 0; a < nd; a++)
+            if (unk[base[i] + a] >= 0)
+                sel[k++] = a;
+        if (k == 0)
+            continue;
+        const double *C = rec + p->rec_off[i], *d0 = C + (size_t)nd * nd;
+        for (int a = 0; a < k; a++)
+            for (int b = 0; b < k; b++)
+                s->S[a * k + b] = C[(size_t)sel[b] * nd + sel[a]];
+        if (LAPACKE_dpotrf(LAPACK_ROW_MAJOR, 'L', k, s->S, k) != 0 ||
+            LAPACKE_dpotri(LAPACK_ROW_MAJOR, 'L', k, s->S, k) != 0) {
+            err = GS_ESINGULAR;
+            break;
+        }
+        for (int a = 0; a < k; a++)
+            for (int b = 0; b < k; b++) {
+                double v = a >= b ? s->S[a * k + b] : s->S[b * k + a];
+                s->H[(size_t)unk[base[i] + sel[a]] * N + unk[base[i] + sel[b]]] = v;
+                s->c[unk[base[i] + sel[a]]] += v * d0[sel[b]];
+            }
+    }
+    if (err != GS_OK)
+        return err;
+    /* 4. Rows: kinematic equalities and linearised contacts. */
+    memset(s->E, 0, (size_t)(ne ? ne : 1) * N * sizeof(double));
+    for (int a = 0; a < ne; a++) {
+        memcpy(s->E + (size_t)a * N, sys->eq_rows + (size_t)a * n, (size_t)n * sizeof(double));
+        s->e[a] = 0.0;
+    }
+    memset(s->G, 0, (size_t)(ni ? ni : 1) * N * sizeof(double));
+    for (int r = 0; r < ni; r++) {
+        const gs_contact_row *cr = &s->rows[r].r;
+        const gsi_contact_mesh *cm = sys->meshes[s->rows[r].mesh].contact;
+        double *G = s->G + (size_t)r * N;
+        s->g[r] = 0.0; /* homogeneous: the gap g(x_n) is dropped on purpose */
+        for (int k = 0; k < 2; k++) {
+            int b = cm->body[k], c = sys->bodies[b].coord;
+            if (c >= 0)
+                G[c] += cr->dg_dtheta[k];
+            /* A planet's centre turns with its carrier: dc = J (c - c_C) dtheta_C. */
+            const gs_scene_body *sb = &sys->scene->bodies[b];
+            if (sb->joint == GS_JOINT_ON_CARRIER) {
+                int cc = sys->bodies[sb->carrier].coord;
+                if (cc >= 0) {
+                    double pc[2], th;
+                    gs_system_body_pose(sys, b, pc, &th);
+                    const double *cC = sys->scene->bodies[sb->carrier].centre;
+                    G[cc] += cr->dg_dc[k][0] * -(pc[1] - cC[1]) + cr->dg_dc[k][1] * (pc[0] - cC[0]);
+                }
+            }
+        }
+        for (int t = 0; t < cr->n_nodes; t++) {
+            int gk = cr->body[t], b = cm->body[gk];
+            int pk = cm->elastic[gk] ? gsi_plan_find(p, b, cr->node[t]) : -1;
+            if (pk < 0)
+                continue;
+            for (int comp = 0; comp < 2; comp++)
+                G[unk[base[b] + (size_t)node_dof(sys, b, pk, comp)]] += cr->dg_du[t][comp];
+        }
+    }
+    /* 5. The QP. */
+    if (!s->qp || N > s->qp_n || ne > s->qp_eq || ni > s->qp_in) {
+        gs_qp_free(&s->qp);
+        s->qp_n = N > s->qp_n ? N + 16 : s->qp_n;
+        s->qp_eq = ne > s->qp_eq ? ne : s->qp_eq;
+        s->qp_in = ni > s->qp_in ? ni + 32 : s->qp_in;
+        GS_TRY(gs_qp_new(s->qp_n, s->qp_eq, s->qp_in, &s->qp));
+    }
+    gs_qp_problem pr = {.n = N, .H = s->H, .c = s->c, .n_eq = ne, .E = s->E, .e = s->e,
+                        .n_in = ni, .G = s->G, .g = s->g};
+    gs_qp_result res = {.x = s->x, .lambda_eq = s->lam_eq, .lambda_in = s->lam_in};
+    GS_TRY(gs_qp_solve(s->qp, &pr, NULL, 0, &res));
+    sys->last_iterations = res.iterations;
+    /* 6. Solution: rigid increments, contact figures, interface forces. */
+    memcpy(sol, s->x, (size_t)n * sizeof(double));
+    memset(s->f, 0, (size_t)N * sizeof(double));
+    for (int a = 0; a < ne; a++)
+        for (int j = 0; j < N; j++)
+            s->f[j] += s->E[(size_t)a * N + j] * s->lam_eq[a];
+    for (int r = 0; r < ni; r++) {
+        if (s->lam_in[r] == 0.0)
+            continue;
+        for (int j = 0; j < N; j++)
+            s->f[j] += s->G[(size_t)r * N + j] * s->lam_in[r];
+        /* Normal force: lambda times the slave-point gradient's length. */
+        const gs_contact_row *cr = &s->rows[r].r;
+        int mi = s->rows[r].mesh;
+        sol[gs_sol_mesh_contact(sys, mi)] += 1.0;
+        sol[gs_sol_mesh_force(sys, mi)] += s->lam_in[r] * hypot(cr->gap.grad[0], cr->gap.grad[1]);
+    }
+    for (int i = 0; i < nb; i++)
+        for (int a = 0; a < p->n_dof[i]; a++) {
+            int u = unk[base[i] + a];
+            sol[p->sol_off[i] + a] = u >= 0 ? s->f[u] : 0.0;
+        }
+    return GS_OK;
+}

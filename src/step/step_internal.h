@@ -1,0 +1,19 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim internal: the parts of the step split over files of src/step. */
+#ifndef GEARSIM_STEP_INTERNAL_H
+#define GEARSIM_STEP_INTERNAL_H
+
+#include "gearsim/step.h"
+
+/* Rank 0: the step with contact meshes, a QP (src/step/contact_step.c). */
+gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol);
+/* Free the contact solve's scratch (sys->solver). */
+void gsi_contact_free(gs_system *sys);
+/* Free the plan's arrays. */
+void gsi_plan_free(gs_step_plan *p, int n_bodies);
+/* Allocate the plan for the system's bodies. */
+gs_err gsi_plan_new(gs_system *sys);
+/* Position of mesh node `node` in body i's plan list, -1 if absent. */
+int gsi_plan_find(const gs_step_plan *p, int body, gs_index node);
+
+#endif

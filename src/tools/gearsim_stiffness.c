@@ -1,0 +1,198 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim-stiffness: quasi-static mesh stiffness and static transmission
+ * error of one gear mesh of a scene over one mesh cycle
+ * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ *
+ *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
+ *                     [--refine R] [--driver 0|1] [--phase P] [--no-tangent]
+ *                     [--json] [--out FILE.h5]
+ *
+ * --mesh defaults to the scene's first mesh; --positions to 24; --torque
+ * (N m, signed, on the driver) to the scene's load on the driver or a
+ * 200 N/mm line load; --refine to the scene's mesh density; --driver to
+ * gear 0 of the mesh. Without --json prints a table (one row per roll
+ * position) and a summary; with --json one JSON object (keys documented in
+ * docs/STIFFNESS.md). Exit status 0 on success, 1 on bad usage, 2 on an
+ * error (message on stderr naming the field). Not an MPI program. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <json-c/json.h>
+
+#include "gearsim/scene.h"
+#include "gearsim/stiffness.h"
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
+               "                         [--refine R] [--driver 0|1] [--phase P] [--no-tangent]\n"
+               "                         [--json] [--out FILE.h5]\n");
+}
+
+static bool parse_long(const char *s, long lo, long hi, long *v)
+{
+    char *end;
+    long x = strtol(s, &end, 10);
+    if (*s == '\0' || *end || x < lo || x > hi)
+        return false;
+    *v = x;
+    return true;
+}
+
+static bool parse_double(const char *s, double *v)
+{
+    char *end;
+    double x = strtod(s, &end);
+    if (*s == '\0' || *end || !isfinite(x))
+        return false;
+    *v = x;
+    return true;
+}
+
+static void print_json(const gs_stiffness_result *r, const gs_scene *s)
+{
+    json_object *o = gs_stiffness_json(r, s);
+    printf("%s\n", json_object_to_json_string_ext(o, JSON_C_TO_STRING_PLAIN));
+    json_object_put(o);
+}
+
+static void print_table(const gs_stiffness_result *r, const gs_scene *s)
+{
+    printf("mesh %s: driver %s (z=%d), driven %s (z=%d), T = %.4g N m, F = %.1f N, b = %.3g mm, "
+           "contact ratio %.3f, nodes %lld + %lld\n",
+           r->mesh_name, s->bodies[r->body[0]].name, r->teeth[0], s->bodies[r->body[1]].name,
+           r->teeth[1], r->torque_nm, r->force_n, r->face_width_mm, r->contact_ratio,
+           (long long)r->nodes[0], (long long)r->nodes[1]);
+    printf("%6s %9s %10s %10s %9s %12s %12s %5s  %s\n", "roll", "angle", "TE", "TE0", "k", "k_tan",
+           "", "pairs", "pair forces (driver tooth/driven tooth: N)");
+    printf("%6s %9s %10s %10s %9s %12s %12s %5s\n", "", "deg", "um", "um", "N/mm/um", "N/mm/um",
+           "", "");
+    for (int j = 0; j < r->positions; j++) {
+        const gs_stiffness_point *p = &r->pt[j];
+        printf("%6.3f %9.4f %10.4f %10.4f %9.4f %12.4f %12s %5d ", p->roll,
+               p->angle_rad * 180.0 / 3.14159265358979323846, p->te_um, p->te0_um, p->k, p->k_tan,
+               p->converged ? "" : "(unconv.)", p->pairs);
+        for (int k = 0; k < p->n_pair; k++)
+            printf(" %d/%d:%.0f", p->pair[k].tooth[0], p->pair[k].tooth[1], p->pair[k].force_n);
+        printf("\n");
+    }
+    printf("k  min %.4f  mean %.4f  max %.4f N/(mm um)   (tangent mean %.4f)\n", r->k_min,
+           r->k_mean, r->k_max, r->k_tan_mean);
+    printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um\n", r->te_min, r->te_mean,
+           r->te_max, r->te_max - r->te_min);
+    printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
+           r->solves);
+}
+
+int main(int argc, char **argv)
+{
+    const char *scene_path = NULL, *mesh = NULL, *out = NULL;
+    int json = 0;
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    for (int i = 1; i < argc; i++) {
+        long v;
+        const char *a = argv[i];
+        bool has = i + 1 < argc;
+        if (!strcmp(a, "--mesh") && has)
+            mesh = argv[++i];
+        else if (!strcmp(a, "--out") && has)
+            out = argv[++i];
+        else if (!strcmp(a, "--positions") && has) {
+            if (!parse_long(argv[++i], 1, 100000, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --positions must be 1..100000\n");
+                return 1;
+            }
+            o.positions = (int)v;
+        } else if (!strcmp(a, "--refine") && has) {
+            if (!parse_long(argv[++i], 0, 6, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --refine must be 0..6\n");
+                return 1;
+            }
+            o.refine = (int)v;
+        } else if (!strcmp(a, "--driver") && has) {
+            if (!parse_long(argv[++i], 0, 1, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --driver must be 0 or 1\n");
+                return 1;
+            }
+            o.driver = (int)v;
+        } else if (!strcmp(a, "--torque") && has) {
+            if (!parse_double(argv[++i], &o.torque_nm) || o.torque_nm == 0.0) {
+                fprintf(stderr, "gearsim-stiffness: --torque must be a non-zero number (N m)\n");
+                return 1;
+            }
+        } else if (!strcmp(a, "--phase") && has) {
+            if (!parse_double(argv[++i], &o.phase)) {
+                fprintf(stderr, "gearsim-stiffness: --phase must be a number (pitches)\n");
+                return 1;
+            }
+        } else if (!strcmp(a, "--no-tangent"))
+            o.tangent = 0;
+        else if (!strcmp(a, "--json"))
+            json = 1;
+        else if (!strcmp(a, "-h") || !strcmp(a, "--help")) {
+            usage(stdout);
+            return 0;
+        } else if (a[0] != '-' && !scene_path)
+            scene_path = a;
+        else {
+            usage(stderr);
+            return 1;
+        }
+    }
+    if (!scene_path) {
+        usage(stderr);
+        return 1;
+    }
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_scene *s = NULL;
+    gs_err e = gs_scene_load_file(scene_path, &s, &d);
+    if (e != GS_OK) {
+        fprintf(stderr, "gearsim-stiffness: %s: %s: %s (%s)\n", scene_path, d.field, d.message,
+                gs_errcode(e));
+        return 2;
+    }
+    int mi = s->n_meshes > 0 ? 0 : -1;
+    if (mesh) {
+        mi = -1;
+        for (int k = 0; k < s->n_meshes; k++)
+            if (!strcmp(s->meshes[k].name, mesh))
+                mi = k;
+    }
+    if (mi < 0) {
+        fprintf(stderr, "gearsim-stiffness: %s: meshes: no mesh named '%s' (not_found)\n",
+                scene_path, mesh ? mesh : "");
+        gs_scene_free(&s);
+        return 2;
+    }
+    gs_stiffness_result r;
+    gs_diag_clear(&d);
+    e = gs_stiffness_analyse(s, mi, &o, &r, &d);
+    if (e != GS_OK) {
+        fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
+        gs_scene_free(&s);
+        return 2;
+    }
+    int rc = 0;
+    if (out) {
+        gs_diag_clear(&d);
+        e = gs_stiffness_write_h5(out, s, &r, &d);
+        if (e != GS_OK) {
+            fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
+            rc = 2;
+        }
+    }
+    if (json)
+        print_json(&r, s);
+    else {
+        print_table(&r, s);
+        if (out && rc == 0)
+            printf("wrote %s\n", out);
+    }
+    gs_stiffness_result_clear(&r);
+    gs_scene_free(&s);
+    return rc;
+}

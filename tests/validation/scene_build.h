@@ -1,0 +1,41 @@
+/* SPDX-License-Identifier: MIT
+ * Shared by the validation tests: a system from an (edited) builtin scene.
+ * Include after cmocka.h. */
+#ifndef GEARSIM_TESTS_SCENE_BUILD_H
+#define GEARSIM_TESTS_SCENE_BUILD_H
+
+#include <json-c/json.h>
+#include <string.h>
+
+#include "gearsim/step.h"
+
+/* The builtin scene `name` as a JSON tree to edit (the caller passes it on
+ * to vt_system). */
+static inline json_object *vt_scene(const char *name)
+{
+    json_object *root = json_tokener_parse(gs_scene_builtin(name));
+    assert_non_null(root);
+    return root;
+}
+
+/* Parse and build the system on one rank; consumes root. Fails the test
+ * with the diagnostic on any error. */
+static inline gs_system *vt_system(json_object *root)
+{
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc;
+    gs_diag d;
+    gs_err e = gs_scene_parse(txt, strlen(txt), &sc, &d);
+    if (e != GS_OK)
+        print_error("scene: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    json_object_put(root);
+    gs_system *sys;
+    e = gs_system_new(sc, 0, 1, &sys, &d);
+    if (e != GS_OK)
+        print_error("system: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    return sys;
+}
+
+#endif
