@@ -32,6 +32,17 @@ typedef enum {
 
 typedef struct gs_engine gs_engine;
 
+/* Where a rank's time goes, summed over the steps since load (s). On rank 0:
+ * prepare = contact search and plan; records = its bodies' condensation
+ * (free-motion solves, compliance blocks); reduce and bcast = the two
+ * collectives of a step (waiting for the slowest owner included); solve =
+ * the coupled problem (Newton or QP); apply = back-substitution and the end
+ * of its bodies' steps; sync = energy reports and field gathering. */
+typedef struct gs_step_timing {
+    double prepare, records, reduce, solve, bcast, apply, sync;
+    int64_t steps;
+} gs_step_timing;
+
 /* Called on rank 0 after every step of a GS_OP_STEP; return false to stop
  * the chunk early (cancel). */
 typedef bool (*gs_engine_step_hook)(gs_engine *e, void *user);
@@ -56,6 +67,9 @@ gs_err gs_engine_serve(gs_engine *e);
  * state of their own (elastic) on other ranks this broadcasts an operation:
  * call it only where gs_engine_run may be called. */
 gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len);
+
+/* This rank's timing breakdown since load. */
+void gs_engine_timing(const gs_engine *e, gs_step_timing *out);
 
 /* Rank 0: the field snapshot of body `body` gathered after the current step
  * (u: 2 n nodal displacements, body frame, then vm: n nodal von Mises

@@ -44,8 +44,13 @@ typedef struct gs_scene_body {
     int carrier;               /* body index, on_carrier */
     double carrier_radius;     /* m */
     double carrier_angle;      /* rad */
+    /* manufacturing errors */
+    double pin_error[2];       /* m: radial, tangential error of a planet's pin (on_carrier) */
+    int pitch_error_tooth;     /* tooth whose flanks are displaced along the pitch circle, -1 none */
+    double pitch_error;        /* m, counter-clockwise */
     /* initial state */
     double angle0, omega0;
+    bool angle_given;          /* angle0 from the scene (else contact meshes phase the gear) */
     double tip_load;           /* N: elastic bodies start in the static deflection under a
                                 * tangential load on the tip of tooth 0 (0: undeformed) */
 } gs_scene_body;

@@ -21,7 +21,8 @@ struct gs_body_rt {
     const gs_body_ops *ops;
     void *model;             /* model data (elastic: FE body) */
     double T, V;             /* kinetic and potential energy of the body's own state,
-                              * as the owner last reported it (gs_system_sync_energy) */
+                              * as the owner last reported it (gs_system_energy_adopt) */
+    double work_s;           /* seconds its owner spent in its interface and finish, summed */
 };
 
 struct gs_gmesh_rt {
@@ -130,8 +131,9 @@ static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
  * contribute what their owner last reported in b->T, b->V: after a step on
  * several ranks, call gs_system_sync_energy (collective in the engine) first. */
 void gs_system_energy(const gs_system *sys, gs_energy *e);
-/* Owner side of the energy report: b->T, b->V of this rank's bodies with own
- * state into buf (2 per body, zeros elsewhere), for a sum over ranks. */
+/* Owner side of the energy report: b->T, b->V and b->work_s of this rank's
+ * bodies with own state into buf (3 per body, zeros elsewhere), for a sum
+ * over ranks. */
 void gs_system_energy_report(const gs_system *sys, double *buf);
 /* Adopt the summed report on every rank. */
 void gs_system_energy_adopt(gs_system *sys, const double *buf);
@@ -139,6 +141,11 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf);
  * snapshots need the owners. */
 bool gs_system_has_body_state(const gs_system *sys);
 double gs_system_rpm(const gs_system *sys, int body);
+/* Planet load sharing: for each planet meshing a sun (at most max), its
+ * body index and its share of the sun's transmitted force, normalised so
+ * that equal sharing is 1 for every planet (force of its sun mesh in the
+ * last step times the number of planets over their sum). Returns the count. */
+int gs_system_planet_shares(const gs_system *sys, int *planet, double *share, int max);
 /* Axis position (scene frame, m) and rotation (rad) of a body now. */
 void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta);
 double gs_system_angle(const gs_system *sys, int body);

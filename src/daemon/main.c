@@ -1,6 +1,8 @@
 /* SPDX-License-Identifier: MIT
  * gearsimd: the daemon. Rank 0 serves ZeroMQ (src/service); every other rank
  * executes the engine's operations as rank 0 broadcasts them (src/dist). */
+#include <ctype.h>
+#include <errno.h>
 #include <getopt.h>
 #include <mpi.h>
 #include <stdio.h>
@@ -10,15 +12,110 @@
 
 #include "gearsim/engine.h"
 #include "gearsim/service.h"
+#include "service/auth.h"
 
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: gearsimd [--connection-file PATH] [--data-dir DIR] [--bind ADDR]\n"
-            "                [--command-port N] [--telemetry-port N]\n"
+            "usage: gearsimd [--config FILE] [--connection-file PATH] [--data-dir DIR]\n"
+            "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
+            "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
-            "/tmp/gearsim-$UID/gearsimd.json).\n");
+            "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
+            "server's secret key file and the client public keys allowed (files of\n"
+            "`gearctl keys`). --config reads `key = value` lines whose keys are the\n"
+            "long options without '--' (deploy/gearsimd.conf); flags given on the\n"
+            "command line win over the file.\n");
+}
+
+typedef struct daemon_opts {
+    gs_service_config cfg;
+    const char *curve_key, *curve_allow;
+} daemon_opts;
+
+static int set_port(const char *v, int *out)
+{
+    char *end;
+    errno = 0;
+    long p = strtol(v, &end, 10);
+    if (errno || end == v || *end || p < 0 || p > 65535)
+        return -1;
+    *out = (int)p;
+    return 0;
+}
+
+/* One option by its long name; 0, or -1 when the name or value is bad. */
+static int set_option(daemon_opts *o, const char *name, const char *v)
+{
+    if (!strcmp(name, "connection-file"))
+        o->cfg.connection_file = v;
+    else if (!strcmp(name, "data-dir"))
+        o->cfg.data_dir = v;
+    else if (!strcmp(name, "bind"))
+        o->cfg.bind = v;
+    else if (!strcmp(name, "command-port"))
+        return set_port(v, &o->cfg.command_port);
+    else if (!strcmp(name, "telemetry-port"))
+        return set_port(v, &o->cfg.telemetry_port);
+    else if (!strcmp(name, "curve-server-key"))
+        o->curve_key = v;
+    else if (!strcmp(name, "curve-allow"))
+        o->curve_allow = v;
+    else
+        return -1;
+    return 0;
+}
+
+/* `key = value` lines; '#' starts a comment line; values may be quoted with
+ * double quotes. The strings are kept for the life of the process. */
+static int read_config(daemon_opts *o, const char *path, int rank)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        if (rank == 0)
+            fprintf(stderr, "gearsimd: cannot read the configuration file '%s': %s\n", path, strerror(errno));
+        return -1;
+    }
+    char line[4096];
+    int lineno = 0, bad = 0;
+    while (fgets(line, sizeof line, f)) {
+        lineno++;
+        char *l = line, *end;
+        while (isspace((unsigned char)*l))
+            l++;
+        if (!*l || *l == '#')
+            continue;
+        char *eq = strchr(l, '=');
+        if (!eq) {
+            bad = 1;
+            if (rank == 0)
+                fprintf(stderr, "gearsimd: %s:%d: expected 'key = value'\n", path, lineno);
+            continue;
+        }
+        *eq = '\0';
+        char *v = eq + 1;
+        for (end = eq; end > l && isspace((unsigned char)end[-1]); end--)
+            end[-1] = '\0';
+        while (isspace((unsigned char)*v))
+            v++;
+        for (end = v + strlen(v); end > v && isspace((unsigned char)end[-1]); end--)
+            end[-1] = '\0';
+        size_t n = strlen(v);
+        if (n >= 2 && v[0] == '"' && v[n - 1] == '"') {
+            v[n - 1] = '\0';
+            v++;
+        }
+        char *copy = strdup(v);
+        if (!copy || set_option(o, l, copy) != 0) {
+            bad = 1;
+            if (rank == 0)
+                fprintf(stderr, "gearsimd: %s:%d: unknown key or bad value '%s = %s'\n", path, lineno, l, v);
+            free(copy);
+        }
+    }
+    fclose(f);
+    return bad ? -1 : 0;
 }
 
 int main(int argc, char **argv)
@@ -33,20 +130,38 @@ int main(int argc, char **argv)
         snprintf(conn, sizeof conn, "%s/gearsim/gearsimd.json", xdg);
     else
         snprintf(conn, sizeof conn, "/tmp/gearsim-%u/gearsimd.json", (unsigned)getuid());
-    gs_service_config cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"};
+    daemon_opts o = {.cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"}};
     static const struct option opts[] = {
         {"connection-file", required_argument, 0, 'c'}, {"data-dir", required_argument, 0, 'd'},
         {"bind", required_argument, 0, 'b'},            {"command-port", required_argument, 0, 'p'},
         {"telemetry-port", required_argument, 0, 't'},  {"help", no_argument, 0, 'h'},
-        {0, 0, 0, 0}};
+        {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
+        {"curve-allow", required_argument, 0, 'a'},     {0, 0, 0, 0}};
     int c, bad = 0;
+    /* The configuration file first, so that command-line flags win. */
+    for (int i = 1; i < argc; i++) {
+        const char *path = NULL;
+        if (!strcmp(argv[i], "--config") && i + 1 < argc)
+            path = argv[i + 1];
+        else if (!strncmp(argv[i], "--config=", 9))
+            path = argv[i] + 9;
+        if (path && read_config(&o, path, rank) != 0)
+            bad = 1;
+    }
     while ((c = getopt_long(argc, argv, "c:d:b:p:t:h", opts, NULL)) != -1) {
+        int idx = -1;
+        for (int i = 0; opts[i].name; i++)
+            if (opts[i].val == c)
+                idx = i;
         switch (c) {
-        case 'c': cfg.connection_file = optarg; break;
-        case 'd': cfg.data_dir = optarg; break;
-        case 'b': cfg.bind = optarg; break;
-        case 'p': cfg.command_port = atoi(optarg); break;
-        case 't': cfg.telemetry_port = atoi(optarg); break;
+        case 'f': break;
+        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a':
+            if (set_option(&o, opts[idx].name, optarg) != 0) {
+                if (rank == 0)
+                    fprintf(stderr, "gearsimd: bad value '%s' for --%s\n", optarg, opts[idx].name);
+                bad = 1;
+            }
+            break;
         case 'h':
             if (rank == 0)
                 usage(stdout);
@@ -61,10 +176,24 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return 2;
     }
+    /* CURVE keys are read on rank 0; every rank learns whether they were good. */
+    int key_ok = 1;
+    if (rank == 0 && (o.curve_key || o.curve_allow)) {
+        char err[512];
+        if (gs_service_set_curve(o.curve_key, o.curve_allow, err, sizeof err) != 0) {
+            fprintf(stderr, "gearsimd: %s\n", err);
+            key_ok = 0;
+        }
+    }
+    MPI_Bcast(&key_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (!key_ok) {
+        MPI_Finalize();
+        return 2;
+    }
     gs_engine *eng;
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);
-    gs_err e = rank == 0 ? gs_service_run(eng, &cfg) : gs_engine_serve(eng);
+    gs_err e = rank == 0 ? gs_service_run(eng, &o.cfg) : gs_engine_serve(eng);
     gs_engine_free(&eng);
     MPI_Finalize();
     return e == GS_OK ? 0 : 1;

@@ -21,6 +21,7 @@ struct gs_engine {
     int64_t field_step;     /* step of the fields held, -1 none */
     double *states;         /* rank 0: gathered body states for a snapshot */
     size_t n_states;
+    gs_step_timing timing;  /* this rank's, since load */
 };
 
 gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
@@ -61,7 +62,7 @@ static gs_err sync_energy(gs_engine *e, gs_err err)
         return err;
     /* The last slot carries a failure of any owner, so that every rank stops
      * at the same step. */
-    int n = 2 * s->n_bodies;
+    int n = 3 * s->n_bodies;
     gs_system_energy_report(s, e->ebuf);
     e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
     MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1, MPI_DOUBLE, MPI_SUM, e->comm);
@@ -204,9 +205,10 @@ static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
     e->sol_n = sys->plan.sol_size + 1;
     e->rec = gs_calloc(e->rec_n, sizeof(double));
     e->sol = gs_calloc(e->sol_n, sizeof(double));
-    e->ebuf = gs_calloc((size_t)(2 * sys->n_bodies + 1), sizeof(double));
+    e->ebuf = gs_calloc((size_t)(3 * sys->n_bodies + 1), sizeof(double));
     e->field = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
     e->field_step = -1;
+    memset(&e->timing, 0, sizeof e->timing);
     if (!e->rec || !e->sol || !e->ebuf || !e->field) {
         unload(e);
         return GS_ENOMEM;
@@ -254,6 +256,8 @@ static gs_err reserve(gs_engine *e)
 static gs_err dist_step(gs_engine *e)
 {
     gs_system *s = e->sys;
+    gs_step_timing *tm = &e->timing;
+    double t0 = gs_now(), t1;
     /* The plan is the same on every rank (contact search from the rigid
      * state); a failure there is too, so ranks stay in step. */
     gs_err err = gs_step_prepare(s);
@@ -268,27 +272,48 @@ static gs_err dist_step(gs_engine *e)
         return err;
     }
     int rn = (int)s->plan.rec_size, n = (int)s->plan.sol_size;
+    t1 = gs_now();
+    tm->prepare += t1 - t0;
     gs_step_records(s, e->rec);
+    t0 = gs_now();
+    tm->records += t0 - t1;
     if (e->size > 1) {
         if (e->rank == 0)
             MPI_Reduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
         else
             MPI_Reduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
     }
+    t1 = gs_now();
+    tm->reduce += t1 - t0;
     if (e->rank == 0) {
         err = gs_step_solve(s, e->rec, e->sol);
         e->sol[n] = (double)err;
     }
+    t0 = gs_now();
+    tm->solve += t0 - t1;
     if (e->size > 1)
         MPI_Bcast(e->sol, n + 1, MPI_DOUBLE, 0, e->comm);
+    t1 = gs_now();
+    tm->bcast += t1 - t0;
     err = (gs_err)(int)e->sol[n];
     if (err != GS_OK)
         return err;
-    err = sync_energy(e, gs_step_apply(s, e->sol));
+    err = gs_step_apply(s, e->sol);
+    t0 = gs_now();
+    tm->apply += t0 - t1;
+    err = sync_energy(e, err);
     int fe = s->scene->fields_every;
     if (fe > 0 && s->step % fe == 0)
         gather_fields(e);
+    t1 = gs_now();
+    tm->sync += t1 - t0;
+    tm->steps++;
     return err;
+}
+
+void gs_engine_timing(const gs_engine *e, gs_step_timing *out)
+{
+    *out = e->timing;
 }
 
 static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)

@@ -19,14 +19,14 @@
 #define DEG (GS_PI / 180.0)
 
 static const char *const top_keys[] = {"name", "bodies", "joints", "meshes", "loads",
-                                       "numerics", "initial", "outputs", "description", NULL};
+                                       "numerics", "initial", "outputs", "description", "fidelity", NULL};
 static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
-    "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", NULL};
+    "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error", NULL};
 static const char *const material_keys[] = {"E", "nu", "density", "plane", NULL};
 static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
-                                         "angle_deg", NULL};
+                                         "angle_deg", "pin_error_um", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", NULL};
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
@@ -136,6 +136,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     b->model = (gs_body_model)m;
     b->material = gs_material_steel();
     b->mesh = (gs_mesh_density){8, 4, 3, 0, 2.0};
+    b->pitch_error_tooth = -1;
     double x;
     b->mass_given = json_object_object_get_ex(o, "mass", NULL);
     b->inertia_given = json_object_object_get_ex(o, "inertia", NULL);
@@ -144,7 +145,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     if (b->type == GS_BODY_CARRIER) {
         static const char *const gear_only[] = {"kind", "teeth", "module_mm", "pressure_angle_deg",
             "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm", "face_width_mm",
-            "hub_radius_mm", "material", "mesh", NULL};
+            "hub_radius_mm", "material", "mesh", "pitch_error", NULL};
         for (const char *const *k = gear_only; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 char p[256];
@@ -216,6 +217,19 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         b->mesh.refine = (int)v;
         GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, 2.0, &b->mesh.grading, d));
     }
+    json_object *pe;
+    GS_TRY(gsi_json_object(o, "pitch_error", path, false, &pe, d));
+    if (pe) {
+        static const char *const pe_keys[] = {"tooth", "error_um", NULL};
+        char pp[256];
+        int64_t t;
+        gsi_path(pp, sizeof pp, path, "pitch_error");
+        GS_TRY(gsi_json_only(pe, pp, pe_keys, d));
+        GS_TRY(gsi_json_int(pe, "tooth", pp, 0, g->teeth - 1, true, 0, &t, d));
+        GS_TRY(gsi_json_number(pe, "error_um", pp, -1000, 1000, true, 0, &x, d));
+        b->pitch_error_tooth = (int)t;
+        b->pitch_error = x * 1e-6;
+    }
     GS_TRY(prefix_diag(gs_gear_validate(g, d), d, path));
     double mass, inertia;
     GS_TRY(prefix_diag(gs_gear_mass_properties(g, b->material.density, &mass, &inertia), d, path));
@@ -260,7 +274,7 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
             b->centre[0] = x * 1e-3;
             b->centre[1] = y * 1e-3;
         }
-        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", NULL};
+        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", "pin_error_um", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
@@ -282,8 +296,26 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
         GS_TRY(gsi_json_number(o, "angle_deg", path, -3600, 3600, false, 0, &a, d));
         b->carrier_radius = r * 1e-3;
         b->carrier_angle = a * DEG;
+        json_object *pe;
+        GS_TRY(gsi_json_array(o, "pin_error_um", path, false, &pe, d));
+        if (pe) {
+            gsi_path(p, sizeof p, path, "pin_error_um");
+            double er, et;
+            if (json_object_array_length(pe) != 2 ||
+                !gsi_json_as_double(json_object_array_get_idx(pe, 0), &er) ||
+                !gsi_json_as_double(json_object_array_get_idx(pe, 1), &et) || fabs(er) > 1000 ||
+                fabs(et) > 1000)
+                return gs_diag_set(d, GS_ESCHEMA, p,
+                                   "'pin_error_um' must be [radial, tangential], finite numbers within 1000 um");
+            /* The pin sits off its nominal position: radially outwards by er,
+             * counter-clockwise along the carrier circle by et. */
+            b->pin_error[0] = er * 1e-6;
+            b->pin_error[1] = et * 1e-6;
+            b->carrier_radius += b->pin_error[0];
+            b->carrier_angle += b->pin_error[1] / b->carrier_radius;
+        }
     } else {
-        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", "centre_mm", NULL};
+        static const char *const no[] = {"carrier", "radius_mm", "angle_deg", "centre_mm", "pin_error_um", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
@@ -585,11 +617,69 @@ gs_err gs_scene_parse(const char *text, size_t len, gs_scene **out, gs_diag *d)
     return e;
 }
 
+/* `fidelity` switches a whole scene along the ladder with one field
+ * (METHOD.md section 7): every gear's body model and every mesh's model
+ * are set, and the model-specific mesh fields dropped (the chosen model's
+ * defaults apply). Works on a copy: *out is the tree to validate (root
+ * itself, or a new tree the caller frees when *copy is set). */
+static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, gs_diag *d)
+{
+    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact"};
+    *out = root;
+    *copy = false;
+    int lv;
+    GS_TRY(enum_field(root, "fidelity", "", "as_given", levels, 4, &lv, d));
+    if (lv == 0)
+        return GS_OK;
+    json_object *c = NULL;
+    if (json_object_deep_copy(root, &c, NULL) != 0 || !c)
+        return GS_ENOMEM;
+    json_object *bs = NULL, *ms = NULL;
+    if (json_object_object_get_ex(c, "bodies", &bs) && json_object_get_type(bs) == json_type_array)
+        for (size_t i = 0; i < json_object_array_length(bs); i++) {
+            json_object *b = json_object_array_get_idx(bs, i), *t = NULL;
+            if (json_object_get_type(b) != json_type_object)
+                continue;
+            bool carrier = json_object_object_get_ex(b, "type", &t) &&
+                           json_object_get_type(t) == json_type_string &&
+                           !strcmp(json_object_get_string(t), "carrier");
+            if (!carrier)
+                json_object_object_add(b, "model", json_object_new_string(lv == 3 ? "elastic" : "rigid"));
+        }
+    if (json_object_object_get_ex(c, "meshes", &ms) && json_object_get_type(ms) == json_type_array)
+        for (size_t i = 0; i < json_object_array_length(ms); i++) {
+            json_object *m = json_object_array_get_idx(ms, i);
+            if (json_object_get_type(m) != json_type_object)
+                continue;
+            static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm",
+                                               "passes", "constrain", NULL};
+            for (const char *const *k = drop; *k; k++)
+                json_object_object_del(m, *k);
+            json_object_object_add(m, "model", json_object_new_string(levels[lv]));
+        }
+    *out = c;
+    *copy = true;
+    return GS_OK;
+}
+
+static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d);
+
 gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
 {
     *out = NULL;
     if (json_object_get_type(root) != json_type_object)
         return gs_diag_set(d, GS_ESCHEMA, "", "a scene must be a JSON object");
+    json_object *tree;
+    bool copy;
+    GS_TRY(apply_fidelity(root, &tree, &copy, d));
+    gs_err e = scene_from_json(tree, out, d);
+    if (copy)
+        json_object_put(tree);
+    return e;
+}
+
+static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
+{
     gs_err e = gsi_json_only(root, "", top_keys, d);
     if (e)
         return e;
@@ -734,6 +824,7 @@ gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
             gs_scene_body *b = &s->bodies[bi];
             double rpm;
             CHECK(gsi_json_number(val, "angle", p, -1e6, 1e6, false, 0, &b->angle0, d));
+            b->angle_given = json_object_object_get_ex(val, "angle", NULL);
             CHECK(gsi_json_number(val, "omega", p, -1e6, 1e6, false, 0, &b->omega0, d));
             CHECK(gsi_json_number(val, "speed_rpm", p, -1e7, 1e7, false, b->omega0 * GS_RPM_PER_RAD_S, &rpm, d));
             b->omega0 = rpm / GS_RPM_PER_RAD_S;

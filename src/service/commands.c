@@ -330,6 +330,28 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     json_object_object_add(t, "step_seconds", json_object_new_double(s->timing_step));
     json_object_object_add(t, "telemetry_seconds", json_object_new_double(s->timing_telemetry));
     json_object_object_add(t, "record_seconds", json_object_new_double(s->timing_record));
+    gs_system *tsys = gs_engine_system(s->eng);
+    if (tsys) {
+        /* The step's breakdown on rank 0, and each body's work on its owner. */
+        gs_step_timing st;
+        gs_engine_timing(s->eng, &st);
+        json_object *b = json_object_new_object();
+        json_object_object_add(b, "steps", json_object_new_int64(st.steps));
+        const char *names[] = {"prepare", "records", "reduce", "solve", "bcast", "apply", "sync"};
+        double v[] = {st.prepare, st.records, st.reduce, st.solve, st.bcast, st.apply, st.sync};
+        for (int i = 0; i < 7; i++)
+            json_object_object_add(b, names[i], json_object_new_double(v[i]));
+        json_object_object_add(t, "breakdown", b);
+        json_object *bw = json_object_new_array();
+        for (int i = 0; i < tsys->n_bodies; i++) {
+            json_object *w = json_object_new_object();
+            json_object_object_add(w, "name", json_object_new_string(tsys->scene->bodies[i].name));
+            json_object_object_add(w, "rank", json_object_new_int(tsys->bodies[i].owner));
+            json_object_object_add(w, "work_seconds", json_object_new_double(tsys->bodies[i].work_s));
+            json_object_array_add(bw, w);
+        }
+        json_object_object_add(t, "bodies", bw);
+    }
     json_object_object_add(o, "timing", t);
     *res = o;
     return GS_OK;

@@ -17,6 +17,7 @@
 
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "service/auth.h"
 #include "service/service_internal.h"
 
 static volatile sig_atomic_t stop_signal = 0;
@@ -40,6 +41,10 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     json_object_object_foreach(o, k, v) json_object_object_add(ev, k, json_object_get(v));
     json_object_put(o);
     const char *txt = json_object_to_json_string_ext(ev, JSON_C_TO_STRING_PLAIN);
+    if (!s->pub) { /* socket-free use (tests/fuzz) */
+        json_object_put(ev);
+        return;
+    }
     /* A slow subscriber never slows the simulation: drop on a full queue. */
     zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
     zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
@@ -92,6 +97,19 @@ json_object *gsi_state_json(gs_service *s)
         json_object_array_add(meshes, j);
     }
     json_object_object_add(o, "meshes", meshes);
+    int planet[64];
+    double share[64];
+    int np = gs_system_planet_shares(sys, planet, share, 64);
+    if (np > 0) {
+        json_object *ps = json_object_new_array();
+        for (int i = 0; i < np; i++) {
+            json_object *j = json_object_new_object();
+            json_object_object_add(j, "name", json_object_new_string(sys->scene->bodies[planet[i]].name));
+            json_object_object_add(j, "share", json_object_new_double(share[i]));
+            json_object_array_add(ps, j);
+        }
+        json_object_object_add(o, "planets", ps);
+    }
     return o;
 }
 
@@ -289,10 +307,9 @@ static json_object *error_reply(json_object *id, gs_err e, const gs_diag *d)
     return r;
 }
 
-static void cache_key(char *out, size_t cap, zmq_msg_t *ident, const char *id)
+static void cache_key(char *out, size_t cap, const unsigned char *b, size_t n, const char *id)
 {
-    const unsigned char *b = zmq_msg_data(ident);
-    size_t n = zmq_msg_size(ident), k = 0;
+    size_t k = 0;
     for (size_t i = 0; i < n && k + 3 < cap; i++)
         k += (size_t)snprintf(out + k, cap - k, "%02x", b[i]);
     snprintf(out + k, cap - k, "/%s", id);
@@ -316,8 +333,8 @@ static void cache_put(gs_service *s, const char *key, const char *reply)
 }
 
 /* Validate the envelope, dispatch, reply. Never fails: bad input is answered. */
-static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const char *data, size_t len,
-                           bool too_big)
+char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t who_len, const char *data,
+                              size_t len, bool too_big)
 {
     gs_diag d;
     gs_diag_clear(&d);
@@ -383,13 +400,12 @@ static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const ch
         e = gs_diag_set(&d, GS_ERANGE, "id", "'id' must have 1 to 128 characters");
         goto answer;
     }
-    char key[320];
-    cache_key(key, sizeof key, ident, id);
+    char key[GSI_CACHE_KEY];
+    cache_key(key, sizeof key, who, who_len, id);
     const char *cached = cache_get(s, key);
     if (cached) {
-        send_reply(s, ident, delim, cached);
         json_object_put(req);
-        return;
+        return gs_strdup(cached);
     }
     json_object *cmdv, *args = NULL;
     if (!json_object_object_get_ex(req, "cmd", &cmdv) || json_object_get_type(cmdv) != json_type_string) {
@@ -433,13 +449,23 @@ answer:
         reply = error_reply(idv, e, &d);
     const char *txt = json_object_to_json_string_ext(reply, JSON_C_TO_STRING_PLAIN);
     if (idv && json_object_get_type(idv) == json_type_string && e != GS_ETOOBIG) {
-        char k2[320];
-        cache_key(k2, sizeof k2, ident, json_object_get_string(idv));
+        char k2[GSI_CACHE_KEY];
+        cache_key(k2, sizeof k2, who, who_len, json_object_get_string(idv));
         cache_put(s, k2, txt);
     }
-    send_reply(s, ident, delim, txt);
+    char *out = gs_strdup(txt);
     json_object_put(reply);
     json_object_put(req);
+    return out;
+}
+
+static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const char *data, size_t len,
+                           bool too_big)
+{
+    char *txt = gsi_handle_request_text(s, zmq_msg_data(ident), zmq_msg_size(ident), data, len, too_big);
+    if (txt)
+        send_reply(s, ident, delim, txt);
+    free(txt);
 }
 
 /* Receive one whole multipart message from the ROUTER and answer it. */
@@ -592,6 +618,8 @@ static gs_err write_connection_file(gs_service *s)
     json_object_object_add(o, "ranks", json_object_new_int(size));
     json_object_object_add(o, "version", json_object_new_string("0.1.0"));
     json_object_object_add(o, "data_dir", json_object_new_string(s->data_dir));
+    if (gsi_curve_enabled())
+        json_object_object_add(o, "curve_server_key", json_object_new_string(gsi_curve_server_public()));
     char tmp[PATH_MAX + 8];
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
     int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0600);
@@ -627,18 +655,14 @@ static gs_err bind_socket(void *sock, const char *bind, int port, char *out, siz
     return GS_OK;
 }
 
-gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
+gs_err gsi_service_init(gs_service *s, gs_engine *eng, const gs_service_config *cfg)
 {
-    gs_service *s = gs_calloc(1, sizeof *s);
-    if (!s)
-        return GS_ENOMEM;
     s->eng = eng;
     s->cfg = cfg;
     s->adv.job = -1;
     s->chunk_steps = 20;
     if (!realpath(cfg->data_dir ? cfg->data_dir : ".", s->data_dir)) {
         fprintf(stderr, "gearsimd: data directory '%s' does not exist\n", cfg->data_dir);
-        free(s);
         return GS_EIO;
     }
     FILE *ur = fopen("/dev/urandom", "rb");
@@ -652,6 +676,32 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     for (int i = 0; i < 16; i++)
         snprintf(s->session + 2 * i, 3, "%02x", rnd[i]);
     gs_engine_set_hook(eng, step_hook, s);
+    return GS_OK;
+}
+
+void gsi_service_release(gs_service *s)
+{
+    for (int i = 0; i < GSI_CACHE; i++) {
+        free(s->cache[i].reply);
+        s->cache[i].reply = NULL;
+    }
+    for (int i = 0; i < s->n_jobs; i++) {
+        free(s->jobs[i].scene_json);
+        json_object_put(s->jobs[i].schedule);
+    }
+    s->n_jobs = 0;
+}
+
+gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
+{
+    const char *bind = cfg->bind ? cfg->bind : "127.0.0.1";
+    gs_service *s = gs_calloc(1, sizeof *s);
+    if (!s)
+        return GS_ENOMEM;
+    if (gsi_service_init(s, eng, cfg) != GS_OK) {
+        free(s);
+        return GS_EIO;
+    }
 
     s->zctx = zmq_ctx_new();
     s->router = zmq_socket(s->zctx, ZMQ_ROUTER);
@@ -663,8 +713,25 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     zmq_setsockopt(s->pub, ZMQ_SNDHWM, &hwm, sizeof hwm);
     zmq_setsockopt(s->router, ZMQ_ROUTER_MANDATORY, &mandatory, sizeof mandatory);
     zmq_setsockopt(s->router, ZMQ_MAXMSGSIZE, &maxmsg, sizeof maxmsg);
-    const char *bind = cfg->bind ? cfg->bind : "127.0.0.1";
-    gs_err e = bind_socket(s->router, bind, cfg->command_port, s->cmd_endpoint, sizeof s->cmd_endpoint);
+    gs_err e = GS_OK;
+    if (!gs_bind_is_loopback(bind) && !gsi_curve_enabled()) {
+        /* Nothing is bound; the other ranks still get GS_OP_SHUTDOWN below. */
+        fprintf(stderr, "gearsimd: refusing to bind '%s' without CURVE: remote use needs "
+                        "--curve-server-key FILE and --curve-allow DIR_OR_FILE (gearctl keys)\n", bind);
+        e = GS_EINVAL;
+    } else if (gsi_curve_enabled()) {
+        /* The ZAP handler is bound before the sockets so that no client is
+         * ever let in unchecked. */
+        if (gsi_curve_start(s->zctx) != 0 || gsi_curve_apply(s->router) != 0 || gsi_curve_apply(s->pub) != 0) {
+            fprintf(stderr, "gearsimd: cannot set up CURVE: %s\n", zmq_strerror(errno));
+            e = GS_EIO;
+        } else {
+            fprintf(stderr, "gearsimd: CURVE on, server key %s, %d client key(s) allowed\n",
+                    gsi_curve_server_public(), gsi_curve_allowed_count());
+        }
+    }
+    if (e == GS_OK)
+        e = bind_socket(s->router, bind, cfg->command_port, s->cmd_endpoint, sizeof s->cmd_endpoint);
     if (e == GS_OK)
         e = bind_socket(s->pub, bind, cfg->telemetry_port, s->tel_endpoint, sizeof s->tel_endpoint);
     if (e == GS_OK && write_connection_file(s) != GS_OK) {
@@ -715,13 +782,9 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         unlink(cfg->connection_file);
     zmq_close(s->router);
     zmq_close(s->pub);
+    gsi_curve_stop(s->zctx);
     zmq_ctx_term(s->zctx);
-    for (int i = 0; i < GSI_CACHE; i++)
-        free(s->cache[i].reply);
-    for (int i = 0; i < s->n_jobs; i++) {
-        free(s->jobs[i].scene_json);
-        json_object_put(s->jobs[i].schedule);
-    }
+    gsi_service_release(s);
     free(s);
     return e;
 }

@@ -14,6 +14,8 @@
 #define GSI_MAX_STEPS_PER_ADVANCE 1000000000LL
 #define GSI_MAX_JOBS 64
 #define GSI_CACHE 4096
+/* identity (at most 255 bytes, hex) + '/' + id (at most 128) + NUL */
+#define GSI_CACHE_KEY (2 * 255 + 1 + 128 + 1)
 
 typedef enum { SVC_EMPTY, SVC_LOADED, SVC_RUNNING, SVC_PAUSED } svc_state;
 
@@ -37,7 +39,7 @@ typedef struct svc_advance {
 } svc_advance;
 
 typedef struct svc_cache_entry {
-    char key[320];          /* identity hex + '/' + id */
+    char key[GSI_CACHE_KEY]; /* identity hex + '/' + id */
     char *reply;
 } svc_cache_entry;
 
@@ -73,6 +75,18 @@ gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag
  * '..' components and symlinks that lead outside. */
 gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,
                         gs_diag *d);
+
+/* Socket-free core of the service (tests/fuzz drive it directly):
+ * gsi_service_init fills a zeroed gs_service (data directory, session,
+ * step hook) without sockets; gsi_handle_request_text answers one request
+ * text from client `who` (any bytes, the reply cache's key) and returns the
+ * reply text (malloc'd; NULL only when out of memory); gsi_service_release
+ * frees what the requests left (reply cache, jobs). Events are dropped while
+ * s->pub is NULL. */
+gs_err gsi_service_init(gs_service *s, gs_engine *eng, const gs_service_config *cfg);
+char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t who_len, const char *data,
+                              size_t len, bool too_big);
+void gsi_service_release(gs_service *s);
 
 /* Command table (commands.c). */
 typedef gs_err (*gsi_handler)(gs_service *s, json_object *args, const char *id,

@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "gearsim/step.h"
+#include "gearsim/util.h"
 #include "step_internal.h"
 
 /* Records of the bodies this rank owns (every body when `all`); the
@@ -28,7 +29,9 @@ static void records(gs_system *sys, double *rec, bool all)
         gs_body_rt *b = &sys->bodies[i];
         if (!all && b->owner != sys->rank)
             continue;
+        double t0 = gs_now();
         b->ops->interface(sys, b, sys->h, rec + sys->plan.rec_off[i]);
+        b->work_s += gs_now() - t0;
     }
 }
 
@@ -196,7 +199,9 @@ static gs_err finish(gs_system *sys, const double *sol, bool all)
         gs_body_rt *b = &sys->bodies[i];
         if ((!all && b->owner != sys->rank) || !b->ops->finish)
             continue;
+        double t0 = gs_now();
         gs_err e = b->ops->finish(sys, b, sol + sys->plan.sol_off[i]);
+        b->work_s += gs_now() - t0;
         if (err == GS_OK)
             err = e;
     }

@@ -40,22 +40,41 @@ void gs_system_free(gs_system **ps)
     *ps = NULL;
 }
 
-/* Work weight of a body for balancing ranks: elastic bodies cost far more. */
+/* Work weight of a body for balancing ranks: an elastic gear costs about
+ * in proportion to its elements (teeth x element counts x 4^refine), a rigid
+ * body almost nothing. */
 static double body_weight(const gs_scene_body *b)
 {
-    if (b->model == GS_MODEL_ELASTIC)
-        return 100.0;
+    if (b->model == GS_MODEL_ELASTIC) {
+        const gs_mesh_density *m = &b->mesh;
+        double per_tooth = (double)m->flank * m->across + (double)m->rim * (m->across + m->flank);
+        return 1.0 + b->gear.teeth * per_tooth * (double)(1 << (2 * m->refine));
+    }
     return b->joint == GS_JOINT_HELD ? 0.1 : 1.0;
 }
 
+/* Longest processing time first: bodies by decreasing weight (ties by
+ * index), each to the least loaded rank (ties: the lowest). Deterministic:
+ * the same scene and rank count give the same map. */
 static void assign_owners(gs_system *s)
 {
     double load[1024] = {0};
     int nr = s->nranks > 1024 ? 1024 : s->nranks;
-    /* Greedy in body order, heaviest first is not needed for a handful of
-     * bodies; determinism is: the same scene and rank count give the same map. */
-    for (int i = 0; i < s->n_bodies; i++) {
-        int best = 0;
+    int order[64];
+    int n = s->n_bodies < 64 ? s->n_bodies : 64;
+    for (int i = 0; i < n; i++)
+        order[i] = i;
+    for (int i = 1; i < n; i++)
+        for (int j = i; j > 0; j--) {
+            double wa = body_weight(&s->scene->bodies[order[j - 1]]), wb = body_weight(&s->scene->bodies[order[j]]);
+            if (wb > wa) {
+                int t = order[j];
+                order[j] = order[j - 1];
+                order[j - 1] = t;
+            }
+        }
+    for (int k = 0; k < n; k++) {
+        int i = order[k], best = 0;
         for (int r = 1; r < nr; r++)
             if (load[r] < load[best])
                 best = r;
@@ -189,6 +208,51 @@ static gs_err project_speeds(gs_system *s)
     return e;
 }
 
+/* Gears in contact meshes whose initial angle the scene does not give are
+ * turned into mesh with their partners (backlash shared equally between the
+ * flanks, gs_pair_mesh_phase): from gears whose angle is given or that are
+ * held, along the meshes, in scene order; a group with no such gear starts
+ * from its first gear at angle 0. Without this every tooth 0 points along +x
+ * and a pair on the x axis would start tooth on tooth. */
+static void phase_contact_gears(gs_system *s)
+{
+    const gs_scene *sc = s->scene;
+    bool placed[64] = {false}, in_contact[64] = {false};
+    for (int i = 0; i < sc->n_meshes; i++)
+        if (sc->meshes[i].model == GS_MESH_CONTACT)
+            in_contact[sc->meshes[i].gear[0]] = in_contact[sc->meshes[i].gear[1]] = true;
+    for (int i = 0; i < s->n_bodies && i < 64; i++)
+        placed[i] = !in_contact[i] || sc->bodies[i].angle_given || s->bodies[i].coord < 0;
+    for (;;) {
+        bool changed = true;
+        while (changed) {
+            changed = false;
+            for (int i = 0; i < sc->n_meshes; i++) {
+                const gs_scene_mesh *m = &sc->meshes[i];
+                if (m->model != GS_MESH_CONTACT || placed[m->gear[0]] == placed[m->gear[1]])
+                    continue;
+                int from = placed[m->gear[0]] ? m->gear[0] : m->gear[1];
+                int to = from == m->gear[0] ? m->gear[1] : m->gear[0];
+                double cf[2], ct[2], tf, tt;
+                gs_system_body_pose(s, from, cf, &tf);
+                gs_system_body_pose(s, to, ct, &tt);
+                double a = gs_pair_mesh_phase(&sc->bodies[from].gear, cf, tf, &sc->bodies[to].gear, ct, tt);
+                s->q[s->bodies[to].coord] = a;
+                s->scene->bodies[to].angle0 = a;
+                placed[to] = true;
+                changed = true;
+            }
+        }
+        int seed = -1;
+        for (int i = 0; i < s->n_bodies && i < 64 && seed < 0; i++)
+            if (!placed[i])
+                seed = i;
+        if (seed < 0)
+            return;
+        placed[seed] = true; /* its scene angle (0) */
+    }
+}
+
 gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_diag *d)
 {
     *out = NULL;
@@ -253,6 +317,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             s->q[s->bodies[i].coord] = scene->bodies[i].angle0;
             s->w[s->bodies[i].coord] = scene->bodies[i].omega0;
         }
+    phase_contact_gears(s);
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         m->index = i;
@@ -404,8 +469,9 @@ void gs_system_energy_report(const gs_system *sys, double *buf)
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
         bool mine = b->ops->state_size && b->owner == sys->rank;
-        buf[2 * i] = mine ? b->T : 0.0;
-        buf[2 * i + 1] = mine ? b->V : 0.0;
+        buf[3 * i] = mine ? b->T : 0.0;
+        buf[3 * i + 1] = mine ? b->V : 0.0;
+        buf[3 * i + 2] = mine ? b->work_s : 0.0;
     }
 }
 
@@ -415,8 +481,9 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf)
         gs_body_rt *b = &sys->bodies[i];
         if (!b->ops->state_size)
             continue;
-        b->T = buf[2 * i];
-        b->V = buf[2 * i + 1];
+        b->T = buf[3 * i];
+        b->V = buf[3 * i + 1];
+        b->work_s = buf[3 * i + 2];
     }
 }
 
@@ -481,4 +548,28 @@ double gs_system_omega(const gs_system *sys, int body)
 double gs_system_rpm(const gs_system *sys, int body)
 {
     return gs_system_omega(sys, body) * GS_RPM_PER_RAD_S;
+}
+
+int gs_system_planet_shares(const gs_system *sys, int *planet, double *share, int max)
+{
+    const gs_scene *sc = sys->scene;
+    int n = 0;
+    double sum = 0;
+    for (int i = 0; i < sc->n_meshes && n < max; i++) {
+        const gs_scene_mesh *m = &sc->meshes[i];
+        for (int k = 0; k < 2; k++) {
+            const gs_scene_body *p = &sc->bodies[m->gear[k]], *o = &sc->bodies[m->gear[1 - k]];
+            /* a planet against an external gear on a fixed axis: a sun mesh */
+            if (p->joint == GS_JOINT_ON_CARRIER && o->joint != GS_JOINT_ON_CARRIER &&
+                o->gear.kind == GS_GEAR_EXTERNAL) {
+                planet[n] = m->gear[k];
+                share[n] = fabs(sys->meshes[i].force);
+                sum += share[n];
+                n++;
+            }
+        }
+    }
+    for (int i = 0; i < n; i++)
+        share[i] = sum > 0 ? share[i] * n / sum : 1.0;
+    return n;
 }

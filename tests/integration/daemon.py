@@ -32,6 +32,8 @@ MPI_ENV = {
     "OMPI_MCA_rmaps_base_oversubscribe": "1",
     "OMPI_MCA_btl_vader_single_copy_mechanism": "none",
     "HDF5_USE_FILE_LOCKING": "FALSE",
+    "OPENBLAS_NUM_THREADS": "1",
+    "OMP_NUM_THREADS": "1",
 }
 FAKE = os.environ.get("GEARSIM_FAKE_DAEMON") == "1"
 _live = []
@@ -58,8 +60,9 @@ class DaemonError(RuntimeError):
 class Daemon:
     """One gearsimd run in its own temporary directory (also its data dir)."""
 
-    def __init__(self, ranks=1, extra_args=(), startup_timeout=60.0, keep=None):
+    def __init__(self, ranks=1, extra_args=(), startup_timeout=60.0, keep=None, curve_key=None):
         self.ranks = ranks
+        self.curve_key = curve_key   # client key used by start/stop/client() when the daemon runs CURVE
         self.extra_args = list(extra_args)
         self.startup_timeout = startup_timeout
         self.keep = os.environ.get("GEARSIM_KEEP_TMP") == "1" if keep is None else keep
@@ -98,7 +101,7 @@ class Daemon:
         last = None
         while True:
             try:
-                with gearsim.Client(self.conn_file, timeout=2.0, retries=0) as c:
+                with gearsim.Client(self.conn_file, timeout=2.0, retries=0, curve_key=self.curve_key) as c:
                     self.hello = c.hello()
                 break
             except gearsim.GearsimError as e:   # half-written file, or not answering yet
@@ -111,6 +114,8 @@ class Daemon:
         return self
 
     def client(self, **kw):
+        if self.curve_key is not None:
+            kw.setdefault("curve_key", self.curve_key)
         return gearsim.Client(self.conn_file, **kw)
 
     def path(self, rel):
@@ -146,7 +151,7 @@ class Daemon:
         how = "exited"
         if self.proc.poll() is None and graceful:
             try:
-                with gearsim.Client(self.conn_file, timeout=5.0, retries=0) as c:
+                with gearsim.Client(self.conn_file, timeout=5.0, retries=0, curve_key=self.curve_key) as c:
                     c.shutdown()
                 self.proc.wait(timeout=20)
                 how = "shutdown"

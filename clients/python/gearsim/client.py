@@ -17,7 +17,7 @@ import time as _time
 
 import zmq
 
-from .connection import default_connection_file, read_connection_file
+from .connection import apply_curve, default_connection_file, read_connection_file
 from .errors import GearsimError, GearsimTimeout
 
 PROTOCOL = 1
@@ -33,13 +33,18 @@ class Client:
     timeout         -- seconds to wait for one reply before resending it
     retries         -- how many times a request is resent (same id) before
                        GearsimTimeout is raised
+    curve_key       -- client key for a daemon that requires CURVE (its
+                       connection file has `curve_server_key`): a `gearctl
+                       keys` .key file or a (public, secret) Z85 pair;
+                       default $GEARSIM_CURVE_KEY. An unknown key gets no
+                       reply at all (GearsimTimeout).
 
     Every command method returns the reply's `result` (a dict) or raises
     GearsimError(code, message, field). Not thread-safe: use one Client per
     thread (ZeroMQ sockets must not be shared between threads).
     """
 
-    def __init__(self, connection_file=None, timeout=10.0, retries=2, context=None):
+    def __init__(self, connection_file=None, timeout=10.0, retries=2, context=None, curve_key=None):
         self.connection_file = connection_file or default_connection_file()
         self.info = read_connection_file(self.connection_file)
         self.session = self.info.get("session")
@@ -48,6 +53,12 @@ class Client:
         self._ctx = context or zmq.Context.instance()
         self._cmd = self._ctx.socket(zmq.DEALER)
         self._cmd.setsockopt(zmq.LINGER, 0)
+        self.curve_key = curve_key
+        try:
+            apply_curve(self._cmd, self.info, curve_key)
+        except GearsimError:
+            self._cmd.close(linger=0)
+            raise
         self._cmd.connect(self.info["command"])
         self._sub = None
         self._topics = None
@@ -277,6 +288,11 @@ class Client:
         sub = self._ctx.socket(zmq.SUB)
         sub.setsockopt(zmq.LINGER, 0)
         sub.setsockopt(zmq.RCVHWM, 100000)
+        try:
+            apply_curve(sub, self.info, self.curve_key)
+        except GearsimError:
+            sub.close(linger=0)
+            raise
         if topics is None:
             sub.setsockopt(zmq.SUBSCRIBE, b"")
             self._topics = None

@@ -32,3 +32,86 @@ def read_connection_file(path=None):
                            f"daemon speaks protocol {info.get('protocol')}, this client speaks 1")
     info["_path"] = path
     return info
+
+
+# ---------------------------------------------------------------- CURVE keys
+# Key files are Z85 text (docs/PROTOCOL.md, "Authentication"): NAME.key holds
+# `public-key = ...` and `secret-key = ...` (mode 0600), NAME.pub only the
+# public key. `gearctl keys NAME` writes both.
+
+def _key_lines(path):
+    try:
+        with open(path) as f:
+            lines = f.read().splitlines()
+    except OSError as e:
+        raise GearsimError("io_error", f"cannot read key file {path}: {e.strerror}") from None
+    out = {}
+    for n, line in enumerate(lines, 1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        key, val = "public-key", line
+        if len(line) != 40 and "=" in line:
+            key, val = (s.strip() for s in line.split("=", 1))
+        if len(val) != 40:
+            raise GearsimError("invalid_argument", f"{path}:{n}: not a 40-character Z85 key")
+        out[key] = val
+    return out
+
+
+def read_key_file(path):
+    """(public, secret) Z85 strings (bytes) of a `gearctl keys` .key file."""
+    keys = _key_lines(path)
+    if "secret-key" not in keys or "public-key" not in keys:
+        raise GearsimError("invalid_argument",
+                           f"{path} is not a secret key file (public-key and secret-key lines)")
+    return keys["public-key"].encode(), keys["secret-key"].encode()
+
+
+def write_key_files(base, force=False):
+    """Write BASE.key (mode 0600) and BASE.pub with a new CURVE key pair;
+    returns (pub_path, key_path, public)."""
+    import zmq
+    if not zmq.has("curve"):
+        raise GearsimError("invalid_argument", "this libzmq has no CURVE support")
+    public, secret = zmq.curve_keypair()
+    key_path, pub_path = base + ".key", base + ".pub"
+    for p in (key_path, pub_path):
+        if os.path.exists(p) and not force:
+            raise GearsimError("invalid_argument", f"{p} exists (use --force to replace it)")
+    name = os.path.basename(base)
+    flags = os.O_WRONLY | os.O_CREAT | os.O_TRUNC
+    fd = os.open(key_path + ".tmp", flags, 0o600)
+    with os.fdopen(fd, "w") as f:
+        f.write(f"# gearsim CURVE key pair '{name}': keep this file private\n"
+                f"public-key = {public.decode()}\nsecret-key = {secret.decode()}\n")
+    os.chmod(key_path + ".tmp", 0o600)
+    os.replace(key_path + ".tmp", key_path)
+    with open(pub_path + ".tmp", "w") as f:
+        f.write(f"# gearsim CURVE public key '{name}'\npublic-key = {public.decode()}\n")
+    os.replace(pub_path + ".tmp", pub_path)
+    return pub_path, key_path, public.decode()
+
+
+def apply_curve(sock, info, curve_key):
+    """Make sock a CURVE client of the daemon described by `info` (the
+    connection file) when the daemon announces a server key. curve_key is a
+    .key file path or a (public, secret) pair of Z85 strings; default
+    $GEARSIM_CURVE_KEY. Without a server key in info nothing is done."""
+    server = info.get("curve_server_key")
+    if not server:
+        return False
+    curve_key = curve_key or os.environ.get("GEARSIM_CURVE_KEY")
+    if not curve_key:
+        raise GearsimError("invalid_argument",
+                           "the daemon requires CURVE: give a client key (Client(curve_key=...), "
+                           "gearctl --curve-key FILE or GEARSIM_CURVE_KEY) made by `gearctl keys`")
+    if isinstance(curve_key, (tuple, list)):
+        public, secret = (k.encode() if isinstance(k, str) else k for k in curve_key)
+    else:
+        public, secret = read_key_file(curve_key)
+    import zmq
+    sock.setsockopt(zmq.CURVE_SERVERKEY, server.encode())
+    sock.setsockopt(zmq.CURVE_PUBLICKEY, public)
+    sock.setsockopt(zmq.CURVE_SECRETKEY, secret)
+    return True

@@ -1,0 +1,135 @@
+/* SPDX-License-Identifier: MIT
+ * Compliant line contact: the candidate contact region split into strips
+ * of uniform pressure, the normal displacements from the influence
+ * coefficients of the elastic half-plane (plane strain), frictionless
+ * contact as the QP of minimum complementary energy (METHOD.md section 6,
+ * docs/IMPACT.md "Compliant contact"). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/impact.h"
+#include "gearsim/qp.h"
+
+/* u - u ln(|u| / datum): the integral of -ln(|u| / datum). */
+static double F(double u, double datum)
+{
+    return u == 0.0 ? 0.0 : u - u * log(fabs(u) / datum);
+}
+
+double gs_compliant_influence(double s, double width, double e_star, double datum)
+{
+    return 2.0 / (GS_PI * e_star) * (F(s + 0.5 * width, datum) - F(s - 0.5 * width, datum));
+}
+
+/* Where the pressure vanishes beyond the outermost loaded strip j (towards
+ * neighbour j + dir): p^2 is linear in x near a Hertzian edge, so extrapolate
+ * p^2 from strips j - dir and j to zero, kept within the strip j + dir. */
+static double edge(const double *x, const double *p, int n, int j, int dir, double w)
+{
+    int in = j - dir;
+    double xe = x[j] + dir * 0.5 * w;
+    if (in >= 0 && in < n && p[in] > p[j]) {
+        double a = p[in] * p[in], b = p[j] * p[j];
+        xe = x[j] + (x[j] - x[in]) * b / (a - b);
+    }
+    double lim = x[j] + dir * w;
+    return dir > 0 ? fmin(fmax(xe, x[j]), lim) : fmax(fmin(xe, x[j]), lim);
+}
+
+gs_err gs_compliant_solve(const gs_compliant_problem *p, gs_compliant_result *r, gs_diag *d)
+{
+    if (!p || !r || !r->pressure)
+        return gs_diag_set(d, GS_EINVAL, "", "NULL argument");
+    if (p->n < 1 || p->n > 2000)
+        return gs_diag_set(d, GS_ERANGE, "patches", "'patches' = %d is outside [1, 2000]", p->n);
+    if (!(p->x1 > p->x0) || !isfinite(p->x0) || !isfinite(p->x1))
+        return gs_diag_set(d, GS_ERANGE, "region", "the region [%g, %g] is empty", p->x0, p->x1);
+    if (!p->gap && (!(p->radius > 0.0) || !isfinite(p->radius)))
+        return gs_diag_set(d, GS_ERANGE, "radius", "'radius' = %g must be > 0", p->radius);
+    if (!(p->e_star > 0.0) || !isfinite(p->e_star))
+        return gs_diag_set(d, GS_ERANGE, "e_star", "'e_star' = %g must be > 0", p->e_star);
+    if (!(p->load > 0.0) || !isfinite(p->load))
+        return gs_diag_set(d, GS_ERANGE, "load", "'load' = %g must be > 0", p->load);
+    const int n = p->n;
+    const double w = (p->x1 - p->x0) / n;
+    /* -ln(|u| / datum) is positive definite on an interval shorter than
+     * 4 datum (logarithmic capacity); the default keeps C well inside. */
+    const double datum = p->datum > 0.0 ? p->datum : 10.0 * (p->x1 - p->x0);
+    if (datum < p->x1 - p->x0)
+        return gs_diag_set(d, GS_ERANGE, "datum", "'datum' = %g must be at least the region length",
+                           datum);
+
+    double *x = malloc((size_t)n * sizeof *x), *H = malloc((size_t)n * n * sizeof *H);
+    double *c = malloc((size_t)n * sizeof *c), *G = calloc((size_t)n * n, sizeof *G);
+    double *g = calloc((size_t)n, sizeof *g), *E = malloc((size_t)n * sizeof *E);
+    double *f = malloc((size_t)n * sizeof *f), *gap = malloc((size_t)n * sizeof *gap);
+    gs_qp *qp = NULL;
+    gs_err err = GS_OK;
+    if (!x || !H || !c || !G || !g || !E || !f || !gap) {
+        err = GS_ENOMEM;
+        goto out;
+    }
+    /* Unknowns f_j = p_j w (force per unit length of strip j). C_ij is the
+     * displacement at x_i per unit force at strip j. Scaled by E* so the QP
+     * data are of order one (the solver's tolerances are relative anyway). */
+    for (int i = 0; i < n; i++)
+        x[i] = p->x0 + (i + 0.5) * w;
+    for (int i = 0; i < n; i++) {
+        for (int j = 0; j <= i; j++)
+            H[i * n + j] = H[j * n + i] =
+                p->e_star * gs_compliant_influence(x[i] - x[j], w, p->e_star, datum) / w;
+        double h = p->gap ? p->gap[i] : x[i] * x[i] / (2.0 * p->radius);
+        if (!isfinite(h)) {
+            err = gs_diag_set(d, GS_ERANGE, "gap", "gap[%d] is not finite", i);
+            goto out;
+        }
+        c[i] = -p->e_star * h;
+        G[i * n + i] = 1.0;
+        E[i] = 1.0;
+    }
+    double load = p->load;
+    err = gs_qp_new(n, 1, n, &qp);
+    if (err != GS_OK)
+        goto out;
+    gs_qp_problem qpp = {n, H, c, 1, E, &load, n, G, g};
+    double lam_eq;
+    gs_qp_result res = {.x = f, .lambda_eq = &lam_eq, .lambda_in = gap};
+    err = gs_qp_solve(qp, &qpp, NULL, 0, &res);
+    if (err != GS_OK) {
+        gs_diag_set(d, err, "patches", "the contact QP failed: %s", gs_strerror(err));
+        goto out;
+    }
+    r->approach = lam_eq / p->e_star;
+    r->qp_iterations = res.iterations;
+    r->peak = 0.0;
+    r->n_loaded = 0;
+    int lo = -1, hi = -1;
+    for (int i = 0; i < n; i++) {
+        r->pressure[i] = fmax(f[i], 0.0) / w;
+        if (r->x)
+            r->x[i] = x[i];
+        r->peak = fmax(r->peak, r->pressure[i]);
+    }
+    for (int i = 0; i < n; i++)
+        if (r->pressure[i] > 1e-12 * r->peak) {
+            r->n_loaded++;
+            if (lo < 0)
+                lo = i;
+            hi = i;
+        }
+    r->half_width = lo < 0 ? 0.0
+                           : 0.5 * (edge(x, r->pressure, n, hi, +1, w) -
+                                    edge(x, r->pressure, n, lo, -1, w));
+out:
+    gs_qp_free(&qp);
+    free(x);
+    free(H);
+    free(c);
+    free(G);
+    free(g);
+    free(E);
+    free(f);
+    free(gap);
+    return err;
+}
