@@ -77,6 +77,11 @@ typedef struct gs_gmesh_ops {
      * destroy frees m->contact; may be NULL. */
     bool contact;
     void (*destroy)(gs_gmesh_rt *m);
+    /* Optional, every rank, after the step updated q and w: velocity jumps
+     * (impacts of rigid gears). May change sys->w of rigid coordinates;
+     * returns the energy it dissipated in the step (>= 0, J), booked in the
+     * balance. Must be deterministic (it runs on every rank alike). */
+    double (*after_step)(gs_system *sys, gs_gmesh_rt *m);
 } gs_gmesh_ops;
 
 /* The FE mesh of a scene gear at its scene mesh density (elastic bodies;

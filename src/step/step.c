@@ -229,6 +229,8 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
     }
     for (int i = 0; i < sys->n_meshes; i++) {
         gs_gmesh_rt *me = &sys->meshes[i];
+        if (me->ops->after_step)
+            sys->dissipated += me->ops->after_step(sys, me);
         double s = 0;
         for (int j = 0; j < n; j++)
             s += me->a[j] * sys->q[j];

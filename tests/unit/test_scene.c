@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 #include <stdio.h>
+#include <math.h>
 #include <string.h>
 
 #include "gearsim/scene.h"
@@ -85,6 +86,45 @@ static void bad_values_name_the_field(void **state)
     }
 }
 
+/* The short planetary description expands into the full scene. */
+static void train_expands(void **state)
+{
+    (void)state;
+    const char *t = "{\"name\":\"t\",\"train\":{\"type\":\"planetary\",\"module_mm\":2.5,"
+                    "\"face_width_mm\":10,\"sun\":{\"teeth\":24},\"planet\":{\"teeth\":24},"
+                    "\"ring\":{\"teeth\":72,\"addendum\":0.8,\"hub_radius_mm\":100},\"planets\":3,"
+                    "\"carrier\":{\"mass\":1.5,\"inertia\":0.002},\"mesh_model\":\"kinematic\"},"
+                    "\"loads\":[{\"body\":\"sun\",\"type\":\"constant\",\"moment\":1}]}";
+    gs_scene *s;
+    gs_diag d;
+    gs_err e = gs_scene_parse(t, strlen(t), &s, &d);
+    if (e)
+        print_error("train: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    assert_int_equal(s->n_bodies, 6);
+    assert_int_equal(s->n_meshes, 6);
+    int p2 = gs_scene_find_body(s, "planet2");
+    assert_true(p2 >= 0);
+    /* tight-mesh sun-planet distance of a standard 24/24 pair: 60 mm */
+    assert_true(fabs(s->bodies[p2].carrier_radius - 0.060) < 1e-9);
+    assert_true(fabs(s->bodies[p2].carrier_angle - 2.0 * GS_PI / 3.0) < 1e-12);
+    assert_int_equal(s->bodies[gs_scene_find_body(s, "ring")].joint, GS_JOINT_HELD);
+    assert_int_equal(s->meshes[1].model, GS_MESH_KINEMATIC);
+    print_message("train: %d bodies, %d meshes, carrier radius %.6f mm\n", s->n_bodies, s->n_meshes,
+                  s->bodies[p2].carrier_radius * 1e3);
+    gs_scene_free(&s);
+    /* 5 planets cannot be assembled with 24 + 72 teeth: the error names it. */
+    char bad[2048];
+    snprintf(bad, sizeof bad, "%s", t);
+    char *q = strstr(bad, "\"planets\":3");
+    assert_non_null(q);
+    q[10] = '5';
+    e = gs_scene_parse(bad, strlen(bad), &s, &d);
+    print_message("train with 5 planets: %s, field '%s': %s\n", gs_errcode(e), d.field, d.message);
+    assert_int_equal(e, GS_EGEOMETRY);
+    assert_null(s);
+}
+
 static void not_json(void **state)
 {
     (void)state;
@@ -103,6 +143,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(builtins_parse),
         cmocka_unit_test(bad_values_name_the_field),
+        cmocka_unit_test(train_expands),
         cmocka_unit_test(not_json),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

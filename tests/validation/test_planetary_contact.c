@@ -23,6 +23,8 @@
 
 #include <json-c/json.h>
 
+#include "gearsim/mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/step.h"
 #include "scene_build.h"
 
@@ -149,12 +151,53 @@ static void fidelity_switch(void **state)
     gs_system_free(&s);
 }
 
+/* A pitch error turns one tooth's flanks along the pitch circle by e / r
+ * and leaves the other teeth where they were. */
+static void pitch_error_geometry(void **state)
+{
+    (void)state;
+    gs_scene *sc = NULL;
+    gs_diag d;
+    const char *t = gs_scene_builtin("planetary_contact");
+    assert_int_equal(gs_scene_parse(t, strlen(t), &sc, &d), GS_OK);
+    gs_scene_body b = sc->bodies[gs_scene_find_body(sc, "sun")];
+    gs_mesh *m0 = NULL, *m1 = NULL;
+    assert_int_equal(gs_scene_gear_mesh(&b, &m0, &d), GS_OK);
+    b.pitch_error_tooth = 5;
+    b.pitch_error = 20e-6;
+    assert_int_equal(gs_scene_gear_mesh(&b, &m1, &d), GS_OK);
+    double r = gs_gear_pitch_radius(&b.gear), worst_on = 0, worst_off = 0;
+    for (int tooth = 0; tooth < m0->n_teeth; tooth++)
+        for (int side = 0; side < 2; side++)
+            for (gs_index k = m0->flank_ptr[2 * tooth + side]; k < m0->flank_ptr[2 * tooth + side + 1]; k++) {
+                gs_index n = m0->flank_nodes[k];
+                double a0 = atan2(m0->xy[2 * n + 1], m0->xy[2 * n]);
+                double a1 = atan2(m1->xy[2 * n + 1], m1->xy[2 * n]);
+                double rad = hypot(m0->xy[2 * n], m0->xy[2 * n + 1]);
+                double da = remainder(a1 - a0, 2 * GS_PI);
+                if (rad < 0.5 * (r + gs_gear_root_radius(&b.gear)))
+                    continue; /* the fading band near the root */
+                if (tooth == 5)
+                    worst_on = fmax(worst_on, fabs(da * r - 20e-6));
+                else
+                    worst_off = fmax(worst_off, fabs(da));
+            }
+    print_message("pitch error 20 um on tooth 5 of the sun: flank nodes of tooth 5 off by at most %.2e m, "
+                  "others moved by at most %.2e rad\n", worst_on, worst_off);
+    assert_true(worst_on < 1e-12);
+    assert_true(worst_off == 0.0);
+    gs_mesh_free(&m0);
+    gs_mesh_free(&m1);
+    gs_scene_free(&sc);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(perfect_train),
         cmocka_unit_test(pin_error),
         cmocka_unit_test(fidelity_switch),
+        cmocka_unit_test(pitch_error_geometry),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
