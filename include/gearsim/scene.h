@@ -16,7 +16,7 @@
 typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
 typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
 typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
-typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1, GS_MESH_CONTACT = 2 } gs_mesh_model;
+typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1, GS_MESH_CONTACT = 2, GS_MESH_IMPACT = 3 } gs_mesh_model;
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
 
@@ -65,6 +65,9 @@ typedef struct gs_scene_mesh {
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */
+    /* impact: */
+    double restitution;        /* coefficient of restitution e, [0, 1] */
+    int law;                   /* restitution hypothesis (gs_restitution: newton, poisson, stronge) */
     /* contact: */
     int one_pass;              /* flank slaves on one gear only (default: both gears) */
     int predict;               /* also constrain nodes predicted to touch within the step */

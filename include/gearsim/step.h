@@ -41,6 +41,9 @@ struct gs_gmesh_rt {
     int n_active;            /* constraints with a positive multiplier in the last step */
     int n_rows;              /* constraints in the last step */
     double penetration;      /* deepest penetration at the last step's start, m (>= 0) */
+    /* impact meshes (rattle): */
+    int64_t impacts;         /* impacts since the start (sustained-contact impulses not counted) */
+    double impact_loss;      /* kinetic energy its impulses dissipated since the start, J */
 };
 
 /* What crosses ranks in one step, identical on every rank (src/step/plan.c).

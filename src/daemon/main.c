@@ -120,6 +120,16 @@ static int read_config(daemon_opts *o, const char *path, int rank)
 
 int main(int argc, char **argv)
 {
+    /* One BLAS thread per rank unless the operator chose otherwise: ranks
+     * are the parallelism, and a fixed thread count keeps the summation
+     * order, and so the numbers, independent of how many ranks share a
+     * machine. OpenBLAS reads the variable when it is loaded, before main,
+     * so set it and start again (once; on failure just go on). */
+    if (!getenv("OPENBLAS_NUM_THREADS")) {
+        setenv("OPENBLAS_NUM_THREADS", "1", 1);
+        setenv("OMP_NUM_THREADS", "1", 0);
+        execv("/proc/self/exe", argv);
+    }
     int provided;
     MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
     int rank;

@@ -336,10 +336,12 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 
 /* Snapshot format: magic, n_coords, n_meshes, step, time, work_in,
  * dissipated, energy0, q[n], w[n], per mesh force, contacts, rows,
- * penetration (the last step's, reported by telemetry), n_states (as a double), the body states (elastic:
+ * penetration (the last step's, reported by telemetry), impacts and their
+ * energy loss (counters since load), n_states (as a double), the body states (elastic:
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
  * NUL-terminated. */
-#define SNAP_MAGIC 0x34534753u /* "GSS4" */
+#define SNAP_MAGIC 0x35534753u /* "GSS5" */
+#define MESH_SNAP 6 /* doubles per mesh */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -398,7 +400,7 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     size_t n = (size_t)s->n_coords, nm = (size_t)s->n_meshes;
     size_t sl = strlen(s->scene->json) + 1, ll = strlen(lj) + 1;
     size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double) +
-                   (2 * n + 4 * nm + 1 + ns) * sizeof(double) + sl + ll;
+                   (2 * n + MESH_SNAP * nm + 1 + ns) * sizeof(double) + sl + ll;
     char *b = malloc(total), *p = b;
     if (!b) {
         free(lj);
@@ -418,7 +420,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     PUT(s->w, n * sizeof(double));
     for (size_t i = 0; i < nm; i++) {
         const gs_gmesh_rt *m = &s->meshes[i];
-        double ct[4] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration};
+        double ct[MESH_SNAP] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration,
+                                (double)m->impacts, m->impact_loss};
         PUT(ct, sizeof ct);
     }
     double nsd = (double)ns;
@@ -446,7 +449,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     memcpy(&nm, p + 8, sizeof nm);
     p += 12;
     if (magic != SNAP_MAGIC || nc > (1u << 20) || nm > (1u << 20) ||
-        len < head + (2 * (size_t)nc + 4 * (size_t)nm + 1) * sizeof(double) + 2)
+        len < head + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1) * sizeof(double) + 2)
         return gs_diag_set(d, GS_EIO, "path", "not a gearsim checkpoint");
     int64_t step;
     double t, wi, di, e0;
@@ -458,13 +461,13 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     const double *q = (const double *)(const void *)p;
     const double *forces = q + 2 * (size_t)nc;
     double nsd;
-    memcpy(&nsd, p + (2 * (size_t)nc + 4 * (size_t)nm) * sizeof(double), sizeof nsd);
-    size_t avail = (len - head) / sizeof(double) - (2 * (size_t)nc + 4 * (size_t)nm + 1);
+    memcpy(&nsd, p + (2 * (size_t)nc + MESH_SNAP * (size_t)nm) * sizeof(double), sizeof nsd);
+    size_t avail = (len - head) / sizeof(double) - (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1);
     if (!(nsd >= 0) || nsd > (double)avail)
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
     size_t ns = (size_t)nsd;
-    const double *states = forces + 4 * (size_t)nm + 1;
-    const char *scene = p + (2 * (size_t)nc + 4 * (size_t)nm + 1 + ns) * sizeof(double);
+    const double *states = forces + MESH_SNAP * (size_t)nm + 1;
+    const char *scene = p + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1 + ns) * sizeof(double);
     const char *end = b + len;
     const char *lj = memchr(scene, '\0', (size_t)(end - scene));
     if (!lj || lj + 1 >= end || !memchr(lj + 1, '\0', (size_t)(end - lj - 1)))
@@ -548,12 +551,14 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         for (int j = 0; j < s->n_coords; j++)
             v += m->a[j] * s->q[j];
         m->deflection = v - m->s_ref;
-        double ct[4];
-        memcpy(ct, (const char *)forces + 4 * (size_t)i * sizeof(double), sizeof ct);
+        double ct[MESH_SNAP];
+        memcpy(ct, (const char *)forces + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
         m->force = ct[0];
         m->n_active = (int)ct[1];
         m->n_rows = (int)ct[2];
         m->penetration = ct[3];
+        m->impacts = (int64_t)ct[4];
+        m->impact_loss = ct[5];
     }
     return GS_OK;
 }

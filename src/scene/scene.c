@@ -29,7 +29,8 @@ static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", 
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
-                                         "damping_ratio", "backlash_mm", "passes", "constrain", NULL};
+                                         "damping_ratio", "backlash_mm", "passes", "constrain",
+                                         "restitution", "law", NULL};
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
@@ -329,7 +330,8 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
 static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                               gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped", "contact"};
+    static const char *const models[] = {"kinematic", "lumped", "contact", "impact"};
+    static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
     static const char *const stypes[] = {"constant", "rectangular"};
     static const char *const passes[] = {"two", "one"};
     static const char *const constrain[] = {"touching", "predicted"};
@@ -357,11 +359,21 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(enum_field(o, "model", path, NULL, models, 3, &model, d));
+    GS_TRY(enum_field(o, "model", path, NULL, models, 4, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
     m->backlash = 0;
+    m->restitution = 0.7;
+    m->law = 2; /* stronge */
+    if (m->model != GS_MESH_IMPACT) {
+        static const char *const no[] = {"restitution", "law", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to impact meshes", *k);
+            }
+    }
     if (m->model != GS_MESH_CONTACT) {
         static const char *const no[] = {"passes", "constrain", NULL};
         for (const char *const *k = no; *k; k++)
@@ -388,6 +400,22 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
     }
     if (m->model == GS_MESH_KINEMATIC)
         return GS_OK;
+    if (m->model == GS_MESH_IMPACT) {
+        /* Rigid teeth with backlash and impacts: no spring, no damper. */
+        static const char *const no[] = {"stiffness", "damping", "damping_ratio", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "an impact mesh has no '%s'", *k);
+            }
+        double bl;
+        /* Absent: 0 here, filled from the pair's geometry in check_train. */
+        GS_TRY(gsi_json_positive(o, "backlash_mm", path, 100, false, 0, &bl, d));
+        m->backlash = bl * 1e-3;
+        GS_TRY(gsi_json_number(o, "restitution", path, 0, 1, false, 0.7, &m->restitution, d));
+        GS_TRY(enum_field(o, "law", path, "stronge", laws, 3, &m->law, d));
+        return GS_OK;
+    }
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
      * stiffness per mm of face width, twice that in double contact. */
     double b1 = s->bodies[m->gear[0]].gear.face_width_m, b2 = s->bodies[m->gear[1]].gear.face_width_m;
@@ -552,6 +580,24 @@ static gs_err check_train(gs_scene *s, gs_diag *d)
         gs_err e = gs_pair_contact_ratio(&a->gear, &b->gear, dist, &eps, &alpha_w, d);
         if (e != GS_OK)
             return prefix_diag(e, d, p);
+        if (m->model == GS_MESH_IMPACT && m->backlash == 0) {
+            /* Default backlash of an impact mesh: the pair's own, from tooth
+             * thinning and centre distance. */
+            gs_pair_info info;
+            e = gs_pair_analyse(&a->gear, &b->gear, dist, &info, d);
+            if (e != GS_OK)
+                return prefix_diag(e, d, p);
+            /* Below a millionth of the module it is the round-off of a
+             * tight mesh, not backlash. */
+            m->backlash = info.backlash_normal;
+            if (!(m->backlash > 1e-6 * a->gear.module_m)) {
+                char pb[256];
+                gsi_path(pb, sizeof pb, p, "backlash_mm");
+                return gs_diag_set(d, GS_ERANGE, pb,
+                                   "mesh '%s': the pair has no backlash at its centre distance; give "
+                                   "'backlash_mm' (> 0) or thin the teeth ('thinning_mm')", m->name);
+            }
+        }
     }
     /* Planetary assembly: a carrier with planets all meshing one sun and one ring. */
     for (int c = 0; c < s->n_bodies; c++) {
@@ -653,7 +699,7 @@ static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, g
             if (json_object_get_type(m) != json_type_object)
                 continue;
             static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm",
-                                               "passes", "constrain", NULL};
+                                               "passes", "constrain", "restitution", "law", NULL};
             for (const char *const *k = drop; *k; k++)
                 json_object_object_del(m, *k);
             json_object_object_add(m, "model", json_object_new_string(levels[lv]));

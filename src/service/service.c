@@ -94,6 +94,10 @@ json_object *gsi_state_json(gs_service *s)
             json_object_object_add(j, "contacts", json_object_new_int(m->n_active));
             json_object_object_add(j, "rows", json_object_new_int(m->n_rows));
         }
+        if (m->ops->after_step) {
+            json_object_object_add(j, "impacts", json_object_new_int64(m->impacts));
+            json_object_object_add(j, "impact_loss", json_object_new_double(m->impact_loss));
+        }
         json_object_array_add(meshes, j);
     }
     json_object_object_add(o, "meshes", meshes);

@@ -321,7 +321,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         m->index = i;
-        static const char *const names[] = {"kinematic", "lumped", "contact"};
+        static const char *const names[] = {"kinematic", "lumped", "contact", "impact"};
         m->ops = gs_gmesh_ops_find(names[scene->meshes[i].model]);
         e = mesh_kinematics(s, m, d);
         if (e != GS_OK)
@@ -341,8 +341,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             char f[64];
             snprintf(f, sizeof f, "meshes[%d].model", i);
             e = gs_diag_set(d, GS_ERANGE, f,
-                            "mesh '%s': lumped meshes cannot be combined with contact meshes in one "
-                            "scene in this version", scene->meshes[i].name);
+                            "mesh '%s': %s meshes cannot be combined with contact meshes in one "
+                            "scene in this version", scene->meshes[i].name, s->meshes[i].ops->name);
             goto fail;
         }
     e = GS_ENOMEM;

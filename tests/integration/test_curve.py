@@ -206,6 +206,20 @@ def paths_case(tmp):
             r = c.checkpoint("ok-link/c.h5")
             R.check("a symlink that stays inside is allowed", os.path.exists(d.path("inside/c.h5")), r)
             R.check("daemon alive after the refused paths", c.status().get("state") == "loaded")
+        # The reply cache is keyed by (client identity, id): a client with a
+        # long routing id (up to 255 bytes) must still get its own replies.
+        ctx = zmq.Context.instance()
+        s = ctx.socket(zmq.DEALER)
+        s.setsockopt(zmq.LINGER, 0)
+        s.setsockopt(zmq.ROUTING_ID, b"L" * 255)
+        s.connect(d.connection["command"])
+        got = []
+        for rid, cmd in (("a1", "hello"), ("a2", "status"), ("a3", "nope")):
+            s.send(json.dumps({"v": 1, "id": rid, "cmd": cmd}).encode())
+            got.append(json.loads(s.recv()) if s.poll(5000) else None)
+        s.close(0)
+        R.check("255-byte client identity: each request gets its own reply",
+                [g and g.get("id") for g in got] == ["a1", "a2", "a3"] and got[2].get("ok") is False, got)
 
 
 with tempfile.TemporaryDirectory(prefix="gearsim-curve-") as tmp:
