@@ -111,6 +111,10 @@ const char *const *gs_scene_builtin_names(void);
 /* Read a file and parse it. */
 gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d);
 void gs_scene_free(gs_scene **s);
+/* Axis position of body i in the scene frame at the scene's initial state
+ * (m): its centre (fixed axis), its pin on the carrier at the carrier's
+ * initial angle 0 (on carrier), the origin (held). */
+void gs_scene_body_centre(const gs_scene *s, int i, double c[2]);
 /* Index of a body by name, -1 if none. */
 int gs_scene_find_body(const gs_scene *s, const char *name);
 

@@ -29,6 +29,7 @@
 #include "gearsim/mesh.h"
 #include "gearsim/qp.h"
 #include "gearsim/stiffness.h"
+#include "io/h5attr.h"
 #include "gearsim/util.h"
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
@@ -81,21 +82,6 @@ static void sbody_free(sbody *b)
     gs_mesh_free(&b->mesh);
 }
 
-static void body_centre(const gs_scene *s, int i, double c[2])
-{
-    const gs_scene_body *b = &s->bodies[i];
-    if (b->joint == GS_JOINT_ON_CARRIER) {
-        const gs_scene_body *cb = &s->bodies[b->carrier];
-        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
-        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
-    } else if (b->joint == GS_JOINT_FIXED_AXIS) {
-        c[0] = b->centre[0];
-        c[1] = b->centre[1];
-    } else {
-        c[0] = c[1] = 0.0;
-    }
-}
-
 static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_diag *d)
 {
     char field[64];
@@ -103,7 +89,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     b->sb = &sc->bodies[bi];
     if (b->sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
-    body_centre(sc, bi, b->c);
+    gs_scene_body_centre(sc, bi, b->c);
     gs_gear_mesh_opts o;
     gs_gear_mesh_opts_defaults(&o);
     o.flank = b->sb->mesh.flank;
@@ -751,31 +737,6 @@ done:
 /* HDF5                                                                      */
 /* ------------------------------------------------------------------------ */
 
-static herr_t put_string_attr(hid_t loc, const char *name, const char *value)
-{
-    hid_t t = H5Tcopy(H5T_C_S1);
-    H5Tset_size(t, strlen(value) + 1);
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = a < 0 ? -1 : H5Awrite(a, t, value);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    H5Tclose(t);
-    return st;
-}
-
-static herr_t put_attr(hid_t loc, const char *name, hid_t type, const void *v)
-{
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(loc, name, type, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = a < 0 ? -1 : H5Awrite(a, type, v);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    return st;
-}
-
 static herr_t put_ds(hid_t g, const char *name, hid_t type, int rank, const hsize_t *dims,
                      const void *data)
 {
@@ -835,12 +796,12 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
         st |= put_ds(g, "pairs", H5T_NATIVE_INT, 1, d1, pairs);
         st |= put_ds(g, "pair_tooth", H5T_NATIVE_INT, 3, d3, pt_tooth);
         st |= put_ds(g, "pair_force_n", H5T_NATIVE_DOUBLE, 2, d2, pf);
-        st |= put_string_attr(g, "scene", sc && sc->json ? sc->json : "");
-        st |= put_string_attr(g, "mesh", r->mesh_name);
-        st |= put_attr(g, "driver", H5T_NATIVE_INT, &r->driver);
-        st |= put_attr(g, "teeth", H5T_NATIVE_INT, &r->teeth[0]);
-        st |= put_attr(g, "teeth_driven", H5T_NATIVE_INT, &r->teeth[1]);
-        st |= put_attr(g, "refine", H5T_NATIVE_INT, &r->refine[0]);
+        st |= gsi_h5_string_attr(g, "scene", sc && sc->json ? sc->json : "");
+        st |= gsi_h5_string_attr(g, "mesh", r->mesh_name);
+        st |= gsi_h5_scalar_attr(g, "driver", H5T_NATIVE_INT, &r->driver);
+        st |= gsi_h5_scalar_attr(g, "teeth", H5T_NATIVE_INT, &r->teeth[0]);
+        st |= gsi_h5_scalar_attr(g, "teeth_driven", H5T_NATIVE_INT, &r->teeth[1]);
+        st |= gsi_h5_scalar_attr(g, "refine", H5T_NATIVE_INT, &r->refine[0]);
         const struct {
             const char *name;
             double v;
@@ -851,7 +812,7 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
                        {"te_min", r->te_min},               {"te_mean", r->te_mean},
                        {"te_max", r->te_max}};
         for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
-            st |= put_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
+            st |= gsi_h5_scalar_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
         if (st >= 0)
             err = GS_OK;
         H5Gclose(g);

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "gearsim/record.h"
+#include "io/h5attr.h"
 
 gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, const char *scene_json,
                            int64_t step, double time, gs_diag *d)
@@ -25,26 +26,10 @@ gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, cons
     if (ds >= 0)
         H5Dclose(ds);
     H5Sclose(sp);
-    hid_t t = H5Tcopy(H5T_C_S1);
-    H5Tset_size(t, strlen(scene_json) + 1);
-    sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(f, "scene", t, sp, H5P_DEFAULT, H5P_DEFAULT);
-    if (a < 0 || H5Awrite(a, t, scene_json) < 0)
+    if (gsi_h5_string_attr(f, "scene", scene_json) < 0 ||
+        gsi_h5_scalar_attr(f, "step", H5T_NATIVE_INT64, &step) < 0 ||
+        gsi_h5_scalar_attr(f, "time", H5T_NATIVE_DOUBLE, &time) < 0)
         st = -1;
-    if (a >= 0)
-        H5Aclose(a);
-    H5Tclose(t);
-    a = H5Acreate2(f, "step", H5T_NATIVE_INT64, sp, H5P_DEFAULT, H5P_DEFAULT);
-    if (a < 0 || H5Awrite(a, H5T_NATIVE_INT64, &step) < 0)
-        st = -1;
-    if (a >= 0)
-        H5Aclose(a);
-    a = H5Acreate2(f, "time", H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
-    if (a < 0 || H5Awrite(a, H5T_NATIVE_DOUBLE, &time) < 0)
-        st = -1;
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
     if (H5Fclose(f) < 0 || st < 0 || rename(tmp, path) != 0) {
         remove(tmp);
         return gs_diag_set(d, GS_EIO, "path", "cannot write the checkpoint '%s'", path);

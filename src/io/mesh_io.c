@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "gearsim/mesh_io.h"
+#include "io/h5attr.h"
 #include "gearsim/util.h"
 
 gs_err gs_mesh_io_xmf_path(const char *h5_path, char *buf, size_t len)
@@ -48,21 +49,6 @@ static int attr_int(hid_t loc, const char *name, int v)
     return r < 0 ? -1 : 0;
 }
 
-static int attr_string(hid_t loc, const char *name, const char *v)
-{
-    hid_t t = H5Tcopy(H5T_C_S1);
-    H5Tset_size(t, strlen(v) + 1);
-    H5Tset_strpad(t, H5T_STR_NULLTERM);
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t r = a < 0 ? -1 : H5Awrite(a, t, v);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    H5Tclose(t);
-    return r < 0 ? -1 : 0;
-}
-
 static int dset(hid_t g, const char *name, hid_t type, const void *data, hsize_t rows, hsize_t cols)
 {
     hsize_t dims[2] = {rows, cols};
@@ -100,7 +86,7 @@ static int write_gear(hid_t root, const gs_mesh_io_gear *e, int index)
         const gs_gear_params *p = e->params;
         gs_gear_geom geo;
         int have = gs_gear_geometry(p, &geo, NULL) == GS_OK;
-        r |= attr_string(g, "kind", p->kind == GS_GEAR_INTERNAL ? "internal" : "external");
+        r |= (gsi_h5_string_attr(g, "kind", p->kind == GS_GEAR_INTERNAL ? "internal" : "external") < 0 ? -1 : 0);
         r |= attr_int(g, "teeth", p->teeth);
         const struct {
             const char *n;
@@ -233,7 +219,7 @@ gs_err gs_mesh_io_write(const char *h5_path, const char *xmf_path, const gs_mesh
         goto out;
     }
     int r = 0;
-    r |= attr_string(file, "format", "gearsim-mesh");
+    r |= (gsi_h5_string_attr(file, "format", "gearsim-mesh") < 0 ? -1 : 0);
     r |= attr_int(file, "version", 1);
     hid_t root = H5Gcreate2(file, "gears", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (root < 0)
@@ -251,7 +237,7 @@ gs_err gs_mesh_io_write(const char *h5_path, const char *xmf_path, const gs_mesh
                 if (i + 1 < n)
                     strcat(names, "\n");
             }
-            r |= attr_string(root, "names", names);
+            r |= (gsi_h5_string_attr(root, "names", names) < 0 ? -1 : 0);
             free(names);
         }
         r |= attr_int(root, "count", n);

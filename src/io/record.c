@@ -9,6 +9,7 @@
 
 #include "gearsim/mesh_io.h"
 #include "gearsim/record.h"
+#include "io/h5attr.h"
 #include "gearsim/util.h"
 
 enum { DS_TIME, DS_STEP, DS_ENERGY, DS_ANGLE, DS_OMEGA, DS_FORCE, DS_DEFL, DS_N };
@@ -46,20 +47,6 @@ struct gs_record {
 
 static const char *const ds_names[DS_N] = {"time", "step", "energy", "angle", "omega",
                                            "mesh_force", "mesh_deflection"};
-
-static herr_t put_string_attr(hid_t loc, const char *name, const char *value)
-{
-    hid_t t = H5Tcopy(H5T_C_S1);
-    H5Tset_size(t, strlen(value) + 1);
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = a < 0 ? -1 : H5Awrite(a, t, value);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    H5Tclose(t);
-    return st;
-}
 
 static char *names_json(const gs_system *sys, bool meshes)
 {
@@ -107,8 +94,8 @@ gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, g
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot create the record file '%s'", path);
     }
-    put_string_attr(r->file, "scene", sys->scene->json);
-    put_string_attr(r->file, "gearsim_version", "0.1.0");
+    gsi_h5_string_attr(r->file, "scene", sys->scene->json);
+    gsi_h5_string_attr(r->file, "gearsim_version", "0.1.0");
     hid_t sp = H5Screate(H5S_SCALAR);
     hid_t a = H5Acreate2(r->file, "time_step", H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
     H5Awrite(a, H5T_NATIVE_DOUBLE, &sys->h);
@@ -127,12 +114,12 @@ gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, g
         ok = r->ds[i] >= 0;
     }
     if (ok) {
-        put_string_attr(r->ds[DS_ENERGY], "columns",
+        gsi_h5_string_attr(r->ds[DS_ENERGY], "columns",
                         "[\"kinetic\",\"potential\",\"total\",\"work_in\",\"dissipated\",\"balance_residual\"]");
         char *bn = names_json(sys, false), *mn = names_json(sys, true);
-        put_string_attr(g, "bodies", bn ? bn : "[]");
-        put_string_attr(g, "meshes", mn ? mn : "[]");
-        put_string_attr(r->ds[DS_ANGLE], "bodies", bn ? bn : "[]");
+        gsi_h5_string_attr(g, "bodies", bn ? bn : "[]");
+        gsi_h5_string_attr(g, "meshes", mn ? mn : "[]");
+        gsi_h5_string_attr(r->ds[DS_ANGLE], "bodies", bn ? bn : "[]");
         free(bn);
         free(mn);
     }
@@ -389,13 +376,13 @@ static int write_body(hid_t gb, hid_t gf, const gs_record_mesh *e, int index, re
         if (rb->ds[k] < 0)
             st = -1;
     if (!st) {
-        st |= put_string_attr(rb->ds[FD_DISP], "frame", "body") < 0;
-        st |= put_string_attr(rb->ds[FD_DISP], "units", "m") < 0;
-        st |= put_string_attr(rb->ds[FD_VM], "units", "Pa") < 0;
-        st |= put_string_attr(rb->ds[FD_POS], "frame", "scene") < 0;
-        st |= put_string_attr(rb->ds[FD_POS], "units", "m") < 0;
-        st |= put_string_attr(rb->ds[FD_THETA], "units", "rad") < 0;
-        st |= put_string_attr(rb->ds[FD_TIME], "units", "s") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_DISP], "frame", "body") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_DISP], "units", "m") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_VM], "units", "Pa") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_POS], "frame", "scene") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_POS], "units", "m") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_THETA], "units", "rad") < 0;
+        st |= gsi_h5_string_attr(rb->ds[FD_TIME], "units", "s") < 0;
     }
     if (H5Gclose(g) < 0)
         st = -1;
@@ -461,8 +448,8 @@ gs_err gs_record_add_meshes(gs_record *r, const gs_record_mesh *bodies, int n, g
     if (gb < 0 || gf < 0)
         st = -1;
     else {
-        st |= put_string_attr(gb, "names", names) < 0;
-        st |= put_string_attr(gf, "names", names) < 0;
+        st |= gsi_h5_string_attr(gb, "names", names) < 0;
+        st |= gsi_h5_string_attr(gf, "names", names) < 0;
         for (int i = 0; i < n && !st; i++)
             st |= write_body(gb, gf, &bodies[i], i, &rb[i]);
     }

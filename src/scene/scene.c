@@ -38,6 +38,21 @@ static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newt
 static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
 static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every", NULL};
 
+void gs_scene_body_centre(const gs_scene *s, int i, double c[2])
+{
+    const gs_scene_body *b = &s->bodies[i];
+    if (b->joint == GS_JOINT_ON_CARRIER) {
+        const gs_scene_body *cb = &s->bodies[b->carrier];
+        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
+        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
+    } else if (b->joint == GS_JOINT_FIXED_AXIS) {
+        c[0] = b->centre[0];
+        c[1] = b->centre[1];
+    } else {
+        c[0] = c[1] = 0.0;
+    }
+}
+
 int gs_scene_find_body(const gs_scene *s, const char *name)
 {
     for (int i = 0; i < s->n_bodies; i++)

@@ -83,19 +83,6 @@ static void assign_owners(gs_system *s)
     }
 }
 
-static void body_centre(const gs_scene *sc, int i, double c[2])
-{
-    const gs_scene_body *b = &sc->bodies[i];
-    if (b->joint == GS_JOINT_ON_CARRIER) {
-        const gs_scene_body *cb = &sc->bodies[b->carrier];
-        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
-        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
-    } else {
-        c[0] = b->centre[0];
-        c[1] = b->centre[1];
-    }
-}
-
 /* Line-of-action displacement of a mesh, measured in the frame of the carrier
  * that one of its gears rides on (or the housing): s = sum_k sigma_k r_bk
  * (theta_k - theta_C), sigma = +1 for an external gear, -1 for a ring. It is
@@ -135,8 +122,8 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         }
     }
     double c0[2], c1[2];
-    body_centre(sc, sm->gear[0], c0);
-    body_centre(sc, sm->gear[1], c1);
+    gs_scene_body_centre(sc, sm->gear[0], c0);
+    gs_scene_body_centre(sc, sm->gear[1], c1);
     double alpha_w;
     GS_TRY(gs_pair_contact_ratio(&sc->bodies[sm->gear[0]].gear, &sc->bodies[sm->gear[1]].gear,
                                  hypot(c1[0] - c0[0], c1[1] - c0[1]), &m->contact_ratio, &alpha_w, d));
@@ -527,7 +514,7 @@ void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *th
         c[0] = cb->centre[0] + b->carrier_radius * cos(a);
         c[1] = cb->centre[1] + b->carrier_radius * sin(a);
     } else {
-        body_centre(sys->scene, body, c);
+        gs_scene_body_centre(sys->scene, body, c);
     }
     int k = sys->bodies[body].coord;
     *theta = k >= 0 ? sys->q[k] : 0.0;

@@ -28,21 +28,6 @@ static void usage(FILE *f)
     fprintf(f, "usage: gearsim-mesh SCENE.json -o OUT.h5 [--refine N] [--xmf OUT.xmf] [--quiet]\n");
 }
 
-static void body_centre(const gs_scene *s, int i, double c[2])
-{
-    const gs_scene_body *b = &s->bodies[i];
-    if (b->joint == GS_JOINT_ON_CARRIER) {
-        const gs_scene_body *cb = &s->bodies[b->carrier];
-        c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
-        c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
-    } else if (b->joint == GS_JOINT_FIXED_AXIS) {
-        c[0] = b->centre[0];
-        c[1] = b->centre[1];
-    } else {
-        c[0] = c[1] = 0.0;
-    }
-}
-
 int main(int argc, char **argv)
 {
     const char *scene_path = NULL, *out = NULL, *xmf = NULL;
@@ -97,7 +82,7 @@ int main(int argc, char **argv)
         goto done;
     }
     for (int i = 0; i < n; i++) {
-        body_centre(s, i, ctr[i]);
+        gs_scene_body_centre(s, i, ctr[i]);
         rot[i] = s->bodies[i].angle0;
     }
     /* Mesh phases: breadth first along the scene's meshes. */
