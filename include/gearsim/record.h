@@ -96,4 +96,34 @@ gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, cons
                            int64_t step, double time, gs_diag *d);
 gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *d);
 
+/* Automatic checkpoints (docs/RELIABILITY.md, "Automatic checkpoints and
+ * --resume"): a checkpoint file as above plus the group /autosave with what
+ * the daemon needs to continue the interrupted advance and its record:
+ *   attrs parent_id (string), start_step, target_step (int64),
+ *         record (string, relative to the data directory, "" for none),
+ *         record_rows (int64: telemetry rows flushed at the checkpoint)
+ *   field_frames (int64, one per recorded elastic body; absent without) */
+#define GS_AUTOSAVE_MAX_BODIES 64
+typedef struct gs_autosave_info {
+    char parent_id[160];
+    int64_t start_step, target_step;
+    char record[1024];
+    int64_t record_rows;
+    int n_field_bodies;
+    int64_t field_frames[GS_AUTOSAVE_MAX_BODIES];
+} gs_autosave_info;
+gs_err gs_autosave_write(const char *path, const char *bytes, size_t len, const char *scene_json,
+                         int64_t step, double time, const gs_autosave_info *info, gs_diag *d);
+/* The /autosave group of `path` (GS_ENOTFOUND when it has none). */
+gs_err gs_autosave_read_info(const char *path, gs_autosave_info *info, gs_diag *d);
+
+/* Reopen an existing record for appending after a resume: keep the first
+ * `rows` telemetry rows and the first field_frames[b] frames of each body
+ * (n_frames entries, in the order of /fields names; the rest is cut with
+ * H5Dset_extent), rewrite the XDMF file, and go on as gs_record_open would
+ * have. The layout must match sys (same bodies and meshes). Errors: GS_EIO or
+ * GS_EINVAL (field "path") naming what does not match. */
+gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
+                        const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d);
+
 #endif

@@ -71,6 +71,7 @@ typedef struct gs_scene_mesh {
     /* contact: */
     int one_pass;              /* flank slaves on one gear only (default: both gears) */
     int predict;               /* also constrain nodes predicted to touch within the step */
+    double friction;           /* Coulomb coefficient on the tooth flanks (contact meshes), 0: none */
 } gs_scene_mesh;
 
 typedef struct gs_scene_load {
@@ -96,6 +97,7 @@ typedef struct gs_scene {
     int telemetry_every;
     int record_every;
     int fields_every;          /* steps between field snapshots of elastic bodies (0: none) */
+    int checkpoint_every;      /* steps between automatic checkpoints of an advance (0: none) */
     char *json;                /* the scene as given, canonical JSON text (owned) */
 } gs_scene;
 
@@ -117,6 +119,24 @@ void gs_scene_free(gs_scene **s);
 void gs_scene_body_centre(const gs_scene *s, int i, double c[2]);
 /* Index of a body by name, -1 if none. */
 int gs_scene_find_body(const gs_scene *s, const char *name);
+
+/* Size limits, checked before anything is meshed (docs/SCENE.md, "Size
+ * limits"). The estimate of an elastic gear's FE unknowns is
+ *   2 * teeth * 1.5 * (flank + rim) * (2 across + 2) * 4^refine
+ * (two displacements per node; about 1.1-1.3x the nodes the mesher makes for
+ * the example gears, so it errs on the large side); carriers and rigid gears
+ * have none. gs_scene_parse refuses a body above GS_SCENE_MAX_BODY_UNKNOWNS
+ * (field bodies[i].mesh.refine, or bodies[i].mesh when refine is 0). */
+#define GS_SCENE_MAX_BODY_UNKNOWNS 4000000.0
+#define GS_SCENE_BYTES_PER_UNKNOWN 3072.0
+#define GS_SCENE_BASE_BYTES (8.0 * 1024 * 1024)
+double gs_scene_body_unknowns(const gs_scene_body *b);
+/* Estimated memory of a loaded scene on the rank that holds it all (bytes):
+ * GS_SCENE_BASE_BYTES + GS_SCENE_BYTES_PER_UNKNOWN per elastic unknown
+ * (stiffness, factor, condensation and field buffers; measured, see
+ * docs/RELIABILITY.md). *largest (may be NULL) gets the body with the most
+ * unknowns, -1 when none is elastic. */
+double gs_scene_estimate_bytes(const gs_scene *s, int *largest);
 
 /* Parse one load object (as in scene.loads[] or set_load) against scene s.
  * `path` prefixes field names in diagnostics. Owns nothing of s. */

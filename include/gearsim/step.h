@@ -41,6 +41,7 @@ struct gs_gmesh_rt {
     int n_active;            /* constraints with a positive multiplier in the last step */
     int n_rows;              /* constraints in the last step */
     double penetration;      /* deepest penetration at the last step's start, m (>= 0) */
+    double friction_loss;    /* energy dissipated by flank friction since load, J */
     /* impact meshes (rattle): */
     int64_t impacts;         /* impacts since the start (sustained-contact impulses not counted) */
     double impact_loss;      /* kinetic energy its impulses dissipated since the start, J */
@@ -117,17 +118,21 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,
- * n_rows, penetration), then the bodies' interface forces (plan.sol_off). */
+ * n_rows, penetration, friction loss), then the bodies' interface forces
+ * (plan.sol_off). */
 gs_err gs_step_prepare(gs_system *sys);
 void gs_step_records(gs_system *sys, double *rec);
 gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol);
 gs_err gs_step_apply(gs_system *sys, const double *sol);
 gs_err gs_step_serial(gs_system *sys);
-/* Offsets in the solution. */
+/* Offsets in the solution. Per mesh contact figures: constraints with a
+ * positive force, constraints imposed, deepest penetration, friction loss of
+ * the step. */
+#define GS_SOL_CONTACT 4
 static inline size_t gs_sol_mesh_force(const gs_system *s, int m) { return (size_t)(s->n_coords + 1 + m); }
 static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
 {
-    return (size_t)(s->n_coords + 1 + s->n_meshes + 3 * m);
+    return (size_t)(s->n_coords + 1 + s->n_meshes + GS_SOL_CONTACT * m);
 }
 
 /* Energies of the current state. Bodies with their own state (elastic)

@@ -15,6 +15,7 @@ typedef struct gsi_contact_mesh {
     gs_mesh *own[2];                   /* meshes made here for rigid gears */
     bool elastic[2];                   /* nodes of this gear are unknowns */
     bool predict;                      /* constrain nodes predicted to touch too */
+    double friction;                   /* Coulomb coefficient on the flanks */
     gs_contact_search *search;
     const gs_contact_candidate *cand;  /* the last search (owned by `search`) */
     gs_index n_cand;

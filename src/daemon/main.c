@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <getopt.h>
 #include <mpi.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -13,6 +14,7 @@
 #include "gearsim/engine.h"
 #include "gearsim/service.h"
 #include "service/auth.h"
+#include "service/options.h"
 
 static void usage(FILE *f)
 {
@@ -20,18 +22,23 @@ static void usage(FILE *f)
             "usage: gearsimd [--config FILE] [--connection-file PATH] [--data-dir DIR]\n"
             "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
             "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
+            "                [--resume] [--max-scene-mb N]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
             "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
             "server's secret key file and the client public keys allowed (files of\n"
             "`gearctl keys`). --config reads `key = value` lines whose keys are the\n"
             "long options without '--' (deploy/gearsimd.conf); flags given on the\n"
-            "command line win over the file.\n");
+            "command line win over the file. --resume continues the advance saved in\n"
+            "DATA_DIR/autosave.h5 (scene outputs.checkpoint_every); --max-scene-mb refuses\n"
+            "scenes whose estimated memory exceeds N MiB (default 4096).\n");
 }
 
 typedef struct daemon_opts {
     gs_service_config cfg;
     const char *curve_key, *curve_allow;
+    bool resume;
+    int64_t max_scene_mb;
 } daemon_opts;
 
 static int set_port(const char *v, int *out)
@@ -62,7 +69,21 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
         o->curve_key = v;
     else if (!strcmp(name, "curve-allow"))
         o->curve_allow = v;
-    else
+    else if (!strcmp(name, "resume")) {
+        if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
+            o->resume = true;
+        else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
+            o->resume = false;
+        else
+            return -1;
+    } else if (!strcmp(name, "max-scene-mb")) {
+        char *end;
+        errno = 0;
+        long long mb = strtoll(v, &end, 10);
+        if (errno || end == v || *end || mb < 1 || mb > (1ll << 40))
+            return -1;
+        o->max_scene_mb = mb;
+    } else
         return -1;
     return 0;
 }
@@ -120,6 +141,10 @@ static int read_config(daemon_opts *o, const char *path, int rank)
 
 int main(int argc, char **argv)
 {
+    /* A write past RLIMIT_FSIZE fails with EFBIG instead of killing the
+     * daemon; the record reports it and stops (disk full is handled the
+     * same way). Ignored dispositions survive the execv below. */
+    signal(SIGXFSZ, SIG_IGN);
     /* One BLAS thread per rank unless the operator chose otherwise: ranks
      * are the parallelism, and a fixed thread count keeps the summation
      * order, and so the numbers, independent of how many ranks share a
@@ -140,13 +165,15 @@ int main(int argc, char **argv)
         snprintf(conn, sizeof conn, "%s/gearsim/gearsimd.json", xdg);
     else
         snprintf(conn, sizeof conn, "/tmp/gearsim-%u/gearsimd.json", (unsigned)getuid());
-    daemon_opts o = {.cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"}};
+    daemon_opts o = {.cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"},
+                     .max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB};
     static const struct option opts[] = {
         {"connection-file", required_argument, 0, 'c'}, {"data-dir", required_argument, 0, 'd'},
         {"bind", required_argument, 0, 'b'},            {"command-port", required_argument, 0, 'p'},
         {"telemetry-port", required_argument, 0, 't'},  {"help", no_argument, 0, 'h'},
         {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
-        {"curve-allow", required_argument, 0, 'a'},     {0, 0, 0, 0}};
+        {"curve-allow", required_argument, 0, 'a'},     {"resume", no_argument, 0, 'r'},
+        {"max-scene-mb", required_argument, 0, 'm'},    {0, 0, 0, 0}};
     int c, bad = 0;
     /* The configuration file first, so that command-line flags win. */
     for (int i = 1; i < argc; i++) {
@@ -165,7 +192,8 @@ int main(int argc, char **argv)
                 idx = i;
         switch (c) {
         case 'f': break;
-        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a':
+        case 'r': o.resume = true; break;
+        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm':
             if (set_option(&o, opts[idx].name, optarg) != 0) {
                 if (rank == 0)
                     fprintf(stderr, "gearsimd: bad value '%s' for --%s\n", optarg, opts[idx].name);
@@ -200,6 +228,8 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return 2;
     }
+    gs_service_set_resume(o.resume);
+    gs_service_set_max_scene_mb(o.max_scene_mb);
     gs_engine *eng;
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);

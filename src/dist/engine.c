@@ -337,11 +337,11 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 /* Snapshot format: magic, n_coords, n_meshes, step, time, work_in,
  * dissipated, energy0, q[n], w[n], per mesh force, contacts, rows,
  * penetration (the last step's, reported by telemetry), impacts and their
- * energy loss (counters since load), n_states (as a double), the body states (elastic:
+ * energy loss, friction loss (since load), n_states (as a double), the body states (elastic:
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
  * NUL-terminated. */
-#define SNAP_MAGIC 0x35534753u /* "GSS5" */
-#define MESH_SNAP 6 /* doubles per mesh */
+#define SNAP_MAGIC 0x36534753u /* "GSS6" */
+#define MESH_SNAP 7 /* doubles per mesh */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -421,7 +421,7 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     for (size_t i = 0; i < nm; i++) {
         const gs_gmesh_rt *m = &s->meshes[i];
         double ct[MESH_SNAP] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration,
-                                (double)m->impacts, m->impact_loss};
+                                (double)m->impacts, m->impact_loss, m->friction_loss};
         PUT(ct, sizeof ct);
     }
     double nsd = (double)ns;
@@ -559,6 +559,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         m->penetration = ct[3];
         m->impacts = (int64_t)ct[4];
         m->impact_loss = ct[5];
+        m->friction_loss = ct[6];
     }
     return GS_OK;
 }

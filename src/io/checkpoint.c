@@ -10,8 +10,35 @@
 #include "gearsim/record.h"
 #include "io/h5attr.h"
 
-gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, const char *scene_json,
-                           int64_t step, double time, gs_diag *d)
+static herr_t write_info(hid_t f, const gs_autosave_info *a)
+{
+    hid_t g = H5Gcreate2(f, "autosave", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+    if (g < 0)
+        return -1;
+    herr_t st = 0;
+    if (gsi_h5_string_attr(g, "parent_id", a->parent_id) < 0 ||
+        gsi_h5_scalar_attr(g, "start_step", H5T_NATIVE_INT64, &a->start_step) < 0 ||
+        gsi_h5_scalar_attr(g, "target_step", H5T_NATIVE_INT64, &a->target_step) < 0 ||
+        gsi_h5_string_attr(g, "record", a->record) < 0 ||
+        gsi_h5_scalar_attr(g, "record_rows", H5T_NATIVE_INT64, &a->record_rows) < 0)
+        st = -1;
+    if (st == 0 && a->n_field_bodies > 0) {
+        hsize_t n = (hsize_t)a->n_field_bodies;
+        hid_t sp = H5Screate_simple(1, &n, NULL);
+        hid_t ds = H5Dcreate2(g, "field_frames", H5T_NATIVE_INT64, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
+        if (ds < 0 || H5Dwrite(ds, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, a->field_frames) < 0)
+            st = -1;
+        if (ds >= 0)
+            H5Dclose(ds);
+        H5Sclose(sp);
+    }
+    if (H5Gclose(g) < 0)
+        st = -1;
+    return st;
+}
+
+static gs_err write_file(const char *path, const char *bytes, size_t len, const char *scene_json,
+                         int64_t step, double time, const gs_autosave_info *info, gs_diag *d)
 {
     char tmp[1100];
     snprintf(tmp, sizeof tmp, "%s.tmp", path);
@@ -30,11 +57,95 @@ gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, cons
         gsi_h5_scalar_attr(f, "step", H5T_NATIVE_INT64, &step) < 0 ||
         gsi_h5_scalar_attr(f, "time", H5T_NATIVE_DOUBLE, &time) < 0)
         st = -1;
+    if (st >= 0 && info && write_info(f, info) < 0)
+        st = -1;
     if (H5Fclose(f) < 0 || st < 0 || rename(tmp, path) != 0) {
         remove(tmp);
         return gs_diag_set(d, GS_EIO, "path", "cannot write the checkpoint '%s'", path);
     }
     return GS_OK;
+}
+
+gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, const char *scene_json,
+                           int64_t step, double time, gs_diag *d)
+{
+    return write_file(path, bytes, len, scene_json, step, time, NULL, d);
+}
+
+gs_err gs_autosave_write(const char *path, const char *bytes, size_t len, const char *scene_json,
+                         int64_t step, double time, const gs_autosave_info *info, gs_diag *d)
+{
+    return write_file(path, bytes, len, scene_json, step, time, info, d);
+}
+
+static int read_string_attr(hid_t loc, const char *name, char *out, size_t cap)
+{
+    out[0] = '\0';
+    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
+    if (a < 0)
+        return -1;
+    hid_t t = H5Aget_type(a);
+    size_t n = t >= 0 ? H5Tget_size(t) : 0;
+    int st = -1;
+    char *buf = n > 0 && n < (1u << 20) ? calloc(n + 1, 1) : NULL;
+    if (buf && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) && H5Aread(a, t, buf) >= 0) {
+        snprintf(out, cap, "%s", buf);
+        st = strlen(buf) < cap ? 0 : -1;
+    }
+    free(buf);
+    if (t >= 0)
+        H5Tclose(t);
+    H5Aclose(a);
+    return st;
+}
+
+static int read_int64_attr(hid_t loc, const char *name, int64_t *v)
+{
+    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
+    if (a < 0)
+        return -1;
+    int st = H5Aread(a, H5T_NATIVE_INT64, v) < 0 ? -1 : 0;
+    H5Aclose(a);
+    return st;
+}
+
+gs_err gs_autosave_read_info(const char *path, gs_autosave_info *a, gs_diag *d)
+{
+    memset(a, 0, sizeof *a);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f < 0)
+        return gs_diag_set(d, GS_EIO, "path", "'%s' is not an HDF5 file", path);
+    hid_t g = H5Gopen2(f, "autosave", H5P_DEFAULT);
+    if (g < 0) {
+        H5Fclose(f);
+        return gs_diag_set(d, GS_ENOTFOUND, "path", "'%s' is not an automatic checkpoint", path);
+    }
+    gs_err err = GS_OK;
+    if (read_string_attr(g, "parent_id", a->parent_id, sizeof a->parent_id) < 0 ||
+        read_int64_attr(g, "start_step", &a->start_step) < 0 ||
+        read_int64_attr(g, "target_step", &a->target_step) < 0 ||
+        read_string_attr(g, "record", a->record, sizeof a->record) < 0 ||
+        read_int64_attr(g, "record_rows", &a->record_rows) < 0 || a->record_rows < 0)
+        err = gs_diag_set(d, GS_EIO, "path", "the /autosave group of '%s' is incomplete", path);
+    if (err == GS_OK && H5Lexists(g, "field_frames", H5P_DEFAULT) > 0) {
+        hid_t ds = H5Dopen2(g, "field_frames", H5P_DEFAULT);
+        hid_t sp = ds >= 0 ? H5Dget_space(ds) : -1;
+        hsize_t n = 0;
+        if (sp < 0 || H5Sget_simple_extent_ndims(sp) != 1 || H5Sget_simple_extent_dims(sp, &n, NULL) < 0 ||
+            n > GS_AUTOSAVE_MAX_BODIES ||
+            (n > 0 && H5Dread(ds, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, a->field_frames) < 0))
+            err = gs_diag_set(d, GS_EIO, "path", "bad /autosave/field_frames in '%s'", path);
+        else
+            a->n_field_bodies = (int)n;
+        if (sp >= 0)
+            H5Sclose(sp);
+        if (ds >= 0)
+            H5Dclose(ds);
+    }
+    H5Gclose(g);
+    H5Fclose(f);
+    return err;
 }
 
 gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *d)

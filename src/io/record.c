@@ -710,3 +710,193 @@ static int write_xmf(gs_record *r)
     free(cur);
     return st;
 }
+
+/* ---- reopen after a resume ----------------------------------------------- */
+
+/* A fixed-length string attribute, malloc'd; NULL when missing. */
+static char *string_attr(hid_t loc, const char *name)
+{
+    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
+    if (a < 0)
+        return NULL;
+    hid_t t = H5Aget_type(a);
+    size_t n = t >= 0 ? H5Tget_size(t) : 0;
+    char *buf = n > 0 && n < (64u << 20) ? gs_calloc(n + 1, 1) : NULL;
+    if (buf && (H5Tget_class(t) != H5T_STRING || H5Tis_variable_str(t) || H5Aread(a, t, buf) < 0)) {
+        free(buf);
+        buf = NULL;
+    }
+    if (t >= 0)
+        H5Tclose(t);
+    H5Aclose(a);
+    return buf;
+}
+
+/* Cut an extendable dataset to `keep` entries along its first axis; the
+ * current length goes to *had. 0 on success. */
+static int cut_ds(hid_t ds, hsize_t keep, hsize_t *had)
+{
+    hid_t sp = H5Dget_space(ds);
+    hsize_t dims[3] = {0, 0, 0};
+    int rank = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
+    if (rank >= 1 && rank <= 3)
+        H5Sget_simple_extent_dims(sp, dims, NULL);
+    if (sp >= 0)
+        H5Sclose(sp);
+    if (rank < 1 || rank > 3)
+        return -1;
+    if (had)
+        *had = dims[0];
+    if (dims[0] < keep)
+        return -1;
+    dims[0] = keep;
+    return H5Dset_extent(ds, dims) < 0 ? -1 : 0;
+}
+
+static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t keep)
+{
+    snprintf(rb->name, sizeof rb->name, "%s", name);
+    for (int k = 0; k < FD_N; k++)
+        rb->ds[k] = -1;
+    char p[512];
+    snprintf(p, sizeof p, "/bodies/%s", name);
+    hid_t g = H5Gopen2(r->file, p, H5P_DEFAULT);
+    if (g < 0)
+        return -1;
+    int st = 0;
+    hid_t a = H5Aopen(g, "centre_m", H5P_DEFAULT);
+    if (a < 0 || H5Aread(a, H5T_NATIVE_DOUBLE, rb->centre) < 0)
+        st = -1;
+    if (a >= 0)
+        H5Aclose(a);
+    hid_t dn = H5Dopen2(g, "nodes", H5P_DEFAULT), dt = H5Dopen2(g, "triangles", H5P_DEFAULT);
+    hsize_t nd[2] = {0, 0}, td[2] = {0, 0};
+    if (dn < 0 || dt < 0)
+        st = -1;
+    if (!st) {
+        hid_t sp = H5Dget_space(dn);
+        H5Sget_simple_extent_dims(sp, nd, NULL);
+        H5Sclose(sp);
+        sp = H5Dget_space(dt);
+        H5Sget_simple_extent_dims(sp, td, NULL);
+        H5Sclose(sp);
+        rb->n_nodes = (gs_index)nd[0];
+        rb->n_tris = (gs_index)td[0];
+        rb->xy = gs_calloc(2 * (size_t)nd[0] + 1, sizeof(double));
+        rb->scratch = gs_calloc(3 * (size_t)nd[0] + 1, sizeof(double));
+        if (!rb->xy || !rb->scratch || nd[1] != 2 ||
+            (nd[0] > 0 && H5Dread(dn, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, rb->xy) < 0))
+            st = -1;
+    }
+    if (dn >= 0)
+        H5Dclose(dn);
+    if (dt >= 0)
+        H5Dclose(dt);
+    H5Gclose(g);
+    if (st)
+        return -1;
+    static const char *const fd_names[FD_N] = {"time", "step", "theta", "displacement", "von_mises", "position"};
+    snprintf(p, sizeof p, "/fields/%s", name);
+    g = H5Gopen2(r->file, p, H5P_DEFAULT);
+    if (g < 0)
+        return -1;
+    for (int k = 0; k < FD_N && !st; k++) {
+        rb->ds[k] = H5Dopen2(g, fd_names[k], H5P_DEFAULT);
+        if (rb->ds[k] < 0 || cut_ds(rb->ds[k], (hsize_t)keep, NULL) < 0)
+            st = -1;
+    }
+    H5Gclose(g);
+    if (st)
+        return -1;
+    rb->tcap = keep > 0 ? keep : 64;
+    rb->times = gs_calloc((size_t)rb->tcap, sizeof *rb->times);
+    if (!rb->times || (keep > 0 && H5Dread(rb->ds[FD_TIME], H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
+                                           H5P_DEFAULT, rb->times) < 0))
+        return -1;
+    rb->frames = rb->flushed = keep;
+    return 0;
+}
+
+gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
+                        const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d)
+{
+    *out = NULL;
+    gs_record *r = gs_calloc(1, sizeof *r);
+    if (!r)
+        return GS_ENOMEM;
+    snprintf(r->path, sizeof r->path, "%s", path);
+    for (int i = 0; i < DS_N; i++)
+        r->ds[i] = -1;
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    r->file = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    if (r->file < 0) {
+        free(r);
+        return gs_diag_set(d, GS_EIO, "path", "cannot reopen the record file '%s'", path);
+    }
+    int cols[DS_N] = {1, 1, 6, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
+    const char *bad = NULL;
+    hid_t g = H5Gopen2(r->file, "telemetry", H5P_DEFAULT);
+    if (g < 0)
+        bad = "it has no /telemetry";
+    for (int i = 0; i < DS_N && !bad; i++) {
+        r->cols[i] = cols[i];
+        if (cols[i] == 0)
+            continue;
+        r->ds[i] = H5Dopen2(g, ds_names[i], H5P_DEFAULT);
+        hsize_t dims[2] = {0, 1};
+        hid_t sp = r->ds[i] >= 0 ? H5Dget_space(r->ds[i]) : -1;
+        if (sp >= 0) {
+            if (H5Sget_simple_extent_ndims(sp) != ds_rank(i))
+                dims[1] = 0;
+            H5Sget_simple_extent_dims(sp, dims, NULL);
+            H5Sclose(sp);
+        }
+        if (r->ds[i] < 0 || (ds_rank(i) == 2 && dims[1] != (hsize_t)cols[i]))
+            bad = "its telemetry datasets do not match the scene";
+        else if (dims[0] < (hsize_t)rows)
+            bad = "it has fewer telemetry rows than the checkpoint says were flushed";
+    }
+    if (g >= 0)
+        H5Gclose(g);
+    for (int i = 0; i < DS_N && !bad; i++)
+        if (r->ds[i] >= 0 && cut_ds(r->ds[i], (hsize_t)rows, NULL) < 0)
+            bad = "its telemetry could not be cut back to the checkpoint";
+    r->rows = rows;
+    if (!bad && H5Lexists(r->file, "fields", H5P_DEFAULT) > 0) {
+        hid_t gf = H5Gopen2(r->file, "fields", H5P_DEFAULT);
+        char *names = gf >= 0 ? string_attr(gf, "names") : NULL;
+        if (gf >= 0)
+            H5Gclose(gf);
+        json_object *arr = names ? json_tokener_parse(names) : NULL;
+        free(names);
+        int n = arr && json_object_get_type(arr) == json_type_array ? (int)json_object_array_length(arr) : -1;
+        if (n < 1 || n != n_frames) {
+            bad = "its field snapshots do not match the checkpoint";
+        } else if (gs_mesh_io_xmf_path(r->path, r->xmf, sizeof r->xmf) != GS_OK ||
+                   !(r->bodies = gs_calloc((size_t)n, sizeof *r->bodies))) {
+            bad = "out of memory";
+        } else {
+            r->nb = n;
+            for (int b = 0; b < n; b++)
+                for (int k = 0; k < FD_N; k++)
+                    r->bodies[b].ds[k] = -1;
+            for (int b = 0; b < n && !bad; b++) {
+                const char *nm = json_object_get_string(json_object_array_get_idx(arr, (size_t)b));
+                if (!nm || !valid_body_name(nm) || field_frames[b] < 0 ||
+                    reopen_body(r, &r->bodies[b], nm, field_frames[b]) < 0)
+                    bad = "its field snapshots could not be cut back to the checkpoint";
+            }
+        }
+        json_object_put(arr);
+    } else if (!bad && n_frames > 0) {
+        bad = "it has no field snapshots but the checkpoint counts some";
+    }
+    if (!bad && (H5Fflush(r->file, H5F_SCOPE_GLOBAL) < 0 || write_xmf(r)))
+        bad = "it cannot be written";
+    if (bad) {
+        gs_record_close(&r);
+        return gs_diag_set(d, GS_EIO, "path", "cannot continue the record '%s': %s", path, bad);
+    }
+    *out = r;
+    return GS_OK;
+}

@@ -34,6 +34,7 @@ static gs_err contact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
         return GS_ENOMEM;
     m->contact = cm;
     cm->predict = sm->predict != 0;
+    cm->friction = sm->friction;
     for (int k = 0; k < 2; k++) {
         int b = sm->gear[k];
         const gs_scene_body *sb = &sc->bodies[b];

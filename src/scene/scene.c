@@ -29,14 +29,15 @@ static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", 
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
-                                         "damping_ratio", "backlash_mm", "passes", "constrain",
+                                         "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "restitution", "law", NULL};
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
 static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", NULL};
 static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
-static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every", NULL};
+static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every",
+                                            "checkpoint_every", NULL};
 
 void gs_scene_body_centre(const gs_scene *s, int i, double c[2])
 {
@@ -134,6 +135,34 @@ static gs_err prefix_diag(gs_err e, gs_diag *d, const char *path)
         memcpy(d->field, f, sizeof f);
     }
     return e;
+}
+
+double gs_scene_body_unknowns(const gs_scene_body *b)
+{
+    if (b->type != GS_BODY_GEAR)
+        return 0.0;
+    const gs_mesh_density *m = &b->mesh;
+    return 2.0 * b->gear.teeth * 1.5 * (m->flank + m->rim) * (2.0 * m->across + 2.0) *
+           ldexp(1.0, 2 * m->refine);
+}
+
+double gs_scene_estimate_bytes(const gs_scene *s, int *largest)
+{
+    double bytes = GS_SCENE_BASE_BYTES, most = 0.0;
+    if (largest)
+        *largest = -1;
+    for (int i = 0; i < s->n_bodies; i++) {
+        if (s->bodies[i].model != GS_MODEL_ELASTIC)
+            continue;
+        double u = gs_scene_body_unknowns(&s->bodies[i]);
+        bytes += GS_SCENE_BYTES_PER_UNKNOWN * u;
+        if (u > most) {
+            most = u;
+            if (largest)
+                *largest = i;
+        }
+    }
+    return bytes;
 }
 
 static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
@@ -248,6 +277,18 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         b->pitch_error = x * 1e-6;
     }
     GS_TRY(prefix_diag(gs_gear_validate(g, d), d, path));
+    /* Size limit before anything is meshed: every gear counts, since
+     * contact meshes mesh rigid gears too. */
+    double unknowns = gs_scene_body_unknowns(b);
+    if (unknowns > GS_SCENE_MAX_BODY_UNKNOWNS) {
+        char p[256];
+        gsi_path(p, sizeof p, path, b->mesh.refine > 0 ? "mesh.refine" : "mesh");
+        return gs_diag_set(d, GS_ETOOBIG, p,
+                           "the mesh of '%s' would have about %.3g FE unknowns (%d teeth, flank %d, "
+                           "across %d, rim %d, refine %d); at most %.3g per body",
+                           b->name, unknowns, g->teeth, b->mesh.flank, b->mesh.across, b->mesh.rim,
+                           b->mesh.refine, GS_SCENE_MAX_BODY_UNKNOWNS);
+    }
     double mass, inertia;
     GS_TRY(prefix_diag(gs_gear_mass_properties(g, b->material.density, &mass, &inertia), d, path));
     if (!b->mass_given)
@@ -390,7 +431,7 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
             }
     }
     if (m->model != GS_MESH_CONTACT) {
-        static const char *const no[] = {"passes", "constrain", NULL};
+        static const char *const no[] = {"passes", "constrain", "friction", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
@@ -411,6 +452,7 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
         m->one_pass = v;
         GS_TRY(enum_field(o, "constrain", path, "touching", constrain, 2, &v, d));
         m->predict = v;
+        GS_TRY(gsi_json_number(o, "friction", path, 0, 2, false, 0, &m->friction, d));
         return GS_OK;
     }
     if (m->model == GS_MESH_KINEMATIC)
@@ -714,7 +756,7 @@ static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, g
             if (json_object_get_type(m) != json_type_object)
                 continue;
             static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm",
-                                               "passes", "constrain", "restitution", "law", NULL};
+                                               "passes", "constrain", "friction", "restitution", "law", NULL};
             for (const char *const *k = drop; *k; k++)
                 json_object_object_del(m, *k);
             json_object_object_add(m, "model", json_object_new_string(levels[lv]));
@@ -1087,6 +1129,8 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         s->record_every = (int)v;
         CHECK(gsi_json_int(o, "fields_every", "outputs", 0, 100000000, false, 0, &v, d));
         s->fields_every = (int)v;
+        CHECK(gsi_json_int(o, "checkpoint_every", "outputs", 0, 1000000000, false, 0, &v, d));
+        s->checkpoint_every = (int)v;
     }
     if (s->record_every == 0)
         s->record_every = s->telemetry_every;

@@ -8,10 +8,12 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "service/options.h"
 #include "service/service_internal.h"
 
 static const char *const state_names[] = {"empty", "loaded", "running", "paused"};
@@ -44,6 +46,8 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(lim, "max_steps_per_advance", json_object_new_int64(GSI_MAX_STEPS_PER_ADVANCE));
     json_object_object_add(lim, "max_queued_jobs", json_object_new_int(GSI_MAX_JOBS));
     json_object_object_add(lim, "max_fetch_bytes", json_object_new_int(1 << 20));
+    json_object_object_add(lim, "max_scene_mb", json_object_new_int64(gsi_opt_max_scene_mb()));
+    json_object_object_add(lim, "max_body_unknowns", json_object_new_int64((int64_t)GS_SCENE_MAX_BODY_UNKNOWNS));
     json_object_object_add(o, "limits", lim);
     json_object *cmds = json_object_new_array();
     for (const gsi_command *c = gsi_commands(); c->name; c++)
@@ -98,12 +102,35 @@ static json_object *scene_summary(gs_system *sys)
     return o;
 }
 
+/* The daemon's memory limit (--max-scene-mb), before anything is meshed;
+ * the field names the mesh of the largest elastic body. */
+static gs_err check_scene_size(const gs_scene *sc, gs_diag *d)
+{
+    int big;
+    double bytes = gs_scene_estimate_bytes(sc, &big);
+    double limit = (double)gsi_opt_max_scene_mb() * 1048576.0;
+    if (bytes <= limit)
+        return GS_OK;
+    char f[128] = "bodies";
+    if (big >= 0)
+        snprintf(f, sizeof f, "bodies[%d].mesh", big);
+    return gs_diag_set(d, GS_ETOOBIG, f,
+                       "the scene would need about %.0f MiB (estimate; '%s' alone has about %.3g FE "
+                       "unknowns); this daemon's limit is %lld MiB (--max-scene-mb)",
+                       bytes / 1048576.0, big >= 0 ? sc->bodies[big].name : "?",
+                       big >= 0 ? gs_scene_body_unknowns(&sc->bodies[big]) : 0.0,
+                       (long long)gsi_opt_max_scene_mb());
+}
+
 /* Validate on rank 0 (with a diagnostic naming the field), then broadcast. */
 static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
 {
     gs_scene *sc;
     GS_TRY(gs_scene_parse(text, strlen(text), &sc, d));
+    gs_err se = check_scene_size(sc, d);
     gs_scene_free(&sc);
+    if (se != GS_OK)
+        return se;
     gs_record_close(&s->record);
     gs_err e = gs_engine_run(s->eng, GS_OP_LOAD, text, strlen(text), d, NULL);
     s->state = gs_engine_system(s->eng) ? SVC_LOADED : SVC_EMPTY;
@@ -224,6 +251,7 @@ static gs_err cmd_advance(gs_service *s, json_object *args, const char *id, json
     s->adv = (svc_advance){.active = true, .start_step = sys->step, .target_step = sys->step + n,
                            .wall_start = gs_now(), .job = -1};
     snprintf(s->adv.parent_id, sizeof s->adv.parent_id, "%s", id);
+    gsi_autosave_arm(s);
     s->state = SVC_RUNNING;
     s->timing_step = s->timing_telemetry = s->timing_record = 0;
     *res = json_object_new_object();
@@ -247,9 +275,13 @@ void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *m
         json_object_object_add(e, "message", json_object_new_string(msg ? msg : gs_strerror(err)));
         json_object_object_add(o, "error", e);
     }
-    if (s->record)
-        gs_record_flush(s->record);
+    gsi_record_flush_or_stop(s, "the record could not be written");
     int job = s->adv.job;
+    if (job < 0 && s->adv.next_autosave > 0 && !s->keep_autosave) {
+        char p[PATH_MAX + 16];
+        snprintf(p, sizeof p, "%s/%s", s->data_dir, GSI_AUTOSAVE_NAME);
+        unlink(p);
+    }
     s->adv.active = false;
     s->state = sys ? SVC_LOADED : SVC_EMPTY;
     gsi_publish(s, "done", o);
@@ -400,7 +432,7 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
         gs_record_close(&s->record);
         s->record = r;
         gs_record_sample(r, gs_engine_system(s->eng));
-        gs_record_flush(r);
+        gsi_record_flush_or_stop(s, "the record could not be written");
     }
     *res = json_object_new_object();
     json_object_object_add(*res, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
@@ -469,6 +501,116 @@ static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json
     return GS_OK;
 }
 
+/* ---- automatic checkpoints and --resume ---------------------------------- */
+
+void gsi_autosave_arm(gs_service *s)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    int every = sys ? sys->scene->checkpoint_every : 0;
+    s->adv.next_autosave = every > 0 && s->adv.job < 0 ? (sys->step / every + 1) * every : 0;
+}
+
+static void publish_error(gs_service *s, const char *code, const char *msg)
+{
+    json_object *w = json_object_new_object();
+    json_object_object_add(w, "code", json_object_new_string(code));
+    json_object_object_add(w, "message", json_object_new_string(msg));
+    if (s->adv.active)
+        json_object_object_add(w, "parent_id", json_object_new_string(s->adv.parent_id));
+    gsi_publish(s, "error", w);
+}
+
+/* Between chunks only: gs_engine_snapshot broadcasts an operation when
+ * elastic bodies live on other ranks. */
+void gsi_autosave_if_due(gs_service *s)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    if (!sys || !s->adv.active || s->adv.next_autosave <= 0 || sys->step < s->adv.next_autosave)
+        return;
+    int every = sys->scene->checkpoint_every;
+    s->adv.next_autosave = (sys->step / every + 1) * every;
+    double t0 = gs_now();
+    gs_autosave_info a;
+    memset(&a, 0, sizeof a);
+    snprintf(a.parent_id, sizeof a.parent_id, "%s", s->adv.parent_id);
+    a.start_step = s->adv.start_step;
+    a.target_step = s->adv.target_step;
+    /* Everything recorded before the checkpoint goes to disk first. */
+    gsi_record_flush_or_stop(s, "the record could not be written");
+    if (s->record) {
+        const char *rp = gs_record_path(s->record);
+        size_t dl = strlen(s->data_dir);
+        snprintf(a.record, sizeof a.record, "%s",
+                 strncmp(rp, s->data_dir, dl) == 0 && rp[dl] == '/' ? rp + dl + 1 : rp);
+        a.record_rows = gs_record_rows(s->record);
+        a.n_field_bodies = gs_record_n_meshes(s->record);
+        if (a.n_field_bodies > GS_AUTOSAVE_MAX_BODIES)
+            a.n_field_bodies = GS_AUTOSAVE_MAX_BODIES;
+        for (int b = 0; b < a.n_field_bodies; b++)
+            a.field_frames[b] = gs_record_field_frames(s->record, b);
+    }
+    char *bytes = NULL;
+    size_t len = 0;
+    gs_diag d;
+    gs_diag_clear(&d);
+    char path[PATH_MAX + 16];
+    snprintf(path, sizeof path, "%s/%s", s->data_dir, GSI_AUTOSAVE_NAME);
+    gs_err e = gs_engine_snapshot(s->eng, &bytes, &len);
+    if (e == GS_OK)
+        e = gs_autosave_write(path, bytes, len, sys->scene->json, sys->step, sys->time, &a, &d);
+    free(bytes);
+    if (e != GS_OK) {
+        char msg[400];
+        snprintf(msg, sizeof msg, "automatic checkpoint at step %lld failed: %.300s", (long long)sys->step,
+                 d.message[0] ? d.message : gs_strerror(e));
+        publish_error(s, gs_errcode(e), msg);
+    }
+    s->timing_record += gs_now() - t0;
+}
+
+gs_err gsi_resume(gs_service *s, gs_diag *d)
+{
+    char path[PATH_MAX + 16];
+    snprintf(path, sizeof path, "%s/%s", s->data_dir, GSI_AUTOSAVE_NAME);
+    if (access(path, F_OK) != 0)
+        return gs_diag_set(d, GS_ENOTFOUND, "path", "no %s in the data directory", GSI_AUTOSAVE_NAME);
+    gs_autosave_info a;
+    GS_TRY(gs_autosave_read_info(path, &a, d));
+    char *bytes;
+    size_t len;
+    GS_TRY(gs_checkpoint_read(path, &bytes, &len, d));
+    gs_record_close(&s->record);
+    gs_err e = gs_engine_run(s->eng, GS_OP_RESTORE, bytes, len, d, NULL);
+    free(bytes);
+    gs_system *sys = gs_engine_system(s->eng);
+    s->state = sys ? SVC_LOADED : SVC_EMPTY;
+    if (e != GS_OK)
+        return e;
+    if (a.target_step <= sys->step || a.start_step > sys->step)
+        return gs_diag_set(d, GS_EIO, "path", "%s holds no unfinished advance (step %lld, target %lld)",
+                           GSI_AUTOSAVE_NAME, (long long)sys->step, (long long)a.target_step);
+    if (a.record[0]) {
+        char rec[PATH_MAX];
+        gs_diag rd;
+        gs_diag_clear(&rd);
+        gs_err re = gsi_resolve_path(s, a.record, rec, sizeof rec, false, &rd);
+        if (re == GS_OK)
+            re = gs_record_reopen(rec, sys, a.record_rows, a.field_frames, a.n_field_bodies, &s->record, &rd);
+        if (re != GS_OK)
+            fprintf(stderr, "gearsimd: --resume: the advance goes on without its record: %s\n",
+                    rd.message[0] ? rd.message : gs_strerror(re));
+    }
+    s->adv = (svc_advance){.active = true, .start_step = a.start_step, .target_step = a.target_step,
+                           .wall_start = gs_now(), .job = -1};
+    snprintf(s->adv.parent_id, sizeof s->adv.parent_id, "%s", a.parent_id);
+    gsi_autosave_arm(s);
+    s->state = SVC_RUNNING;
+    fprintf(stderr, "gearsimd: --resume: continuing advance '%s' from step %lld to %lld%s%s\n", a.parent_id,
+            (long long)sys->step, (long long)a.target_step, s->record ? ", recording to " : "",
+            s->record ? a.record : "");
+    return GS_OK;
+}
+
 static int cmp_at(const void *a, const void *b)
 {
     json_object *x = *(json_object *const *)a, *y = *(json_object *const *)b;
@@ -490,6 +632,8 @@ static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_
     gs_scene *sc;
     const char *text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
     gs_err e = gs_scene_parse(text, strlen(text), &sc, d);
+    if (e == GS_OK && (e = check_scene_size(sc, d)) != GS_OK)
+        gs_scene_free(&sc);
     if (e != GS_OK) {
         char f[sizeof d->field];
         snprintf(f, sizeof f, "args.scene%s%.140s", d->field[0] ? "." : "", d->field);
@@ -658,7 +802,7 @@ static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_o
     GS_TRY(gsi_json_int(args, "offset", "args", 0, INT64_MAX / 2, false, 0, &off, d));
     GS_TRY(gsi_json_int(args, "length", "args", 1, 1 << 20, false, 1 << 20, &len, d));
     if (s->record && strcmp(full, gs_record_path(s->record)) == 0)
-        gs_record_flush(s->record);
+        gsi_record_flush_or_stop(s, "the record could not be written");
     FILE *f = fopen(full, "rb");
     struct stat st;
     if (!f || fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {

@@ -18,9 +18,17 @@
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
 #include "service/auth.h"
+#include "service/options.h"
 #include "service/service_internal.h"
 
 static volatile sig_atomic_t stop_signal = 0;
+static bool opt_resume = false;
+static int64_t opt_max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB;
+
+void gs_service_set_resume(bool on) { opt_resume = on; }
+void gs_service_set_max_scene_mb(int64_t mb) { opt_max_scene_mb = mb < 1 ? 1 : mb; }
+bool gsi_opt_resume(void) { return opt_resume; }
+int64_t gsi_opt_max_scene_mb(void) { return opt_max_scene_mb; }
 
 static void on_signal(int sig)
 {
@@ -49,6 +57,23 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
     zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
     json_object_put(ev);
+}
+
+void gsi_record_flush_or_stop(gs_service *s, const char *why)
+{
+    if (!s->record || gs_record_flush(s->record) == GS_OK)
+        return;
+    char msg[1400];
+    snprintf(msg, sizeof msg, "recording stopped: %s ('%.1100s'; disk full?); the simulation goes on",
+             why, gs_record_path(s->record));
+    json_object *w = json_object_new_object();
+    json_object_object_add(w, "code", json_object_new_string("io_error"));
+    json_object_object_add(w, "message", json_object_new_string(msg));
+    if (s->adv.active)
+        json_object_object_add(w, "parent_id", json_object_new_string(s->adv.parent_id));
+    gsi_publish(s, "error", w);
+    fprintf(stderr, "gearsimd: %s\n", msg);
+    gs_record_close(&s->record);
 }
 
 static json_object *energy_json(const gs_energy *e)
@@ -93,6 +118,7 @@ json_object *gsi_state_json(gs_service *s)
         if (m->ops->contact) {
             json_object_object_add(j, "contacts", json_object_new_int(m->n_active));
             json_object_object_add(j, "rows", json_object_new_int(m->n_rows));
+            json_object_object_add(j, "friction_loss", json_object_new_double(m->friction_loss));
         }
         if (m->ops->after_step) {
             json_object_object_add(j, "impacts", json_object_new_int64(m->impacts));
@@ -581,8 +607,7 @@ static void run_chunk(gs_service *s)
             want = 2 * s->chunk_steps;
         s->chunk_steps = want < 1 ? 1 : (want > 1000000 ? 1000000 : want);
     }
-    if (s->record)
-        gs_record_flush(s->record);
+    gsi_record_flush_or_stop(s, "the record could not be written");
     if (e != GS_OK) {
         gsi_finish_advance(s, false, e, e == GS_ENOCONV ? "the step's Newton iteration did not converge" : gs_strerror(e));
         return;
@@ -599,6 +624,8 @@ static void run_chunk(gs_service *s)
     }
     if (sys->step >= s->adv.target_step)
         gsi_finish_advance(s, false, GS_OK, NULL);
+    else
+        gsi_autosave_if_due(s);
 }
 
 static gs_err write_connection_file(gs_service *s)
@@ -738,6 +765,16 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         e = bind_socket(s->router, bind, cfg->command_port, s->cmd_endpoint, sizeof s->cmd_endpoint);
     if (e == GS_OK)
         e = bind_socket(s->pub, bind, cfg->telemetry_port, s->tel_endpoint, sizeof s->tel_endpoint);
+    if (e == GS_OK && opt_resume) {
+        /* Before the connection file: clients find the advance running. */
+        gs_diag d;
+        gs_diag_clear(&d);
+        gs_err re = gsi_resume(s, &d);
+        if (re == GS_ENOTFOUND && !gs_engine_system(eng))
+            fprintf(stderr, "gearsimd: --resume: nothing to resume (%s)\n", d.message);
+        else if (re != GS_OK)
+            fprintf(stderr, "gearsimd: --resume failed: %s\n", d.message[0] ? d.message : gs_strerror(re));
+    }
     if (e == GS_OK && write_connection_file(s) != GS_OK) {
         fprintf(stderr, "gearsimd: cannot write the connection file '%s'\n", cfg->connection_file);
         e = GS_EIO;
@@ -777,8 +814,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             heartbeat(s);
         }
     }
-    if (s->adv.active)
+    if (s->adv.active) {
+        s->keep_autosave = true; /* still resumable with --resume */
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");
+    }
     gs_record_close(&s->record);
     gs_diag d;
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);

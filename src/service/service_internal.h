@@ -36,6 +36,7 @@ typedef struct svc_advance {
     double wall_start;
     int job;                /* index of the job driving it, -1 for a client */
     int next_schedule;
+    int64_t next_autosave;  /* step at or after which the next autosave is due (0: none) */
 } svc_advance;
 
 typedef struct svc_cache_entry {
@@ -63,6 +64,7 @@ typedef struct gs_service {
     int cache_next;
     bool shutdown;
     double timing_step, timing_telemetry, timing_record;
+    bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
 } gs_service;
 
 /* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */
@@ -102,5 +104,16 @@ const gsi_command *gsi_commands(void);
 void gsi_start_next_job(gs_service *s);
 void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *msg);
 void gsi_job_between_chunks(gs_service *s);
+
+/* Flush the record; on failure (disk full, ...) publish an `error` event and
+ * stop recording. The simulation goes on either way. */
+void gsi_record_flush_or_stop(gs_service *s, const char *why);
+/* Automatic checkpoints (outputs.checkpoint_every) of a client's advance:
+ * arm at its start, write between chunks when due, remove at its end. */
+void gsi_autosave_arm(gs_service *s);
+void gsi_autosave_if_due(gs_service *s);
+/* --resume: restore <data dir>/autosave.h5, reopen its record and continue
+ * its advance. GS_ENOTFOUND when there is none. */
+gs_err gsi_resume(gs_service *s, gs_diag *d);
 
 #endif

@@ -24,6 +24,7 @@
  * complementarity), so frictionless contact conserves energy exactly. */
 #include <lapacke.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -48,6 +49,8 @@ typedef struct solver {
     size_t cap_base;
     int *sel;            /* scratch: selected dofs of one body */
     size_t cap_sel;
+    double *ff, *ffm;    /* friction: generalised forces, total and per mesh */
+    size_t cap_ff, cap_ffm;
     double *H, *c, *E, *e, *G, *g, *x, *lam_eq, *lam_in, *S, *f;
     size_t cap[11];      /* capacities of the eleven arrays above, in that order of reserve() */
     gs_qp *qp;
@@ -66,6 +69,8 @@ void gsi_contact_free(gs_system *sys)
     free(s->unk);
     free(s->base);
     free(s->sel);
+    free(s->ff);
+    free(s->ffm);
     free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
     gs_qp_free(&s->qp);
@@ -175,6 +180,121 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         if (take)
             GS_TRY(add_row(s, mi, &r));
     }
+    return GS_OK;
+}
+
+/* Velocity of the material point at x of gear body b from its rigid motion
+ * at the step's start (the planet's centre turns with its carrier). */
+static void point_velocity(const gs_system *sys, int b, const double x[2], double v[2])
+{
+    double c[2], th;
+    gs_system_body_pose(sys, b, c, &th);
+    v[0] = v[1] = 0.0;
+    int k = sys->bodies[b].coord;
+    double w = k >= 0 ? sys->w[k] : 0.0;
+    v[0] += -w * (x[1] - c[1]);
+    v[1] += w * (x[0] - c[0]);
+    const gs_scene_body *sb = &sys->scene->bodies[b];
+    if (sb->joint == GS_JOINT_ON_CARRIER) {
+        int kc = sys->bodies[sb->carrier].coord;
+        double wc = kc >= 0 ? sys->w[kc] : 0.0;
+        const double *cc = sys->scene->bodies[sb->carrier].centre;
+        v[0] += -wc * (x[1] - cc[1]);
+        v[1] += wc * (x[0] - cc[0]);
+    }
+}
+
+/* Generalised forces (into fm, N unknowns) of a force F (scene frame) at x on
+ * gear body b, at mesh node `node` (-1: none) of gear k of contact mesh cm:
+ * the moment on its rotation and on its carrier's, and R^T F on the node's
+ * displacement unknowns when the node is one. */
+static void point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k, gs_index node,
+                        const double x[2], const double F[2], const int *unk, const size_t *base,
+                        double *fm)
+{
+    int b = cm->body[k];
+    double c[2], th;
+    gs_system_body_pose(sys, b, c, &th);
+    int kc = sys->bodies[b].coord;
+    if (kc >= 0)
+        fm[kc] += -(x[1] - c[1]) * F[0] + (x[0] - c[0]) * F[1];
+    const gs_scene_body *sb = &sys->scene->bodies[b];
+    if (sb->joint == GS_JOINT_ON_CARRIER) {
+        int cc = sys->bodies[sb->carrier].coord;
+        const double *cC = sys->scene->bodies[sb->carrier].centre;
+        if (cc >= 0)
+            fm[cc] += -(c[1] - cC[1]) * F[0] + (c[0] - cC[0]) * F[1];
+    }
+    int pk = cm->elastic[k] && node >= 0 ? gsi_plan_find(&sys->plan, b, node) : -1;
+    if (pk < 0)
+        return;
+    int u0 = unk[base[b] + (size_t)node_dof(sys, b, pk, 0)], u1 = unk[base[b] + (size_t)node_dof(sys, b, pk, 1)];
+    if (u0 < 0 || u1 < 0)
+        return; /* not an unknown of this step: the friction of its row is skipped with it */
+    double cs = cos(th), sn = sin(th);
+    fm[u0] += cs * F[0] + sn * F[1];
+    fm[u1] += -sn * F[0] + cs * F[1];
+}
+
+/* Coulomb friction on the flanks, explicit in the normal forces of the
+ * frictionless solve of the same step: on every row with a positive normal
+ * force F_n = lambda |dg/dx_s| of a mesh with mu > 0, the force mu F_n along
+ * the tangent, opposing the sliding velocity of the slave point relative to
+ * the master (from the gears' rigid motion at the step's start), on the
+ * slave node, and its reaction on the master nodes in the proportions of the
+ * gap gradient. Rows that do not slide (|v_t| below 1e-9 m/s) carry none.
+ * Per-mesh generalised forces go to s->ffm, their sum to s->ff. */
+static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *base, bool *any)
+{
+    int nm = sys->n_meshes;
+    *any = false;
+    for (int mi = 0; mi < nm; mi++) {
+        const gsi_contact_mesh *cm = sys->meshes[mi].contact;
+        *any |= sys->meshes[mi].ops->contact && cm->friction > 0;
+    }
+    if (!*any)
+        return GS_OK;
+    if (!grow(&s->ffm, &s->cap_ffm, (size_t)nm * (size_t)N) || !grow(&s->ff, &s->cap_ff, (size_t)N))
+        return GS_ENOMEM;
+    memset(s->ffm, 0, (size_t)nm * (size_t)N * sizeof(double));
+    memset(s->ff, 0, (size_t)N * sizeof(double));
+    for (int r = 0; r < s->n_rows; r++) {
+        int mi = s->rows[r].mesh;
+        const gsi_contact_mesh *cm = sys->meshes[mi].contact;
+        double lam = s->lam_in[r];
+        if (cm->friction <= 0 || !(lam > 0))
+            continue;
+        const gs_contact_row *cr = &s->rows[r].r;
+        double gn = hypot(cr->gap.grad[0], cr->gap.grad[1]);
+        if (!(gn > 0))
+            continue;
+        double nx = cr->gap.grad[0] / gn, ny = cr->gap.grad[1] / gn, tx = -ny, ty = nx;
+        int ks = cr->body[0], km = 1 - ks;
+        /* Sliding velocity of the slave point over the master surface, from
+         * the gears' rigid motion (with the elastic velocities included this
+         * explicit friction feeds the tooth vibrations instead of damping
+         * them: see docs/CONTACT.md). */
+        double vs[2], vm[2], wsum = 0;
+        point_velocity(sys, cm->body[ks], cr->x[0], vs);
+        point_velocity(sys, cm->body[km], cr->x[0], vm);
+        for (int t = 1; t < cr->n_nodes; t++)
+            wsum += hypot(cr->gap.grad[2 * t], cr->gap.grad[2 * t + 1]);
+        double vt = (vs[0] - vm[0]) * tx + (vs[1] - vm[1]) * ty;
+        if (fabs(vt) < 1e-9)
+            continue;
+        double mag = cm->friction * lam * gn * (vt > 0 ? -1.0 : 1.0);
+        double F[2] = {mag * tx, mag * ty};
+        double *fm = s->ffm + (size_t)mi * N;
+        point_force(sys, cm, ks, cr->node[0], cr->x[0], F, s->unk, base, fm);
+        for (int t = 1; t < cr->n_nodes && wsum > 0; t++) {
+            double wt = hypot(cr->gap.grad[2 * t], cr->gap.grad[2 * t + 1]) / wsum;
+            double Fm[2] = {-wt * F[0], -wt * F[1]};
+            point_force(sys, cm, cr->body[t], cr->node[t], cr->x[t], Fm, s->unk, base, fm);
+        }
+    }
+    for (int mi = 0; mi < nm; mi++)
+        for (int j = 0; j < N; j++)
+            s->ff[j] += s->ffm[(size_t)mi * N + j];
     return GS_OK;
 }
 
@@ -341,9 +461,35 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
     gs_qp_result res = {.x = s->x, .lambda_eq = s->lam_eq, .lambda_in = s->lam_in};
     GS_TRY(gs_qp_solve(s->qp, &pr, NULL, 0, &res));
     sys->last_iterations = res.iterations;
+    /* 5b. Flank friction: forces from this solve's normal forces, then the
+     * step solved again with them as loads. */
+    bool fric = false;
+    if (ni > 0) {
+        GS_TRY(friction_forces(sys, s, N, base, &fric));
+        if (fric) {
+            for (int j = 0; j < N; j++)
+                s->c[j] += s->ff[j];
+            GS_TRY(gs_qp_solve(s->qp, &pr, NULL, 0, &res));
+            sys->last_iterations += res.iterations;
+        }
+    }
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));
     memset(s->f, 0, (size_t)N * sizeof(double));
+    if (fric) {
+        /* The friction forces' work over the step is what they dissipate:
+         * booked exactly, so the balance holds whatever the force. */
+        for (int mi = 0; mi < sys->n_meshes; mi++) {
+            const double *fm = s->ffm + (size_t)mi * N;
+            double w = 0;
+            for (int j = 0; j < N; j++) {
+                s->f[j] += fm[j];
+                w += fm[j] * s->x[j];
+            }
+            sol[gs_sol_mesh_contact(sys, mi) + 3] = -w;
+            sol[n] += -w;
+        }
+    }
     for (int a = 0; a < ne; a++)
         for (int j = 0; j < N; j++)
             s->f[j] += s->E[(size_t)a * N + j] * s->lam_eq[a];

@@ -107,7 +107,7 @@ gs_err gs_step_prepare(gs_system *sys)
         if (sys->meshes[i].ops->contact)
             GS_TRY(search(sys, &sys->meshes[i]));
     /* Solution: dq, dissipation, mesh forces, contact figures, then forces. */
-    size_t roff = 0, soff = (size_t)(sys->n_coords + 1 + 4 * sys->n_meshes);
+    size_t roff = 0, soff = (size_t)(sys->n_coords + 1 + (1 + GS_SOL_CONTACT) * sys->n_meshes);
     for (int i = 0; i < sys->n_bodies; i++) {
         int n = p->n_nodes[i];
         if (n > 1) {

@@ -240,6 +240,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         me->n_active = (int)ct[0];
         me->n_rows = (int)ct[1];
         me->penetration = ct[2];
+        me->friction_loss += ct[3];
     }
     sys->step++;
     sys->time = (double)sys->step * h;

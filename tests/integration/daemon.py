@@ -60,7 +60,16 @@ class DaemonError(RuntimeError):
 class Daemon:
     """One gearsimd run in its own temporary directory (also its data dir)."""
 
-    def __init__(self, ranks=1, extra_args=(), startup_timeout=60.0, keep=None, curve_key=None):
+    def __init__(self, ranks=1, extra_args=(), startup_timeout=60.0, keep=None, curve_key=None,
+                 data_dir=None, resume=False, fsize=None):
+        """data_dir: use (and keep) this directory instead of a new temporary
+        one, e.g. to restart on the data of a killed daemon; resume: pass
+        --resume; fsize: RLIMIT_FSIZE (bytes) set on the gearsimd ranks once
+        they answer (limit_file_size)."""
+        self.given_dir = data_dir
+        self.fsize = fsize
+        if resume:
+            extra_args = list(extra_args) + ["--resume"]
         self.ranks = ranks
         self.curve_key = curve_key   # client key used by start/stop/client() when the daemon runs CURVE
         self.extra_args = list(extra_args)
@@ -82,11 +91,18 @@ class Daemon:
     def start(self):
         if not FAKE and not os.access(gearsimd_path(), os.X_OK):
             raise DaemonError(f"{gearsimd_path()} is not built")
-        self.dir = tempfile.mkdtemp(prefix="gearsim-it-")
+        if self.given_dir:
+            self.dir = self.given_dir
+            os.makedirs(self.dir, exist_ok=True)
+        else:
+            self.dir = tempfile.mkdtemp(prefix="gearsim-it-")
         self.conn_file = os.path.join(self.dir, "conn.json")
+        if self.given_dir and os.path.exists(self.conn_file):
+            os.unlink(self.conn_file)   # left by a killed run
         env = dict(os.environ, **MPI_ENV)
-        self._out = open(os.path.join(self.dir, "daemon.out"), "wb")
-        self._err = open(os.path.join(self.dir, "daemon.err"), "wb")
+        mode = "ab" if self.given_dir else "wb"
+        self._out = open(os.path.join(self.dir, "daemon.out"), mode)
+        self._err = open(os.path.join(self.dir, "daemon.err"), mode)
         self.proc = subprocess.Popen(self.command(), cwd=self.dir, env=env, stdin=subprocess.DEVNULL,
                                      stdout=self._out, stderr=self._err, start_new_session=True)
         _live.append(self)
@@ -111,7 +127,27 @@ class Daemon:
             time.sleep(0.1)
         with open(self.conn_file) as f:
             self.connection = json.load(f)
+        if self.fsize is not None:
+            self.limit_file_size(self.fsize)
         return self
+
+    def limit_file_size(self, nbytes):
+        """RLIMIT_FSIZE on the running gearsimd ranks only (mpirun and PMIx
+        need to write more than that); returns the pids limited."""
+        import resource
+        done = []
+        for p in self.session_pids():
+            try:
+                with open(f"/proc/{p}/comm") as f:
+                    if f.read().strip() != "gearsimd":
+                        continue
+                resource.prlimit(p, resource.RLIMIT_FSIZE, (int(nbytes), int(nbytes)))
+                done.append(p)
+            except (OSError, ValueError):
+                pass
+        if not done:
+            raise DaemonError("no gearsimd process to limit")
+        return done
 
     def client(self, **kw):
         if self.curve_key is not None:
@@ -137,6 +173,46 @@ class Daemon:
         return "\n".join(out)
 
     # ---------------------------------------------------------------- stop
+    def session_pids(self):
+        """Every process of the session we started (mpirun is its leader).
+        Open MPI puts each rank in a process group of its own, so the group
+        of mpirun does not reach the ranks; the session does."""
+        sid, pids = self.proc.pid, []
+        for name in os.listdir("/proc"):
+            if not name.isdigit():
+                continue
+            try:
+                with open(f"/proc/{name}/stat") as f:
+                    stat = f.read()
+            except OSError:
+                continue
+            fields = stat[stat.rindex(")") + 2:].split()
+            if len(fields) > 3 and int(fields[3]) == sid:
+                pids.append(int(name))
+        return pids
+
+    def kill(self):
+        """SIGKILL every process of the daemon (mpirun and all ranks) at once,
+        as a crash of the machine would; keep the data directory. Returns the
+        exit status of mpirun."""
+        pids = self.session_pids()
+        for p in pids:
+            try:
+                os.kill(p, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        self.proc.wait(timeout=30)
+        deadline = time.monotonic() + 10
+        while self.session_pids() and time.monotonic() < deadline:
+            time.sleep(0.02)
+        self.returncode = self.proc.returncode
+        self.proc = None
+        for f in (self._out, self._err):
+            f.close()
+        if self in _live:
+            _live.remove(self)
+        return self.returncode
+
     def _signal(self, sig):
         try:
             os.killpg(self.proc.pid, sig)   # the group we created with start_new_session
@@ -176,7 +252,7 @@ class Daemon:
             f.close()
         if self in _live:
             _live.remove(self)
-        if self.dir and not self.keep:
+        if self.dir and not self.keep and not self.given_dir:
             shutil.rmtree(self.dir, ignore_errors=True)
         return how
 

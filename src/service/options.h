@@ -1,0 +1,21 @@
+/* SPDX-License-Identifier: MIT
+ * Daemon options of the service that gs_service_config does not carry
+ * (set by src/daemon/main.c before gs_service_run). */
+#ifndef GSI_OPTIONS_H
+#define GSI_OPTIONS_H
+
+#include <stdbool.h>
+#include <stdint.h>
+
+/* --resume: at start, continue the advance saved in <data dir>/autosave.h5. */
+void gs_service_set_resume(bool on);
+/* --max-scene-mb: largest estimated memory of a loaded scene (MiB, >= 1). */
+void gs_service_set_max_scene_mb(int64_t mb);
+
+bool gsi_opt_resume(void);
+int64_t gsi_opt_max_scene_mb(void);
+
+#define GSI_DEFAULT_MAX_SCENE_MB 4096
+#define GSI_AUTOSAVE_NAME "autosave.h5"
+
+#endif
