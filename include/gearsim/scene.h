@@ -17,7 +17,7 @@ typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
 typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
 typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
 typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1, GS_MESH_CONTACT = 2, GS_MESH_IMPACT = 3 } gs_mesh_model;
-typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1 } gs_stiffness_type;
+typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1, GS_STIFF_CALIBRATED = 2 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
 
 typedef struct gs_mesh_density {
@@ -62,6 +62,7 @@ typedef struct gs_scene_mesh {
     gs_stiffness_type stiffness_type;
     double k_single, k_double; /* N/m; constant uses k_single */
     double transition;         /* fraction of the mesh cycle over which k changes */
+    int calibrate_positions;   /* calibrated: roll positions of the quasi-static FE analysis */
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */
@@ -123,7 +124,7 @@ int gs_scene_find_body(const gs_scene *s, const char *name);
 /* Size limits, checked before anything is meshed (docs/SCENE.md, "Size
  * limits"). The estimate of an elastic gear's FE unknowns is
  *   2 * teeth * 1.5 * (flank + rim) * (2 across + 2) * 4^refine
- * (two displacements per node; about 1.1-1.3x the nodes the mesher makes for
+ * (two displacements per node; 1.3-1.6x the unknowns the mesher makes for
  * the example gears, so it errs on the large side); carriers and rigid gears
  * have none. gs_scene_parse refuses a body above GS_SCENE_MAX_BODY_UNKNOWNS
  * (field bodies[i].mesh.refine, or bodies[i].mesh when refine is 0). */

@@ -11,8 +11,11 @@
  *             stiffness jumps exchange energy with the motion instead of
  *             creating it. */
 #include <math.h>
+#include <stdio.h>
 
+#include "gearsim/stiffness.h"
 #include "gearsim/step.h"
+#include "gearsim/util.h"
 
 /* Deflection beyond the backlash dead zone. */
 static double dead(double x, double hb)
@@ -33,6 +36,19 @@ static double dead(double x, double hb)
  * resolve). */
 static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
 {
+    if (m->k_table) {
+        /* Calibrated: periodic piecewise-linear over one mesh cycle. */
+        int n = m->n_table;
+        double f = (phi - m->phase0) * m->phase_dir;
+        f -= floor(f);
+        double x = f * n;
+        int i = (int)x;
+        if (i >= n)
+            i = n - 1;
+        double t = x - i, k0 = m->k_table[i], k1 = m->k_table[(i + 1) % n];
+        *dk = (k1 - k0) * n * m->phase_dir;
+        return k0 + t * (k1 - k0);
+    }
     double e1 = m->contact_ratio - 1.0, dlt = m->transition;
     *dk = 0.0;
     if (m->k_double == m->k_single || e1 <= 0.0)
@@ -95,12 +111,63 @@ static double kin_energy(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     return 0.0;
 }
 
+/* Mesh stiffness over one cycle from the quasi-static FE analysis of the
+ * pair (src/contact/stiffness.c) at the scene's load on the driver: the gear
+ * whose teeth count the mesh phase, so one driver pitch is one cycle. The
+ * analysis starts at the gears' scene angles and rolls in the torque's
+ * direction; entry j is at phase phase0 + phase_dir j / n. Every rank runs
+ * it (deterministic); it costs about a tenth of a second per mesh at the
+ * default density. */
+static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+{
+    const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = sm->calibrate_positions;
+    o.driver = sys->scene->bodies[sm->gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
+    o.tangent = 0;
+    gs_stiffness_result r;
+    char field[64];
+    snprintf(field, sizeof field, "meshes[%d].stiffness", m->index);
+    gs_diag sd;
+    gs_err e = gs_stiffness_analyse(sys->scene, m->index, &o, &r, &sd);
+    if (e != GS_OK)
+        return gs_diag_set(d, e, field, "calibration by the quasi-static FE analysis failed: %s (%s)",
+                           sd.message, sd.field);
+    m->k_table = gs_calloc((size_t)r.positions, sizeof(double));
+    if (!m->k_table) {
+        gs_stiffness_result_clear(&r);
+        return GS_ENOMEM;
+    }
+    m->n_table = r.positions;
+    double sum = 0;
+    for (int j = 0; j < r.positions; j++) {
+        /* N/(mm um) per mm of face width -> N/m */
+        m->k_table[j] = r.pt[j].k * r.face_width_mm * 1e6;
+        sum += m->k_table[j];
+        if (!(m->k_table[j] > 0) || !isfinite(m->k_table[j])) {
+            gs_stiffness_result_clear(&r);
+            return gs_diag_set(d, GS_ERANGE, field, "the calibration gave no stiffness at roll %.3f", r.pt[j].roll);
+        }
+    }
+    int n = sys->n_coords;
+    double phase = 0;
+    for (int i = 0; i < n; i++)
+        phase += m->c[i] * sys->q[i];
+    m->phase0 = phase;
+    m->phase_dir = r.torque_nm < 0 ? -1.0 : 1.0;
+    m->k_single = m->k_double = sum / r.positions; /* the mean, for the damping estimate */
+    gs_stiffness_result_clear(&r);
+    return GS_OK;
+}
+
 static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
-    (void)d;
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     m->k_single = sm->k_single;
     m->k_double = sm->stiffness_type == GS_STIFF_CONSTANT ? sm->k_single : sm->k_double;
+    if (sm->stiffness_type == GS_STIFF_CALIBRATED)
+        GS_TRY(calibrate(sys, m, d));
     m->half_backlash = 0.5 * sm->backlash;
     double e1 = m->contact_ratio - 1.0;
     m->transition = fmin(sm->transition, 0.5 * fmin(e1, 1.0 - e1));

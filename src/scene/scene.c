@@ -31,7 +31,7 @@ static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier",
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "restitution", "law", NULL};
-static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", NULL};
+static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", "positions", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
 static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", NULL};
@@ -388,7 +388,7 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
 {
     static const char *const models[] = {"kinematic", "lumped", "contact", "impact"};
     static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
-    static const char *const stypes[] = {"constant", "rectangular"};
+    static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
     static const char *const constrain[] = {"touching", "predicted"};
     if (json_object_get_type(o) != json_type_object)
@@ -488,9 +488,15 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
         if (json_object_get_type(st) == json_type_object) {
             GS_TRY(gsi_json_only(st, p, stiff_keys, d));
             int ty;
-            GS_TRY(enum_field(st, "type", p, NULL, stypes, 2, &ty, d));
+            GS_TRY(enum_field(st, "type", p, NULL, stypes, 3, &ty, d));
             m->stiffness_type = (gs_stiffness_type)ty;
-            if (ty == GS_STIFF_CONSTANT) {
+            if (ty == GS_STIFF_CALIBRATED) {
+                /* From the quasi-static FE analysis of the pair at load
+                 * (docs/STIFFNESS.md), at the gears' scene mesh density. */
+                int64_t np;
+                GS_TRY(gsi_json_int(st, "positions", p, 4, 720, false, 24, &np, d));
+                m->calibrate_positions = (int)np;
+            } else if (ty == GS_STIFF_CONSTANT) {
                 GS_TRY(gsi_json_positive(st, "value", p, 1e14, true, 0, &m->k_single, d));
                 m->k_double = m->k_single;
             } else {

@@ -25,6 +25,7 @@ void gs_system_free(gs_system **ps)
             s->meshes[i].ops->destroy(&s->meshes[i]);
         free(s->meshes[i].a);
         free(s->meshes[i].c);
+        free(s->meshes[i].k_table);
     }
     gsi_contact_free(s);
     gsi_plan_free(&s->plan, s->n_bodies);
