@@ -1,0 +1,208 @@
+/* SPDX-License-Identifier: MIT
+ * Benchmark: speed against accuracy along the fidelity ladder (METHOD.md
+ * section 7). On the moment-induced 30/20 pair (contact_drive) and on the
+ * planetary train (planetary_contact), every level — kinematic, impact (pair
+ * only), lumped with the default rectangular stiffness, lumped calibrated
+ * from the FE model, elastic gears in contact — at several time steps (and
+ * mesh densities for contact), one process. Each run covers the ramp and the
+ * steady state; the figures are taken over the second half:
+ *   cost      wall seconds per simulated second
+ *   speed     mean speed of the output gear (closed form M0 ratio / c)
+ *   ratio     mean speed ratio error against the tooth counts
+ *   dte       dynamic transmission error amplitude: rms of the first mesh's
+ *             line-of-action deflection about its mean, m (0 for kinematic)
+ *   force     peak force of the first mesh, N
+ *   balance   worst energy balance residual / energy scale
+ * and the errors of speed, dte and force against the richest run (contact,
+ * finest setting). Output: a Markdown table on stdout and a CSV file
+ * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
+ * Wall times are ratios in one run on one machine; rerun to compare. */
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/step.h"
+#include "gearsim/util.h"
+
+typedef struct spec {
+    const char *scene, *level;
+    double h;
+    int refine;
+} spec;
+
+typedef struct result {
+    double cost, speed, ratio, dte, force, balance;
+    int ok;
+} result;
+
+/* The scene at a fidelity level. */
+static gs_system *build(const spec *s)
+{
+    json_object *root = json_tokener_parse(gs_scene_builtin(s->scene));
+    if (!root)
+        return NULL;
+    const char *lv = s->level;
+    bool contact = !strcmp(lv, "contact");
+    json_object *bs = json_object_object_get(root, "bodies"), *ms = json_object_object_get(root, "meshes");
+    for (size_t i = 0; i < json_object_array_length(bs); i++) {
+        json_object *b = json_object_array_get_idx(bs, i), *t;
+        if (json_object_object_get_ex(b, "type", &t) && !strcmp(json_object_get_string(t), "carrier"))
+            continue;
+        json_object_object_add(b, "model", json_object_new_string(contact ? "elastic" : "rigid"));
+        if (contact && s->refine > 0) {
+            json_object *m = json_object_new_object();
+            json_object_object_add(m, "refine", json_object_new_int(s->refine));
+            json_object_object_add(b, "mesh", m);
+        }
+    }
+    for (size_t i = 0; i < json_object_array_length(ms); i++) {
+        json_object *m = json_object_array_get_idx(ms, i);
+        static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm", "passes",
+                                           "constrain", "friction", "restitution", "law", NULL};
+        for (const char *const *k = drop; *k; k++)
+            json_object_object_del(m, *k);
+        if (!strcmp(lv, "calibrated")) {
+            json_object_object_add(m, "model", json_object_new_string("lumped"));
+            json_object *st = json_object_new_object();
+            json_object_object_add(st, "type", json_object_new_string("calibrated"));
+            json_object_object_add(m, "stiffness", st);
+        } else {
+            json_object_object_add(m, "model", json_object_new_string(lv));
+        }
+    }
+    json_object_object_add(json_object_object_get(root, "numerics"), "time_step", json_object_new_double(s->h));
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc;
+    gs_diag d;
+    gs_system *sys = NULL;
+    if (gs_scene_parse(txt, strlen(txt), &sc, &d) != GS_OK || gs_system_new(sc, 0, 1, &sys, &d) != GS_OK) {
+        fprintf(stderr, "# %s %s h %g: %s: %s\n", s->scene, lv, s->h, d.field, d.message);
+        sys = NULL;
+    }
+    json_object_put(root);
+    return sys;
+}
+
+static result run(const spec *s, double duration, const char *out_body, const char *in_body, double ratio_expect)
+{
+    result r = {0};
+    gs_system *sys = build(s);
+    if (!sys)
+        return r;
+    int o = gs_scene_find_body(sys->scene, out_body), in = gs_scene_find_body(sys->scene, in_body);
+    int n = (int)lround(duration / s->h), half = n / 2;
+    double th_o = 0, th_i = 0, d1 = 0, d2 = 0, worst = 0, scale = 0, fmaxv = 0;
+    gs_energy e;
+    double t0 = gs_now();
+    for (int i = 0; i < n; i++) {
+        if (i == n - half) {
+            th_o = gs_system_angle(sys, o);
+            th_i = gs_system_angle(sys, in);
+        }
+        if (gs_step_serial(sys) != GS_OK) {
+            gs_system_free(&sys);
+            return r;
+        }
+        gs_system_energy(sys, &e);
+        worst = fmax(worst, fabs(e.balance_residual));
+        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
+        if (i >= n - half) {
+            double x = sys->meshes[0].deflection;
+            d1 += x;
+            d2 += x * x;
+            fmaxv = fmax(fmaxv, fabs(sys->meshes[0].force));
+        }
+    }
+    double wall = gs_now() - t0, T = half * s->h;
+    r.cost = wall / duration;
+    r.speed = fabs(gs_system_angle(sys, o) - th_o) / T;
+    r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
+    double mean = d1 / half;
+    r.dte = sqrt(fmax(d2 / half - mean * mean, 0.0));
+    r.force = fmaxv;
+    r.balance = worst / scale;
+    r.ok = 1;
+    gs_system_free(&sys);
+    return r;
+}
+
+static double rel(double a, double ref)
+{
+    return ref != 0 ? fabs(a - ref) / fabs(ref) : fabs(a);
+}
+
+int main(int argc, char **argv)
+{
+    const char *csv = argc > 1 ? argv[1] : "tradeoff.csv";
+    FILE *f = fopen(csv, "w");
+    if (!f) {
+        perror(csv);
+        return 1;
+    }
+    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,err_speed,err_dte,err_force\n");
+    const spec pair[] = {
+        {"contact_drive", "kinematic", 1e-4, 0},  {"contact_drive", "kinematic", 1e-5, 0},
+        {"contact_drive", "kinematic", 1e-6, 0},  {"contact_drive", "impact", 1e-4, 0},
+        {"contact_drive", "impact", 1e-5, 0},     {"contact_drive", "impact", 1e-6, 0},
+        {"contact_drive", "lumped", 1e-4, 0},     {"contact_drive", "lumped", 1e-5, 0},
+        {"contact_drive", "lumped", 1e-6, 0},     {"contact_drive", "calibrated", 1e-4, 0},
+        {"contact_drive", "calibrated", 1e-5, 0}, {"contact_drive", "calibrated", 1e-6, 0},
+        {"contact_drive", "contact", 2e-5, 0},    {"contact_drive", "contact", 1e-5, 0},
+        {"contact_drive", "contact", 1e-5, 1},    {"contact_drive", "contact", 5e-6, 1},
+    };
+    const spec plan[] = {
+        {"planetary_contact", "kinematic", 1e-4, 0},  {"planetary_contact", "kinematic", 1e-5, 0},
+        {"planetary_contact", "kinematic", 1e-6, 0},  {"planetary_contact", "lumped", 1e-4, 0},
+        {"planetary_contact", "lumped", 1e-5, 0},     {"planetary_contact", "lumped", 1e-6, 0},
+        {"planetary_contact", "calibrated", 1e-4, 0}, {"planetary_contact", "calibrated", 1e-5, 0},
+        {"planetary_contact", "calibrated", 1e-6, 0}, {"planetary_contact", "contact", 2e-5, 0},
+        {"planetary_contact", "contact", 1e-5, 0},    {"planetary_contact", "contact", 5e-6, 0},
+    };
+    struct set {
+        const char *title;
+        const spec *s;
+        int n;
+        double duration;
+        const char *out, *in;
+        double ratio, speed_expect;
+    } sets[] = {
+        {"30/20 pair, moment-induced (contact_drive), 60 ms", pair, (int)(sizeof pair / sizeof pair[0]), 0.06,
+         "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3},
+        {"planetary 24/24/72 (planetary_contact), 50 ms", plan, (int)(sizeof plan / sizeof plan[0]), 0.05,
+         "carrier", "sun", 4.0, 10.0},
+    };
+    printf("# bench_tradeoff: the fidelity ladder, speed against accuracy (one process)\n");
+    for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
+        const struct set *st = &sets[k];
+        result res[32];
+        for (int i = 0; i < st->n; i++) {
+            res[i] = run(&st->s[i], st->duration, st->out, st->in, st->ratio);
+            fprintf(stderr, "# %s %s h %g refine %d: %s\n", st->s[i].scene, st->s[i].level, st->s[i].h,
+                    st->s[i].refine, res[i].ok ? "done" : "failed");
+        }
+        const result *ref = &res[st->n - 1];
+        printf("\n## %s\n\nreference: the last row (richest model, finest setting); closed-form output speed "
+               "%.4f rad/s\n\n", st->title, st->speed_expect);
+        printf("| level | h (s) | refine | wall s per sim. s | output speed (rad/s) | ratio error | DTE rms (m) | "
+               "peak mesh force (N) | balance / scale | speed err vs ref | DTE err vs ref | force err vs ref |\n");
+        printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        for (int i = 0; i < st->n; i++) {
+            const spec *s = &st->s[i];
+            const result *r = &res[i];
+            if (!r->ok) {
+                printf("| %s | %g | %d | failed | | | | | | | | |\n", s->level, s->h, s->refine);
+                continue;
+            }
+            double es = rel(r->speed, ref->speed), ed = rel(r->dte, ref->dte), ef = rel(r->force, ref->force);
+            printf("| %s | %g | %d | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.2e | %.2e | %.2e |\n", s->level, s->h,
+                   s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, es, ed, ef);
+            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g\n", s->scene, s->level, s->h,
+                    s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, es, ed, ef);
+        }
+    }
+    fclose(f);
+    printf("\nCSV: %s\n", csv);
+    return 0;
+}
