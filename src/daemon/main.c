@@ -22,7 +22,7 @@ static void usage(FILE *f)
             "usage: gearsimd [--config FILE] [--connection-file PATH] [--data-dir DIR]\n"
             "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
             "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
-            "                [--resume] [--max-scene-mb N]\n"
+            "                [--resume] [--max-scene-mb N] [--max-record-mb N]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
             "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
@@ -31,7 +31,8 @@ static void usage(FILE *f)
             "long options without '--' (deploy/gearsimd.conf); flags given on the\n"
             "command line win over the file. --resume continues the advance saved in\n"
             "DATA_DIR/autosave.h5 (scene outputs.checkpoint_every); --max-scene-mb refuses\n"
-            "scenes whose estimated memory exceeds N MiB (default 4096).\n");
+            "scenes whose estimated memory exceeds N MiB (default 4096); --max-record-mb\n"
+            "stops a recording (error event, the run goes on) past N MiB (default 65536).\n");
 }
 
 typedef struct daemon_opts {
@@ -39,6 +40,7 @@ typedef struct daemon_opts {
     const char *curve_key, *curve_allow;
     bool resume;
     int64_t max_scene_mb;
+    int64_t max_record_mb;
 } daemon_opts;
 
 static int set_port(const char *v, int *out)
@@ -83,6 +85,13 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
         if (errno || end == v || *end || mb < 1 || mb > (1ll << 40))
             return -1;
         o->max_scene_mb = mb;
+    } else if (!strcmp(name, "max-record-mb")) {
+        char *end;
+        errno = 0;
+        long long mb = strtoll(v, &end, 10);
+        if (errno || end == v || *end || mb < 1 || mb > (1ll << 40))
+            return -1;
+        o->max_record_mb = mb;
     } else
         return -1;
     return 0;
@@ -166,14 +175,16 @@ int main(int argc, char **argv)
     else
         snprintf(conn, sizeof conn, "/tmp/gearsim-%u/gearsimd.json", (unsigned)getuid());
     daemon_opts o = {.cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"},
-                     .max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB};
+                     .max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB,
+                     .max_record_mb = GSI_DEFAULT_MAX_RECORD_MB};
     static const struct option opts[] = {
         {"connection-file", required_argument, 0, 'c'}, {"data-dir", required_argument, 0, 'd'},
         {"bind", required_argument, 0, 'b'},            {"command-port", required_argument, 0, 'p'},
         {"telemetry-port", required_argument, 0, 't'},  {"help", no_argument, 0, 'h'},
         {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
         {"curve-allow", required_argument, 0, 'a'},     {"resume", no_argument, 0, 'r'},
-        {"max-scene-mb", required_argument, 0, 'm'},    {0, 0, 0, 0}};
+        {"max-scene-mb", required_argument, 0, 'm'},    {"max-record-mb", required_argument, 0, 'R'},
+        {0, 0, 0, 0}};
     int c, bad = 0;
     /* The configuration file first, so that command-line flags win. */
     for (int i = 1; i < argc; i++) {
@@ -193,7 +204,7 @@ int main(int argc, char **argv)
         switch (c) {
         case 'f': break;
         case 'r': o.resume = true; break;
-        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm':
+        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm': case 'R':
             if (set_option(&o, opts[idx].name, optarg) != 0) {
                 if (rank == 0)
                     fprintf(stderr, "gearsimd: bad value '%s' for --%s\n", optarg, opts[idx].name);
@@ -230,6 +241,7 @@ int main(int argc, char **argv)
     }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
+    gs_service_set_max_record_mb(o.max_record_mb);
     gs_engine *eng;
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);

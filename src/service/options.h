@@ -12,10 +12,15 @@ void gs_service_set_resume(bool on);
 /* --max-scene-mb: largest estimated memory of a loaded scene (MiB, >= 1). */
 void gs_service_set_max_scene_mb(int64_t mb);
 
+/* --max-record-mb: a recording stops (error event) past this size (MiB). */
+void gs_service_set_max_record_mb(int64_t mb);
+
 bool gsi_opt_resume(void);
 int64_t gsi_opt_max_scene_mb(void);
+int64_t gsi_opt_max_record_mb(void);
 
 #define GSI_DEFAULT_MAX_SCENE_MB 4096
+#define GSI_DEFAULT_MAX_RECORD_MB 65536
 #define GSI_AUTOSAVE_NAME "autosave.h5"
 
 #endif

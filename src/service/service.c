@@ -24,11 +24,14 @@
 static volatile sig_atomic_t stop_signal = 0;
 static bool opt_resume = false;
 static int64_t opt_max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB;
+static int64_t opt_max_record_mb = GSI_DEFAULT_MAX_RECORD_MB;
 
 void gs_service_set_resume(bool on) { opt_resume = on; }
 void gs_service_set_max_scene_mb(int64_t mb) { opt_max_scene_mb = mb < 1 ? 1 : mb; }
 bool gsi_opt_resume(void) { return opt_resume; }
 int64_t gsi_opt_max_scene_mb(void) { return opt_max_scene_mb; }
+void gs_service_set_max_record_mb(int64_t mb) { opt_max_record_mb = mb < 1 ? 1 : mb; }
+int64_t gsi_opt_max_record_mb(void) { return opt_max_record_mb; }
 
 static void on_signal(int sig)
 {
@@ -61,11 +64,22 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
 
 void gsi_record_flush_or_stop(gs_service *s, const char *why)
 {
-    if (!s->record || gs_record_flush(s->record) == GS_OK)
+    if (!s->record)
         return;
     char msg[1400];
-    snprintf(msg, sizeof msg, "recording stopped: %s ('%.1100s'; disk full?); the simulation goes on",
-             why, gs_record_path(s->record));
+    if (gs_record_flush(s->record) == GS_OK) {
+        /* The record size limit (--max-record-mb): checked after each flush. */
+        struct stat st;
+        if (stat(gs_record_path(s->record), &st) != 0 ||
+            (double)st.st_size <= (double)opt_max_record_mb * 1048576.0)
+            return;
+        snprintf(msg, sizeof msg, "recording stopped: '%.1100s' reached the record size limit of %lld MiB "
+                 "(--max-record-mb); the simulation goes on", gs_record_path(s->record),
+                 (long long)opt_max_record_mb);
+    } else {
+        snprintf(msg, sizeof msg, "recording stopped: %s ('%.1100s'; disk full?); the simulation goes on",
+                 why, gs_record_path(s->record));
+    }
     json_object *w = json_object_new_object();
     json_object_object_add(w, "code", json_object_new_string("io_error"));
     json_object_object_add(w, "message", json_object_new_string(msg));

@@ -294,7 +294,32 @@ def size_limits():
             R.check("--max-scene-mb 16: the rigid pair loads", r.get("dofs", 0) > 0, r)
 
 
-CASES = [("scene size limits", size_limits), ("kill and resume: pair", resume_pair),
+def record_limit():
+    """--max-record-mb 1: the recording stops with an error event at the
+    limit, the run goes on, hello reports the limit."""
+    scene = dmod.load_scene("pair")
+    scene["outputs"] = {"telemetry_every": 50, "record_every": 1}
+    steps = 60000
+    with dmod.Daemon(ranks=1, extra_args=("--max-record-mb", "1")) as d:
+        with d.client(timeout=30.0) as c:
+            R.check("--max-record-mb 1: hello reports it",
+                    c.hello().get("limits", {}).get("max_record_mb") == 1, c.hello().get("limits"))
+            c.load(scene=scene)
+            c.record("big.h5")
+            errors = []
+            done = c.advance(steps=steps, timeout=600,
+                             on_event=lambda ev: errors.append(ev) if ev.get("type") == "error" else None)
+            R.check("record limit: one error event naming the limit", len(errors) == 1 and
+                    "record size limit" in errors[0].get("message", ""), errors)
+            R.check("record limit: the advance completed", done.get("steps") == steps and not done.get("error"), done)
+            R.check("record limit: status.recording is null", c.status().get("recording") is None)
+            size = os.path.getsize(d.path("big.h5"))
+            R.note(f"record limit: the record stopped at {size} bytes")
+            R.check("record limit: the file is near the limit (one flush past it at most)",
+                    1048576 < size < 4 * 1048576, size)
+
+
+CASES = [("scene size limits", size_limits), ("record size limit", record_limit), ("kill and resume: pair", resume_pair),
          ("kill and resume: elastic_pair", resume_elastic), ("disk full while recording", disk_full)]
 ONLY = os.environ.get("GEARSIM_RESUME_ONLY")   # e.g. "pair" to run one case while debugging
 for name, fn in CASES:
