@@ -42,11 +42,12 @@ typedef struct gs_material {
     double poisson;     /* nu, default 0.3 */
     double density;     /* rho kg/m^3, default 7850 */
     gs_plane plane;     /* default plane stress with the face width as thickness */
+    double damping_s;   /* beta of stiffness-proportional damping D = beta K, s; default 0 */
 } gs_material;
 
 static inline gs_material gs_material_steel(void)
 {
-    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS};
+    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS, 0.0};
     return m;
 }
 
@@ -155,7 +156,8 @@ typedef struct gs_fe_balance {
     double energy0;        /* kinetic + elastic at the last gs_fe_body_set_state */
     double work_in;        /* sum over steps of F_{n+1/2} . dq (moment on theta, nodal loads) */
     double work_iface;     /* sum over steps of f . dq of the interface forces (gs_fe_body_apply) */
-    double dissipated;     /* sum of c dq_theta^2 / h (the brake) */
+    double dissipated;     /* sum of c dq_theta^2 / h (the brake) and of damped */
+    double damped;         /* sum of dq^T D dq / h, D = damping_s K (material damping) */
     double residual;       /* E - energy0 - work_in - work_iface + dissipated */
 } gs_fe_balance;
 
@@ -262,6 +264,8 @@ double gs_fe_body_omega(const gs_fe_body *b);
 double gs_fe_body_kinetic(const gs_fe_body *b);
 /* 1/2 u^T K u (J). */
 double gs_fe_body_elastic(const gs_fe_body *b);
+/* Energy dissipated by material damping since the last set_state, J. */
+double gs_fe_body_damped(const gs_fe_body *b);
 /* I theta' + s . u' (body frame, about the axis; N m s). */
 double gs_fe_body_angular_momentum(const gs_fe_body *b);
 /* Nodal displacements and velocities (2 * n_nodes each, zero on fixed nodes;

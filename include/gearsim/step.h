@@ -23,6 +23,8 @@ struct gs_body_rt {
     double T, V;             /* kinetic and potential energy of the body's own state,
                               * as the owner last reported it (gs_system_energy_adopt) */
     double work_s;           /* seconds its owner spent in its interface and finish, summed */
+    double D_step;           /* energy its own damping dissipated in the last step (owner
+                              * report, booked by gs_system_book_damping) */
 };
 
 struct gs_gmesh_rt {
@@ -142,12 +144,17 @@ static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
  * contribute what their owner last reported in b->T, b->V: after a step on
  * several ranks, call gs_system_sync_energy (collective in the engine) first. */
 void gs_system_energy(const gs_system *sys, gs_energy *e);
-/* Owner side of the energy report: b->T, b->V and b->work_s of this rank's
- * bodies with own state into buf (3 per body, zeros elsewhere), for a sum
- * over ranks. */
+/* Owner side of the energy report: b->T, b->V, b->work_s and b->D_step of
+ * this rank's bodies with own state into buf (GS_ENERGY_REPORT per body,
+ * zeros elsewhere), for a sum over ranks. */
+#define GS_ENERGY_REPORT 4
 void gs_system_energy_report(const gs_system *sys, double *buf);
 /* Adopt the summed report on every rank. */
 void gs_system_energy_adopt(gs_system *sys, const double *buf);
+/* Book the bodies' own damping of the last step (b->D_step, in body order,
+ * so that every rank sums identically) as dissipated, after the step's
+ * energy report has been adopted. */
+void gs_system_book_damping(gs_system *sys);
 /* True when some body keeps state of its own (elastic): then energies and
  * snapshots need the owners. */
 bool gs_system_has_body_state(const gs_system *sys);

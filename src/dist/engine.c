@@ -62,7 +62,7 @@ static gs_err sync_energy(gs_engine *e, gs_err err)
         return err;
     /* The last slot carries a failure of any owner, so that every rank stops
      * at the same step. */
-    int n = 3 * s->n_bodies;
+    int n = GS_ENERGY_REPORT * s->n_bodies;
     gs_system_energy_report(s, e->ebuf);
     e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
     MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1, MPI_DOUBLE, MPI_SUM, e->comm);
@@ -205,7 +205,7 @@ static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
     e->sol_n = sys->plan.sol_size + 1;
     e->rec = gs_calloc(e->rec_n, sizeof(double));
     e->sol = gs_calloc(e->sol_n, sizeof(double));
-    e->ebuf = gs_calloc((size_t)(3 * sys->n_bodies + 1), sizeof(double));
+    e->ebuf = gs_calloc((size_t)(GS_ENERGY_REPORT * sys->n_bodies + 1), sizeof(double));
     e->field = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
     e->field_step = -1;
     memset(&e->timing, 0, sizeof e->timing);
@@ -302,6 +302,7 @@ static gs_err dist_step(gs_engine *e)
     t0 = gs_now();
     tm->apply += t0 - t1;
     err = sync_energy(e, err);
+    gs_system_book_damping(s);
     int fe = s->scene->fields_every;
     if (fe > 0 && s->step % fe == 0)
         gather_fields(e);

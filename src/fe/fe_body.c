@@ -3,7 +3,7 @@
  *
  * The step matrix of the body, theta last, is
  *
- *     A = [ A_ee  a ]     A_ee = 2/h^2 M + 1/2 K  (sparse, elastic block)
+ *     A = [ A_ee  a ]     A_ee = 2/h^2 M + (1/2 + beta/h) K  (sparse, elastic block)
  *         [ a^T   d ]     a = 2/h^2 s,  d = 2/h^2 I + c/h
  *
  * Only A_ee goes to CHOLMOD (its fill-reducing ordering is not disturbed by
@@ -19,12 +19,16 @@
  * The right-hand side is not formed as b = 2/h M w - K q + F: with
  * dq = h w + delta, A (h w) cancels 2/h M w exactly and
  *
- *     A delta = F - K (q + h w / 2) - c w_theta e_theta,
+ *     A delta = F - K (q + (h/2 + beta) w) - c w_theta e_theta,
  *
  * the same scheme with the large rigid part taken out before the solve: the
  * round-off no longer scales with the spin speed (energy drift at 3000 rpm
  * went from ~1e-11 to ~1e-14 over 1e4 steps), and the right-hand side needs
  * K only. Then q += h w + delta, w += 2 delta / h.
+ *
+ * Stiffness-proportional damping D = beta K (material damping_s) enters as
+ * the force -D dq / h, constant over the step: it adds beta/h K to A and
+ * dissipates exactly dq^T D dq / h per step, which is booked.
  *
  * Compliance: (A^{-1})_ij = G_ij + y_i y_j / sigma (elastic i, j),
  * -y_i / sigma (elastic i, theta), 1 / sigma (theta, theta), where
@@ -60,6 +64,7 @@ struct gs_fe_body {
 
     double *q, *w;      /* ne + 1 each, theta last */
     double *delta;      /* ne + 1: dq - h w in the current step */
+    double *dq;         /* ne + 1: scratch for the step's increment (damping) */
     double rt;          /* theta row of the right-hand side being solved */
     double moment;
     double *fnod;       /* ne: nodal loads of the current step (work), valid if has_fnod */
@@ -69,7 +74,7 @@ struct gs_fe_body {
     unsigned char *tmark; /* ne + 1: listed in touched */
     gs_index n_touched, cap_touched;
 
-    double energy0, work_in, work_iface, dissipated;
+    double energy0, work_in, work_iface, dissipated, damped;
 
     size_t cache_limit;
     gs_index cache_cap, cache_len;
@@ -105,6 +110,7 @@ void gs_fe_body_free(gs_fe_body **pb)
     free(b->q);
     free(b->w);
     free(b->delta);
+    free(b->dq);
     free(b->fnod);
     free(b->fi);
     free(b->touched);
@@ -136,12 +142,13 @@ gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out)
     b->q = gs_calloc(n1, sizeof *b->q);
     b->w = gs_calloc(n1, sizeof *b->w);
     b->delta = gs_calloc(n1, sizeof *b->delta);
+    b->dq = gs_calloc(n1, sizeof *b->dq);
     b->fnod = gs_calloc(n1, sizeof *b->fnod);
     b->fi = gs_calloc(n1, sizeof *b->fi);
     b->tmark = gs_calloc(n1, sizeof *b->tmark);
     b->slot_of = gs_calloc((size_t)m->n_free_nodes + 1, sizeof *b->slot_of);
     b->rb = cholmod_l_zeros(n1 - 1 > 0 ? n1 - 1 : 1, 1, CHOLMOD_REAL, &b->cc);
-    if (!b->y || !b->q || !b->w || !b->delta || !b->fnod || !b->fi || !b->tmark || !b->slot_of || !b->rb) {
+    if (!b->y || !b->q || !b->w || !b->delta || !b->dq || !b->fnod || !b->fi || !b->tmark || !b->slot_of || !b->rb) {
         gs_fe_body_free(&b);
         return GS_ENOMEM;
     }
@@ -192,16 +199,16 @@ gs_err gs_fe_body_set_step(gs_fe_body *b, double h, double brake_c)
     if (!b->have_step || h != b->h) {
         b->have_step = false;
         cache_clear(b);
-        double alpha = 2.0 / (h * h);
+        double alpha = 2.0 / (h * h), kappa = 0.5 + m->mat.damping_s / h;
         if (b->ne > 0) {
             if (!b->A) {
-                b->A = gsi_fe_cholmod_matrix(m, alpha, 0.5, &b->cc);
+                b->A = gsi_fe_cholmod_matrix(m, alpha, kappa, &b->cc);
                 if (!b->A)
                     return GS_ENOMEM;
             } else {
                 double *Ax = b->A->x;
                 for (gs_index p = 0; p < m->nnz; p++)
-                    Ax[p] = alpha * m->mx[p] + 0.5 * m->kx[p];
+                    Ax[p] = alpha * m->mx[p] + kappa * m->kx[p];
             }
             if (!b->L) { /* ordering and symbolic analysis: once per body */
                 b->L = cholmod_l_analyze(b->A, &b->cc);
@@ -260,6 +267,11 @@ double gs_fe_body_elastic(const gs_fe_body *b)
     return b ? 0.5 * gsi_fe_quadform(b->m, 0.0, 1.0, b->q) : 0.0;
 }
 
+double gs_fe_body_damped(const gs_fe_body *b)
+{
+    return b ? b->damped : 0.0;
+}
+
 double gs_fe_body_angular_momentum(const gs_fe_body *b)
 {
     if (!b)
@@ -307,7 +319,7 @@ void gs_fe_body_nodal(const gs_fe_body *b, double *u_nodes, double *v_nodes)
 static void reset_accounts(gs_fe_body *b)
 {
     b->energy0 = gs_fe_body_kinetic(b) + gs_fe_body_elastic(b);
-    b->work_in = b->work_iface = b->dissipated = 0;
+    b->work_in = b->work_iface = b->dissipated = b->damped = 0;
 }
 
 gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const double *u_nodes,
@@ -386,7 +398,7 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
     double *r = b->rb->x;
 
     /* A dq = b with dq = h w + delta: A (h w) cancels the 2/h M w of b
-     * analytically, leaving A delta = F - K (q + h w / 2) - c w_theta e_theta.
+     * analytically, leaving A delta = F - K (q + (h/2 + beta) w) - c w_theta e_theta.
      * Same scheme, but the solve only sees the small correction, so the
      * round-off does not scale with the rigid (or any) velocity. */
     b->has_fnod = f_nodes != NULL;
@@ -399,7 +411,7 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
         }
     for (gs_index i = 0; i < ne; i++) {
         r[i] = b->fnod[i];
-        b->delta[i] = b->q[i] + 0.5 * h * b->w[i]; /* scratch: the midpoint guess */
+        b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
     }
     gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     double rt = moment_nm - b->c * b->w[ne];
@@ -438,6 +450,14 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
         b->tmark[i] = 0;
     }
     b->n_touched = 0;
+    double dis = b->c * dqt * dqt / h;
+    if (b->m->mat.damping_s > 0) {
+        for (gs_index i = 0; i < ne; i++)
+            b->dq[i] = increment(b, i);
+        double dd = gsi_fe_quadform(b->m, 0.0, b->m->mat.damping_s / h, b->dq);
+        dis += dd;
+        b->damped += dd;
+    }
     /* q += dq and w = 2 dq / h - w, written with dq = h w + delta */
     for (gs_index i = 0; i <= ne; i++) {
         b->q[i] += h * b->w[i] + b->delta[i];
@@ -445,7 +465,7 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     }
     b->work_in += win;
     b->work_iface += wif;
-    b->dissipated += b->c * dqt * dqt / h;
+    b->dissipated += dis;
     b->in_step = false;
     b->st.steps++;
     return GS_OK;
@@ -756,6 +776,7 @@ void gs_fe_body_get_balance(const gs_fe_body *b, gs_fe_balance *out)
     out->work_in = b->work_in;
     out->work_iface = b->work_iface;
     out->dissipated = b->dissipated;
+    out->damped = b->damped;
     out->residual = out->kinetic + out->elastic - b->energy0 - b->work_in - b->work_iface +
                     b->dissipated;
 }

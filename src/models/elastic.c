@@ -234,7 +234,9 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
     if (any)
         GS_TRY(gs_fe_body_apply(el->body, n, el->dofs, f));
     el->begun = false;
+    double damped = gs_fe_body_damped(el->body);
     GS_TRY(gs_fe_body_end_step(el->body));
+    b->D_step = gs_fe_body_damped(el->body) - damped;
     b->ops->energy(sys, b, &b->T, &b->V);
     return GS_OK;
 }
@@ -285,6 +287,7 @@ static gs_err elastic_load(gs_body_rt *b, const double *x)
         }
     gs_fe_body_cancel_step(el->body);
     el->begun = false;
+    b->D_step = 0.0;
     gs_err e = gs_fe_body_set_state(el->body, x[ne], x[2 * ne + 1], u, v);
     free(u);
     return e;

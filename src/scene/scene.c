@@ -24,7 +24,7 @@ static const char *const top_keys[] = {"name", "bodies", "joints", "meshes", "lo
 static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error", NULL};
-static const char *const material_keys[] = {"E", "nu", "density", "plane", NULL};
+static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", NULL};
 static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", NULL};
@@ -242,6 +242,8 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
                                &b->material.poisson, d));
         GS_TRY(gsi_json_positive(mat, "density", mp, 1e5, false, b->material.density,
                                  &b->material.density, d));
+        GS_TRY(gsi_json_number(mat, "damping_s", mp, 0, 1, false, b->material.damping_s,
+                               &b->material.damping_s, d));
         int pl;
         GS_TRY(enum_field(mat, "plane", mp, "stress", planes, 2, &pl, d));
         b->material.plane = (gs_plane)pl;

@@ -269,5 +269,7 @@ gs_err gs_step_serial(gs_system *sys)
     gs_err e = gs_step_solve(sys, rec, sol);
     if (e != GS_OK)
         return e;
-    return apply(sys, sol, true);
+    e = apply(sys, sol, true);
+    gs_system_book_damping(sys);
+    return e;
 }

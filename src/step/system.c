@@ -457,9 +457,11 @@ void gs_system_energy_report(const gs_system *sys, double *buf)
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
         bool mine = b->ops->state_size && b->owner == sys->rank;
-        buf[3 * i] = mine ? b->T : 0.0;
-        buf[3 * i + 1] = mine ? b->V : 0.0;
-        buf[3 * i + 2] = mine ? b->work_s : 0.0;
+        double *o = buf + GS_ENERGY_REPORT * i;
+        o[0] = mine ? b->T : 0.0;
+        o[1] = mine ? b->V : 0.0;
+        o[2] = mine ? b->work_s : 0.0;
+        o[3] = mine ? b->D_step : 0.0;
     }
 }
 
@@ -469,9 +471,19 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf)
         gs_body_rt *b = &sys->bodies[i];
         if (!b->ops->state_size)
             continue;
-        b->T = buf[3 * i];
-        b->V = buf[3 * i + 1];
-        b->work_s = buf[3 * i + 2];
+        const double *o = buf + GS_ENERGY_REPORT * i;
+        b->T = o[0];
+        b->V = o[1];
+        b->work_s = o[2];
+        b->D_step = o[3];
+    }
+}
+
+void gs_system_book_damping(gs_system *sys)
+{
+    for (int i = 0; i < sys->n_bodies; i++) {
+        sys->dissipated += sys->bodies[i].D_step;
+        sys->bodies[i].D_step = 0.0;
     }
 }
 

@@ -175,20 +175,32 @@ static void penetration_rate(void **state)
     assert_true(rate > 0.7 && rate < 1.3);
 }
 
-/* Flank friction mu = 0.05 on the driven pair: the balance holds with the
- * friction loss booked as dissipation, and the mesh efficiency over the
- * steady window, 1 - friction loss / work in at the driver, is reported.
- * Asserted: between 98% and 99.7%. The ISO/TR 14179 estimate for this pair
- * is 99.1%; the booked loss comes out about half of mu F_n v_slide because
- * the explicit friction force (direction from the rigid sliding velocity)
- * also does work on the undamped tooth vibrations (docs/CONTACT.md), so the
- * band's upper edge is widened from 99.5% to 99.7%. */
+/* Flank friction mu = 0.05 on the driven pair with material damping: the
+ * balance holds with the friction loss and the damping booked as
+ * dissipation, and the mesh efficiency over the steady window,
+ * 1 - friction loss / work in at the driver, is reported and compared with
+ * the ISO/TR 14179 estimate 1 - mu H_v, H_v = pi (u + 1) / (z1 u)
+ * (1 - eps_a + eps_1^2 + eps_2^2), computed here from the geometry.
+ * Damping: beta = 1.7e-6 s, 5% of critical at the first torsional mesh mode
+ * (w ~ 5.8e4 rad/s from the mean mesh stiffness 19.8 N/(mm um) of
+ * docs/STIFFNESS.md and the gears' inertias). Undamped, the tooth vibrations
+ * carry sliding velocities as large as the rigid sliding itself and the
+ * explicit friction force does net positive work on them, so the booked loss
+ * is about half the nominal one (efficiency 99.56%, docs/CONTACT.md).
+ * Asserted: efficiency in the spur-gear band 98-99.5% and the loss within
+ * 25% of the ISO estimate (it assumes uniform load sharing and constant mu). */
 static void friction_efficiency(void **state)
 {
     (void)state;
     json_object *root = vt_scene("contact_drive");
     json_object *m = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
     json_object_object_add(m, "friction", json_object_new_double(0.05));
+    json_object *bs = json_object_object_get(root, "bodies");
+    for (size_t i = 0; i < 2; i++) {
+        json_object *mat = json_object_new_object();
+        json_object_object_add(mat, "damping_s", json_object_new_double(1.7e-6));
+        json_object_object_add(json_object_array_get_idx(bs, i), "material", mat);
+    }
     gs_system *s = vt_system(root);
     const int n = 6000, tail = 3000;
     double worst = 0, scale = 0, l0 = 0, w0 = 0;
@@ -206,14 +218,26 @@ static void friction_efficiency(void **state)
     }
     double loss = s->meshes[0].friction_loss - l0, win = e.work_in - w0;
     double eff = 1.0 - loss / win;
-    print_message("friction 0.05: balance %.2e of %.2e J; over 30-60 ms friction loss %.4f J of %.4f J in: "
-                  "mesh efficiency %.3f%%; total friction loss %.4f J\n",
-                  worst, scale, loss, win, 100 * eff, s->meshes[0].friction_loss);
-    /* The friction work is booked exactly: round-off. */
+    /* ISO/TR 14179-2 tooth loss factor of the 20/30 pair, m 2.5, 20 deg,
+     * standard centre distance (tip radii r + m). */
+    const double z1 = 20, z2 = 30, mod = 2.5e-3, alpha = 20 * GS_PI / 180, u = z2 / z1;
+    double e1 = 0, e2 = 0;
+    for (int k = 0; k < 2; k++) {
+        double z = k ? z2 : z1, r = 0.5 * z * mod, rb = r * cos(alpha), ra = r + mod;
+        double ek = z / (2 * GS_PI) * (sqrt(ra * ra - rb * rb) / rb - tan(alpha));
+        *(k ? &e2 : &e1) = ek;
+    }
+    double hv = GS_PI * (u + 1) / (z1 * u) * (1 - (e1 + e2) + e1 * e1 + e2 * e2), eff_iso = 1 - 0.05 * hv;
+    print_message("friction 0.05, damping 1.7e-6 s: balance %.2e of %.2e J; over 30-60 ms friction loss %.4f J "
+                  "of %.4f J in: mesh efficiency %.3f%% (ISO/TR 14179: H_v %.4f, %.3f%%); total friction loss "
+                  "%.4f J\n",
+                  worst, scale, loss, win, 100 * eff, hv, 100 * eff_iso, s->meshes[0].friction_loss);
+    /* The friction work and the damping are booked exactly: round-off. */
     assert_true(worst < 1e-11 * scale);
     /* Losses are losses, and of the size known for spur gears. */
     assert_true(loss > 0);
-    assert_true(eff > 0.98 && eff < 0.997);
+    assert_true(eff > 0.98 && eff < 0.995);
+    assert_true(fabs((1 - eff) / (1 - eff_iso) - 1) < 0.25);
     gs_system_free(&s);
 }
 
