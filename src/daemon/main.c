@@ -22,7 +22,7 @@ static void usage(FILE *f)
             "usage: gearsimd [--config FILE] [--connection-file PATH] [--data-dir DIR]\n"
             "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
             "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
-            "                [--resume] [--max-scene-mb N] [--max-record-mb N]\n"
+            "                [--resume] [--max-scene-mb N] [--max-record-mb N] [--max-clients N]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
             "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
@@ -32,7 +32,9 @@ static void usage(FILE *f)
             "command line win over the file. --resume continues the advance saved in\n"
             "DATA_DIR/autosave.h5 (scene outputs.checkpoint_every); --max-scene-mb refuses\n"
             "scenes whose estimated memory exceeds N MiB (default 4096); --max-record-mb\n"
-            "stops a recording (error event, the run goes on) past N MiB (default 65536).\n");
+            "stops a recording (error event, the run goes on) past N MiB (default 65536);\n"
+            "--max-clients answers a new client 'too_large' while N others are active\n"
+            "(a request in the last 60 s; default 256).\n");
 }
 
 typedef struct daemon_opts {
@@ -41,16 +43,37 @@ typedef struct daemon_opts {
     bool resume;
     int64_t max_scene_mb;
     int64_t max_record_mb;
+    int64_t max_clients;
 } daemon_opts;
 
-static int set_port(const char *v, int *out)
+/* A whole decimal number in [lo, hi]; 0, or -1 when it is not. */
+static int parse_int(const char *v, long long lo, long long hi, long long *out)
 {
     char *end;
     errno = 0;
-    long p = strtol(v, &end, 10);
-    if (errno || end == v || *end || p < 0 || p > 65535)
+    long long x = strtoll(v, &end, 10);
+    if (errno || end == v || *end || x < lo || x > hi)
+        return -1;
+    *out = x;
+    return 0;
+}
+
+static int set_port(const char *v, int *out)
+{
+    long long p;
+    if (parse_int(v, 0, 65535, &p) != 0)
         return -1;
     *out = (int)p;
+    return 0;
+}
+
+/* A count from 1 to hi. */
+static int parse_count(const char *v, long long hi, int64_t *out)
+{
+    long long x;
+    if (parse_int(v, 1, hi, &x) != 0)
+        return -1;
+    *out = x;
     return 0;
 }
 
@@ -79,19 +102,11 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
         else
             return -1;
     } else if (!strcmp(name, "max-scene-mb")) {
-        char *end;
-        errno = 0;
-        long long mb = strtoll(v, &end, 10);
-        if (errno || end == v || *end || mb < 1 || mb > (1ll << 40))
-            return -1;
-        o->max_scene_mb = mb;
+        return parse_count(v, 1ll << 40, &o->max_scene_mb);
     } else if (!strcmp(name, "max-record-mb")) {
-        char *end;
-        errno = 0;
-        long long mb = strtoll(v, &end, 10);
-        if (errno || end == v || *end || mb < 1 || mb > (1ll << 40))
-            return -1;
-        o->max_record_mb = mb;
+        return parse_count(v, 1ll << 40, &o->max_record_mb);
+    } else if (!strcmp(name, "max-clients")) {
+        return parse_count(v, GSI_MAX_CLIENTS_CAP, &o->max_clients);
     } else
         return -1;
     return 0;
@@ -176,7 +191,8 @@ int main(int argc, char **argv)
         snprintf(conn, sizeof conn, "/tmp/gearsim-%u/gearsimd.json", (unsigned)getuid());
     daemon_opts o = {.cfg = {.connection_file = conn, .data_dir = ".", .bind = "127.0.0.1"},
                      .max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB,
-                     .max_record_mb = GSI_DEFAULT_MAX_RECORD_MB};
+                     .max_record_mb = GSI_DEFAULT_MAX_RECORD_MB,
+                     .max_clients = GSI_DEFAULT_MAX_CLIENTS};
     static const struct option opts[] = {
         {"connection-file", required_argument, 0, 'c'}, {"data-dir", required_argument, 0, 'd'},
         {"bind", required_argument, 0, 'b'},            {"command-port", required_argument, 0, 'p'},
@@ -184,7 +200,7 @@ int main(int argc, char **argv)
         {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
         {"curve-allow", required_argument, 0, 'a'},     {"resume", no_argument, 0, 'r'},
         {"max-scene-mb", required_argument, 0, 'm'},    {"max-record-mb", required_argument, 0, 'R'},
-        {0, 0, 0, 0}};
+        {"max-clients", required_argument, 0, 'C'},     {0, 0, 0, 0}};
     int c, bad = 0;
     /* The configuration file first, so that command-line flags win. */
     for (int i = 1; i < argc; i++) {
@@ -204,7 +220,7 @@ int main(int argc, char **argv)
         switch (c) {
         case 'f': break;
         case 'r': o.resume = true; break;
-        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm': case 'R':
+        case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm': case 'R': case 'C':
             if (set_option(&o, opts[idx].name, optarg) != 0) {
                 if (rank == 0)
                     fprintf(stderr, "gearsimd: bad value '%s' for --%s\n", optarg, opts[idx].name);
@@ -242,6 +258,7 @@ int main(int argc, char **argv)
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
     gs_service_set_max_record_mb(o.max_record_mb);
+    gs_service_set_max_clients(o.max_clients);
     gs_engine *eng;
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);

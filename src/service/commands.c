@@ -48,6 +48,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(lim, "max_fetch_bytes", json_object_new_int(1 << 20));
     json_object_object_add(lim, "max_scene_mb", json_object_new_int64(gsi_opt_max_scene_mb()));
     json_object_object_add(lim, "max_record_mb", json_object_new_int64(gsi_opt_max_record_mb()));
+    json_object_object_add(lim, "max_clients", json_object_new_int64(gsi_opt_max_clients()));
     json_object_object_add(lim, "max_body_unknowns", json_object_new_int64((int64_t)GS_SCENE_MAX_BODY_UNKNOWNS));
     json_object_object_add(o, "limits", lim);
     json_object *cmds = json_object_new_array();

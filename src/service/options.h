@@ -15,12 +15,21 @@ void gs_service_set_max_scene_mb(int64_t mb);
 /* --max-record-mb: a recording stops (error event) past this size (MiB). */
 void gs_service_set_max_record_mb(int64_t mb);
 
+/* --max-clients: clients (command connections, by ZeroMQ routing id) that
+ * may be active at once; one counts from its first request until it has
+ * been silent for GSI_CLIENT_IDLE_S seconds. */
+void gs_service_set_max_clients(int64_t n);
+
 bool gsi_opt_resume(void);
+int64_t gsi_opt_max_clients(void);
 int64_t gsi_opt_max_scene_mb(void);
 int64_t gsi_opt_max_record_mb(void);
 
 #define GSI_DEFAULT_MAX_SCENE_MB 4096
 #define GSI_DEFAULT_MAX_RECORD_MB 65536
+#define GSI_DEFAULT_MAX_CLIENTS 256
+#define GSI_MAX_CLIENTS_CAP 65536
+#define GSI_CLIENT_IDLE_S 60.0
 #define GSI_AUTOSAVE_NAME "autosave.h5"
 
 #endif

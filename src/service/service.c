@@ -25,6 +25,7 @@ static volatile sig_atomic_t stop_signal = 0;
 static bool opt_resume = false;
 static int64_t opt_max_scene_mb = GSI_DEFAULT_MAX_SCENE_MB;
 static int64_t opt_max_record_mb = GSI_DEFAULT_MAX_RECORD_MB;
+static int64_t opt_max_clients = GSI_DEFAULT_MAX_CLIENTS;
 
 void gs_service_set_resume(bool on) { opt_resume = on; }
 void gs_service_set_max_scene_mb(int64_t mb) { opt_max_scene_mb = mb < 1 ? 1 : mb; }
@@ -32,6 +33,11 @@ bool gsi_opt_resume(void) { return opt_resume; }
 int64_t gsi_opt_max_scene_mb(void) { return opt_max_scene_mb; }
 void gs_service_set_max_record_mb(int64_t mb) { opt_max_record_mb = mb < 1 ? 1 : mb; }
 int64_t gsi_opt_max_record_mb(void) { return opt_max_record_mb; }
+void gs_service_set_max_clients(int64_t n)
+{
+    opt_max_clients = n < 1 ? 1 : n > GSI_MAX_CLIENTS_CAP ? GSI_MAX_CLIENTS_CAP : n;
+}
+int64_t gsi_opt_max_clients(void) { return opt_max_clients; }
 
 static void on_signal(int sig)
 {
@@ -376,6 +382,41 @@ static void cache_put(gs_service *s, const char *key, const char *reply)
     c->reply = gs_strdup(reply);
 }
 
+/* Count the client `who` as active now. False when it is new and
+ * --max-clients others are active (a request within GSI_CLIENT_IDLE_S);
+ * silent ones make room. Without an identity (in-process callers) true. */
+static bool client_admit(gs_service *s, const unsigned char *who, size_t who_len)
+{
+    if (!who || who_len == 0 || who_len > sizeof s->clients[0].id)
+        return true;
+    double now = gs_now();
+    int keep = 0, found = -1;
+    for (int i = 0; i < s->n_clients; i++) {
+        svc_client *c = &s->clients[i];
+        bool me = c->len == who_len && memcmp(c->id, who, who_len) == 0;
+        if (!me && now - c->last > GSI_CLIENT_IDLE_S)
+            continue; /* expired: dropped */
+        if (me)
+            found = keep;
+        s->clients[keep++] = *c;
+    }
+    s->n_clients = keep;
+    if (found < 0) {
+        if (s->n_clients >= gsi_opt_max_clients())
+            return false;
+        if (!s->clients) {
+            s->clients = gs_calloc((size_t)gsi_opt_max_clients(), sizeof *s->clients);
+            if (!s->clients)
+                return false;
+        }
+        found = s->n_clients++;
+        memcpy(s->clients[found].id, who, who_len);
+        s->clients[found].len = (uint8_t)who_len;
+    }
+    s->clients[found].last = now;
+    return true;
+}
+
 /* Validate the envelope, dispatch, reply. Never fails: bad input is answered. */
 char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t who_len, const char *data,
                               size_t len, bool too_big)
@@ -442,6 +483,12 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     const char *id = json_object_get_string(idv);
     if (strlen(id) == 0 || strlen(id) > 128) {
         e = gs_diag_set(&d, GS_ERANGE, "id", "'id' must have 1 to 128 characters");
+        goto answer;
+    }
+    if (!client_admit(s, who, who_len)) {
+        e = gs_diag_set(&d, GS_ETOOBIG, "", "too many clients: %lld are active (a client counts until it has "
+                        "been silent for %.0f s); retry later, or start gearsimd with a larger --max-clients",
+                        (long long)gsi_opt_max_clients(), GSI_CLIENT_IDLE_S);
         goto answer;
     }
     char key[GSI_CACHE_KEY];
@@ -735,6 +782,9 @@ void gsi_service_release(gs_service *s)
         json_object_put(s->jobs[i].schedule);
     }
     s->n_jobs = 0;
+    free(s->clients);
+    s->clients = NULL;
+    s->n_clients = 0;
 }
 
 gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)

@@ -44,6 +44,13 @@ typedef struct svc_cache_entry {
     char *reply;
 } svc_cache_entry;
 
+/* A client seen on the command socket: its routing id and last request. */
+typedef struct svc_client {
+    unsigned char id[255];
+    uint8_t len;
+    double last;
+} svc_client;
+
 typedef struct gs_service {
     gs_engine *eng;
     const gs_service_config *cfg;
@@ -65,6 +72,8 @@ typedef struct gs_service {
     bool shutdown;
     double timing_step, timing_telemetry, timing_record;
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
+    svc_client *clients;    /* active clients (--max-clients), n_clients of them */
+    int n_clients;
 } gs_service;
 
 /* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */

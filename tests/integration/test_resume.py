@@ -14,6 +14,7 @@ size limits (docs/RELIABILITY.md).
 * disk full: RLIMIT_FSIZE on the daemon's processes makes record writes fail
   (EFBIG, SIGXFSZ ignored): one error event, status.recording null, the
   advance goes on, and its state equals a run without recording.
+* client limit: --max-clients 3 serves three clients and refuses a fourth.
 * size limits: refine 6 on a large elastic gear is refused at load naming
   the field, at once; --max-scene-mb refuses a scene above it naming the
   largest elastic body's mesh, and is reported in hello.limits."""
@@ -319,7 +320,26 @@ def record_limit():
                     1048576 < size < 4 * 1048576, size)
 
 
-CASES = [("scene size limits", size_limits), ("record size limit", record_limit), ("kill and resume: pair", resume_pair),
+def client_limit():
+    """--max-clients 3: the harness's start-up probe and two clients are
+    served (a client counts until 60 s of silence, connected or not), a
+    fourth is answered too_large naming the option, the others still work,
+    hello reports it."""
+    with dmod.Daemon(ranks=1, extra_args=("--max-clients", "3")) as d:
+        with d.client(timeout=10.0) as a, d.client(timeout=10.0) as b:
+            R.check("--max-clients 3: hello reports it", a.hello().get("limits", {}).get("max_clients") == 3)
+            R.check("--max-clients 3: the third client is served", "limits" in b.hello())
+            with d.client(timeout=10.0) as c:
+                try:
+                    c.hello()
+                    R.check("--max-clients 3: a fourth client is refused", False, "it was served")
+                except gearsim.GearsimError as e:
+                    R.check("--max-clients 3: a fourth client gets too_large naming --max-clients",
+                            e.code == "too_large" and "--max-clients" in str(e), (e.code, str(e)))
+            R.check("--max-clients 3: the admitted ones still work", "limits" in a.hello() and "limits" in b.hello())
+
+
+CASES = [("scene size limits", size_limits), ("record size limit", record_limit), ("client limit", client_limit), ("kill and resume: pair", resume_pair),
          ("kill and resume: elastic_pair", resume_elastic), ("disk full while recording", disk_full)]
 ONLY = os.environ.get("GEARSIM_RESUME_ONLY")   # e.g. "pair" to run one case while debugging
 for name, fn in CASES:
