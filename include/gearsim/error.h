@@ -31,6 +31,7 @@
     X(GS_EINFEASIBLE, "infeasible", "the constraints cannot be satisfied")            \
     X(GS_EMPI, "mpi_error", "an MPI operation failed")                                \
     X(GS_EBUSY, "busy", "the service is busy")                                        \
+    X(GS_EREFINE, "refine", "the step is to be taken again with a smaller time step") \
     X(GS_EINTERNAL, "internal", "internal error")
 
 typedef enum {

@@ -93,6 +93,8 @@ typedef struct gs_scene {
     gs_scene_mesh *meshes;
     gs_scene_load *loads;
     double time_step;
+    int adapt_levels;          /* numerics.adaptive: halvings of time_step allowed (0: fixed step) */
+    double adapt_penetration;  /* numerics.adaptive.penetration_um, m: finer above it */
     double newton_tol;
     int max_newton;
     int telemetry_every;
@@ -129,6 +131,8 @@ int gs_scene_find_body(const gs_scene *s, const char *name);
  * have none. gs_scene_parse refuses a body above GS_SCENE_MAX_BODY_UNKNOWNS
  * (field bodies[i].mesh.refine, or bodies[i].mesh when refine is 0). */
 #define GS_SCENE_MAX_BODY_UNKNOWNS 4000000.0
+/* Most halvings of the time step numerics.adaptive may make. */
+#define GS_SCENE_MAX_ADAPT_LEVELS 6
 #define GS_SCENE_BYTES_PER_UNKNOWN 3072.0
 #define GS_SCENE_BASE_BYTES (8.0 * 1024 * 1024)
 double gs_scene_body_unknowns(const gs_scene_body *b);

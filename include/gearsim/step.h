@@ -84,8 +84,18 @@ struct gs_system {
     double *eq_rows;         /* n_eq x n_coords */
     double *q, *w;           /* rigid coordinates and velocities (every rank holds all) */
     double time;
-    int64_t step;
-    double h;
+    int64_t step;            /* steps of h taken */
+    double h;                /* the scene's time step */
+    /* Adaptive step (scene numerics.adaptive): a step of h is taken as
+     * substeps of h_sub = h / 2^level; sub_ticks counts the part of the
+     * current step done, in units of h / 2^adapt_levels. Fixed step: level 0,
+     * h_sub = h. */
+    double h_sub;
+    int level;
+    int64_t sub_ticks;
+    int64_t substeps;        /* substeps taken since the system was built */
+    int64_t refinements;     /* substeps refused by the solve and taken again finer */
+    bool refined;            /* a refinement happened in the current step of h */
     double work_in, dissipated, energy0;
     double last_residual;    /* Newton residual of the last step */
     int last_iterations;
@@ -110,7 +120,8 @@ gs_err gs_system_remove_load(gs_system *sys, const char *name);
 /* Sum of the non-brake moments on body b at time t, and the brake coefficient. */
 void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, double *brake);
 
-/* The step is four calls; gs_step_serial() makes them in one process.
+/* A substep is five calls; gs_step_serial() makes them in one process, for
+ * as many substeps as a step of h takes (one unless numerics.adaptive).
  *
  *   gs_step_prepare   every rank: the contact search from the rigid state,
  *                     the plan (sizes of the records and the solution)
@@ -120,12 +131,22 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  *   gs_step_solve     rank 0: from all records, the solution
  *   gs_step_apply     every rank: update the rigid state, finish the own
  *                     bodies' steps with their interface forces
+ *   gs_step_advance   every rank: the time, the next substep; true at the
+ *                     end of a step of h (gs_step_refine instead when the
+ *                     solve answered GS_EREFINE)
  *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,
  * n_rows, penetration, friction loss), then the bodies' interface forces
  * (plan.sol_off). */
 gs_err gs_step_prepare(gs_system *sys);
+/* After gs_step_apply on every rank: advance the time by the substep just
+ * taken and choose the next substep (numerics.adaptive); true when a whole
+ * step of h is complete (then sys->step has grown by one). */
+bool gs_step_advance(gs_system *sys);
+/* When a solve answered GS_EREFINE (adaptive step): take the substep again
+ * at half the size (every rank; the bodies' begun steps start again). */
+void gs_step_refine(gs_system *sys);
 void gs_step_records(gs_system *sys, double *rec);
 gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol);
 gs_err gs_step_apply(gs_system *sys, const double *sol);

@@ -253,7 +253,7 @@ static gs_err reserve(gs_engine *e)
     return GS_OK;
 }
 
-static gs_err dist_step(gs_engine *e)
+static gs_err dist_substep(gs_engine *e)
 {
     gs_system *s = e->sys;
     gs_step_timing *tm = &e->timing;
@@ -303,13 +303,33 @@ static gs_err dist_step(gs_engine *e)
     tm->apply += t0 - t1;
     err = sync_energy(e, err);
     gs_system_book_damping(s);
-    int fe = s->scene->fields_every;
-    if (fe > 0 && s->step % fe == 0)
-        gather_fields(e);
-    t1 = gs_now();
-    tm->sync += t1 - t0;
-    tm->steps++;
+    tm->sync += gs_now() - t0;
     return err;
+}
+
+/* One step of h: one substep, or several with numerics.adaptive. */
+static gs_err dist_step(gs_engine *e)
+{
+    gs_system *s = e->sys;
+    for (;;) {
+        gs_err err = dist_substep(e);
+        if (err == GS_EREFINE) {
+            gs_step_refine(s);
+            continue;
+        }
+        if (err != GS_OK)
+            return err;
+        if (gs_step_advance(s))
+            break;
+    }
+    int fe = s->scene->fields_every;
+    if (fe > 0 && s->step % fe == 0) {
+        double t0 = gs_now();
+        gather_fields(e);
+        e->timing.sync += gs_now() - t0;
+    }
+    e->timing.steps++;
+    return GS_OK;
 }
 
 void gs_engine_timing(const gs_engine *e, gs_step_timing *out)
@@ -341,7 +361,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
  * energy loss, friction loss (since load), n_states (as a double), the body states (elastic:
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
  * NUL-terminated. */
-#define SNAP_MAGIC 0x36534753u /* "GSS6" */
+#define SNAP_MAGIC 0x37534753u /* "GSS7" */
+#define SNAP_HEAD_DOUBLES 5 /* time, work_in, dissipated, energy0, adaptive level */
 #define MESH_SNAP 7 /* doubles per mesh */
 
 static char *loads_json(const gs_scene *sc)
@@ -400,7 +421,7 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
         return GS_ENOMEM;
     size_t n = (size_t)s->n_coords, nm = (size_t)s->n_meshes;
     size_t sl = strlen(s->scene->json) + 1, ll = strlen(lj) + 1;
-    size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double) +
+    size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + SNAP_HEAD_DOUBLES * sizeof(double) +
                    (2 * n + MESH_SNAP * nm + 1 + ns) * sizeof(double) + sl + ll;
     char *b = malloc(total), *p = b;
     if (!b) {
@@ -417,6 +438,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     PUT(&s->work_in, sizeof(double));
     PUT(&s->dissipated, sizeof(double));
     PUT(&s->energy0, sizeof(double));
+    double level = (double)s->level;
+    PUT(&level, sizeof(double));
     PUT(s->q, n * sizeof(double));
     PUT(s->w, n * sizeof(double));
     for (size_t i = 0; i < nm; i++) {
@@ -440,7 +463,7 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
 
 static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
 {
-    size_t head = 3 * sizeof(uint32_t) + sizeof(int64_t) + 4 * sizeof(double);
+    size_t head = 3 * sizeof(uint32_t) + sizeof(int64_t) + SNAP_HEAD_DOUBLES * sizeof(double);
     if (len < head)
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
     uint32_t magic, nc, nm;
@@ -453,12 +476,13 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         len < head + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1) * sizeof(double) + 2)
         return gs_diag_set(d, GS_EIO, "path", "not a gearsim checkpoint");
     int64_t step;
-    double t, wi, di, e0;
+    double t, wi, di, e0, lv;
     memcpy(&step, p, 8), p += 8;
     memcpy(&t, p, 8), p += 8;
     memcpy(&wi, p, 8), p += 8;
     memcpy(&di, p, 8), p += 8;
     memcpy(&e0, p, 8), p += 8;
+    memcpy(&lv, p, 8), p += 8;
     const double *q = (const double *)(const void *)p;
     const double *forces = q + 2 * (size_t)nc;
     double nsd;
@@ -546,6 +570,10 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     s->work_in = wi;
     s->dissipated = di;
     s->energy0 = e0;
+    s->level = lv >= 0 && lv <= s->scene->adapt_levels ? (int)lv : 0;
+    s->sub_ticks = 0;
+    s->refined = false;
+    s->h_sub = s->h / (double)((int64_t)1 << s->level);
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         double v = 0;

@@ -47,19 +47,41 @@
 
 #define CACHE_DEFAULT_BYTES ((size_t)256 << 20)
 #define BATCH_NODES 8
+/* Factorisations kept for the step sizes visited (an adaptive step moves
+ * between h / 2^k): the least recently used one is replaced. */
+#define FACTOR_SLOTS 4
+
+/* The compliance columns cached for one h (see struct gs_fe_body). */
+typedef struct col_cache {
+    gs_index cap, len;
+    double *cols;
+    gs_index *slot_of, *node_of;
+    uint64_t *stamp;
+} col_cache;
+
+typedef struct factor_slot {
+    double h;          /* 0: empty */
+    cholmod_factor *L; /* of A_ee for this h (and the body's damping) */
+    double *y;         /* ne: A_ee^{-1} a for this h */
+    uint64_t used;     /* set_step count when last made current */
+    col_cache cache;   /* its columns while another slot is current */
+} factor_slot;
 
 struct gs_fe_body {
     const gs_fe_model *m;
     gs_index ne;
     cholmod_common cc;
     cholmod_sparse *A;
-    cholmod_factor *L;
+    cholmod_factor *L;  /* the current slot's factor */
+    factor_slot slot[FACTOR_SLOTS];
+    int cur;            /* the current slot, -1 before the first set_step */
+    uint64_t n_set;
     cholmod_dense *rb, *rx, *ry, *re; /* one right-hand side: b, x, workspaces */
     cholmod_dense *bb, *bx, *by, *be; /* batches of unit vectors */
 
     double h, c;
     bool have_step, held, in_step;
-    double *y; /* ne: A_ee^{-1} a */
+    double *y; /* ne: A_ee^{-1} a (the current slot's) */
     double sigma;
 
     double *q, *w;      /* ne + 1 each, theta last */
@@ -103,10 +125,16 @@ void gs_fe_body_free(gs_fe_body **pb)
     cholmod_l_free_dense(&b->bx, &b->cc);
     cholmod_l_free_dense(&b->by, &b->cc);
     cholmod_l_free_dense(&b->be, &b->cc);
-    cholmod_l_free_factor(&b->L, &b->cc);
+    for (int k = 0; k < FACTOR_SLOTS; k++) {
+        cholmod_l_free_factor(&b->slot[k].L, &b->cc);
+        free(b->slot[k].y);
+        free(b->slot[k].cache.cols);
+        free(b->slot[k].cache.slot_of);
+        free(b->slot[k].cache.node_of);
+        free(b->slot[k].cache.stamp);
+    }
     cholmod_l_free_sparse(&b->A, &b->cc);
     cholmod_l_finish(&b->cc);
-    free(b->y);
     free(b->q);
     free(b->w);
     free(b->delta);
@@ -138,7 +166,6 @@ gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out)
     b->m = m;
     b->ne = m->ne;
     size_t n1 = (size_t)m->ne + 1;
-    b->y = gs_calloc(n1, sizeof *b->y);
     b->q = gs_calloc(n1, sizeof *b->q);
     b->w = gs_calloc(n1, sizeof *b->w);
     b->delta = gs_calloc(n1, sizeof *b->delta);
@@ -148,12 +175,13 @@ gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out)
     b->tmark = gs_calloc(n1, sizeof *b->tmark);
     b->slot_of = gs_calloc((size_t)m->n_free_nodes + 1, sizeof *b->slot_of);
     b->rb = cholmod_l_zeros(n1 - 1 > 0 ? n1 - 1 : 1, 1, CHOLMOD_REAL, &b->cc);
-    if (!b->y || !b->q || !b->w || !b->delta || !b->dq || !b->fnod || !b->fi || !b->tmark || !b->slot_of || !b->rb) {
+    if (!b->q || !b->w || !b->delta || !b->dq || !b->fnod || !b->fi || !b->tmark || !b->slot_of || !b->rb) {
         gs_fe_body_free(&b);
         return GS_ENOMEM;
     }
     for (gs_index k = 0; k < m->n_free_nodes; k++)
         b->slot_of[k] = -1;
+    b->cur = -1;
     b->cache_limit = CACHE_DEFAULT_BYTES;
     b->energy0 = 0;
     *out = b;
@@ -189,44 +217,134 @@ static gs_err update_sigma(gs_fe_body *b)
     return b->sigma > 0 && isfinite(b->sigma) ? GS_OK : GS_ESINGULAR;
 }
 
+/* Factorise A_ee for h into slot k (its factor keeps the ordering of the
+ * first analysis: a copy of another slot's, or the analysis itself). */
+static gs_err factorise(gs_fe_body *b, int k, double h)
+{
+    const gs_fe_model *m = b->m;
+    factor_slot *sl = &b->slot[k];
+    sl->h = 0;
+    double alpha = 2.0 / (h * h), kappa = 0.5 + m->mat.damping_s / h;
+    if (!sl->y) {
+        sl->y = gs_calloc((size_t)b->ne + 1, sizeof *sl->y);
+        if (!sl->y)
+            return GS_ENOMEM;
+    }
+    if (b->ne == 0) {
+        sl->h = h;
+        return GS_OK;
+    }
+    if (!b->A) {
+        b->A = gsi_fe_cholmod_matrix(m, alpha, kappa, &b->cc);
+        if (!b->A)
+            return GS_ENOMEM;
+    } else {
+        double *Ax = b->A->x;
+        for (gs_index p = 0; p < m->nnz; p++)
+            Ax[p] = alpha * m->mx[p] + kappa * m->kx[p];
+    }
+    if (!sl->L) {
+        int src = -1;
+        for (int j = 0; j < FACTOR_SLOTS; j++)
+            if (b->slot[j].L && src < 0)
+                src = j;
+        if (src >= 0) {
+            sl->L = cholmod_l_copy_factor(b->slot[src].L, &b->cc);
+        } else { /* ordering and symbolic analysis: once per body */
+            sl->L = cholmod_l_analyze(b->A, &b->cc);
+            b->st.factor_nnz = b->cc.lnz;
+        }
+        if (!sl->L)
+            return GS_ENOMEM;
+    }
+    if (!cholmod_l_factorize(b->A, sl->L, &b->cc))
+        return GS_ENOMEM;
+    if (b->cc.status == CHOLMOD_NOT_POSDEF)
+        return GS_ESINGULAR;
+    b->st.factorizations++;
+    b->L = sl->L;
+    double *r = b->rb->x;
+    for (gs_index i = 0; i < b->ne; i++)
+        r[i] = alpha * m->s[i];
+    GS_TRY(solve_one(b));
+    memcpy(sl->y, b->rx->x, (size_t)b->ne * sizeof *sl->y);
+    sl->h = h;
+    return GS_OK;
+}
+
+/* Exchange the body's column cache with the one kept in slot sl. */
+static void cache_swap(gs_fe_body *b, factor_slot *sl)
+{
+    col_cache *c = &sl->cache, t = *c;
+    *c = (col_cache){b->cache_cap, b->cache_len, b->cols, b->slot_of, b->node_of, b->stamp};
+    b->cache_cap = t.cap;
+    b->cache_len = t.len;
+    b->cols = t.cols;
+    b->slot_of = t.slot_of;
+    b->node_of = t.node_of;
+    b->stamp = t.stamp;
+}
+
+/* Make slot k's column cache the body's (allocated empty the first time). */
+static gs_err cache_select(gs_fe_body *b, int k)
+{
+    if (k == b->cur)
+        return GS_OK;
+    if (b->cur >= 0)
+        cache_swap(b, &b->slot[b->cur]); /* park the current one in its slot */
+    cache_swap(b, &b->slot[k]);
+    b->cur = k;
+    if (!b->slot_of) {
+        gs_index n = b->m->n_free_nodes;
+        b->slot_of = gs_calloc((size_t)n + 1, sizeof *b->slot_of);
+        if (!b->slot_of)
+            return GS_ENOMEM;
+        for (gs_index i = 0; i < n; i++)
+            b->slot_of[i] = -1;
+    }
+    return GS_OK;
+}
+
+/* Make the factorisation for h current, with its cached columns: from its
+ * slot, or made in the empty or least recently used one. */
+static gs_err use_factor(gs_fe_body *b, double h)
+{
+    int k = -1, lru = 0;
+    for (int j = 0; j < FACTOR_SLOTS; j++) {
+        if (b->slot[j].h == h && k < 0)
+            k = j;
+        if (b->slot[j].used < b->slot[lru].used)
+            lru = j;
+    }
+    bool fresh = k < 0;
+    if (fresh)
+        k = lru;
+    GS_TRY(cache_select(b, k));
+    if (fresh) {
+        cache_clear(b);
+        gs_err e = factorise(b, k, h);
+        if (e != GS_OK) {
+            b->L = NULL;
+            b->y = NULL;
+            return e;
+        }
+    }
+    factor_slot *sl = &b->slot[k];
+    sl->used = ++b->n_set;
+    b->L = sl->L;
+    b->y = sl->y;
+    return GS_OK;
+}
+
 gs_err gs_fe_body_set_step(gs_fe_body *b, double h, double brake_c)
 {
     if (!b || !(isfinite(h) && h > 0) || !(isfinite(brake_c) && brake_c >= 0))
         return GS_EINVAL;
     if (b->in_step)
         return GS_ESTATE;
-    const gs_fe_model *m = b->m;
     if (!b->have_step || h != b->h) {
         b->have_step = false;
-        cache_clear(b);
-        double alpha = 2.0 / (h * h), kappa = 0.5 + m->mat.damping_s / h;
-        if (b->ne > 0) {
-            if (!b->A) {
-                b->A = gsi_fe_cholmod_matrix(m, alpha, kappa, &b->cc);
-                if (!b->A)
-                    return GS_ENOMEM;
-            } else {
-                double *Ax = b->A->x;
-                for (gs_index p = 0; p < m->nnz; p++)
-                    Ax[p] = alpha * m->mx[p] + kappa * m->kx[p];
-            }
-            if (!b->L) { /* ordering and symbolic analysis: once per body */
-                b->L = cholmod_l_analyze(b->A, &b->cc);
-                if (!b->L)
-                    return GS_ENOMEM;
-                b->st.factor_nnz = b->cc.lnz;
-            }
-            if (!cholmod_l_factorize(b->A, b->L, &b->cc))
-                return GS_ENOMEM;
-            if (b->cc.status == CHOLMOD_NOT_POSDEF)
-                return GS_ESINGULAR;
-            b->st.factorizations++;
-            double *r = b->rb->x;
-            for (gs_index i = 0; i < b->ne; i++)
-                r[i] = alpha * m->s[i];
-            GS_TRY(solve_one(b));
-            memcpy(b->y, b->rx->x, (size_t)b->ne * sizeof *b->y);
-        }
+        GS_TRY(use_factor(b, h));
         b->h = h;
     }
     b->c = brake_c;

@@ -203,7 +203,7 @@ static double impact_after_step(gs_system *sys, gs_gmesh_rt *m)
     if (vn < 0.0) {
         /* Speed the loads give the line of action over a step (at the end
          * of this one): below twice that, the flanks stay in contact. */
-        double h = sys->h, t = sys->time + h, alpha = 0.0;
+        double h = sys->h_sub, t = sys->time + h, alpha = 0.0;
         for (int i = 0; i < sys->n_bodies; i++) {
             int c = sys->bodies[i].coord;
             if (c < 0 || im->u[c] == 0.0)

@@ -34,7 +34,8 @@ static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", 
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", "positions", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
-static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", NULL};
+static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", "adaptive", NULL};
+static const char *const adaptive_keys[] = {"penetration_um", "levels", NULL};
 static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
 static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every",
                                             "checkpoint_every", NULL};
@@ -1084,6 +1085,25 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_number(o, "newton_tol", "numerics", 1e-16, 1e-3, false, 1e-13, &s->newton_tol, d));
         CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
         s->max_newton = (int)v;
+        json_object *ad;
+        CHECK(gsi_json_object(o, "adaptive", "numerics", false, &ad, d));
+        if (ad) {
+            CHECK(gsi_json_only(ad, "numerics.adaptive", adaptive_keys, d));
+            double pum;
+            CHECK(gsi_json_positive(ad, "penetration_um", "numerics.adaptive", 1e3, true, 0, &pum, d));
+            s->adapt_penetration = pum * 1e-6;
+            CHECK(gsi_json_int(ad, "levels", "numerics.adaptive", 1, GS_SCENE_MAX_ADAPT_LEVELS, false, 3, &v, d));
+            s->adapt_levels = (int)v;
+            bool contact = false;
+            for (int i = 0; i < s->n_meshes; i++)
+                contact |= s->meshes[i].model == GS_MESH_CONTACT;
+            if (!contact) {
+                e = gs_diag_set(d, GS_ESCHEMA, "numerics.adaptive",
+                                "the adaptive step acts on the penetration of contact meshes: this scene has none "
+                                "(remove 'adaptive', or give a mesh model 'contact')");
+                goto fail;
+            }
+        }
     }
     CHECK(gsi_json_object(root, "initial", "", false, &o, d));
     if (o) {

@@ -43,6 +43,9 @@ typedef struct solver {
     row_ref *rows;
     int n_rows;
     size_t cap_rows;
+    row_ref *watch;      /* adaptive step: candidates without a row, checked after the solve */
+    int n_watch;
+    size_t cap_watch;
     int *unk;            /* per body, per plan dof: global unknown, -1 unused */
     size_t cap_unk;
     size_t *base;        /* per body: offset of its plan dofs in unk */
@@ -66,6 +69,7 @@ void gsi_contact_free(gs_system *sys)
         free(s->u[i]);
     free(s->u);
     free(s->rows);
+    free(s->watch);
     free(s->unk);
     free(s->base);
     free(s->sel);
@@ -116,15 +120,15 @@ static gs_err reserve(solver *s, int N, int ne, int ni, int maxdof)
     return GS_OK;
 }
 
-static gs_err add_row(solver *s, int mesh, const gs_contact_row *r)
+static gs_err add_row(row_ref **rows, int *n, size_t *cap, int mesh, const gs_contact_row *r)
 {
-    row_ref *nr = gs_grow(s->rows, &s->cap_rows, (size_t)s->n_rows + 1, sizeof *nr);
+    row_ref *nr = gs_grow(*rows, cap, (size_t)*n + 1, sizeof *nr);
     if (!nr)
         return GS_ENOMEM;
-    s->rows = nr;
-    s->rows[s->n_rows].mesh = mesh;
-    s->rows[s->n_rows].r = *r;
-    s->n_rows++;
+    *rows = nr;
+    nr[*n].mesh = mesh;
+    nr[*n].r = *r;
+    (*n)++;
     return GS_OK;
 }
 
@@ -134,12 +138,44 @@ static int node_dof(const gs_system *sys, int i, int k, int comp)
     return (sys->bodies[i].coord >= 0 ? 1 : 0) + 2 * k + comp;
 }
 
+/* The change of row r's gap over the step, linearised: from the solution x
+ * (N unknowns, unknown map unk) where the row's coordinates are unknowns,
+ * else from the free increments d0 of the records (x NULL: all free). */
+static double gap_change(const gs_system *sys, const solver *s, const gs_contact_row *r,
+                         const gsi_contact_mesh *cm, const double *rec, const double *x)
+{
+    const gs_step_plan *p = &sys->plan;
+    double dg = 0.0;
+    for (int k = 0; k < 2; k++) {
+        int b = cm->body[k], c = sys->bodies[b].coord;
+        if (c < 0)
+            continue;
+        int nd = p->n_dof[b];
+        dg += r->dg_dtheta[k] * (x ? x[c] : rec[p->rec_off[b] + (size_t)nd * nd]);
+    }
+    for (int t = 0; t < r->n_nodes; t++) {
+        int gk = r->body[t], b = cm->body[gk];
+        if (!cm->elastic[gk])
+            continue;
+        int pk = gsi_plan_find(p, b, r->node[t]);
+        if (pk < 0)
+            continue;
+        int nd = p->n_dof[b];
+        const double *d0 = rec + p->rec_off[b] + (size_t)nd * nd;
+        for (int comp = 0; comp < 2; comp++) {
+            int a = node_dof(sys, b, pk, comp), u = x ? s->unk[s->base[b] + (size_t)a] : -1;
+            dg += r->dg_du[t][comp] * (u >= 0 ? x[u] : d0[a]);
+        }
+    }
+    return dg;
+}
+
 /* Evaluate the candidates of contact mesh mi at the current positions and
- * keep those that become rows; returns the deepest penetration. */
+ * keep those that become rows; returns the deepest penetration. With an
+ * adaptive step that can still refine, the others are kept to watch. */
 static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
 {
     gsi_contact_mesh *cm = sys->meshes[mi].contact;
-    const gs_step_plan *p = &sys->plan;
     gs_contact_pose pose[2];
     for (int k = 0; k < 2; k++) {
         gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
@@ -153,34 +189,27 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         if (-g > *pen)
             *pen = -g;
         bool take = g <= 0.0;
-        if (!take && cm->predict) {
-            /* The free motion's change of g, linearised. */
-            double dg = 0.0;
-            for (int k = 0; k < 2; k++) {
-                int b = cm->body[k];
-                if (sys->bodies[b].coord >= 0) {
-                    int nd = p->n_dof[b];
-                    dg += r.dg_dtheta[k] * rec[p->rec_off[b] + (size_t)nd * nd];
-                }
-            }
-            for (int t = 0; t < r.n_nodes; t++) {
-                int gk = r.body[t], b = cm->body[gk];
-                if (!cm->elastic[gk])
-                    continue;
-                int pk = gsi_plan_find(p, b, r.node[t]);
-                if (pk < 0)
-                    continue;
-                int nd = p->n_dof[b];
-                const double *d0 = rec + p->rec_off[b] + (size_t)nd * nd;
-                dg += r.dg_du[t][0] * d0[node_dof(sys, b, pk, 0)] +
-                      r.dg_du[t][1] * d0[node_dof(sys, b, pk, 1)];
-            }
-            take = g + dg <= 0.0;
-        }
+        if (!take && cm->predict) /* the free motion's change of g */
+            take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
         if (take)
-            GS_TRY(add_row(s, mi, &r));
+            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, mi, &r));
+        else if (sys->level < sys->scene->adapt_levels)
+            GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, &r));
     }
     return GS_OK;
+}
+
+/* The deepest penetration the solution x would make on a watched
+ * candidate (one without a row, so nothing stops it this step). */
+static double watched_penetration(const gs_system *sys, const solver *s, const double *rec, const double *x)
+{
+    double pen = 0.0;
+    for (int j = 0; j < s->n_watch; j++) {
+        const gs_contact_row *r = &s->watch[j].r;
+        double g = r->gap.g + gap_change(sys, s, r, sys->meshes[s->watch[j].mesh].contact, rec, x);
+        pen = fmax(pen, -g);
+    }
+    return pen;
 }
 
 /* Velocity of the material point at x of gear body b from its rigid motion
@@ -332,6 +361,7 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
     }
     /* 1. Rows. */
     s->n_rows = 0;
+    s->n_watch = 0;
     for (int mi = 0; mi < sys->n_meshes; mi++) {
         if (!sys->meshes[mi].ops->contact)
             continue;
@@ -473,6 +503,10 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
             sys->last_iterations += res.iterations;
         }
     }
+    /* 5c. Adaptive step: a solution that would push a watched node deeper
+     * than the threshold is not taken; the step is taken again finer. */
+    if (s->n_watch > 0 && watched_penetration(sys, s, rec, s->x) > sys->scene->adapt_penetration)
+        return GS_EREFINE;
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));
     memset(s->f, 0, (size_t)N * sizeof(double));

@@ -30,7 +30,7 @@ static void records(gs_system *sys, double *rec, bool all)
         if (!all && b->owner != sys->rank)
             continue;
         double t0 = gs_now();
-        b->ops->interface(sys, b, sys->h, rec + sys->plan.rec_off[i]);
+        b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         b->work_s += gs_now() - t0;
     }
 }
@@ -62,7 +62,7 @@ static double residual(gs_system *sys, const double *C, const double *d0, const 
     for (int i = 0; i < sys->n_meshes; i++) {
         gs_gmesh_rt *me = &sys->meshes[i];
         double dd, f;
-        me->ops->force(sys, me, sys->q, dq, sys->h, g, J, &dd, &f);
+        me->ops->force(sys, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
         diss += dd;
         out[n + 1 + i] = f;
     }
@@ -212,7 +212,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
 {
     gs_err err = finish(sys, sol, all);
     int n = sys->n_coords;
-    double h = sys->h, tm = sys->time + 0.5 * h;
+    double h = sys->h_sub, tm = sys->time + 0.5 * h;
     for (int i = 0; i < sys->n_bodies; i++) {
         int c = sys->bodies[i].coord;
         if (c < 0)
@@ -242,9 +242,55 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         me->penetration = ct[2];
         me->friction_loss += ct[3];
     }
-    sys->step++;
-    sys->time = (double)sys->step * h;
     return err;
+}
+
+/* The adaptive step (METHOD.md section 3: "reducing h adaptively when
+ * penetration appears"). The contact solve watches the candidates without
+ * a row: when its solution would push one deeper than
+ * numerics.adaptive.penetration_um, it answers GS_EREFINE instead, and the
+ * substep is taken again at half the size (gs_step_refine; the rest of the
+ * step is a whole number of the halves). A step of h taken without a
+ * refinement lets the next one try a level coarser. Every rank sees the
+ * same answer (broadcast with the solution), so every rank makes the same
+ * choice. Time is kept as whole ticks of h / 2^levels: no drift, and
+ * t = step h exactly at step ends. */
+static void set_level(gs_system *sys, int level)
+{
+    sys->level = level;
+    sys->h_sub = sys->h / (double)((int64_t)1 << level);
+}
+
+void gs_step_refine(gs_system *sys)
+{
+    set_level(sys, sys->level + 1);
+    sys->refined = true;
+    sys->refinements++;
+}
+
+bool gs_step_advance(gs_system *sys)
+{
+    int L = sys->scene->adapt_levels;
+    sys->substeps++;
+    if (L == 0) {
+        sys->step++;
+        sys->time = (double)sys->step * sys->h;
+        return true;
+    }
+    int64_t full = (int64_t)1 << L;
+    sys->sub_ticks += (int64_t)1 << (L - sys->level);
+    bool done = sys->sub_ticks >= full;
+    if (done) {
+        if (!sys->refined && sys->level > 0)
+            set_level(sys, sys->level - 1);
+        sys->refined = false;
+        sys->step++;
+        sys->sub_ticks = 0;
+        sys->time = (double)sys->step * sys->h;
+    } else {
+        sys->time = ((double)sys->step + (double)sys->sub_ticks / (double)full) * sys->h;
+    }
+    return done;
 }
 
 gs_err gs_step_apply(gs_system *sys, const double *sol)
@@ -252,7 +298,7 @@ gs_err gs_step_apply(gs_system *sys, const double *sol)
     return apply(sys, sol, false);
 }
 
-gs_err gs_step_serial(gs_system *sys)
+static gs_err serial_substep(gs_system *sys)
 {
     GS_TRY(gs_step_prepare(sys));
     size_t need = sys->plan.rec_size + sys->plan.sol_size;
@@ -272,4 +318,19 @@ gs_err gs_step_serial(gs_system *sys)
     e = apply(sys, sol, true);
     gs_system_book_damping(sys);
     return e;
+}
+
+gs_err gs_step_serial(gs_system *sys)
+{
+    for (;;) {
+        gs_err e = serial_substep(sys);
+        if (e == GS_EREFINE) {
+            gs_step_refine(sys);
+            continue;
+        }
+        if (e != GS_OK)
+            return e;
+        if (gs_step_advance(sys))
+            return GS_OK;
+    }
 }

@@ -255,6 +255,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     s->n_bodies = scene->n_bodies;
     s->n_meshes = scene->n_meshes;
     s->h = scene->time_step;
+    s->h_sub = s->h;
     gs_err e = GS_ENOMEM;
     s->bodies = gs_calloc((size_t)s->n_bodies, sizeof *s->bodies);
     s->meshes = gs_calloc((size_t)(s->n_meshes ? s->n_meshes : 1), sizeof *s->meshes);
