@@ -15,7 +15,6 @@ void gs_service_set_max_scene_mb(int64_t mb);
 /* --max-record-mb: a recording stops (error event) past this size (MiB). */
 void gs_service_set_max_record_mb(int64_t mb);
 
-bool gsi_opt_resume(void);
 int64_t gsi_opt_max_scene_mb(void);
 int64_t gsi_opt_max_record_mb(void);
 
