@@ -49,7 +49,8 @@ struct gs_contact_search {
     gs_contact_opts o;
     double band, depth;
     gs_contact_candidate *cand;
-    gs_index n, cap;
+    gs_index n;
+    size_t cap;
 };
 
 void gs_contact_opts_defaults(gs_contact_opts *o)
@@ -266,14 +267,10 @@ static gs_index nearest_segment(const gear_data *gb, const gs_contact_pose *pb, 
 
 static gs_err push(gs_contact_search *s, const gs_contact_candidate *c)
 {
-    if (s->n == s->cap) {
-        gs_index nc = s->cap ? 2 * s->cap : 64;
-        gs_contact_candidate *p = realloc(s->cand, (size_t)nc * sizeof *p);
-        if (!p)
-            return GS_ENOMEM;
-        s->cand = p;
-        s->cap = nc;
-    }
+    gs_contact_candidate *p = gs_grow(s->cand, &s->cap, (size_t)s->n + 1, sizeof *p);
+    if (!p)
+        return GS_ENOMEM;
+    s->cand = p;
     s->cand[s->n++] = *c;
     return GS_OK;
 }

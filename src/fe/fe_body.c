@@ -94,7 +94,8 @@ struct gs_fe_body {
     double *fi;         /* ne + 1: interface forces of the current step */
     gs_index *touched;  /* entries of fi set in this step */
     unsigned char *tmark; /* ne + 1: listed in touched */
-    gs_index n_touched, cap_touched;
+    gs_index n_touched;
+    size_t cap_touched;
 
     double energy0, work_in, work_iface, dissipated, damped;
 
@@ -774,12 +775,10 @@ gs_err gs_fe_body_increment(gs_fe_body *b, int n, const gs_index *dofs, double *
     return GS_OK;
 }
 
-gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C)
+/* The columns of dofs (resolve_all), each of them cached, in a new array
+ * that the caller frees. */
+static gs_err cached_columns(gs_fe_body *b, int n, const gs_index *dofs, gs_index **out)
 {
-    if (!b || n < 0 || (n > 0 && (!dofs || !C)))
-        return GS_EINVAL;
-    if (!b->have_step)
-        return GS_ESTATE;
     gs_index *qi = gs_calloc((size_t)n, sizeof *qi);
     if (!qi)
         return GS_ENOMEM;
@@ -790,6 +789,18 @@ gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double 
         free(qi);
         return e;
     }
+    *out = qi;
+    return GS_OK;
+}
+
+gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C)
+{
+    if (!b || n < 0 || (n > 0 && (!dofs || !C)))
+        return GS_EINVAL;
+    if (!b->have_step)
+        return GS_ESTATE;
+    gs_index *qi;
+    GS_TRY(cached_columns(b, n, dofs, &qi));
     const gs_index ne = b->ne;
     const double is = b->held ? 0.0 : 1.0 / b->sigma;
     for (int j = 0; j < n; j++) {
@@ -824,14 +835,10 @@ gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double 
 static gs_err touch(gs_fe_body *b, gs_index i, double f)
 {
     if (!b->tmark[i]) {
-        if (b->n_touched == b->cap_touched) {
-            gs_index cap = b->cap_touched ? 2 * b->cap_touched : 32;
-            gs_index *t = realloc(b->touched, (size_t)cap * sizeof *t);
-            if (!t)
-                return GS_ENOMEM;
-            b->touched = t;
-            b->cap_touched = cap;
-        }
+        gs_index *t = gs_grow(b->touched, &b->cap_touched, (size_t)b->n_touched + 1, sizeof *t);
+        if (!t)
+            return GS_ENOMEM;
+        b->touched = t;
         b->touched[b->n_touched++] = i;
         b->tmark[i] = 1;
     }
@@ -848,12 +855,9 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
     for (int k = 0; k < n; k++)
         if (!isfinite(f[k]))
             return GS_EINVAL;
-    gs_index *qi = gs_calloc((size_t)n, sizeof *qi);
-    if (!qi)
-        return GS_ENOMEM;
-    gs_err e = resolve_all(b, n, dofs, qi);
-    if (e == GS_OK)
-        e = cache_ensure(b, n, qi);
+    gs_index *qi;
+    GS_TRY(cached_columns(b, n, dofs, &qi));
+    gs_err e = GS_OK;
     const gs_index ne = b->ne;
     double tau = 0;
     for (int k = 0; k < n && e == GS_OK; k++) {

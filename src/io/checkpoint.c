@@ -22,16 +22,10 @@ static herr_t write_info(hid_t f, const gs_autosave_info *a)
         gsi_h5_string_attr(g, "record", a->record) < 0 ||
         gsi_h5_scalar_attr(g, "record_rows", H5T_NATIVE_INT64, &a->record_rows) < 0)
         st = -1;
-    if (st == 0 && a->n_field_bodies > 0) {
-        hsize_t n = (hsize_t)a->n_field_bodies;
-        hid_t sp = H5Screate_simple(1, &n, NULL);
-        hid_t ds = H5Dcreate2(g, "field_frames", H5T_NATIVE_INT64, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-        if (ds < 0 || H5Dwrite(ds, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, a->field_frames) < 0)
-            st = -1;
-        if (ds >= 0)
-            H5Dclose(ds);
-        H5Sclose(sp);
-    }
+    if (st == 0 && a->n_field_bodies > 0 &&
+        gsi_h5_fixed_ds(g, "field_frames", H5T_NATIVE_INT64, a->field_frames,
+                        (hsize_t)a->n_field_bodies, 0) < 0)
+        st = -1;
     if (H5Gclose(g) < 0)
         st = -1;
     return st;
@@ -46,13 +40,7 @@ static gs_err write_file(const char *path, const char *bytes, size_t len, const 
     hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (f < 0)
         return gs_diag_set(d, GS_EIO, "path", "cannot create the checkpoint '%s'", path);
-    hsize_t n = len;
-    hid_t sp = H5Screate_simple(1, &n, NULL);
-    hid_t ds = H5Dcreate2(f, "snapshot", H5T_NATIVE_UINT8, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = ds < 0 ? -1 : H5Dwrite(ds, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes);
-    if (ds >= 0)
-        H5Dclose(ds);
-    H5Sclose(sp);
+    herr_t st = gsi_h5_fixed_ds(f, "snapshot", H5T_NATIVE_UINT8, bytes, len, 0);
     if (gsi_h5_string_attr(f, "scene", scene_json) < 0 ||
         gsi_h5_scalar_attr(f, "step", H5T_NATIVE_INT64, &step) < 0 ||
         gsi_h5_scalar_attr(f, "time", H5T_NATIVE_DOUBLE, &time) < 0)
@@ -81,31 +69,13 @@ gs_err gs_autosave_write(const char *path, const char *bytes, size_t len, const 
 static int read_string_attr(hid_t loc, const char *name, char *out, size_t cap)
 {
     out[0] = '\0';
-    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
-    if (a < 0)
-        return -1;
-    hid_t t = H5Aget_type(a);
-    size_t n = t >= 0 ? H5Tget_size(t) : 0;
+    char *buf = gsi_h5_read_string_attr(loc, name, 1u << 20);
     int st = -1;
-    char *buf = n > 0 && n < (1u << 20) ? calloc(n + 1, 1) : NULL;
-    if (buf && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) && H5Aread(a, t, buf) >= 0) {
+    if (buf) {
         snprintf(out, cap, "%s", buf);
         st = strlen(buf) < cap ? 0 : -1;
     }
     free(buf);
-    if (t >= 0)
-        H5Tclose(t);
-    H5Aclose(a);
-    return st;
-}
-
-static int read_int64_attr(hid_t loc, const char *name, int64_t *v)
-{
-    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
-    if (a < 0)
-        return -1;
-    int st = H5Aread(a, H5T_NATIVE_INT64, v) < 0 ? -1 : 0;
-    H5Aclose(a);
     return st;
 }
 
@@ -123,10 +93,10 @@ gs_err gs_autosave_read_info(const char *path, gs_autosave_info *a, gs_diag *d)
     }
     gs_err err = GS_OK;
     if (read_string_attr(g, "parent_id", a->parent_id, sizeof a->parent_id) < 0 ||
-        read_int64_attr(g, "start_step", &a->start_step) < 0 ||
-        read_int64_attr(g, "target_step", &a->target_step) < 0 ||
+        gsi_h5_read_attr(g, "start_step", H5T_NATIVE_INT64, &a->start_step) < 0 ||
+        gsi_h5_read_attr(g, "target_step", H5T_NATIVE_INT64, &a->target_step) < 0 ||
         read_string_attr(g, "record", a->record, sizeof a->record) < 0 ||
-        read_int64_attr(g, "record_rows", &a->record_rows) < 0 || a->record_rows < 0)
+        gsi_h5_read_attr(g, "record_rows", H5T_NATIVE_INT64, &a->record_rows) < 0 || a->record_rows < 0)
         err = gs_diag_set(d, GS_EIO, "path", "the /autosave group of '%s' is incomplete", path);
     if (err == GS_OK && H5Lexists(g, "field_frames", H5P_DEFAULT) > 0) {
         hid_t ds = H5Dopen2(g, "field_frames", H5P_DEFAULT);

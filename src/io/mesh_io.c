@@ -27,40 +27,6 @@ gs_err gs_mesh_io_xmf_path(const char *h5_path, char *buf, size_t len)
 /* Small HDF5 helpers: 0 on success                                         */
 /* ------------------------------------------------------------------------ */
 
-static int attr_double(hid_t loc, const char *name, const double *v, hsize_t n)
-{
-    hid_t sp = n == 1 ? H5Screate(H5S_SCALAR) : H5Screate_simple(1, &n, NULL);
-    hid_t a = H5Acreate2(loc, name, H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t r = a < 0 ? -1 : H5Awrite(a, H5T_NATIVE_DOUBLE, v);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    return r < 0 ? -1 : 0;
-}
-
-static int attr_int(hid_t loc, const char *name, int v)
-{
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(loc, name, H5T_NATIVE_INT, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t r = a < 0 ? -1 : H5Awrite(a, H5T_NATIVE_INT, &v);
-    if (a >= 0)
-        H5Aclose(a);
-    H5Sclose(sp);
-    return r < 0 ? -1 : 0;
-}
-
-static int dset(hid_t g, const char *name, hid_t type, const void *data, hsize_t rows, hsize_t cols)
-{
-    hsize_t dims[2] = {rows, cols};
-    hid_t sp = H5Screate_simple(cols ? 2 : 1, dims, NULL);
-    hid_t ds = H5Dcreate2(g, name, type, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t r = ds < 0 ? -1 : (rows ? H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) : 0);
-    if (ds >= 0)
-        H5Dclose(ds);
-    H5Sclose(sp);
-    return r < 0 ? -1 : 0;
-}
-
 static int valid_name(const char *s)
 {
     if (!s || !*s || strchr(s, '/') || !strcmp(s, ".") || strlen(s) > 200)
@@ -79,15 +45,15 @@ static int write_gear(hid_t root, const gs_mesh_io_gear *e, int index)
     if (g < 0)
         return -1;
     int r = 0;
-    r |= attr_int(g, "index", index);
-    r |= attr_double(g, "centre_m", e->centre, 2);
-    r |= attr_double(g, "rotation_rad", &e->rotation, 1);
+    r |= gsi_h5_scalar_attr(g, "index", H5T_NATIVE_INT, &index) < 0;
+    r |= gsi_h5_array_attr(g, "centre_m", H5T_NATIVE_DOUBLE, e->centre, 2) < 0;
+    r |= gsi_h5_scalar_attr(g, "rotation_rad", H5T_NATIVE_DOUBLE, &e->rotation) < 0;
     if (e->params) {
         const gs_gear_params *p = e->params;
         gs_gear_geom geo;
         int have = gs_gear_geometry(p, &geo, NULL) == GS_OK;
-        r |= (gsi_h5_string_attr(g, "kind", p->kind == GS_GEAR_INTERNAL ? "internal" : "external") < 0 ? -1 : 0);
-        r |= attr_int(g, "teeth", p->teeth);
+        r |= gsi_h5_string_attr(g, "kind", p->kind == GS_GEAR_INTERNAL ? "internal" : "external") < 0;
+        r |= gsi_h5_scalar_attr(g, "teeth", H5T_NATIVE_INT, &p->teeth) < 0;
         const struct {
             const char *n;
             double v;
@@ -108,7 +74,7 @@ static int write_gear(hid_t root, const gs_mesh_io_gear *e, int index)
             {"form_radius_m", have ? geo.r_form : NAN},
         };
         for (size_t k = 0; k < sizeof a / sizeof a[0]; k++)
-            r |= attr_double(g, a[k].n, &a[k].v, 1);
+            r |= gsi_h5_scalar_attr(g, a[k].n, H5T_NATIVE_DOUBLE, &a[k].v) < 0;
     }
     double *placed = malloc((size_t)(2 * m->n_nodes + 1) * sizeof *placed);
     if (!placed) {
@@ -121,27 +87,27 @@ static int write_gear(hid_t root, const gs_mesh_io_gear *e, int index)
         placed[2 * i] = e->centre[0] + c * x - s * y;
         placed[2 * i + 1] = e->centre[1] + s * x + c * y;
     }
-    r |= dset(g, "nodes", H5T_NATIVE_DOUBLE, m->xy, (hsize_t)m->n_nodes, 2);
-    r |= dset(g, "nodes_placed", H5T_NATIVE_DOUBLE, placed, (hsize_t)m->n_nodes, 2);
+    r |= gsi_h5_fixed_ds(g, "nodes", H5T_NATIVE_DOUBLE, m->xy, (hsize_t)m->n_nodes, 2);
+    r |= gsi_h5_fixed_ds(g, "nodes_placed", H5T_NATIVE_DOUBLE, placed, (hsize_t)m->n_nodes, 2);
     free(placed);
-    r |= dset(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
-    r |= dset(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)m->n_fixed, 0);
+    r |= gsi_h5_fixed_ds(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
+    r |= gsi_h5_fixed_ds(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)m->n_fixed, 0);
     if (m->node_tag) {
-        r |= dset(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, (hsize_t)m->n_nodes, 0);
+        r |= gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, (hsize_t)m->n_nodes, 0);
     } else {
         signed char *z = calloc((size_t)m->n_nodes + 1, 1);
-        r |= z ? dset(g, "node_tag", H5T_NATIVE_SCHAR, z, (hsize_t)m->n_nodes, 0) : -1;
+        r |= z ? gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, z, (hsize_t)m->n_nodes, 0) : -1;
         free(z);
     }
-    r |= dset(g, "boundary", H5T_NATIVE_INT64, m->boundary, (hsize_t)(m->boundary ? m->n_boundary : 0), 0);
+    r |= gsi_h5_fixed_ds(g, "boundary", H5T_NATIVE_INT64, m->boundary, (hsize_t)(m->boundary ? m->n_boundary : 0), 0);
     if (m->flank_ptr && m->n_teeth > 0) {
-        r |= dset(g, "flank_ptr", H5T_NATIVE_INT64, m->flank_ptr, (hsize_t)(2 * m->n_teeth + 1), 0);
-        r |= dset(g, "flank_nodes", H5T_NATIVE_INT64, m->flank_nodes,
+        r |= gsi_h5_fixed_ds(g, "flank_ptr", H5T_NATIVE_INT64, m->flank_ptr, (hsize_t)(2 * m->n_teeth + 1), 0);
+        r |= gsi_h5_fixed_ds(g, "flank_nodes", H5T_NATIVE_INT64, m->flank_nodes,
                   (hsize_t)m->flank_ptr[2 * m->n_teeth], 0);
     } else {
         gs_index zero = 0;
-        r |= dset(g, "flank_ptr", H5T_NATIVE_INT64, &zero, 1, 0);
-        r |= dset(g, "flank_nodes", H5T_NATIVE_INT64, NULL, 0, 0);
+        r |= gsi_h5_fixed_ds(g, "flank_ptr", H5T_NATIVE_INT64, &zero, 1, 0);
+        r |= gsi_h5_fixed_ds(g, "flank_nodes", H5T_NATIVE_INT64, NULL, 0, 0);
     }
     H5Gclose(g);
     return r ? -1 : 0;
@@ -219,8 +185,9 @@ gs_err gs_mesh_io_write(const char *h5_path, const char *xmf_path, const gs_mesh
         goto out;
     }
     int r = 0;
-    r |= (gsi_h5_string_attr(file, "format", "gearsim-mesh") < 0 ? -1 : 0);
-    r |= attr_int(file, "version", 1);
+    const int version = 1;
+    r |= gsi_h5_string_attr(file, "format", "gearsim-mesh") < 0;
+    r |= gsi_h5_scalar_attr(file, "version", H5T_NATIVE_INT, &version) < 0;
     hid_t root = H5Gcreate2(file, "gears", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (root < 0)
         r = -1;
@@ -237,10 +204,10 @@ gs_err gs_mesh_io_write(const char *h5_path, const char *xmf_path, const gs_mesh
                 if (i + 1 < n)
                     strcat(names, "\n");
             }
-            r |= (gsi_h5_string_attr(root, "names", names) < 0 ? -1 : 0);
+            r |= gsi_h5_string_attr(root, "names", names) < 0;
             free(names);
         }
-        r |= attr_int(root, "count", n);
+        r |= gsi_h5_scalar_attr(root, "count", H5T_NATIVE_INT, &n) < 0;
         for (int i = 0; i < n && !r; i++)
             r |= write_gear(root, &gears[i], i);
         H5Gclose(root);
@@ -337,14 +304,10 @@ gs_err gs_mesh_io_read(const char *h5_path, const char *name, gs_mesh **out, dou
     for (int k = 0; k < 2; k++) {
         const char *an = k ? "rotation_rad" : "centre_m";
         double v[2] = {0, 0};
-        hid_t a = H5Aopen(g, an, H5P_DEFAULT);
-        if (a < 0 || H5Aread(a, H5T_NATIVE_DOUBLE, v) < 0) {
-            if (a >= 0)
-                H5Aclose(a);
+        if (gsi_h5_read_attr(g, an, H5T_NATIVE_DOUBLE, v) < 0) {
             e = gs_diag_set(d, GS_EIO, "path", "no %s for %s", an, path);
             goto out;
         }
-        H5Aclose(a);
         if (k == 0 && centre) {
             centre[0] = v[0];
             centre[1] = v[1];

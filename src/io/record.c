@@ -27,7 +27,7 @@ typedef struct rec_body {
     int64_t frames;      /* complete frames written */
     int64_t flushed;     /* frames as of the last flush (listed in the XDMF) */
     double *times;       /* time of every frame written */
-    int64_t tcap;
+    size_t tcap;
 } rec_body;
 
 struct gs_record {
@@ -96,11 +96,7 @@ gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, g
     }
     gsi_h5_string_attr(r->file, "scene", sys->scene->json);
     gsi_h5_string_attr(r->file, "gearsim_version", "0.1.0");
-    hid_t sp = H5Screate(H5S_SCALAR);
-    hid_t a = H5Acreate2(r->file, "time_step", H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
-    H5Awrite(a, H5T_NATIVE_DOUBLE, &sys->h);
-    H5Aclose(a);
-    H5Sclose(sp);
+    gsi_h5_scalar_attr(r->file, "time_step", H5T_NATIVE_DOUBLE, &sys->h);
     hid_t g = H5Gcreate2(r->file, "telemetry", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     int cols[DS_N] = {1, 1, 6, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
     bool ok = g >= 0;
@@ -260,48 +256,6 @@ static bool valid_body_name(const char *s)
     return true;
 }
 
-/* A fixed-size dataset; rows == 0 gives an empty one. 0 on success. */
-static int fixed_ds(hid_t g, const char *name, hid_t type, const void *data, hsize_t rows,
-                    hsize_t cols)
-{
-    hsize_t dims[2] = {rows, cols};
-    hid_t sp = H5Screate_simple(cols ? 2 : 1, dims, NULL);
-    if (sp < 0)
-        return -1;
-    hid_t ds = H5Dcreate2(g, name, type, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = ds < 0 ? -1 : (rows && data ? H5Dwrite(ds, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) : 0);
-    if (ds >= 0 && H5Dclose(ds) < 0)
-        st = -1;
-    H5Sclose(sp);
-    return st < 0 ? -1 : 0;
-}
-
-static int double_attr(hid_t loc, const char *name, const double *v, hsize_t n)
-{
-    hid_t sp = H5Screate_simple(1, &n, NULL);
-    if (sp < 0)
-        return -1;
-    hid_t a = H5Acreate2(loc, name, H5T_NATIVE_DOUBLE, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = a < 0 ? -1 : H5Awrite(a, H5T_NATIVE_DOUBLE, v);
-    if (a >= 0 && H5Aclose(a) < 0)
-        st = -1;
-    H5Sclose(sp);
-    return st < 0 ? -1 : 0;
-}
-
-static int int_attr(hid_t loc, const char *name, int v)
-{
-    hid_t sp = H5Screate(H5S_SCALAR);
-    if (sp < 0)
-        return -1;
-    hid_t a = H5Acreate2(loc, name, H5T_NATIVE_INT, sp, H5P_DEFAULT, H5P_DEFAULT);
-    herr_t st = a < 0 ? -1 : H5Awrite(a, H5T_NATIVE_INT, &v);
-    if (a >= 0 && H5Aclose(a) < 0)
-        st = -1;
-    H5Sclose(sp);
-    return st < 0 ? -1 : 0;
-}
-
 /* An extendable (0, n[, c]) dataset of `rank` (1..3), chunked by frame:
  * several frames per chunk only while a chunk stays under 64 KiB. */
 static hid_t frame_ds(hid_t g, const char *name, hid_t type, int rank, hsize_t n, hsize_t c)
@@ -346,16 +300,16 @@ static int write_body(hid_t gb, hid_t gf, const gs_record_mesh *e, int index, re
     hid_t g = H5Gcreate2(gb, e->name, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (g < 0)
         return -1;
-    st |= int_attr(g, "index", index);
-    st |= double_attr(g, "centre_m", e->centre, 2);
-    st |= fixed_ds(g, "nodes", H5T_NATIVE_DOUBLE, m->xy, nn, 2);
-    st |= fixed_ds(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
-    st |= fixed_ds(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)(m->fixed ? m->n_fixed : 0), 0);
+    st |= gsi_h5_scalar_attr(g, "index", H5T_NATIVE_INT, &index) < 0;
+    st |= gsi_h5_array_attr(g, "centre_m", H5T_NATIVE_DOUBLE, e->centre, 2) < 0;
+    st |= gsi_h5_fixed_ds(g, "nodes", H5T_NATIVE_DOUBLE, m->xy, nn, 2);
+    st |= gsi_h5_fixed_ds(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
+    st |= gsi_h5_fixed_ds(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)(m->fixed ? m->n_fixed : 0), 0);
     if (m->node_tag) {
-        st |= fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, nn, 0);
+        st |= gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, nn, 0);
     } else {
         signed char *z = gs_calloc((size_t)nn + 1, 1);
-        st |= z ? fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, z, nn, 0) : -1;
+        st |= z ? gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, z, nn, 0) : -1;
         free(z);
     }
     if (H5Gclose(g) < 0)
@@ -499,14 +453,10 @@ gs_err gs_record_field_frame(gs_record *r, int body, int64_t step, double time, 
     if (body < 0 || body >= r->nb || !u)
         return GS_EINVAL;
     rec_body *rb = &r->bodies[body];
-    if (rb->frames == rb->tcap) {
-        int64_t nc = rb->tcap ? 2 * rb->tcap : 64;
-        double *nt = realloc(rb->times, (size_t)nc * sizeof *nt);
-        if (!nt)
-            return GS_ENOMEM;
-        rb->times = nt;
-        rb->tcap = nc;
-    }
+    double *nt = gs_grow(rb->times, &rb->tcap, (size_t)rb->frames + 1, sizeof *nt);
+    if (!nt)
+        return GS_ENOMEM;
+    rb->times = nt;
     hsize_t k = (hsize_t)rb->frames, n = (hsize_t)rb->n_nodes;
     double *w = rb->scratch;
     int st = 0;
@@ -713,25 +663,6 @@ static int write_xmf(gs_record *r)
 
 /* ---- reopen after a resume ----------------------------------------------- */
 
-/* A fixed-length string attribute, malloc'd; NULL when missing. */
-static char *string_attr(hid_t loc, const char *name)
-{
-    hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
-    if (a < 0)
-        return NULL;
-    hid_t t = H5Aget_type(a);
-    size_t n = t >= 0 ? H5Tget_size(t) : 0;
-    char *buf = n > 0 && n < (64u << 20) ? gs_calloc(n + 1, 1) : NULL;
-    if (buf && (H5Tget_class(t) != H5T_STRING || H5Tis_variable_str(t) || H5Aread(a, t, buf) < 0)) {
-        free(buf);
-        buf = NULL;
-    }
-    if (t >= 0)
-        H5Tclose(t);
-    H5Aclose(a);
-    return buf;
-}
-
 /* Cut an extendable dataset to `keep` entries along its first axis; the
  * current length goes to *had. 0 on success. */
 static int cut_ds(hid_t ds, hsize_t keep, hsize_t *had)
@@ -764,11 +695,8 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
     if (g < 0)
         return -1;
     int st = 0;
-    hid_t a = H5Aopen(g, "centre_m", H5P_DEFAULT);
-    if (a < 0 || H5Aread(a, H5T_NATIVE_DOUBLE, rb->centre) < 0)
+    if (gsi_h5_read_attr(g, "centre_m", H5T_NATIVE_DOUBLE, rb->centre) < 0)
         st = -1;
-    if (a >= 0)
-        H5Aclose(a);
     hid_t dn = H5Dopen2(g, "nodes", H5P_DEFAULT), dt = H5Dopen2(g, "triangles", H5P_DEFAULT);
     hsize_t nd[2] = {0, 0}, td[2] = {0, 0};
     if (dn < 0 || dt < 0)
@@ -808,8 +736,8 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
     H5Gclose(g);
     if (st)
         return -1;
-    rb->tcap = keep > 0 ? keep : 64;
-    rb->times = gs_calloc((size_t)rb->tcap, sizeof *rb->times);
+    rb->tcap = keep > 0 ? (size_t)keep : 64;
+    rb->times = gs_calloc(rb->tcap, sizeof *rb->times);
     if (!rb->times || (keep > 0 && H5Dread(rb->ds[FD_TIME], H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
                                            H5P_DEFAULT, rb->times) < 0))
         return -1;
@@ -864,7 +792,7 @@ gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
     r->rows = rows;
     if (!bad && H5Lexists(r->file, "fields", H5P_DEFAULT) > 0) {
         hid_t gf = H5Gopen2(r->file, "fields", H5P_DEFAULT);
-        char *names = gf >= 0 ? string_attr(gf, "names") : NULL;
+        char *names = gf >= 0 ? gsi_h5_read_string_attr(gf, "names", 64u << 20) : NULL;
         if (gf >= 0)
             H5Gclose(gf);
         json_object *arr = names ? json_tokener_parse(names) : NULL;

@@ -46,7 +46,8 @@ typedef struct {
 
 typedef struct {
     gs_index *t;
-    gs_index n, cap;
+    gs_index n;
+    size_t cap;
 } tris_t;
 
 static gs_index node_add(nodes_t *nb, double x, double y, int tag)
@@ -71,14 +72,10 @@ static gs_index node_add(nodes_t *nb, double x, double y, int tag)
 
 static int tri_add(tris_t *tb, gs_index a, gs_index b, gs_index c)
 {
-    if (tb->n == tb->cap) {
-        gs_index nc = tb->cap ? 2 * tb->cap : 512;
-        gs_index *t = realloc(tb->t, (size_t)nc * 3 * sizeof *t);
-        if (!t)
-            return -1;
-        tb->t = t;
-        tb->cap = nc;
-    }
+    gs_index *t = gs_grow(tb->t, &tb->cap, (size_t)tb->n + 1, 3 * sizeof *t);
+    if (!t)
+        return -1;
+    tb->t = t;
     tb->t[3 * tb->n] = a;
     tb->t[3 * tb->n + 1] = b;
     tb->t[3 * tb->n + 2] = c;

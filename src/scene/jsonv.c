@@ -60,15 +60,26 @@ bool gsi_json_as_double(json_object *v, double *out)
     return false;
 }
 
+/* Look up o[key], writing its JSON path into p. *found says whether the key
+ * is there (its value may be JSON null); absent and required is an error. */
+static gs_err member(json_object *o, const char *key, const char *path, bool required, char *p,
+                     size_t cap, json_object **v, bool *found, gs_diag *d)
+{
+    gsi_path(p, cap, path, key);
+    *found = json_object_object_get_ex(o, key, v);
+    if (!*found && required)
+        return gs_diag_set(d, GS_ESCHEMA, p, "missing required field '%s'", key);
+    return GS_OK;
+}
+
 gs_err gsi_json_number(json_object *o, const char *key, const char *path, double lo, double hi,
                        bool required, double def, double *out, gs_diag *d)
 {
     char p[256];
-    gsi_path(p, sizeof p, path, key);
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) {
-        if (required)
-            return gs_diag_set(d, GS_ESCHEMA, p, "missing required field '%s'", key);
+    bool found;
+    GS_TRY(member(o, key, path, required, p, sizeof p, &v, &found, d));
+    if (!found) {
         *out = def;
         return GS_OK;
     }
@@ -102,11 +113,10 @@ gs_err gsi_json_int(json_object *o, const char *key, const char *path, int64_t l
                     bool required, int64_t def, int64_t *out, gs_diag *d)
 {
     char p[256];
-    gsi_path(p, sizeof p, path, key);
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) {
-        if (required)
-            return gs_diag_set(d, GS_ESCHEMA, p, "missing required field '%s'", key);
+    bool found;
+    GS_TRY(member(o, key, path, required, p, sizeof p, &v, &found, d));
+    if (!found) {
         *out = def;
         return GS_OK;
     }
@@ -131,16 +141,16 @@ gs_err gsi_json_int(json_object *o, const char *key, const char *path, int64_t l
 gs_err gsi_json_bool(json_object *o, const char *key, const char *path, bool def, bool *out,
                      gs_diag *d)
 {
+    char p[256];
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) {
+    bool found;
+    GS_TRY(member(o, key, path, false, p, sizeof p, &v, &found, d));
+    if (!found) {
         *out = def;
         return GS_OK;
     }
-    if (json_object_get_type(v) != json_type_boolean) {
-        char p[256];
-        gsi_path(p, sizeof p, path, key);
+    if (json_object_get_type(v) != json_type_boolean)
         return gs_diag_set(d, GS_ESCHEMA, p, "'%s' must be true or false", key);
-    }
     *out = json_object_get_boolean(v);
     return GS_OK;
 }
@@ -149,11 +159,10 @@ gs_err gsi_json_string(json_object *o, const char *key, const char *path, bool r
                        const char *def, char *out, size_t cap, gs_diag *d)
 {
     char p[256];
-    gsi_path(p, sizeof p, path, key);
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) {
-        if (required)
-            return gs_diag_set(d, GS_ESCHEMA, p, "missing required field '%s'", key);
+    bool found;
+    GS_TRY(member(o, key, path, required, p, sizeof p, &v, &found, d));
+    if (!found) {
         snprintf(out, cap, "%s", def ? def : "");
         return GS_OK;
     }
@@ -172,14 +181,12 @@ static gs_err typed_member(json_object *o, const char *key, const char *path, bo
                            json_object **out, gs_diag *d, json_type want, const char *what)
 {
     char p[256];
-    gsi_path(p, sizeof p, path, key);
     *out = NULL;
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) {
-        if (required)
-            return gs_diag_set(d, GS_ESCHEMA, p, "missing required field '%s'", key);
+    bool found;
+    GS_TRY(member(o, key, path, required, p, sizeof p, &v, &found, d));
+    if (!found)
         return GS_OK;
-    }
     if (json_object_get_type(v) != want)
         return gs_diag_set(d, GS_ESCHEMA, p, "'%s' must be %s", key, what);
     *out = v;

@@ -20,7 +20,6 @@ void gs_service_set_max_record_mb(int64_t mb);
  * been silent for GSI_CLIENT_IDLE_S seconds. */
 void gs_service_set_max_clients(int64_t n);
 
-bool gsi_opt_resume(void);
 int64_t gsi_opt_max_clients(void);
 int64_t gsi_opt_max_scene_mb(void);
 int64_t gsi_opt_max_record_mb(void);

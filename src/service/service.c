@@ -29,7 +29,6 @@ static int64_t opt_max_clients = GSI_DEFAULT_MAX_CLIENTS;
 
 void gs_service_set_resume(bool on) { opt_resume = on; }
 void gs_service_set_max_scene_mb(int64_t mb) { opt_max_scene_mb = mb < 1 ? 1 : mb; }
-bool gsi_opt_resume(void) { return opt_resume; }
 int64_t gsi_opt_max_scene_mb(void) { return opt_max_scene_mb; }
 void gs_service_set_max_record_mb(int64_t mb) { opt_max_record_mb = mb < 1 ? 1 : mb; }
 int64_t gsi_opt_max_record_mb(void) { return opt_max_record_mb; }

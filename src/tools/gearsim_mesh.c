@@ -22,6 +22,7 @@
 #include "gearsim/mesh.h"
 #include "gearsim/mesh_io.h"
 #include "gearsim/scene.h"
+#include "tool.h"
 
 static void usage(FILE *f)
 {
@@ -61,15 +62,11 @@ int main(int argc, char **argv)
         usage(stderr);
         return 1;
     }
-    gs_diag d;
-    gs_diag_clear(&d);
-    gs_scene *s = NULL;
-    gs_err e = gs_scene_load_file(scene_path, &s, &d);
-    if (e != GS_OK) {
-        fprintf(stderr, "gearsim-mesh: %s: %s: %s (%s)\n", scene_path, d.field, d.message,
-                gs_errcode(e));
+    gs_scene *s = tool_load_scene("gearsim-mesh", scene_path);
+    if (!s)
         return 2;
-    }
+    gs_diag d;
+    gs_err e;
     int n = s->n_bodies, ng = 0, rc = 0;
     gs_mesh **meshes = calloc((size_t)n, sizeof *meshes);
     gs_mesh_io_gear *ent = calloc((size_t)n, sizeof *ent);

@@ -23,6 +23,7 @@
 
 #include "gearsim/scene.h"
 #include "gearsim/stiffness.h"
+#include "tool.h"
 
 static void usage(FILE *f)
 {
@@ -146,15 +147,9 @@ int main(int argc, char **argv)
         usage(stderr);
         return 1;
     }
-    gs_diag d;
-    gs_diag_clear(&d);
-    gs_scene *s = NULL;
-    gs_err e = gs_scene_load_file(scene_path, &s, &d);
-    if (e != GS_OK) {
-        fprintf(stderr, "gearsim-stiffness: %s: %s: %s (%s)\n", scene_path, d.field, d.message,
-                gs_errcode(e));
+    gs_scene *s = tool_load_scene("gearsim-stiffness", scene_path);
+    if (!s)
         return 2;
-    }
     int mi = s->n_meshes > 0 ? 0 : -1;
     if (mesh) {
         mi = -1;
@@ -169,8 +164,9 @@ int main(int argc, char **argv)
         return 2;
     }
     gs_stiffness_result r;
+    gs_diag d;
     gs_diag_clear(&d);
-    e = gs_stiffness_analyse(s, mi, &o, &r, &d);
+    gs_err e = gs_stiffness_analyse(s, mi, &o, &r, &d);
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
         gs_scene_free(&s);

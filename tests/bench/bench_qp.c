@@ -26,24 +26,10 @@
 #include "gearsim/qp.h"
 #include "gearsim/util.h"
 
+#define TEST_RNG_SEED 0x243f6a8885a308d3ull
+#include "../common/rand.h"
+
 #define STEPS 20 /* problems per sequence */
-
-static uint64_t rng_state = 0x243f6a8885a308d3ull;
-
-static double urand(void)
-{
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-
-static double nrand(void)
-{
-    double u = urand(), v = urand();
-    return sqrt(-2.0 * log(u + 1e-300)) * cos(2.0 * 3.14159265358979323846 * v);
-}
 
 typedef struct {
     int n, neq, nin;
@@ -59,17 +45,7 @@ static sequence make_sequence(int n, int neq, int nin)
     s.e = malloc(((size_t)neq + 1) * sizeof(double));
     s.G = malloc(((size_t)n * nin + 1) * sizeof(double));
     s.g = malloc(((size_t)nin + 1) * sizeof(double));
-    double *B = malloc((size_t)n * n * sizeof(double));
-    for (int i = 0; i < n * n; i++)
-        B[i] = nrand();
-    for (int i = 0; i < n; i++) /* H = B^T B / n + 0.1 I */
-        for (int j = 0; j <= i; j++) {
-            double t = 0.0;
-            for (int k = 0; k < n; k++)
-                t += B[k * n + i] * B[k * n + j];
-            s.H[i * n + j] = s.H[j * n + i] = t / n + (i == j ? 0.1 : 0.0);
-        }
-    free(B);
+    rand_spd(n, 0.1, s.H);
     double *xf = malloc((size_t)n * sizeof(double)), *dc = malloc((size_t)n * sizeof(double));
     for (int i = 0; i < n; i++)
         xf[i] = nrand();

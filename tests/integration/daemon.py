@@ -205,6 +205,10 @@ class Daemon:
         deadline = time.monotonic() + 10
         while self.session_pids() and time.monotonic() < deadline:
             time.sleep(0.02)
+        return self._ended()
+
+    def _ended(self):
+        """Book the exit of mpirun (already waited for); returns its status."""
         self.returncode = self.proc.returncode
         self.proc = None
         for f in (self._out, self._err):
@@ -246,12 +250,7 @@ class Daemon:
             how = "sigkill"
         # ranks that outlived mpirun would still be in our process group
         self._signal(signal.SIGKILL)
-        self.returncode = self.proc.returncode
-        self.proc = None
-        for f in (self._out, self._err):
-            f.close()
-        if self in _live:
-            _live.remove(self)
+        self._ended()
         if self.dir and not self.keep and not self.given_dir:
             shutil.rmtree(self.dir, ignore_errors=True)
         return how

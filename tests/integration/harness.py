@@ -226,3 +226,32 @@ class Probe:
         self.dealer.close(0)
         if self.sub is not None:
             self.sub.close(0)
+
+
+def json_diff(a, b, path=""):
+    """Paths where two parsed JSON values differ (floats compared with ==); empty when equal."""
+    out = []
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=str):
+            if k not in a or k not in b:
+                out.append(f"{path}.{k}: only in one")
+            else:
+                out += json_diff(a[k], b[k], f"{path}.{k}")
+    elif isinstance(a, list) and isinstance(b, list):
+        if len(a) != len(b):
+            out.append(f"{path}: lengths {len(a)} vs {len(b)}")
+        for i, (x, y) in enumerate(zip(a, b)):
+            out += json_diff(x, y, f"{path}[{i}]")
+    elif a != b:
+        rel = ""
+        if isinstance(a, float) and isinstance(b, float) and max(abs(a), abs(b)) > 0:
+            rel = f" (rel {abs(a - b) / max(abs(a), abs(b)):.2e})"
+        out.append(f"{path}: {a!r} vs {b!r}{rel}")
+    return out
+
+
+def snap(client):
+    """The client's simulation state, without its bookkeeping: what must agree bit for bit
+    between runs that should be the same."""
+    s = client.state()
+    return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}

@@ -137,31 +137,29 @@ def curve_case(tmp):
 def bind_refused(tmp):
     conn = os.path.join(tmp, "remote.json")
     env = dict(os.environ, **dmod.MPI_ENV)
-    r = subprocess.run(["mpirun", "-n", "1", dmod.gearsimd_path(), "--connection-file", conn,
-                        "--data-dir", tmp, "--bind", "0.0.0.0"], stdout=subprocess.PIPE,
-                       stderr=subprocess.STDOUT, text=True, timeout=60, env=env)
+
+    def daemon(*args):
+        """gearsimd on one rank with these arguments, run to its exit (output in .stdout)."""
+        return subprocess.run(["mpirun", "-n", "1", dmod.gearsimd_path(), *args], stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True, timeout=60, env=env)
+
+    r = daemon("--connection-file", conn, "--data-dir", tmp, "--bind", "0.0.0.0")
     R.check("--bind 0.0.0.0 without CURVE: exits non-zero", r.returncode != 0, r.returncode)
     R.check("--bind 0.0.0.0 without CURVE: says why", "without CURVE" in r.stdout, r.stdout[-2000:])
     R.check("--bind 0.0.0.0 without CURVE: no connection file", not os.path.exists(conn))
-    r = subprocess.run(["mpirun", "-n", "1", dmod.gearsimd_path(), "--connection-file", conn,
-                        "--data-dir", tmp, "--curve-server-key", os.path.join(tmp, "nonexistent.key"),
-                        "--curve-allow", tmp], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                       timeout=60, env=env)
+    r = daemon("--connection-file", conn, "--data-dir", tmp, "--curve-server-key",
+               os.path.join(tmp, "nonexistent.key"), "--curve-allow", tmp)
     R.check("missing server key file: exits non-zero with a message",
             r.returncode != 0 and "nonexistent.key" in r.stdout, r.stdout[-2000:])
     conf = os.path.join(tmp, "gearsimd.conf")
     with open(conf, "w") as f:
         f.write("# test\nbind = \"0.0.0.0\"\n")
-    r = subprocess.run(["mpirun", "-n", "1", dmod.gearsimd_path(), "--config", conf, "--connection-file", conn,
-                        "--data-dir", tmp], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                       timeout=60, env=env)
+    r = daemon("--config", conf, "--connection-file", conn, "--data-dir", tmp)
     R.check("--config with bind = 0.0.0.0 and no CURVE: refused", r.returncode != 0 and "without CURVE" in r.stdout,
             r.stdout[-2000:])
     with open(conf, "w") as f:
         f.write("bind = 127.0.0.1\ncolour = blue\n")
-    r = subprocess.run(["mpirun", "-n", "1", dmod.gearsimd_path(), "--config", conf, "--connection-file", conn,
-                        "--data-dir", tmp], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                       timeout=60, env=env)
+    r = daemon("--config", conf, "--connection-file", conn, "--data-dir", tmp)
     R.check("--config with an unknown key: refused naming the line", r.returncode != 0 and ":2:" in r.stdout,
             r.stdout[-2000:])
 

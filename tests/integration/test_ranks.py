@@ -12,7 +12,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import daemon as dmod  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_ranks: identical telemetry at 1 and 2 ranks")
 STEPS = {"pair": 4000, "planetary": 3000, "elastic_pair": 1500, "elastic_spin": 1500, "contact_impact": 1000}
@@ -28,35 +28,12 @@ def run(ranks, name):
             done = c.advance(steps=STEPS[name], on_telemetry=tel.append, timeout=600)
             R.check(f"{name} -n {ranks}: run completed", not done.get("cancelled") and not done.get("lost"), done)
             R.check(f"{name} -n {ranks}: no telemetry dropped", c.gaps == 0, c.gaps)
-            final = c.state()
+            final = snap(c)
     series = {}
     for ev in tel:
         series[ev["step"]] = {"time": ev["time"], "energy": ev["energy"], "bodies": ev["bodies"],
                               "meshes": ev.get("meshes", [])}
-    final = {k: final[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in final}
     return series, final
-
-
-def diff(a, b, path=""):
-    """First differences between two parsed JSON values (floats compared with ==)."""
-    out = []
-    if isinstance(a, dict) and isinstance(b, dict):
-        for k in sorted(set(a) | set(b), key=str):
-            if k not in a or k not in b:
-                out.append(f"{path}.{k}: only in one")
-            else:
-                out += diff(a[k], b[k], f"{path}.{k}")
-    elif isinstance(a, list) and isinstance(b, list):
-        if len(a) != len(b):
-            out.append(f"{path}: lengths {len(a)} vs {len(b)}")
-        for i, (x, y) in enumerate(zip(a, b)):
-            out += diff(x, y, f"{path}[{i}]")
-    elif a != b:
-        rel = ""
-        if isinstance(a, float) and isinstance(b, float) and max(abs(a), abs(b)) > 0:
-            rel = f" (rel {abs(a - b) / max(abs(a), abs(b)):.2e})"
-        out.append(f"{path}: {a!r} vs {b!r}{rel}")
-    return out
 
 
 def compare(name, other=2):
@@ -68,10 +45,10 @@ def compare(name, other=2):
     common = sorted(set(s1) & set(s2))
     diffs = []
     for step in common:
-        diffs += [f"step {step}: {x}" for x in diff(s1[step], s2[step])]
+        diffs += [f"step {step}: {x}" for x in json_diff(s1[step], s2[step])]
     R.note(f"{name}: compared {len(common)} telemetry messages field by field; {len(diffs)} differences")
     R.check(f"{name}: telemetry identical bit for bit at -n 1 and -n {other}", not diffs, "\n".join(diffs[:10]))
-    fd = diff(f1, f2)
+    fd = json_diff(f1, f2)
     R.check(f"{name}: final state identical bit for bit", not fd, "\n".join(fd[:10]))
     if s1:
         last = s1[max(s1)]

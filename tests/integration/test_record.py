@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_record: HDF5 record, checkpoint/restore, fetch")
 N = 1500
@@ -114,21 +114,6 @@ def names_file(value, rel):
     return isinstance(value, str) and (value == rel or value.endswith("/" + rel))
 
 
-def diff(a, b, path=""):
-    """Paths where two parsed JSON values differ (floats compared with ==)."""
-    if isinstance(a, dict) and isinstance(b, dict):
-        return [x for k in sorted(set(a) | set(b), key=str)
-                for x in (diff(a.get(k), b.get(k), f"{path}.{k}") if k in a and k in b else [f"{path}.{k}: missing"])]
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [x for i, (p, q) in enumerate(zip(a, b)) for x in diff(p, q, f"{path}[{i}]")]
-    return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
-
-
-def snap(c):
-    s = c.state()
-    return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}
-
-
 def strip(tel):
     return [{k: ev[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in ev} for ev in tel]
 
@@ -185,11 +170,11 @@ def main():
             R.check(f"restore: back at step {N}", r.get("step") == N and r.get("time") == cp.get("time"), r)
             restored = snap(c)
             R.check("restore: state equals the state at the checkpoint, bit for bit", restored == at_n,
-                    "restored vs at checkpoint: " + "; ".join(diff(restored, at_n)))
+                    "restored vs at checkpoint: " + "; ".join(json_diff(restored, at_n)))
             tel_b = []
             c.advance(steps=N, on_telemetry=tel_b.append, timeout=600)
             b = snap(c)
-            R.check(f"state at step {2 * N} identical after restore, bit for bit", a == b, "; ".join(diff(a, b)))
+            R.check(f"state at step {2 * N} identical after restore, bit for bit", a == b, "; ".join(json_diff(a, b)))
             R.check("telemetry of both continuations identical", strip(tel_a) == strip(tel_b) and len(tel_a) > 0,
                     (len(tel_a), len(tel_b)))
             # restore into a freshly loaded scene too
@@ -198,7 +183,7 @@ def main():
             c.restore("cp.h5")
             c.advance(steps=N, timeout=600)
             fresh = snap(c)
-            R.check("restore into a fresh load gives the same state", fresh == a, "; ".join(diff(fresh, a)))
+            R.check("restore into a fresh load gives the same state", fresh == a, "; ".join(json_diff(fresh, a)))
             def cp_is_hdf5():
                 with h5py.File(d.path("cp.h5"), "r") as f:
                     R.check("checkpoint is an HDF5 file with the scene attribute", "scene" in f.attrs, list(f.attrs))
@@ -262,11 +247,11 @@ def elastic():
             a = snap(c)
             c.restore("ecp.h5")
             R.check("elastic restore: state equals the state at the checkpoint, bit for bit", snap(c) == at_n,
-                    "; ".join(diff(snap(c), at_n)))
+                    "; ".join(json_diff(snap(c), at_n)))
             c.advance(steps=300, timeout=600)
             b = snap(c)
             R.check("elastic restore: the continuation is identical bit for bit (internal states restored)",
-                    a == b, "; ".join(diff(a, b)))
+                    a == b, "; ".join(json_diff(a, b)))
 
 
 R.guard("record/checkpoint/fetch against the real daemon", main)

@@ -34,26 +34,12 @@ import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_resume: autosave, kill and --resume, disk full, size limits")
 SEED = int(os.environ.get("GEARSIM_RESUME_SEED") or random.SystemRandom().randrange(1 << 30))
 R.note(f"seed {SEED} (GEARSIM_RESUME_SEED={SEED} replays it)")
 RNG = random.Random(SEED)
-
-
-def snap(c):
-    s = c.state()
-    return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}
-
-
-def diff(a, b, path=""):
-    if isinstance(a, dict) and isinstance(b, dict):
-        return [x for k in sorted(set(a) | set(b), key=str)
-                for x in (diff(a.get(k), b.get(k), f"{path}.{k}") if k in a and k in b else [f"{path}.{k}: missing"])]
-    if isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
-        return [x for i, (p, q) in enumerate(zip(a, b)) for x in diff(p, q, f"{path}[{i}]")]
-    return [] if a == b else [f"{path}: {a!r} vs {b!r}"]
 
 
 def read_record(path):
@@ -170,7 +156,7 @@ def kill_and_resume(label, scene, ranks, steps):
                         st.get("step"))
                 got = snap(c)
                 R.check(f"{label}: final state equals the uninterrupted run's, bit for bit", got == ref,
-                        "; ".join(diff(got, ref))[:1500])
+                        "; ".join(json_diff(got, ref))[:1500])
                 c.record(stop=True)
                 R.check(f"{label}: autosave.h5 removed once the advance completed", not os.path.exists(auto))
             rec = read_record(d2.path("rec.h5"))
@@ -241,7 +227,7 @@ def disk_full():
             c.advance(steps=steps, timeout=600)
             ref = snap(c)
             R.check("disk full: state equals a run without recording, bit for bit", got == ref,
-                    "; ".join(diff(got, ref))[:1500])
+                    "; ".join(json_diff(got, ref))[:1500])
             R.check("disk full: daemon still answers hello", c.hello().get("protocol") == 1)
 
 

@@ -25,6 +25,7 @@
 #include "gearsim/geometry.h"
 #include "gearsim/mesh.h"
 #include "gearsim/util.h"
+#include "../common/gears.h"
 
 #define DEG (GS_PI / 180.0)
 
@@ -390,30 +391,6 @@ static void continuity(void **state)
 /* Search on real gear pairs                                                */
 /* ------------------------------------------------------------------------ */
 
-static gs_gear_params gear(gs_gear_kind kind, int z, double m)
-{
-    gs_gear_params p;
-    memset(&p, 0, sizeof p);
-    gs_gear_params_defaults(&p);
-    p.kind = kind;
-    p.teeth = z;
-    p.module_m = m;
-    return p;
-}
-
-static gs_mesh *mesh_of(const gs_gear_params *p)
-{
-    gs_gear_mesh_opts o;
-    gs_gear_mesh_opts_defaults(&o);
-    gs_mesh *m = NULL;
-    gs_diag d;
-    gs_err e = gs_gear_mesh(p, &o, &m, &d);
-    if (e != GS_OK)
-        print_message("# mesh: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    return m;
-}
-
 static void scene_xy(const gs_mesh *m, const gs_contact_pose *ps, gs_index nd, double x[2])
 {
     double X = m->xy[2 * nd] + (ps->u ? ps->u[2 * nd] : 0);
@@ -462,7 +439,7 @@ typedef struct pair_case {
 
 static void run_pair(const pair_case *pc)
 {
-    gs_mesh *m[2] = {mesh_of(&pc->g[0]), mesh_of(&pc->g[1])};
+    gs_mesh *m[2] = {mesh_of(&pc->g[0], 0), mesh_of(&pc->g[1], 0)};
     gs_pair_info info;
     gs_diag d;
     assert_int_equal(gs_pair_analyse(&pc->g[0], &pc->g[1], pc->a, &info, &d), GS_OK);
@@ -604,8 +581,8 @@ static void search_external(void **state)
 {
     (void)state;
     pair_case pc = {.name = "external 20/30 m 2.5", .a = 62.5e-3, .gamma = 0.3, .positions = 12};
-    pc.g[0] = gear(GS_GEAR_EXTERNAL, 20, 2.5e-3);
-    pc.g[1] = gear(GS_GEAR_EXTERNAL, 30, 2.5e-3);
+    pc.g[0] = gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0);
+    pc.g[1] = gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0);
     run_pair(&pc);
 }
 
@@ -613,8 +590,8 @@ static void search_internal(void **state)
 {
     (void)state;
     pair_case pc = {.name = "internal 24 in 72 m 2.5", .a = 60e-3, .gamma = -1.1, .positions = 12};
-    pc.g[0] = gear(GS_GEAR_EXTERNAL, 24, 2.5e-3);
-    pc.g[1] = gear(GS_GEAR_INTERNAL, 72, 2.5e-3);
+    pc.g[0] = gear(GS_GEAR_EXTERNAL, 24, 2.5e-3, 0);
+    pc.g[1] = gear(GS_GEAR_INTERNAL, 72, 2.5e-3, 0);
     pc.g[1].addendum_coef = 0.8;
     run_pair(&pc);
 }
@@ -627,8 +604,8 @@ static void search_high_ratio(void **state)
     (void)state;
     pair_case pc = {.name = "high ratio 40/60 m 2.5 h_a* 1.3", .a = 125e-3, .gamma = 2.0,
                     .positions = 8};
-    pc.g[0] = gear(GS_GEAR_EXTERNAL, 40, 2.5e-3);
-    pc.g[1] = gear(GS_GEAR_EXTERNAL, 60, 2.5e-3);
+    pc.g[0] = gear(GS_GEAR_EXTERNAL, 40, 2.5e-3, 0);
+    pc.g[1] = gear(GS_GEAR_EXTERNAL, 60, 2.5e-3, 0);
     for (int i = 0; i < 2; i++) {
         pc.g[i].addendum_coef = 1.3;
         pc.g[i].dedendum_coef = 1.55;
@@ -642,8 +619,9 @@ static void search_high_ratio(void **state)
 static void chained_gradients(void **state)
 {
     (void)state;
-    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3), gear(GS_GEAR_EXTERNAL, 30, 2.5e-3)};
-    gs_mesh *m[2] = {mesh_of(&g[0]), mesh_of(&g[1])};
+    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0),
+                           gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0)};
+    gs_mesh *m[2] = {mesh_of(&g[0], 0), mesh_of(&g[1], 0)};
     gs_contact_search *s = NULL;
     assert_int_equal(gs_contact_search_new(m[0], &g[0], m[1], &g[1], NULL, &s, NULL), GS_OK);
     double *u[2];
@@ -749,8 +727,9 @@ static void chained_gradients(void **state)
 static void search_errors(void **state)
 {
     (void)state;
-    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3), gear(GS_GEAR_EXTERNAL, 30, 2.5e-3)};
-    gs_mesh *m[2] = {mesh_of(&g[0]), mesh_of(&g[1])};
+    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0),
+                           gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0)};
+    gs_mesh *m[2] = {mesh_of(&g[0], 0), mesh_of(&g[1], 0)};
     gs_contact_search *s = NULL;
     gs_diag d;
     gs_contact_opts o;
@@ -790,8 +769,9 @@ static void search_errors(void **state)
 static void one_pass(void **state)
 {
     (void)state;
-    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3), gear(GS_GEAR_EXTERNAL, 30, 2.5e-3)};
-    gs_mesh *m[2] = {mesh_of(&g[0]), mesh_of(&g[1])};
+    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0),
+                           gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0)};
+    gs_mesh *m[2] = {mesh_of(&g[0], 0), mesh_of(&g[1], 0)};
     gs_contact_opts o;
     gs_contact_opts_defaults(&o);
     gs_contact_search *s2 = NULL, *s1 = NULL;

@@ -13,20 +13,9 @@
 #include <string.h>
 
 #include "gearsim/geometry.h"
+#include "../common/gears.h"
 
 #define DEG (GS_PI / 180.0)
-
-static gs_gear_params gear(gs_gear_kind kind, int z, double m, double x)
-{
-    gs_gear_params p;
-    memset(&p, 0, sizeof p);
-    gs_gear_params_defaults(&p);
-    p.kind = kind;
-    p.teeth = z;
-    p.module_m = m;
-    p.profile_shift = x;
-    return p;
-}
 
 static double inv(double a)
 {

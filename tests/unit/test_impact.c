@@ -19,21 +19,8 @@
 
 #include "gearsim/impact.h"
 
-static uint64_t rng_state = 0x243f6a8885a308d3ull;
-
-static double urand(void) /* splitmix64, uniform in [0, 1) */
-{
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-
-static double uniform(double a, double b)
-{
-    return a + (b - a) * urand();
-}
+#define TEST_RNG_SEED 0x243f6a8885a308d3ull
+#include "../common/rand.h"
 
 static void near(double got, double want, double tol, const char *what)
 {

@@ -26,6 +26,7 @@
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "../common/gears.h"
 
 static char g_dir[256];
 
@@ -70,12 +71,7 @@ static gs_system *pair_system(void)
 
 static gs_mesh *small_gear(void)
 {
-    gs_gear_params p;
-    memset(&p, 0, sizeof p);
-    gs_gear_params_defaults(&p);
-    p.kind = GS_GEAR_EXTERNAL;
-    p.teeth = 18;
-    p.module_m = 0.002;
+    gs_gear_params p = gear(GS_GEAR_EXTERNAL, 18, 0.002, 0);
     gs_gear_mesh_opts o;
     gs_gear_mesh_opts_defaults(&o);
     o.flank = 3;
@@ -109,6 +105,15 @@ static void *read_ds(hid_t file, const char *path, hid_t type, size_t el, int *r
     H5Sclose(sp);
     H5Dclose(ds);
     return buf;
+}
+
+/* read_ds of the dataset /GROUP/BODY/NAME, elements of the size of type. */
+static void *body_ds(hid_t file, const char *group, const char *body, const char *name, hid_t type,
+                     int *rank, hsize_t dims[3])
+{
+    char p[256];
+    snprintf(p, sizeof p, "/%s/%s/%s", group, body, name);
+    return read_ds(file, p, type, H5Tget_size(type), rank, dims);
 }
 
 static int count_str(const char *path, const char *needle)
@@ -368,28 +373,25 @@ static void fields_roundtrip(void **state)
     for (int b = 0; b < NB; b++) {
         const gs_mesh *m = ms[b];
         hsize_t n = (hsize_t)m->n_nodes;
-        char p[256];
-        snprintf(p, sizeof p, "/bodies/%s/nodes", rm[b].name);
-        double *xy = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *xy = body_ds(file, "bodies", rm[b].name, "nodes", H5T_NATIVE_DOUBLE, &rank, dims);
         assert_int_equal(rank, 2);
         assert_int_equal(dims[0], n);
         assert_int_equal(dims[1], 2);
         assert_memory_equal(xy, m->xy, 2 * n * sizeof(double));
-        snprintf(p, sizeof p, "/bodies/%s/triangles", rm[b].name);
-        int64_t *tri = read_ds(file, p, H5T_NATIVE_INT64, 8, &rank, dims);
+        int64_t *tri = body_ds(file, "bodies", rm[b].name, "triangles", H5T_NATIVE_INT64,
+                               &rank, dims);
         assert_int_equal(rank, 2);
         assert_int_equal(dims[0], m->n_tris);
         assert_int_equal(dims[1], 3);
         assert_memory_equal(tri, m->tri, 3 * (size_t)m->n_tris * sizeof(int64_t));
         free(tri);
-        snprintf(p, sizeof p, "/bodies/%s/fixed", rm[b].name);
-        int64_t *fx = read_ds(file, p, H5T_NATIVE_INT64, 8, &rank, dims);
+        int64_t *fx = body_ds(file, "bodies", rm[b].name, "fixed", H5T_NATIVE_INT64, &rank, dims);
         assert_int_equal(rank, 1);
         assert_int_equal(dims[0], m->n_fixed);
         assert_memory_equal(fx, m->fixed, (size_t)m->n_fixed * sizeof(int64_t));
         free(fx);
-        snprintf(p, sizeof p, "/bodies/%s/node_tag", rm[b].name);
-        signed char *tag = read_ds(file, p, H5T_NATIVE_SCHAR, 1, &rank, dims);
+        signed char *tag = body_ds(file, "bodies", rm[b].name, "node_tag", H5T_NATIVE_SCHAR,
+                                   &rank, dims);
         assert_int_equal(dims[0], n);
         for (hsize_t i = 0; i < n; i++)
             assert_int_equal(tag[i], m->node_tag ? m->node_tag[i] : 0);
@@ -398,30 +400,28 @@ static void fields_roundtrip(void **state)
         int T = 0;
         for (int f = 0; f < N_FRAMES; f++)
             T += frames[f].body == b;
-        snprintf(p, sizeof p, "/fields/%s/time", rm[b].name);
-        double *time = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *time = body_ds(file, "fields", rm[b].name, "time", H5T_NATIVE_DOUBLE, &rank, dims);
         assert_int_equal(rank, 1);
         assert_int_equal(dims[0], T);
-        snprintf(p, sizeof p, "/fields/%s/theta", rm[b].name);
-        double *theta = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *theta = body_ds(file, "fields", rm[b].name, "theta", H5T_NATIVE_DOUBLE,
+                                &rank, dims);
         assert_int_equal(dims[0], T);
-        snprintf(p, sizeof p, "/fields/%s/step", rm[b].name);
-        int64_t *step = read_ds(file, p, H5T_NATIVE_INT64, 8, &rank, dims);
+        int64_t *step = body_ds(file, "fields", rm[b].name, "step", H5T_NATIVE_INT64, &rank, dims);
         assert_int_equal(dims[0], T);
-        snprintf(p, sizeof p, "/fields/%s/displacement", rm[b].name);
-        double *disp = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *disp = body_ds(file, "fields", rm[b].name, "displacement", H5T_NATIVE_DOUBLE,
+                               &rank, dims);
         assert_int_equal(rank, 3);
         assert_int_equal(dims[0], T);
         assert_int_equal(dims[1], n);
         assert_int_equal(dims[2], 3);
-        snprintf(p, sizeof p, "/fields/%s/position", rm[b].name);
-        double *pos = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *pos = body_ds(file, "fields", rm[b].name, "position", H5T_NATIVE_DOUBLE,
+                              &rank, dims);
         assert_int_equal(rank, 3);
         assert_int_equal(dims[0], T);
         assert_int_equal(dims[1], n);
         assert_int_equal(dims[2], 2);
-        snprintf(p, sizeof p, "/fields/%s/von_mises", rm[b].name);
-        double *vmr = read_ds(file, p, H5T_NATIVE_DOUBLE, 8, &rank, dims);
+        double *vmr = body_ds(file, "fields", rm[b].name, "von_mises", H5T_NATIVE_DOUBLE,
+                              &rank, dims);
         assert_int_equal(rank, 2);
         assert_int_equal(dims[0], T);
         assert_int_equal(dims[1], n);

@@ -17,35 +17,9 @@
 #include "gearsim/mesh.h"
 #include "gearsim/mesh_io.h"
 #include "gearsim/util.h"
+#include "../common/gears.h"
 
 #define DEG (GS_PI / 180.0)
-
-static gs_gear_params gear(gs_gear_kind kind, int z, double m, double x)
-{
-    gs_gear_params p;
-    memset(&p, 0, sizeof p);
-    gs_gear_params_defaults(&p);
-    p.kind = kind;
-    p.teeth = z;
-    p.module_m = m;
-    p.profile_shift = x;
-    return p;
-}
-
-static gs_mesh *mesh_of(const gs_gear_params *p, int refine)
-{
-    gs_gear_mesh_opts o;
-    gs_gear_mesh_opts_defaults(&o);
-    o.refine = refine;
-    gs_mesh *m = NULL;
-    gs_diag d;
-    gs_diag_clear(&d);
-    gs_err e = gs_gear_mesh(p, &o, &m, &d);
-    if (e != GS_OK)
-        print_error("gs_gear_mesh: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    return m;
-}
 
 /* Node angle relative to the centre of tooth t, in (-pi, pi]. */
 static double rel_angle(const gs_mesh *m, gs_index v, int t, int z)

@@ -16,44 +16,14 @@
 
 #include "gearsim/qp.h"
 
+#define TEST_RNG_SEED 0x9e3779b97f4a7c15ull
+#include "../common/rand.h"
+
 /* ------------------------------------------------------------ helpers */
-
-static uint64_t rng_state = 0x9e3779b97f4a7c15ull;
-
-static double urand(void) /* splitmix64, uniform in [0, 1) */
-{
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-
-static double nrand(void)
-{
-    double u = urand(), v = urand();
-    return sqrt(-2.0 * log(u + 1e-300)) * cos(2.0 * 3.14159265358979323846 * v);
-}
 
 static int irand(int lo, int hi) /* in [lo, hi] */
 {
     return lo + (int)(urand() * (hi - lo + 1));
-}
-
-/* H = B^T B / n + alpha I with B n x n Gaussian: SPD, condition ~ 1 + 4/alpha. */
-static void rand_spd(int n, double alpha, double *H)
-{
-    double *B = malloc((size_t)n * n * sizeof *B);
-    for (int i = 0; i < n * n; i++)
-        B[i] = nrand();
-    for (int i = 0; i < n; i++)
-        for (int j = 0; j <= i; j++) {
-            double s = 0.0;
-            for (int k = 0; k < n; k++)
-                s += B[k * n + i] * B[k * n + j];
-            H[i * n + j] = H[j * n + i] = s / n + (i == j ? alpha : 0.0);
-        }
-    free(B);
 }
 
 /* A problem with its own storage. */

@@ -5,6 +5,7 @@
 #define GEARSIM_TESTS_SCENE_BUILD_H
 
 #include <json-c/json.h>
+#include <math.h>
 #include <string.h>
 
 #include "gearsim/step.h"
@@ -36,6 +37,17 @@ static inline gs_system *vt_system(json_object *root)
         print_error("system: %s: %s\n", d.field, d.message);
     assert_int_equal(e, GS_OK);
     return sys;
+}
+
+/* One serial step (fails the test on error), leaving the energies after it
+ * in *e: raises *worst to the largest |balance residual| and *scale to the
+ * largest energy figure (total, work in, dissipated) seen so far. */
+static inline void vt_step_balance(gs_system *s, gs_energy *e, double *worst, double *scale)
+{
+    assert_int_equal(gs_step_serial(s), GS_OK);
+    gs_system_energy(s, e);
+    *worst = fmax(*worst, fabs(e->balance_residual));
+    *scale = fmax(*scale, fmax(e->total, fmax(e->work_in, e->dissipated)));
 }
 
 #endif

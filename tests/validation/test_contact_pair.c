@@ -100,10 +100,7 @@ static drive_result drive(int refine)
             th_w = gs_system_angle(s, w);
             th_p = gs_system_angle(s, p);
         }
-        assert_int_equal(gs_step_serial(s), GS_OK);
-        gs_system_energy(s, &e);
-        worst = fmax(worst, fabs(e.balance_residual));
-        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
+        vt_step_balance(s, &e, &worst, &scale);
         if (i >= n - tail) {
             double wp = gs_system_omega(s, p);
             s1 += wp;
@@ -211,10 +208,7 @@ static void friction_efficiency(void **state)
             l0 = s->meshes[0].friction_loss;
             w0 = e.work_in;
         }
-        assert_int_equal(gs_step_serial(s), GS_OK);
-        gs_system_energy(s, &e);
-        worst = fmax(worst, fabs(e.balance_residual));
-        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
+        vt_step_balance(s, &e, &worst, &scale);
     }
     double loss = s->meshes[0].friction_loss - l0, win = e.work_in - w0;
     double eff = 1.0 - loss / win;

@@ -24,21 +24,8 @@
 
 #include "gearsim/impact.h"
 
-static uint64_t rng_state = 0x13198a2e03707344ull;
-
-static double urand(void)
-{
-    uint64_t z = (rng_state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    z ^= z >> 31;
-    return (double)(z >> 11) * 0x1.0p-53;
-}
-
-static double uniform(double a, double b)
-{
-    return a + (b - a) * urand();
-}
+#define TEST_RNG_SEED 0x13198a2e03707344ull
+#include "../common/rand.h"
 
 static double logu(double a, double b)
 {

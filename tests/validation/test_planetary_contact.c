@@ -52,10 +52,7 @@ static run_result run(gs_system *s, int n, int tail)
             th_s = gs_system_angle(s, sun);
             th_c = gs_system_angle(s, car);
         }
-        assert_int_equal(gs_step_serial(s), GS_OK);
-        gs_system_energy(s, &e);
-        worst = fmax(worst, fabs(e.balance_residual));
-        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
+        vt_step_balance(s, &e, &worst, &scale);
         if (i >= n - tail)
             for (int p = 0; p < 3; p++)
                 f[p] += sm[p] >= 0 ? s->meshes[sm[p]].force : 0.0;

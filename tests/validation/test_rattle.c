@@ -208,6 +208,20 @@ static gs_err try_scene(json_object *root, gs_diag *d, gs_system **out)
     return e;
 }
 
+/* The builtin scene `name` with `key` = val added to its first mesh is
+ * refused, naming that field. Consumes val. */
+static void mesh_field_refused(const char *name, const char *key, json_object *val)
+{
+    gs_diag d;
+    gs_system *s;
+    json_object *root = vt_scene(name);
+    json_object_object_add(mesh0(root), key, val);
+    assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
+    char field[64];
+    snprintf(field, sizeof field, "meshes[0].%s", key);
+    assert_string_equal(d.field, field);
+}
+
 static void scene_fields(void **state)
 {
     (void)state;
@@ -234,22 +248,10 @@ static void scene_fields(void **state)
     assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
     assert_string_equal(d.field, "meshes[0].backlash_mm");
     /* Lumped-only fields on an impact mesh, impact fields on a lumped one. */
-    root = vt_scene("rattle");
-    json_object_object_add(mesh0(root), "damping_ratio", json_object_new_double(0.1));
-    assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
-    assert_string_equal(d.field, "meshes[0].damping_ratio");
-    root = vt_scene("pair");
-    json_object_object_add(mesh0(root), "restitution", json_object_new_double(0.5));
-    assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
-    assert_string_equal(d.field, "meshes[0].restitution");
-    root = vt_scene("rattle");
-    json_object_object_add(mesh0(root), "law", json_object_new_string("coulomb"));
-    assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
-    assert_string_equal(d.field, "meshes[0].law");
-    root = vt_scene("rattle");
-    json_object_object_add(mesh0(root), "restitution", json_object_new_double(1.5));
-    assert_int_not_equal(try_scene(root, &d, &s), GS_OK);
-    assert_string_equal(d.field, "meshes[0].restitution");
+    mesh_field_refused("rattle", "damping_ratio", json_object_new_double(0.1));
+    mesh_field_refused("pair", "restitution", json_object_new_double(0.5));
+    mesh_field_refused("rattle", "law", json_object_new_string("coulomb"));
+    mesh_field_refused("rattle", "restitution", json_object_new_double(1.5));
     /* Elastic gears belong in contact meshes. */
     root = vt_scene("rattle");
     bs = json_object_object_get(root, "bodies");
