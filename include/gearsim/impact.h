@@ -12,7 +12,9 @@
  *     cross-checked as a QP with gs_qp;
  *  3. a compliant line contact split into N strips with the influence
  *     coefficients of the elastic half-plane, frictionless, solved as the QP
- *     of minimum complementary energy (gs_compliant_solve).
+ *     of minimum complementary energy (gs_compliant_solve), and with
+ *     Coulomb friction under a tangential load (partial slip) as an LCP
+ *     (gs_compliant_solve_friction).
  *
  * Planar vectors are {x, y}; angular quantities are about +z. Units are any
  * consistent set (SI in the tools). No call involves MPI; nothing keeps
@@ -202,6 +204,9 @@ typedef struct gs_compliant_problem {
     double e_star;      /* plane-strain contact modulus E* > 0 */
     double load;        /* P > 0, force per unit length */
     double datum;       /* distance of the displacement datum; <= 0: 10 (x1 - x0) */
+    /* Friction (gs_compliant_solve_friction only): */
+    double mu;          /* Coulomb coefficient >= 0 */
+    double load_t;      /* tangential load Q per unit length on body 1, |Q| <= mu P */
 } gs_compliant_problem;
 
 typedef struct gs_compliant_result {
@@ -212,6 +217,13 @@ typedef struct gs_compliant_result {
     double peak;         /* max pressure */
     int n_loaded;        /* strips with p > 0 */
     int qp_iterations;
+    /* Filled by gs_compliant_solve_friction only: */
+    double *traction;    /* [n] tangential traction q (caller-owned, or NULL) */
+    double shift;        /* rigid tangential shift of body 1 relative to body 2 */
+    double stick_half_width; /* half-width of the stick zone from the traction deficit
+                              * mu p - |q| (docs/IMPACT.md); 0 in full slip */
+    int n_stick;         /* loaded strips that stick */
+    gs_lcp_info lcp;
 } gs_compliant_result;
 
 /* Influence coefficient: normal displacement (sum of both bodies) at
@@ -226,5 +238,21 @@ double gs_compliant_influence(double s, double width, double e_star, double datu
  * the approach as the equality's multiplier. Errors: GS_ERANGE (field
  * named), GS_ENOMEM, and those of gs_qp. */
 gs_err gs_compliant_solve(const gs_compliant_problem *p, gs_compliant_result *r, gs_diag *d);
+
+/* The same contact under a tangential load Q = p->load_t (per unit length)
+ * with Coulomb friction p->mu: first the normal pressure as above, then the
+ * tangential strip forces t_j on the loaded strips as the LCP (Lemke)
+ *   stick:  u_t(x_j) = shift,            |t_j| <  mu f_j
+ *   slip:   slip along t_j,              |t_j| =  mu f_j
+ *   sum t_j = Q,
+ * with the tangential influence coefficients equal to the normal ones
+ * (plane strain half-plane). Normal and tangential problems are solved
+ * uncoupled: exact for identical materials (Dundurs beta = 0), the Goodman
+ * approximation otherwise. One loading from zero to Q (Cattaneo–Mindlin:
+ * the final state does not depend on the path for a monotonic load).
+ * r->traction must be non-NULL. Errors: those of gs_compliant_solve;
+ * GS_ERANGE "mu" (< 0 or not finite), "load_t" (|Q| > mu P: gross sliding,
+ * or not finite); GS_EINFEASIBLE / GS_ENOCONV from Lemke (r->lcp says). */
+gs_err gs_compliant_solve_friction(const gs_compliant_problem *p, gs_compliant_result *r, gs_diag *d);
 
 #endif

@@ -16,7 +16,13 @@
 typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
 typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
 typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
-typedef enum { GS_MESH_KINEMATIC = 0, GS_MESH_LUMPED = 1, GS_MESH_CONTACT = 2, GS_MESH_IMPACT = 3 } gs_mesh_model;
+typedef enum {
+    GS_MESH_KINEMATIC = 0,
+    GS_MESH_LUMPED = 1,
+    GS_MESH_CONTACT = 2,
+    GS_MESH_IMPACT = 3,
+    GS_MESH_COMPLIANT = 4
+} gs_mesh_model;
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1, GS_STIFF_CALIBRATED = 2 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
 
@@ -73,6 +79,10 @@ typedef struct gs_scene_mesh {
     int one_pass;              /* flank slaves on one gear only (default: both gears) */
     int predict;               /* also constrain nodes predicted to touch within the step */
     double friction;           /* Coulomb coefficient on the tooth flanks (contact meshes), 0: none */
+    /* compliant (also damping, damping_ratio, backlash, transition): */
+    int patches;               /* strips of the patch model across a contact */
+    int bending;               /* 0: beam (tooth bending in series), 1: none */
+    double max_line_load;      /* N/m: the top of the force-approach table */
 } gs_scene_mesh;
 
 typedef struct gs_scene_load {

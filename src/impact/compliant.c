@@ -133,3 +133,119 @@ out:
     free(gap);
     return err;
 }
+
+/* Tangential strip forces on the loaded strips as an LCP (docs/IMPACT.md,
+ * "Partial slip"). Unknowns scaled by the normal load P (forces) and by
+ * P / E* (displacements), z = (t+, t-, sigma, shift), size 3 m + 1:
+ *   w+    = -shift + H (t+ - t-) + sigma >= 0  _|_  t+ >= 0
+ *   w-    =  shift - H (t+ - t-) + sigma >= 0  _|_  t- >= 0
+ *   wsig  =  mu f - t+ - t-               >= 0  _|_  sigma >= 0
+ *   wsh   =  1.(t+ - t-) - Q              >= 0  _|_  shift >= 0   (Q >= 0)
+ * sigma >= |slip| and sigma > 0 only at the friction limit: Coulomb's law
+ * with the slip s = shift - H t (stick: s = 0). A is a positive
+ * semidefinite block (H) plus skew-symmetric blocks, so copositive-plus:
+ * Lemke's method finds a solution whenever one exists. */
+gs_err gs_compliant_solve_friction(const gs_compliant_problem *p, gs_compliant_result *r, gs_diag *d)
+{
+    if (!p || !r || !r->pressure || !r->traction)
+        return gs_diag_set(d, GS_EINVAL, "", "NULL argument");
+    if (!(p->mu >= 0.0) || !isfinite(p->mu))
+        return gs_diag_set(d, GS_ERANGE, "mu", "'mu' = %g must be >= 0", p->mu);
+    if (!isfinite(p->load_t))
+        return gs_diag_set(d, GS_ERANGE, "load_t", "'load_t' is not finite");
+    if (fabs(p->load_t) > p->mu * p->load * (1.0 + 1e-12))
+        return gs_diag_set(d, GS_ERANGE, "load_t",
+                           "'load_t' = %g exceeds mu P = %g: the contact slides as a whole", p->load_t,
+                           p->mu * p->load);
+    GS_TRY(gs_compliant_solve(p, r, d));
+    const int n = p->n;
+    const double w = (p->x1 - p->x0) / n;
+    const double datum = p->datum > 0.0 ? p->datum : 10.0 * (p->x1 - p->x0);
+    double sign = p->load_t < 0.0 ? -1.0 : 1.0, Q = fabs(p->load_t) / p->load;
+    memset(r->traction, 0, (size_t)n * sizeof(double));
+    memset(&r->lcp, 0, sizeof r->lcp);
+    r->shift = 0.0;
+    r->stick_half_width = 0.0;
+    r->n_stick = 0;
+    int *idx = malloc((size_t)n * sizeof *idx);
+    if (!idx)
+        return GS_ENOMEM;
+    int m = 0;
+    for (int i = 0; i < n; i++)
+        if (r->pressure[i] > 0.0)
+            idx[m++] = i;
+    if (Q == 0.0 || m == 0) {
+        r->lcp.status = GS_LCP_SOLVED;
+        free(idx);
+        return GS_OK;
+    }
+    const int N = 3 * m + 1;
+    double *A = calloc((size_t)N * N, sizeof *A), *q = calloc((size_t)N, sizeof *q);
+    double *z = malloc((size_t)N * sizeof *z), *wv = malloc((size_t)N * sizeof *wv);
+    double *x = malloc((size_t)n * sizeof *x), *def = calloc((size_t)n, sizeof *def);
+    gs_err err = GS_OK;
+    if (!A || !q || !z || !wv || !x || !def) {
+        err = GS_ENOMEM;
+        goto out;
+    }
+    for (int i = 0; i < n; i++)
+        x[i] = p->x0 + (i + 0.5) * w;
+#define AT(i, j) A[(size_t)(i) * N + (j)]
+    for (int a = 0; a < m; a++) {
+        for (int b = 0; b < m; b++) {
+            double h = p->e_star * gs_compliant_influence(x[idx[a]] - x[idx[b]], w, p->e_star, datum) / w;
+            AT(a, b) = h;
+            AT(a, m + b) = -h;
+            AT(m + a, b) = -h;
+            AT(m + a, m + b) = h;
+        }
+        AT(a, 2 * m + a) = 1.0;
+        AT(m + a, 2 * m + a) = 1.0;
+        AT(a, 3 * m) = -1.0;
+        AT(m + a, 3 * m) = 1.0;
+        AT(2 * m + a, a) = -1.0;
+        AT(2 * m + a, m + a) = -1.0;
+        q[2 * m + a] = p->mu * r->pressure[idx[a]] * w / p->load;
+        AT(3 * m, a) = 1.0;
+        AT(3 * m, m + a) = -1.0;
+    }
+    q[3 * m] = -Q;
+#undef AT
+    err = gs_lcp_lemke(N, A, q, z, wv, 0, &r->lcp);
+    if (err != GS_OK) {
+        gs_diag_set(d, err, "load_t", "the partial-slip LCP failed: %s (%d pivots)",
+                    gs_lcp_status_name(r->lcp.status), r->lcp.pivots);
+        goto out;
+    }
+    double flim = 0.0;
+    for (int a = 0; a < m; a++)
+        flim = fmax(flim, r->pressure[idx[a]] * w);
+    int lo = -1, hi = -1;
+    for (int a = 0; a < m; a++) {
+        int i = idx[a];
+        double t = (z[a] - z[m + a]) * p->load;
+        r->traction[i] = sign * t / w;
+        /* Stick where the traction stays below the limit by more than the
+         * solver's round-off. */
+        double deficit = p->mu * r->pressure[i] * w - fabs(t);
+        if (deficit > 1e-9 * p->mu * flim) {
+            def[i] = deficit / w;
+            r->n_stick++;
+            if (lo < 0)
+                lo = i;
+            hi = i;
+        }
+    }
+    r->shift = sign * z[3 * m] * p->load / p->e_star;
+    if (lo >= 0)
+        r->stick_half_width = 0.5 * (edge(x, def, n, hi, +1, w) - edge(x, def, n, lo, -1, w));
+out:
+    free(idx);
+    free(A);
+    free(q);
+    free(z);
+    free(wv);
+    free(x);
+    free(def);
+    return err;
+}

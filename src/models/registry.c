@@ -8,11 +8,12 @@
 #include "gearsim/models.h"
 
 extern const gs_body_ops gsi_body_rigid, gsi_body_elastic;
-extern const gs_gmesh_ops gsi_gmesh_kinematic, gsi_gmesh_lumped, gsi_gmesh_contact, gsi_gmesh_impact;
+extern const gs_gmesh_ops gsi_gmesh_kinematic, gsi_gmesh_lumped, gsi_gmesh_contact, gsi_gmesh_impact,
+    gsi_gmesh_compliant;
 
 static const gs_body_ops *const body_models[] = {&gsi_body_rigid, &gsi_body_elastic, NULL};
 static const gs_gmesh_ops *const mesh_models[] = {&gsi_gmesh_kinematic, &gsi_gmesh_lumped, &gsi_gmesh_contact,
-                                                   &gsi_gmesh_impact, NULL};
+                                                   &gsi_gmesh_impact, &gsi_gmesh_compliant, NULL};
 
 const gs_body_ops *gs_body_ops_find(const char *name)
 {

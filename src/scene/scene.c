@@ -30,7 +30,8 @@ static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier",
                                          "angle_deg", "pin_error_um", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
-                                         "restitution", "law", NULL};
+                                         "restitution", "law", "patches", "bending", "transition",
+                                         "max_line_load_n_per_mm", NULL};
 static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", "positions", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
@@ -389,7 +390,7 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
 static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                               gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped", "contact", "impact"};
+    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
     static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
     static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
@@ -418,7 +419,7 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(enum_field(o, "model", path, NULL, models, 4, &model, d));
+    GS_TRY(enum_field(o, "model", path, NULL, models, 5, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
@@ -439,6 +440,14 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
                 return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to contact meshes", *k);
+            }
+    }
+    if (m->model != GS_MESH_COMPLIANT) {
+        static const char *const no[] = {"patches", "bending", "transition", "max_line_load_n_per_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to compliant meshes", *k);
             }
     }
     if (m->model == GS_MESH_KINEMATIC || m->model == GS_MESH_CONTACT) {
@@ -474,6 +483,31 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
         m->backlash = bl * 1e-3;
         GS_TRY(gsi_json_number(o, "restitution", path, 0, 1, false, 0.7, &m->restitution, d));
         GS_TRY(enum_field(o, "law", path, "stronge", laws, 3, &m->law, d));
+        return GS_OK;
+    }
+    if (m->model == GS_MESH_COMPLIANT) {
+        /* Rigid gears, tooth pairs through the compliant patch model
+         * (docs/IMPACT.md "The compliant mesh"): no stiffness to give. */
+        if (json_object_object_get_ex(o, "stiffness", NULL)) {
+            gsi_path(p, sizeof p, path, "stiffness");
+            return gs_diag_set(d, GS_ESCHEMA, p,
+                               "a compliant mesh has no 'stiffness': its force comes from the patch model");
+        }
+        static const char *const bend[] = {"beam", "none"};
+        int64_t np;
+        GS_TRY(gsi_json_int(o, "patches", path, 8, 400, false, 40, &np, d));
+        m->patches = (int)np;
+        GS_TRY(enum_field(o, "bending", path, "beam", bend, 2, &m->bending, d));
+        GS_TRY(gsi_json_number(o, "transition", path, 1e-3, 0.5, false, 0.05, &m->transition, d));
+        double pl, bl;
+        GS_TRY(gsi_json_positive(o, "max_line_load_n_per_mm", path, 1e5, false, 1000, &pl, d));
+        m->max_line_load = pl * 1e3;
+        if (json_object_object_get_ex(o, "damping", NULL) && json_object_object_get_ex(o, "damping_ratio", NULL))
+            return gs_diag_set(d, GS_ESCHEMA, path, "give 'damping' or 'damping_ratio', not both");
+        GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, -1, &m->damping, d));
+        GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, 0.05, &m->damping_ratio, d));
+        GS_TRY(gsi_json_number(o, "backlash_mm", path, 0, 100, false, 0, &bl, d));
+        m->backlash = bl * 1e-3;
         return GS_OK;
     }
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
@@ -737,11 +771,11 @@ gs_err gs_scene_parse(const char *text, size_t len, gs_scene **out, gs_diag *d)
  * itself, or a new tree the caller frees when *copy is set). */
 static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, gs_diag *d)
 {
-    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact"};
+    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact", "compliant"};
     *out = root;
     *copy = false;
     int lv;
-    GS_TRY(enum_field(root, "fidelity", "", "as_given", levels, 4, &lv, d));
+    GS_TRY(enum_field(root, "fidelity", "", "as_given", levels, 5, &lv, d));
     if (lv == 0)
         return GS_OK;
     json_object *c = NULL;
@@ -765,7 +799,9 @@ static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, g
             if (json_object_get_type(m) != json_type_object)
                 continue;
             static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm",
-                                               "passes", "constrain", "friction", "restitution", "law", NULL};
+                                               "passes", "constrain", "friction", "restitution", "law",
+                                               "patches", "bending", "transition", "max_line_load_n_per_mm",
+                                               NULL};
             for (const char *const *k = drop; *k; k++)
                 json_object_object_del(m, *k);
             json_object_object_add(m, "model", json_object_new_string(levels[lv]));
@@ -825,11 +861,11 @@ static gs_err expand_train(json_object *c, gs_diag *d)
         if (json_object_object_get_ex(c, *k, NULL))
             return gs_diag_set(d, GS_ESCHEMA, *k, "give either 'train' or '%s', not both", *k);
     static const char *const models[] = {"rigid", "elastic"};
-    static const char *const mmodels[] = {"kinematic", "lumped", "contact"};
+    static const char *const mmodels[] = {"kinematic", "lumped", "contact", "compliant"};
     static const char *const rj[] = {"held", "fixed_axis"};
     int bm, mm, ringj;
     GS_TRY(enum_field(tr, "model", "train", "rigid", models, 2, &bm, d));
-    GS_TRY(enum_field(tr, "mesh_model", "train", "lumped", mmodels, 3, &mm, d));
+    GS_TRY(enum_field(tr, "mesh_model", "train", "lumped", mmodels, 4, &mm, d));
     GS_TRY(enum_field(tr, "ring_joint", "train", "held", rj, 2, &ringj, d));
     json_object *angles = NULL;
     GS_TRY(gsi_json_array(tr, "angles_deg", "train", false, &angles, d));

@@ -310,7 +310,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         m->index = i;
-        static const char *const names[] = {"kinematic", "lumped", "contact", "impact"};
+        static const char *const names[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
         m->ops = gs_gmesh_ops_find(names[scene->meshes[i].model]);
         e = mesh_kinematics(s, m, d);
         if (e != GS_OK)

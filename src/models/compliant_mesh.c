@@ -1,0 +1,590 @@
+/* SPDX-License-Identifier: MIT
+ * Mesh model `compliant`: rigid gears whose tooth pairs carry load through
+ * the compliant contact patch model (METHOD.md sections 2, 6 and 7;
+ * docs/IMPACT.md "The compliant mesh").
+ *
+ * Along the line of action the pair deflects by x = s - s_ref (s = a . q,
+ * as the lumped model), beyond the backlash dead zone the approach is
+ * delta = |x| - b/2, the same for every engaged tooth pair (rigid involute
+ * gears). A pair at distance v along the path of contact carries
+ * F(delta; v): its line contact (relative radius from the two flanks' radii
+ * of curvature at that point, face width b) solved by gs_compliant_solve in
+ * series with the bending compliance of both teeth (a cantilever of the
+ * exact tooth section: bending, shear and compression, from the root
+ * circle; no fillet-foundation term). F(delta; v) is tabulated at build time
+ * (stations along the path x line loads) and integrated exactly to the pair
+ * potential W(delta; v) (piecewise-linear F, piecewise-quadratic W). The
+ * mesh potential is
+ *     V(x, phi) = sum_j w(u_j) W(delta(x); v_j),   u_j = (frac(phi) + j) p_b,
+ * v_j = u_j on the drive flank (x > 0) and L - u_j on the coast flank,
+ * w a linear ramp over `transition` base pitches centred on each end of the
+ * path (as the lumped model's stiffness transitions), linear between
+ * stations in v. The step's force is the symmetrised coordinate-increment
+ * discrete gradient of V in (x, phi), so V(q1) - V(q0) = grad_bar V . dq to
+ * round-off; the damper and nothing else dissipates (frictionless flanks:
+ * normal and tangential contact are uncoupled for identical materials, so
+ * the friction LCP of the patch model does not change the normal law). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "compliant_mesh.h"
+#include "gearsim/geometry.h"
+#include "gearsim/impact.h"
+#include "gearsim/step.h"
+#include "gearsim/util.h"
+
+#define LOADS 24    /* line loads per station: Pmax (i / LOADS)^2 */
+#define STATIONS 25 /* along the path of contact, transitions included */
+#define MAXPAIRS 8
+
+typedef struct cmesh {
+    gs_gear_geom g[2];   /* [0] the phase gear ("pinion", external), [1] the other */
+    double c[2];         /* plane-strain compliances (1 - nu^2) / E */
+    double eb[2], gm[2]; /* bending modulus (E, or E / (1 - nu^2) in plane strain) and G */
+    int internal;
+    double rho0, t12; /* pinion's radius of curvature at the start of active
+                         profile; T1T2 */
+    double L, pb, tw; /* path length, base pitch, transition width (m) */
+    double b, e_star, pmax;
+    int patches;
+    bool bending;
+    double v0, dv;           /* station k at v0 + k dv */
+    double *del, *frc, *wrk; /* [STATIONS][LOADS + 1]: approach, force, potential */
+    double xscale;           /* approach at a moderate load: the scale of x */
+} cmesh;
+
+static double dot(const double *a, const double *b, int n)
+{
+    double s = 0;
+    for (int i = 0; i < n; i++)
+        s += a[i] * b[i];
+    return s;
+}
+
+/* Energy density of a section of half thickness h at distance arm from the
+ * load point along the centreline, per unit force squared and face width:
+ * bending (moment cb arm - e sb), shear (factor 1.2) and compression. */
+static double section(double arm, double h, double e, double cb, double sb, double eb, double gm)
+{
+    double mom = cb * arm - e * sb;
+    return mom * mom / (eb * (2.0 / 3.0) * h * h * h) + 1.2 * cb * cb / (gm * 2 * h) + sb * sb / (eb * 2 * h);
+}
+
+/* Compliance of one tooth (times 1/b: m/N) loaded along the line of action
+ * at radius rc: a cantilever of the exact section from the root circle
+ * (docs/IMPACT.md "The compliant mesh"). */
+static double tooth_compliance(const gs_gear_geom *g, double rc, double eb, double gm)
+{
+    bool ring = g->internal;
+    double lo = fmax(g->rb, g->r_form), hi = ring ? fmin(g->rf, g->r_form) : rc;
+    if (ring)
+        lo = rc;
+    double psic = gs_gear_involute_psi(g, rc), ar = acos(g->rb / rc);
+    double beta = ring ? ar + psic : ar - psic;
+    double yc = rc * cos(psic), e = rc * sin(psic), cb = cos(beta), sb = sin(beta);
+    double sum = 0;
+    const int n = 200;
+    double yprev = 0, fprev = 0, yend = 0, hend = 0;
+    for (int i = 0; i <= n; i++) {
+        double r = lo + (hi - lo) * i / n;
+        double ps = gs_gear_involute_psi(g, r), y = r * cos(ps), h = r * sin(ps);
+        double f = section(fabs(y - yc), h, e, cb, sb, eb, gm);
+        if (i > 0)
+            sum += 0.5 * (f + fprev) * fabs(y - yprev);
+        yprev = y;
+        fprev = f;
+        if (i == (ring ? n : 0)) {
+            yend = y;
+            hend = h;
+        }
+    }
+    /* below the involute (external) / beyond it (ring): the section of the
+     * involute's end kept down to the root circle */
+    double y0 = yend, y1 = g->rf;
+    if (ring ? y1 > y0 : y1 < y0) {
+        for (int i = 0; i < n; i++) {
+            double ya = y0 + (y1 - y0) * i / n, yb = y0 + (y1 - y0) * (i + 1) / n;
+            sum += 0.5 *
+                   (section(fabs(ya - yc), hend, e, cb, sb, eb, gm) + section(fabs(yb - yc), hend, e, cb, sb, eb, gm)) *
+                   fabs(yb - ya);
+        }
+    }
+    return sum;
+}
+
+void gsi_compliant_point_at(const gs_gmesh_rt *m, double v, gsi_compliant_point *pt)
+{
+    const cmesh *cm = m->contact;
+    v = fmin(fmax(v, 0.0), cm->L);
+    double rp = cm->rho0 + v, ro = cm->internal ? rp + cm->t12 : cm->t12 - rp;
+    pt->rho[0] = rp;
+    pt->rho[1] = ro;
+    pt->radius = 1.0 / (1.0 / rp + (cm->internal ? -1.0 : 1.0) / ro);
+    double rc[2] = {hypot(cm->g[0].rb, rp), hypot(cm->g[1].rb, ro)}, lnd = 0, kb = 0;
+    for (int k = 0; k < 2; k++) {
+        double r = fmin(fmax(rc[k], fmax(cm->g[k].rb, cm->g[k].internal ? cm->g[k].ra : cm->g[k].r_form)),
+                        cm->g[k].internal ? cm->g[k].r_form : cm->g[k].ra);
+        rc[k] = r;
+        lnd += cm->c[k] * log(0.5 * gs_gear_tooth_thickness(&cm->g[k], r));
+        kb += tooth_compliance(&cm->g[k], r, cm->eb[k], cm->gm[k]);
+    }
+    /* Both bodies' displacements to their own datum (half the tooth
+     * thickness at the contact: the tooth centreline, where the bending
+     * deflection is measured), in one kernel: the compliance-weighted
+     * geometric mean. */
+    pt->datum = exp(lnd / (cm->c[0] + cm->c[1]));
+    pt->e_star = cm->e_star;
+    pt->k_bend = cm->bending ? cm->b / kb : INFINITY;
+    pt->face_width = cm->b;
+}
+
+/* W, F and dF/ddelta of station k at approach dl >= 0. */
+static void law(const cmesh *cm, int k, double dl, double *W, double *F, double *S)
+{
+    const double *x = cm->del + (size_t)k * (LOADS + 1), *f = cm->frc + (size_t)k * (LOADS + 1),
+                 *w = cm->wrk + (size_t)k * (LOADS + 1);
+    int lo = 0, hi = LOADS;
+    if (dl >= x[LOADS - 1]) {
+        lo = LOADS - 1;
+    } else {
+        while (hi - lo > 1) {
+            int mid = (lo + hi) / 2;
+            if (x[mid] <= dl)
+                lo = mid;
+            else
+                hi = mid;
+        }
+    }
+    double s = (f[lo + 1] - f[lo]) / (x[lo + 1] - x[lo]), t = dl - x[lo];
+    *S = s;
+    *F = f[lo] + s * t;
+    *W = w[lo] + f[lo] * t + 0.5 * s * t * t;
+}
+
+/* W, F, S and their v-derivatives between stations. */
+static void law_v(const cmesh *cm, double v, double dl, double *W, double *F, double *S, double *Wv, double *Fv)
+{
+    double sidx = (v - cm->v0) / cm->dv;
+    bool out = sidx < 0 || sidx > STATIONS - 1;
+    sidx = fmin(fmax(sidx, 0.0), STATIONS - 1.0);
+    int k = (int)sidx;
+    if (k > STATIONS - 2)
+        k = STATIONS - 2;
+    double t = sidx - k, W0, F0, S0, W1, F1, S1;
+    law(cm, k, dl, &W0, &F0, &S0);
+    law(cm, k + 1, dl, &W1, &F1, &S1);
+    *W = W0 + t * (W1 - W0);
+    *F = F0 + t * (F1 - F0);
+    *S = S0 + t * (S1 - S0);
+    *Wv = out ? 0.0 : (W1 - W0) / cm->dv;
+    *Fv = out ? 0.0 : (F1 - F0) / cm->dv;
+}
+
+static double ramp(double x)
+{
+    return x <= 0 ? 0 : (x >= 1 ? 1 : x);
+}
+
+/* Pairs at phase phi on flank sigma: v, weight and d weight / d u. */
+static int pairs(const cmesh *cm, double phi, int sigma, double *v, double *wt, double *dwt, int max)
+{
+    double f = phi - floor(phi), h = 0.5 * cm->tw;
+    int n = 0;
+    for (int j = -1; n < max; j++) {
+        double u = (f + j) * cm->pb;
+        if (u <= -h)
+            continue;
+        if (u >= cm->L + h)
+            break;
+        double a = u / cm->tw + 0.5, b = (cm->L - u) / cm->tw + 0.5;
+        double ra = ramp(a), rb = ramp(b);
+        v[n] = sigma > 0 ? u : cm->L - u;
+        wt[n] = ra * rb;
+        dwt[n] = ((a > 0 && a < 1) ? rb / cm->tw : 0.0) - ((b > 0 && b < 1) ? ra / cm->tw : 0.0);
+        n++;
+    }
+    return n;
+}
+
+int gsi_compliant_pairs(const gs_gmesh_rt *m, double phi, int sigma, double *v, double *weight, int max)
+{
+    double dw[MAXPAIRS];
+    return pairs(m->contact, phi, sigma, v, weight, dw, max < MAXPAIRS ? max : MAXPAIRS);
+}
+
+double gsi_compliant_pair_force(const gs_gmesh_rt *m, double v, double delta)
+{
+    double W, F, S, Wv, Fv;
+    law_v(m->contact, v, fmax(delta, 0.0), &W, &F, &S, &Wv, &Fv);
+    return F;
+}
+
+bool gsi_compliant_info_get(const gs_gmesh_rt *m, gsi_compliant_info *info)
+{
+    if (strcmp(m->ops->name, "compliant") != 0 || !m->contact)
+        return false;
+    const cmesh *cm = m->contact;
+    info->path_length = cm->L;
+    info->base_pitch = cm->pb;
+    info->transition = cm->tw / cm->pb;
+    info->stations = STATIONS;
+    info->loads = LOADS;
+    info->patches = cm->patches;
+    info->max_line_load = cm->pmax;
+    return true;
+}
+
+typedef struct vals {
+    double V, Vx, Vxx, Vp, Vxp;
+} vals;
+
+/* V and its derivatives at deflection x, phase phi. */
+static vals eval(const gs_gmesh_rt *m, double x, double phi)
+{
+    const cmesh *cm = m->contact;
+    vals r = {0, 0, 0, 0, 0};
+    double hb = m->half_backlash;
+    if (hb > 0 && fabs(x) <= hb)
+        return r;
+    int sg = x >= 0 ? 1 : -1;
+    double dl = fabs(x) - hb;
+    double v[MAXPAIRS], wt[MAXPAIRS], dw[MAXPAIRS];
+    int n = pairs(cm, phi, sg, v, wt, dw, MAXPAIRS);
+    for (int j = 0; j < n; j++) {
+        double W, F, S, Wv, Fv;
+        law_v(cm, v[j], dl, &W, &F, &S, &Wv, &Fv);
+        /* dv/du = sg, du/dphi = p_b */
+        r.V += wt[j] * W;
+        r.Vx += sg * wt[j] * F;
+        r.Vxx += wt[j] * S;
+        r.Vp += cm->pb * (dw[j] * W + wt[j] * Wv * sg);
+        r.Vxp += sg * cm->pb * (dw[j] * F + wt[j] * Fv * sg);
+    }
+    return r;
+}
+
+static gs_err build_table(gs_gmesh_rt *m, gs_diag *d, const char *field)
+{
+    cmesh *cm = m->contact;
+    size_t sz = (size_t)STATIONS * (LOADS + 1);
+    cm->del = gs_calloc(sz, sizeof(double));
+    cm->frc = gs_calloc(sz, sizeof(double));
+    cm->wrk = gs_calloc(sz, sizeof(double));
+    double *pr = gs_calloc((size_t)cm->patches, sizeof(double));
+    if (!cm->del || !cm->frc || !cm->wrk || !pr) {
+        free(pr);
+        return GS_ENOMEM;
+    }
+    cm->v0 = -0.5 * cm->tw;
+    cm->dv = (cm->L + cm->tw) / (STATIONS - 1);
+    gs_err e = GS_OK;
+    for (int k = 0; k < STATIONS && e == GS_OK; k++) {
+        gsi_compliant_point pt;
+        gsi_compliant_point_at(m, cm->v0 + k * cm->dv, &pt);
+        double *x = cm->del + (size_t)k * (LOADS + 1), *f = cm->frc + (size_t)k * (LOADS + 1),
+               *w = cm->wrk + (size_t)k * (LOADS + 1);
+        for (int i = 1; i <= LOADS; i++) {
+            double P = cm->pmax * (double)i * i / ((double)LOADS * LOADS);
+            double a = sqrt(4 * P * pt.radius / (GS_PI * pt.e_star));
+            /* the candidate region is the Hertz width and a quarter each side */
+            gs_compliant_problem pb = {.n = cm->patches,
+                                       .x0 = -1.25 * a,
+                                       .x1 = 1.25 * a,
+                                       .radius = pt.radius,
+                                       .e_star = pt.e_star,
+                                       .load = P,
+                                       .datum = fmax(pt.datum, 2.5 * a)};
+            gs_compliant_result r = {.pressure = pr};
+            gs_diag sd;
+            e = gs_compliant_solve(&pb, &r, &sd);
+            if (e != GS_OK) {
+                gs_diag_set(d, e, field, "the patch model failed at %.3g N/mm, %.3g mm along the path: %s", P * 1e-3,
+                            (cm->v0 + k * cm->dv) * 1e3, sd.message);
+                break;
+            }
+            f[i] = P * cm->b;
+            x[i] = r.approach + f[i] / pt.k_bend;
+            if (!(x[i] > x[i - 1])) {
+                e = gs_diag_set(d, GS_ERANGE, field, "the force-approach law is not monotonic at %.3g N/mm", P * 1e-3);
+                break;
+            }
+            w[i] = w[i - 1] + 0.5 * (f[i] + f[i - 1]) * (x[i] - x[i - 1]);
+        }
+    }
+    free(pr);
+    if (e == GS_OK)
+        cm->xscale = cm->del[(size_t)(STATIONS / 2) * (LOADS + 1) + LOADS / 3];
+    return e;
+}
+
+static void cm_destroy(gs_gmesh_rt *m)
+{
+    cmesh *cm = m->contact;
+    if (!cm)
+        return;
+    free(cm->del);
+    free(cm->frc);
+    free(cm->wrk);
+    free(cm);
+    m->contact = NULL;
+}
+
+static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+{
+    const gs_scene *sc = sys->scene;
+    const gs_scene_mesh *sm = &sc->meshes[m->index];
+    char field[64];
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+        if (b->model == GS_MODEL_ELASTIC) {
+            snprintf(field, sizeof field, "meshes[%d].gears", m->index);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "compliant mesh '%s' needs rigid gears: '%s' is "
+                               "elastic (use a contact "
+                               "mesh for elastic teeth)",
+                               sm->name, b->name);
+        }
+    }
+    cmesh *cm = gs_calloc(1, sizeof *cm);
+    if (!cm)
+        return GS_ENOMEM;
+    m->contact = cm;
+    int kp = sc->bodies[sm->gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
+    const gs_scene_body *bp = &sc->bodies[sm->gear[kp]], *bo = &sc->bodies[sm->gear[1 - kp]];
+    snprintf(field, sizeof field, "meshes[%d].gears", m->index);
+    gs_diag gd;
+    if (gs_gear_geometry(&bp->gear, &cm->g[0], &gd) != GS_OK || gs_gear_geometry(&bo->gear, &cm->g[1], &gd) != GS_OK)
+        return gs_diag_set(d, GS_EGEOMETRY, field, "%s", gd.message);
+    double c0[2], c1[2];
+    gs_scene_body_centre(sc, sm->gear[kp], c0);
+    gs_scene_body_centre(sc, sm->gear[1 - kp], c1);
+    gs_pair_info info;
+    if (gs_pair_analyse(&bp->gear, &bo->gear, hypot(c1[0] - c0[0], c1[1] - c0[1]), &info, &gd) != GS_OK)
+        return gs_diag_set(d, GS_EGEOMETRY, field, "%s", gd.message);
+    cm->internal = info.internal;
+    cm->t12 = info.a * sin(info.alpha_w);
+    cm->rho0 = sqrt(fmax(info.r1_start * info.r1_start - cm->g[0].rb * cm->g[0].rb, 0.0));
+    cm->L = info.path_length;
+    cm->pb = info.base_pitch;
+    cm->tw = sm->transition * cm->pb;
+    const gs_material *mat[2] = {&bp->material, &bo->material};
+    for (int k = 0; k < 2; k++) {
+        double E = mat[k]->youngs_pa, nu = mat[k]->poisson;
+        cm->c[k] = (1 - nu * nu) / E;
+        cm->eb[k] = mat[k]->plane == GS_PLANE_STRAIN ? E / (1 - nu * nu) : E;
+        cm->gm[k] = E / (2 * (1 + nu));
+    }
+    cm->e_star = 1.0 / (cm->c[0] + cm->c[1]);
+    cm->b = fmin(bp->gear.face_width_m, bo->gear.face_width_m);
+    cm->patches = sm->patches;
+    cm->bending = sm->bending == 0;
+    cm->pmax = sm->max_line_load;
+    m->half_backlash = 0.5 * sm->backlash;
+    m->transition = sm->transition;
+    snprintf(field, sizeof field, "meshes[%d].patches", m->index);
+    GS_TRY(build_table(m, d, field));
+    /* Secant stiffness of one pair at a moderate load, averaged over the
+     * path (for the default damper and the telemetry's k_single). */
+    double ks = 0;
+    for (int k = 0; k < STATIONS; k++) {
+        size_t i = (size_t)k * (LOADS + 1) + LOADS / 3;
+        ks += cm->frc[i] / cm->del[i];
+    }
+    ks /= STATIONS;
+    m->k_single = ks;
+    m->k_double = 2 * ks;
+    if (sm->damping >= 0) {
+        m->damping = sm->damping;
+    } else {
+        double inv = 0;
+        for (int i = 0; i < sys->n_bodies; i++) {
+            const gs_body_rt *b = &sys->bodies[i];
+            if (b->coord >= 0 && m->a[b->coord] != 0)
+                inv += m->a[b->coord] * m->a[b->coord] / b->inertia_eff;
+        }
+        double km = ks * cm->L / cm->pb; /* mean engaged pairs = contact ratio */
+        m->damping = inv > 0 ? 2 * sm->damping_ratio * sqrt(km / inv) : 0;
+    }
+    return GS_OK;
+}
+
+/* Mean force of station k over approach [da, db], exactly (trapezoids of
+ * the piecewise-linear law): the difference quotient of W without the
+ * cancellation of W(db) - W(da). */
+static double avg_force_station(const cmesh *cm, int k, double da, double db)
+{
+    if (da > db) {
+        double t = da;
+        da = db;
+        db = t;
+    }
+    double W, Fa, S;
+    law(cm, k, da, &W, &Fa, &S);
+    if (!(db > da))
+        return Fa;
+    const double *x = cm->del + (size_t)k * (LOADS + 1);
+    double sum = 0, cur = da;
+    while (cur < db) {
+        int i = 0;
+        while (i < LOADS - 1 && x[i + 1] <= cur)
+            i++;
+        double end = i < LOADS - 1 ? fmin(db, x[i + 1]) : db, Fe;
+        if (!(end > cur))
+            end = db;
+        law(cm, k, end, &W, &Fe, &S);
+        sum += 0.5 * (Fa + Fe) * (end - cur);
+        cur = end;
+        Fa = Fe;
+    }
+    return sum / (db - da);
+}
+
+static double avg_force(const cmesh *cm, double v, double da, double db)
+{
+    double sidx = fmin(fmax((v - cm->v0) / cm->dv, 0.0), STATIONS - 1.0);
+    int k = (int)sidx;
+    if (k > STATIONS - 2)
+        k = STATIONS - 2;
+    double t = sidx - k;
+    return (1 - t) * avg_force_station(cm, k, da, db) + t * avg_force_station(cm, k + 1, da, db);
+}
+
+/* [V(x1, phi) - V(x0, phi)] / (x1 - x0), per flank without cancellation. */
+static double grad_x(const gs_gmesh_rt *m, double x0, double x1, double phi)
+{
+    const cmesh *cm = m->contact;
+    double hb = m->half_backlash, g = 0;
+    for (int sg = 1; sg >= -1; sg -= 2) {
+        double da = fmax(sg * x0 - hb, 0.0), db = fmax(sg * x1 - hb, 0.0);
+        if (da == 0.0 && db == 0.0 && !(hb == 0.0 && sg == 1))
+            continue;
+        /* d delta / dx over the interval: sg while in contact throughout */
+        double r = (sg * x0 >= hb && sg * x1 >= hb) ? sg : (db - da) / (x1 - x0);
+        if (!isfinite(r))
+            continue;
+        double v[MAXPAIRS], wt[MAXPAIRS], dw[MAXPAIRS];
+        int n = pairs(cm, phi, sg, v, wt, dw, MAXPAIRS);
+        for (int j = 0; j < n; j++)
+            g += r * wt[j] * avg_force(cm, v[j], da, db);
+    }
+    return g;
+}
+
+static void weight_at(const cmesh *cm, double u, double *w, double *dw)
+{
+    double a = u / cm->tw + 0.5, b = (cm->L - u) / cm->tw + 0.5, ra = ramp(a), rb = ramp(b);
+    *w = ra * rb;
+    *dw = ((a > 0 && a < 1) ? rb / cm->tw : 0.0) - ((b > 0 && b < 1) ? ra / cm->tw : 0.0);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Mean of dV/dphi over [phi0, phi1] at deflection x, exactly: each pair's
+ * term w(u) W(delta; v(u)) is quadratic in u between the ramp kinks and the
+ * stations, so its mean slope is the sum of the slopes at the midpoints of
+ * those pieces weighted by their lengths. */
+static double grad_phi(const gs_gmesh_rt *m, double x, double phi0, double phi1)
+{
+    const cmesh *cm = m->contact;
+    double hb = m->half_backlash;
+    if (fabs(x) <= hb && !(hb == 0.0 && x == 0.0))
+        return 0.0;
+    int sg = x >= 0 ? 1 : -1;
+    double dl = fabs(x) - hb, base = floor(fmin(phi0, phi1)), h = 0.5 * cm->tw, sum = 0;
+    for (int j = -1;; j++) {
+        double ua = (phi0 - base + j) * cm->pb, ub = (phi1 - base + j) * cm->pb;
+        double lo = fmin(ua, ub), hi = fmax(ua, ub);
+        if (lo >= cm->L + h)
+            break;
+        if (hi <= -h)
+            continue;
+        double bp[64];
+        int nb = 0;
+        bp[nb++] = lo;
+        const double kinks[4] = {-h, h, cm->L - h, cm->L + h};
+        for (int i = 0; i < 4; i++)
+            if (kinks[i] > lo && kinks[i] < hi)
+                bp[nb++] = kinks[i];
+        for (int k = 0; k < STATIONS && nb < 62; k++) {
+            double vk = cm->v0 + k * cm->dv, uk = sg > 0 ? vk : cm->L - vk;
+            if (uk > lo && uk < hi)
+                bp[nb++] = uk;
+        }
+        bp[nb++] = hi;
+        qsort(bp, (size_t)nb, sizeof bp[0], cmp_double);
+        double acc = 0;
+        for (int i = 0; i + 1 < nb || (nb == 2 && i == 0); i++) {
+            double a = bp[i], b = bp[i + 1 < nb ? i + 1 : i], mid = 0.5 * (a + b), len = b - a;
+            double w, dw, W, F, S, Wv, Fv;
+            weight_at(cm, mid, &w, &dw);
+            law_v(cm, sg > 0 ? mid : cm->L - mid, dl, &W, &F, &S, &Wv, &Fv);
+            double slope = dw * W + w * Wv * sg;
+            if (hi > lo)
+                acc += slope * len / (hi - lo);
+            else {
+                acc = slope;
+                break;
+            }
+            if (i + 2 >= nb)
+                break;
+        }
+        sum += acc;
+    }
+    return sum * cm->pb;
+}
+
+/* Symmetrised coordinate-increment discrete gradient of V in (x, phi):
+ *   g_x   = [V(x1,p0) - V(x0,p0) + V(x1,p1) - V(x0,p1)] / (2 dx)
+ *   g_phi = [V(x0,p1) - V(x0,p0) + V(x1,p1) - V(x1,p0)] / (2 dphi)
+ * so g_x dx + g_phi dphi = V(x1,p1) - V(x0,p0). Each quotient is evaluated
+ * as the exact mean of the derivative over the interval (grad_x, grad_phi),
+ * so it stays accurate for increments far below the deflection, near a
+ * static equilibrium, where differences of V would lose all their digits. */
+static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
+                     double *g, double *J, double *diss, double *force)
+{
+    int n = sys->n_coords;
+    double x0 = dot(m->a, q0, n) - m->s_ref, dx = dot(m->a, dq, n);
+    double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
+    double x1 = x0 + dx, p1 = p0 + dp, hb = m->half_backlash;
+    double gx = 0.5 * (grad_x(m, x0, x1, p0) + grad_x(m, x0, x1, p1));
+    double gp = 0.5 * (grad_phi(m, x0, p0, p1) + grad_phi(m, x1, p0, p1));
+    /* An approximate Jacobian (Newton backtracks; the residual is exact). */
+    vals v10 = eval(m, x1, p0), v11 = eval(m, x1, p1);
+    double jxx = 0.25 * (v10.Vxx + v11.Vxx), jxp = 0.25 * v11.Vxp, jpx = 0.25 * (v10.Vxp + v11.Vxp), jpp = 0.0;
+    /* Damping while the teeth are in contact at the midpoint. */
+    bool touching = fabs(x0 + 0.5 * dx) > hb;
+    double cd = touching ? m->damping : 0.0, fd = cd * dx / h;
+    jxx += cd / h;
+    for (int i = 0; i < n; i++)
+        g[i] += m->a[i] * (gx + fd) + m->c[i] * gp;
+    for (int i = 0; i < n; i++) {
+        if (m->a[i] == 0.0 && m->c[i] == 0.0)
+            continue;
+        for (int j = 0; j < n; j++)
+            J[i * n + j] += m->a[i] * (jxx * m->a[j] + jxp * m->c[j]) + m->c[i] * (jpx * m->a[j] + jpp * m->c[j]);
+    }
+    *diss = fd * dx;
+    *force = gx + fd;
+}
+
+static double cm_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+{
+    int n = sys->n_coords;
+    return eval(m, dot(m->a, q, n) - m->s_ref, dot(m->c, q, n)).V;
+}
+
+const gs_gmesh_ops gsi_gmesh_compliant = {
+    .name = "compliant",
+    .init = cm_init,
+    .n_eq = 0,
+    .force = cm_force,
+    .energy = cm_energy,
+    .destroy = cm_destroy,
+};
