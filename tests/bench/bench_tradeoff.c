@@ -4,8 +4,9 @@
  * planetary train (planetary_contact), every level — kinematic, impact (pair
  * only), lumped with the default rectangular stiffness, lumped calibrated
  * from the FE model, compliant (rigid gears, tooth pairs through the patch
- * model), elastic gears in contact — at several time steps (and
- * mesh densities for contact), one process. Each run covers the ramp and the
+ * model), elastic gears in contact with the adaptive step (numerics.adaptive)
+ * and with fixed steps — at several time steps (and mesh densities for
+ * contact), one process. Each run covers the ramp and the
  * steady state; the figures are taken over the second half:
  *   cost      wall seconds per simulated second
  *   speed     mean speed of the output gear (closed form M0 ratio / c)
@@ -45,7 +46,9 @@ static gs_system *build(const spec *s)
     if (!root)
         return NULL;
     const char *lv = s->level;
-    bool contact = !strcmp(lv, "contact");
+    /* adaptive: elastic gears in contact with numerics.adaptive (1 um, two
+     * halvings of the row's h) */
+    bool adaptive = !strcmp(lv, "adaptive"), contact = adaptive || !strcmp(lv, "contact");
     json_object *bs = json_object_object_get(root, "bodies"), *ms = json_object_object_get(root, "meshes");
     for (size_t i = 0; i < json_object_array_length(bs); i++) {
         json_object *b = json_object_array_get_idx(bs, i), *t;
@@ -70,10 +73,17 @@ static gs_system *build(const spec *s)
             json_object_object_add(st, "type", json_object_new_string("calibrated"));
             json_object_object_add(m, "stiffness", st);
         } else {
-            json_object_object_add(m, "model", json_object_new_string(lv));
+            json_object_object_add(m, "model", json_object_new_string(contact ? "contact" : lv));
         }
     }
-    json_object_object_add(json_object_object_get(root, "numerics"), "time_step", json_object_new_double(s->h));
+    json_object *num = json_object_object_get(root, "numerics");
+    json_object_object_add(num, "time_step", json_object_new_double(s->h));
+    if (adaptive) {
+        json_object *ad = json_object_new_object();
+        json_object_object_add(ad, "penetration_um", json_object_new_double(1.0));
+        json_object_object_add(ad, "levels", json_object_new_int(2));
+        json_object_object_add(num, "adaptive", ad);
+    }
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc;
     gs_diag d;
@@ -151,7 +161,8 @@ int main(int argc, char **argv)
         {"contact_drive", "lumped", 1e-6, 0},     {"contact_drive", "calibrated", 1e-4, 0},
         {"contact_drive", "calibrated", 1e-5, 0}, {"contact_drive", "calibrated", 1e-6, 0},
         {"contact_drive", "compliant", 1e-4, 0},  {"contact_drive", "compliant", 1e-5, 0},
-        {"contact_drive", "compliant", 1e-6, 0},  {"contact_drive", "contact", 2e-5, 0},    {"contact_drive", "contact", 1e-5, 0},
+        {"contact_drive", "compliant", 1e-6, 0},  {"contact_drive", "adaptive", 2e-5, 0},   {"contact_drive", "adaptive", 1e-5, 0},
+        {"contact_drive", "contact", 2e-5, 0},    {"contact_drive", "contact", 1e-5, 0},
         {"contact_drive", "contact", 1e-5, 1},    {"contact_drive", "contact", 5e-6, 1},
     };
     const spec plan[] = {
@@ -161,6 +172,7 @@ int main(int argc, char **argv)
         {"planetary_contact", "calibrated", 1e-4, 0}, {"planetary_contact", "calibrated", 1e-5, 0},
         {"planetary_contact", "calibrated", 1e-6, 0}, {"planetary_contact", "compliant", 1e-4, 0},
         {"planetary_contact", "compliant", 1e-5, 0},  {"planetary_contact", "compliant", 1e-6, 0},
+        {"planetary_contact", "adaptive", 2e-5, 0},   {"planetary_contact", "adaptive", 1e-5, 0},
         {"planetary_contact", "contact", 2e-5, 0},
         {"planetary_contact", "contact", 1e-5, 0},    {"planetary_contact", "contact", 5e-6, 0},
     };

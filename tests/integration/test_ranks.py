@@ -4,7 +4,9 @@
 (the JSON numbers parsed as floats compare equal), and identical final
 states: the rigid pair and planetary (lumped meshes) at mpirun -n 1 and -n 2,
 the elastic pair and the free elastic gear (FE bodies owned by different
-ranks, energies reported by their owners) at -n 1, 2 and 3."""
+ranks, energies reported by their owners) at -n 1, 2 and 3; elastic gears
+in contact (contact_impact) at -n 1 and 2, with the fixed step and with the
+adaptive step (substeps refused and taken again finer on every rank alike)."""
 import json
 import os
 import sys
@@ -15,11 +17,22 @@ import daemon as dmod  # noqa: E402
 from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_ranks: identical telemetry at 1 and 2 ranks")
-STEPS = {"pair": 4000, "planetary": 3000, "elastic_pair": 1500, "elastic_spin": 1500, "contact_impact": 1000}
+STEPS = {"pair": 4000, "planetary": 3000, "elastic_pair": 1500, "elastic_spin": 1500, "contact_impact": 1000,
+         "contact_impact+adaptive": 200}
+
+
+def load_variant(name):
+    """A builtin scene; NAME+adaptive: with numerics.adaptive from h 1e-5."""
+    base, _, variant = name.partition("+")
+    scene = dmod.load_scene(base)
+    if variant == "adaptive":
+        scene["numerics"] = {"time_step": 1e-5, "adaptive": {"penetration_um": 1.0, "levels": 3}}
+        scene["outputs"] = {"telemetry_every": 2}
+    return scene
 
 
 def run(ranks, name):
-    scene = dmod.load_scene(name)
+    scene = load_variant(name)
     with dmod.Daemon(ranks=ranks) as d:
         with d.client() as c:
             R.check(f"{name} -n {ranks}: hello reports {ranks} ranks", c.hello().get("ranks") == ranks)
@@ -59,6 +72,7 @@ def compare(name, other=2):
 
 for scene_name in ("pair", "planetary"):
     R.guard(f"{scene_name} at 1 and 2 ranks", compare, scene_name)
-for scene_name, n in (("elastic_pair", 2), ("elastic_pair", 3), ("elastic_spin", 2), ("contact_impact", 2)):
+for scene_name, n in (("elastic_pair", 2), ("elastic_pair", 3), ("elastic_spin", 2), ("contact_impact", 2),
+                      ("contact_impact+adaptive", 2)):
     R.guard(f"{scene_name} at 1 and {n} ranks", compare, scene_name, n)
 R.finish()

@@ -253,6 +253,21 @@ def elastic():
             R.check("elastic restore: the continuation is identical bit for bit (internal states restored)",
                     a == b, "; ".join(json_diff(a, b)))
 
+            # the adaptive step's level is part of the checkpoint
+            c.unload()
+            scene["numerics"] = {"time_step": 1e-5, "adaptive": {"penetration_um": 1.0, "levels": 3}}
+            c.load(scene=scene)
+            c.advance(steps=40, timeout=600)
+            c.checkpoint("acp.h5")
+            c.advance(steps=40, timeout=600)
+            a = snap(c)
+            c.restore("acp.h5")
+            c.advance(steps=40, timeout=600)
+            b = snap(c)
+            R.check("adaptive restore: the continuation is identical bit for bit (step level restored)",
+                    a == b, "; ".join(json_diff(a, b)))
+            R.check("adaptive: time is exactly step * time_step", b.get("time") == 80 * 1e-5, b.get("time"))
+
 
 R.guard("record/checkpoint/fetch against the real daemon", main)
 R.guard("elastic fields and checkpoint", elastic)
