@@ -54,6 +54,8 @@ typedef struct solver {
     size_t cap_sel;
     double *ff, *ffm;    /* friction: generalised forces, total and per mesh */
     size_t cap_ff, cap_ffm;
+    double *mg, *mJ, *H0, *c0, *xp, *mf; /* force meshes: g, J, saved H block and c, last x, forces */
+    size_t cap_m[6];
     double *H, *c, *E, *e, *G, *g, *x, *lam_eq, *lam_in, *S, *f;
     size_t cap[11];      /* capacities of the eleven arrays above, in that order of reserve() */
     gs_qp *qp;
@@ -75,6 +77,7 @@ void gsi_contact_free(gs_system *sys)
     free(s->sel);
     free(s->ff);
     free(s->ffm);
+    free(s->mg), free(s->mJ), free(s->H0), free(s->c0), free(s->xp), free(s->mf);
     free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
     gs_qp_free(&s->qp);
@@ -327,6 +330,84 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
     return GS_OK;
 }
 
+/* True when some mesh has a force (lumped, compliant, impact) beside the
+ * contact meshes. */
+static bool has_force_meshes(const gs_system *sys)
+{
+    for (int i = 0; i < sys->n_meshes; i++)
+        if (sys->meshes[i].ops->n_eq == 0 && !sys->meshes[i].ops->contact)
+            return true;
+    return false;
+}
+
+/* The QP of the step, with the forces of the meshes that have one
+ * (lumped, compliant) when there are any: they act on the rigid
+ * coordinates (unknowns 0..n-1), nonlinear in the increment, so the QP is
+ * solved again for them linearised at its last solution, their Jacobian
+ * (symmetrised) added to the rigid block of the Hessian, until two
+ * solutions agree (sequential QP). At the fixed point they are the exact
+ * discrete-gradient forces, so the energy identity holds as in the Newton
+ * step; their dissipation goes to *diss and their forces to sol. */
+static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_result *res, double *sol,
+                            double *diss)
+{
+    *diss = 0.0;
+    if (!has_force_meshes(sys)) {
+        GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
+        sys->last_iterations += res->iterations;
+        return GS_OK;
+    }
+    int n = sys->n_coords, N = pr->n, nm = sys->n_meshes;
+    size_t nn = (size_t)n * (size_t)n;
+    if (!grow(&s->mg, &s->cap_m[0], (size_t)n) || !grow(&s->mJ, &s->cap_m[1], nn) ||
+        !grow(&s->H0, &s->cap_m[2], nn) || !grow(&s->c0, &s->cap_m[3], (size_t)N) ||
+        !grow(&s->xp, &s->cap_m[4], (size_t)N) || !grow(&s->mf, &s->cap_m[5], (size_t)nm))
+        return GS_ENOMEM;
+    for (int i = 0; i < n; i++)
+        memcpy(s->H0 + (size_t)i * n, s->H + (size_t)i * N, (size_t)n * sizeof(double));
+    memcpy(s->c0, s->c, (size_t)N * sizeof(double));
+    /* Start: the step without the meshes' forces. */
+    GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
+    sys->last_iterations += res->iterations;
+    gs_err status = GS_ENOCONV;
+    for (int it = 0; it < sys->scene->max_newton; it++) {
+        memcpy(s->xp, s->x, (size_t)N * sizeof(double));
+        gsi_mesh_forces(sys, s->xp, s->mg, s->mJ, s->mf);
+        for (int i = 0; i < n; i++) {
+            double cj = 0.0;
+            for (int j = 0; j < n; j++) {
+                double Jij = 0.5 * (s->mJ[(size_t)i * n + j] + s->mJ[(size_t)j * n + i]);
+                s->H[(size_t)i * N + j] = s->H0[(size_t)i * n + j] + Jij;
+                cj += Jij * s->xp[j];
+            }
+            s->c[i] = s->c0[i] - s->mg[i] + cj;
+        }
+        GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
+        sys->last_iterations += res->iterations;
+        double dx = 0.0, sc = 1e-300;
+        for (int j = 0; j < N; j++) {
+            dx = fmax(dx, fabs(s->x[j] - s->xp[j]));
+            sc = fmax(sc, fabs(s->x[j]));
+        }
+        if (dx <= sys->scene->newton_tol * sc) {
+            status = GS_OK;
+            break;
+        }
+    }
+    /* Leave H and c as they were for a second solve (friction). */
+    for (int i = 0; i < n; i++)
+        memcpy(s->H + (size_t)i * N, s->H0 + (size_t)i * n, (size_t)n * sizeof(double));
+    memcpy(s->c, s->c0, (size_t)N * sizeof(double));
+    if (status != GS_OK)
+        return status;
+    /* The forces at the solution: booked, and part of the bodies' interface forces. */
+    *diss = gsi_mesh_forces(sys, s->x, s->mg, s->mJ, s->mf);
+    for (int i = 0; i < nm; i++)
+        if (sys->meshes[i].ops->n_eq == 0 && !sys->meshes[i].ops->contact)
+            sol[gs_sol_mesh_force(sys, i)] = s->mf[i];
+    return GS_OK;
+}
+
 gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
 {
     solver *s = get_solver(sys);
@@ -489,8 +570,9 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
     gs_qp_problem pr = {.n = N, .H = s->H, .c = s->c, .n_eq = ne, .E = s->E, .e = s->e,
                         .n_in = ni, .G = s->G, .g = s->g};
     gs_qp_result res = {.x = s->x, .lambda_eq = s->lam_eq, .lambda_in = s->lam_in};
-    GS_TRY(gs_qp_solve(s->qp, &pr, NULL, 0, &res));
-    sys->last_iterations = res.iterations;
+    double mdiss;
+    sys->last_iterations = 0;
+    GS_TRY(solve_step_qp(sys, s, &pr, &res, sol, &mdiss));
     /* 5b. Flank friction: forces from this solve's normal forces, then the
      * step solved again with them as loads. */
     bool fric = false;
@@ -499,8 +581,7 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
         if (fric) {
             for (int j = 0; j < N; j++)
                 s->c[j] += s->ff[j];
-            GS_TRY(gs_qp_solve(s->qp, &pr, NULL, 0, &res));
-            sys->last_iterations += res.iterations;
+            GS_TRY(solve_step_qp(sys, s, &pr, &res, sol, &mdiss));
         }
     }
     /* 5c. Adaptive step: a solution that would push a watched node deeper
@@ -510,6 +591,13 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));
     memset(s->f, 0, (size_t)N * sizeof(double));
+    if (has_force_meshes(sys)) {
+        /* The force meshes' forces on the coordinates reach the elastic
+         * bodies with the rest of their interface forces. */
+        sol[n] += mdiss;
+        for (int j = 0; j < n; j++)
+            s->f[j] -= s->mg[j];
+    }
     if (fric) {
         /* The friction forces' work over the step is what they dissipate:
          * booked exactly, so the balance holds whatever the force. */

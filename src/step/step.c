@@ -48,6 +48,24 @@ static double maxabs(const double *x, int n)
     return m;
 }
 
+double gsi_mesh_forces(const gs_system *sys, const double *dq, double *g, double *J, double *force)
+{
+    int n = sys->n_coords;
+    memset(g, 0, (size_t)n * sizeof(double));
+    memset(J, 0, (size_t)n * n * sizeof(double));
+    double diss = 0;
+    for (int i = 0; i < sys->n_meshes; i++) {
+        const gs_gmesh_rt *me = &sys->meshes[i];
+        if (!me->ops->force)
+            continue;
+        double dd, f;
+        me->ops->force(sys, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
+        diss += dd;
+        force[i] = f;
+    }
+    return diss;
+}
+
 /* Residual F = -(dq - d0 + C (g(dq) - G^T lambda); G dq) and the mesh
  * Jacobian J at (dq, lambda); returns max |F| over the momentum rows and its
  * scale. Mesh dissipation and forces go to out[n], out[n+1+i]. */
@@ -56,17 +74,7 @@ static double residual(gs_system *sys, const double *C, const double *d0, const 
                        double *scale)
 {
     int n = sys->n_coords, m = sys->n_eq;
-    memset(g, 0, (size_t)n * sizeof(double));
-    memset(J, 0, (size_t)n * n * sizeof(double));
-    double diss = 0;
-    for (int i = 0; i < sys->n_meshes; i++) {
-        gs_gmesh_rt *me = &sys->meshes[i];
-        double dd, f;
-        me->ops->force(sys, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
-        diss += dd;
-        out[n + 1 + i] = f;
-    }
-    out[n] = diss;
+    out[n] = gsi_mesh_forces(sys, dq, g, J, out + n + 1);
     double sc = 1e-300;
     for (int i = 0; i < n; i++) {
         double gl = 0;

@@ -7,6 +7,12 @@
 
 /* Rank 0: the step with contact meshes, a QP (src/step/contact_step.c). */
 gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol);
+/* The discrete-gradient forces g (n_coords) of the meshes that have a force
+ * (lumped, compliant, impact, kinematic) over the increment dq, their
+ * approximate Jacobian J (n x n, row-major), each one's force along its
+ * line of action in force[mesh] (untouched for the others); returns their
+ * dissipation in the step. */
+double gsi_mesh_forces(const gs_system *sys, const double *dq, double *g, double *J, double *force);
 /* Free the contact solve's scratch (sys->solver). */
 void gsi_contact_free(gs_system *sys);
 /* Free the plan's arrays. */
