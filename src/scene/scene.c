@@ -727,8 +727,15 @@ static gs_err check_train(gs_scene *s, gs_diag *d)
         if (sun >= 0 && ring >= 0) {
             gs_err e = gs_planetary_check(&s->bodies[sun].gear, &s->bodies[planet].gear,
                                           &s->bodies[ring].gear, n, d);
-            if (e != GS_OK)
-                return prefix_diag(e, d, "bodies");
+            if (e != GS_OK) {
+                /* The check names the tooth counts ("gears") or the planet
+                 * count: as scene paths, the ring's teeth or the bodies. */
+                if (d && !strcmp(d->field, "gears"))
+                    snprintf(d->field, sizeof d->field, "bodies[%d].teeth", ring);
+                else if (d)
+                    snprintf(d->field, sizeof d->field, "bodies");
+                return e;
+            }
         }
     }
     return GS_OK;

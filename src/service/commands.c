@@ -366,6 +366,11 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     json_object_object_add(t, "record_seconds", json_object_new_double(s->timing_record));
     gs_system *tsys = gs_engine_system(s->eng);
     if (tsys) {
+        json_object *ad = json_object_new_object();
+        json_object_object_add(ad, "substeps", json_object_new_int64(tsys->substeps));
+        json_object_object_add(ad, "refinements", json_object_new_int64(tsys->refinements));
+        json_object_object_add(ad, "level", json_object_new_int(tsys->level));
+        json_object_object_add(t, "adaptive", ad);
         /* The step's breakdown on rank 0, and each body's work on its owner. */
         gs_step_timing st;
         gs_engine_timing(s->eng, &st);

@@ -122,6 +122,9 @@ static void train_expands(void **state)
     e = gs_scene_parse(bad, strlen(bad), &s, &d);
     print_message("train with 5 planets: %s, field '%s': %s\n", gs_errcode(e), d.field, d.message);
     assert_int_equal(e, GS_EGEOMETRY);
+    /* a path into the (expanded) scene: the ring's tooth count */
+    assert_non_null(strstr(d.field, "bodies["));
+    assert_non_null(strstr(d.field, "].teeth"));
     assert_null(s);
 }
 
