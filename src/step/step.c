@@ -244,6 +244,9 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
     }
     sys->step++;
     sys->time = (double)sys->step * h;
+    /* Stop with the limit named rather than go on with garbage. */
+    if (err == GS_OK)
+        err = gs_system_check(sys, &sys->diag);
     return err;
 }
 
