@@ -106,6 +106,7 @@ struct gs_system {
     void *solver;            /* rank 0 scratch of the contact solve (src/step/contact_step.c) */
     double *buf;             /* records and solution of gs_step_serial */
     size_t buf_cap;
+    gs_diag diag;            /* why the last step was refused (gs_system_check); empty otherwise */
 };
 
 /* Build the system from a parsed scene; takes ownership of the scene.
@@ -160,6 +161,21 @@ static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
 {
     return (size_t)(s->n_coords + 1 + s->n_meshes + GS_SOL_CONTACT * m);
 }
+
+/* Limits of the scene's numerics against the current state (docs/STABILITY.md):
+ *  - the rigid state and the mesh forces are finite;
+ *  - contact meshes: the approach speed along the line of action times h,
+ *    and the deepest penetration of the last step, stay within 0.1 module
+ *    (the contact search's approach band: a step that carries the teeth
+ *    deeper than that no longer resolves the contact);
+ *  - lumped meshes with a stiffness wave (rectangular, calibrated): at most
+ *    half a tooth-mesh cycle per step (beyond it the wave is aliased).
+ * Returns GS_OK (d cleared) or GS_ERANGE with d naming the field to change
+ * (numerics.time_step, or meshes[i] for a non-finite force) and by how much.
+ * gs_system_new checks the initial state (a priori); every step checks the
+ * state it reached, into sys->diag. Not collective: every rank holds the
+ * rigid state and the mesh figures, so every rank reaches the same answer. */
+gs_err gs_system_check(const gs_system *sys, gs_diag *d);
 
 /* Energies of the current state. Bodies with their own state (elastic)
  * contribute what their owner last reported in b->T, b->V: after a step on

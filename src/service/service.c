@@ -669,7 +669,12 @@ static void run_chunk(gs_service *s)
     }
     gsi_record_flush_or_stop(s, "the record could not be written");
     if (e != GS_OK) {
-        gsi_finish_advance(s, false, e, e == GS_ENOCONV ? "the step's Newton iteration did not converge" : gs_strerror(e));
+        /* A limit of the scene's numerics (gs_system_check) says which field to change. */
+        char why[sizeof sys->diag.field + sizeof sys->diag.message + 4];
+        if (sys->diag.message[0])
+            snprintf(why, sizeof why, "%s: %s", sys->diag.field, sys->diag.message);
+        gsi_finish_advance(s, false, e, sys->diag.message[0] ? why
+                                        : e == GS_ENOCONV ? "the step's Newton iteration did not converge" : gs_strerror(e));
         return;
     }
     double now = gs_now();

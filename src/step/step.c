@@ -250,6 +250,9 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         me->penetration = ct[2];
         me->friction_loss += ct[3];
     }
+    /* Stop with the limit named rather than go on with garbage. */
+    if (err == GS_OK)
+        err = gs_system_check(sys, &sys->diag);
     return err;
 }
 

@@ -353,6 +353,11 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         gs_diag_set(d, e, "meshes", "the kinematic meshes over-constrain the train (a closed loop of exact ratios)");
         goto fail;
     }
+    /* The scene's numerics against the initial state: refuse a time step
+     * that cannot resolve it before anything runs. */
+    e = gs_system_check(s, d);
+    if (e != GS_OK)
+        goto fail;
     /* A first plan, so that sizes are known before the first step. */
     e = gs_step_prepare(s);
     if (e != GS_OK) {
@@ -367,6 +372,77 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
 fail:
     gs_system_free(&s);
     return e;
+}
+
+/* Module of a mesh's gears (the smaller, should they differ), m. */
+static double mesh_module(const gs_system *s, const gs_scene_mesh *sm)
+{
+    const gs_scene_body *b = s->scene->bodies;
+    return fmin(b[sm->gear[0]].gear.module_m, b[sm->gear[1]].gear.module_m);
+}
+
+gs_err gs_system_check(const gs_system *s, gs_diag *d)
+{
+    gs_diag_clear(d);
+    double h = s->h;
+    long long step = (long long)s->step;
+    for (int i = 0; i < s->n_bodies; i++) {
+        int c = s->bodies[i].coord;
+        if (c >= 0 && !(isfinite(s->q[c]) && isfinite(s->w[c])))
+            return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
+                               "the state of '%s' is no longer finite at step %lld (t = %.6g s): "
+                               "the step diverged; reduce the time step (now %.3g s) or check the "
+                               "scene's loads and stiffnesses", s->scene->bodies[i].name, step, s->time, h);
+    }
+    for (int i = 0; i < s->n_meshes; i++) {
+        const gs_gmesh_rt *m = &s->meshes[i];
+        const gs_scene_mesh *sm = &s->scene->meshes[i];
+        char f[64];
+        if (!isfinite(m->force) || !isfinite(m->penetration)) {
+            snprintf(f, sizeof f, "meshes[%d]", i);
+            return gs_diag_set(d, GS_ERANGE, f,
+                               "the force of mesh '%s' is no longer finite at step %lld (t = %.6g s): "
+                               "the step diverged; reduce numerics.time_step (now %.3g s)", sm->name, step,
+                               s->time, h);
+        }
+        double v = 0, rate = 0;
+        for (int j = 0; j < s->n_coords; j++) {
+            v += m->a[j] * s->w[j];
+            rate += m->c[j] * s->w[j];
+        }
+        v = fabs(v);
+        rate = fabs(rate);
+        if (m->ops->contact) {
+            /* The search looks for approaching nodes within 0.1 module of
+             * the mate (gs_contact_opts.band_m); penetration grows as the
+             * approach speed times h. */
+            double lim = 0.1 * mesh_module(s, sm);
+            /* with numerics.adaptive, the finest substep it may take */
+            double hc = s->h / (double)((int64_t)1 << s->scene->adapt_levels);
+            if (v * hc > lim)
+                return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
+                                   "contact mesh '%s' (t = %.6g s): the gears approach at %.3g m/s, so a step of "
+                                   "%.3g s takes the teeth %.3g m into each other, beyond the %.3g m (0.1 module) "
+                                   "the contact resolves: reduce the time step below %.2g s or start the gears "
+                                   "in the tooth ratio", sm->name, s->time, v, hc, v * hc, lim, 0.5 * lim / v);
+            if (m->penetration > lim)
+                return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
+                                   "contact mesh '%s' (step %lld, t = %.4g s): teeth %.3g m inside each other, beyond "
+                                   "the %.3g m (0.1 module) the contact resolves: reduce the time step (now %.3g s) "
+                                   "below %.2g s; if that does not help, the impact is too violent for the "
+                                   "small-strain FE model", sm->name, step, s->time, m->penetration, lim, hc,
+                                   0.5 * hc * lim / m->penetration);
+        } else if (m->n_table > 0 || (strcmp(m->ops->name, "lumped") == 0 && m->k_single != m->k_double)) {
+            /* A stiffness that varies over the mesh cycle: a step beyond half
+             * a cycle samples the wave below its Nyquist rate. */
+            if (rate * h > 0.5)
+                return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
+                                   "lumped mesh '%s' (t = %.6g s): the teeth pass at %.4g Hz, so a step of %.3g s "
+                                   "spans %.3g tooth-mesh cycles and skips the tooth stiffness wave: reduce the time step below %.2g s (half a cycle) or give the mesh a "
+                                   "constant stiffness", sm->name, s->time, rate, h, rate * h, 0.5 / rate);
+        }
+    }
+    return GS_OK;
 }
 
 static double load_moment(const gs_scene_load *l, double t)
