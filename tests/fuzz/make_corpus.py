@@ -76,6 +76,30 @@ def main():
     for p in sorted(glob.glob(os.path.join(ROOT, "deploy", "scenes", "*.json"))):
         with open(p) as f:
             write(scene_dir, f.read())
+    # variants that reach the options no builtin scene uses
+    def scene(name):
+        with open(os.path.join(ROOT, "deploy", "scenes", name + ".json")) as f:
+            return json.load(f)
+    s = scene("contact_impact")
+    s["numerics"] = {"time_step": 1e-5, "adaptive": {"penetration_um": 1.0, "levels": 3}}
+    write(scene_dir, json.dumps(s, indent=1))
+    s = scene("contact_drive")
+    s["meshes"][0]["friction"] = 0.05
+    for b in s["bodies"]:
+        b["material"] = {"E": 210e9, "nu": 0.3, "density": 7850, "plane": "stress", "damping_s": 1.7e-6}
+    write(scene_dir, json.dumps(s, indent=1))
+    s = scene("pair")
+    s["meshes"][0] = {"name": s["meshes"][0]["name"], "gears": s["meshes"][0]["gears"], "model": "compliant",
+                      "patches": 20, "bending": "beam", "damping_ratio": 0.05}
+    write(scene_dir, json.dumps(s, indent=1))
+    s = scene("planetary_contact")
+    for b in s["bodies"]:
+        if b["name"] not in ("ring", "carrier"):
+            b["model"] = "rigid"
+    for m in s["meshes"]:
+        if m["name"].startswith("sun-"):
+            m["model"] = "lumped"
+    write(scene_dir, json.dumps(s, indent=1))
     print(f"{len(os.listdir(req_dir))} request seeds, {len(os.listdir(scene_dir))} scene seeds in {out}")
 
 
