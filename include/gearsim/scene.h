@@ -69,6 +69,9 @@ typedef struct gs_scene_mesh {
     double k_single, k_double; /* N/m; constant uses k_single */
     double transition;         /* fraction of the mesh cycle over which k changes */
     int calibrate_positions;   /* calibrated: roll positions of the quasi-static FE analysis */
+    int calibrate_secant;      /* calibrated: 1 the secant law k = F / TE ("calibration":
+                                * "secant"), 0 (default, "tangent") the tangent stiffness
+                                * about the static TE at the load */
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */

@@ -36,7 +36,10 @@ struct gs_gmesh_rt {
     double contact_ratio;
     double k_single, k_double, damping, half_backlash;
     double transition;       /* width of the single/double stiffness change, fraction of a cycle */
-    double *k_table;         /* calibrated stiffness over one mesh cycle (N/m), n_table values */
+    double *k_table;         /* calibrated stiffness over one mesh cycle (N/m), n_table values:
+                              * the secant F / TE, or the tangent dF/dTE at the load */
+    double *d0_table;        /* tangent calibration: the spring's offset delta_0 = TE - F / k
+                              * (m), n_table values; NULL otherwise (no offset) */
     int n_table;
     double phase0, phase_dir; /* table entry 0 at phase phase0, advancing with phase_dir (+-1) */
     double force;            /* last step's force along the line of action, N */

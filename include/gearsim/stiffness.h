@@ -24,8 +24,10 @@
  *                                 unloaded kinematic position (the driven
  *                                 gear lags), along the line of action.
  * Mesh stiffness per mm of face width: k = F / te / b with F = |T| / r_b1 and
- * b the smaller face width (mm); the tangent stiffness k_tan = (F - F/2) /
- * (te_raw(T) - te_raw(T/2)) / b needs no offset at all.
+ * b the smaller face width (mm); the tangent stiffness needs no offset at
+ * all: by default the chord k_tan = (F - F/2) / (te_raw(T) - te_raw(T/2)) / b,
+ * with tangent_step h > 0 the central difference
+ * k_tan = 2 h F / (te_raw(T (1 + h)) - te_raw(T (1 - h))) / b, dF/d(te) at F.
  *
  * Not collective; allocates; the scene is only read. */
 #ifndef GEARSIM_STIFFNESS_H
@@ -49,7 +51,11 @@ typedef struct gs_stiffness_opts {
                         * for both gears (0..6) */
     double phase;      /* start of the roll in driver pitches beyond the driver's scene
                         * angle (default 0); the roll advances in the torque direction */
-    int tangent;       /* 1 (default): also solve at T/2 for te_half and k_tan */
+    int tangent;       /* 1 (default): also solve at a second load (two with
+                        * tangent_step) for k_tan */
+    double tangent_step; /* 0 (default): k_tan is the chord from T/2 to T (te_half);
+                        * h in (0, 0.5]: the central difference over T (1 -+ h), the
+                        * tangent at T (te_half NaN) */
     int max_iter;      /* linearisations per load case (default 12) */
 } gs_stiffness_opts;
 
@@ -69,8 +75,10 @@ typedef struct gs_stiffness_point {
     double te_raw_um;
     double te0_um;
     double k;             /* F / te / b, N/(mm um) */
-    double te_half_um;    /* te_raw at T/2 (NaN without the tangent option) */
-    double k_tan;         /* F/2 / (te_raw - te_half) / b (NaN without it) */
+    double te_half_um;    /* te_raw at T/2 (NaN without the tangent option or with
+                           * tangent_step) */
+    double k_tan;         /* F/2 / (te_raw - te_half) / b, or the central difference
+                           * with tangent_step (NaN without the tangent option) */
     int pairs;            /* tooth pairs carrying at least 1 % of F */
     int n_pair;           /* entries of pair[], by decreasing force */
     gs_stiffness_pair pair[GS_STIFF_MAX_PAIRS];

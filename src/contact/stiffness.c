@@ -40,6 +40,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->refine = -1;
     o->phase = 0.0;
     o->tangent = 1;
+    o->tangent_step = 0.0;
     o->max_iter = 12;
 }
 
@@ -561,6 +562,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         return gs_diag_set(d, GS_ERANGE, "refine", "refine must be -1 (scene) or 0..6");
     if (!isfinite(o.torque_nm) || !isfinite(o.phase))
         return gs_diag_set(d, GS_ERANGE, "torque", "torque and phase must be finite");
+    if (!(o.tangent_step >= 0.0 && o.tangent_step <= 0.5))
+        return gs_diag_set(d, GS_ERANGE, "tangent_step", "the tangent's load step must be in [0, 0.5]");
     if (o.max_iter < 1)
         o.max_iter = 12;
     double t_start = gs_now();
@@ -568,6 +571,7 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     work w;
     memset(&w, 0, sizeof w);
     gs_err e = GS_OK;
+    double *uT[2] = {NULL, NULL}; /* displacements at T (central tangent) */
     int bidx[2] = {sm->gear[o.driver], sm->gear[1 - o.driver]};
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
@@ -623,6 +627,13 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     if (!out->pt) {
         e = GS_ENOMEM;
         goto done;
+    }
+    for (int k = 0; k < 2 && o.tangent && o.tangent_step > 0.0; k++) {
+        uT[k] = malloc((size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *uT[k]);
+        if (!uT[k]) {
+            e = GS_ENOMEM;
+            goto done;
+        }
     }
     double pitch = 2.0 * GS_PI / gA->teeth;
     /* The driven gear's kinematic angle: the mesh phase nearest to its
@@ -687,9 +698,28 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         pt->converged = conv;
         pt->penetration_um = pen * 1e6;
         pairs_of(&w, nr, F, pt);
+        for (int k = 0; k < 2 && uT[k]; k++)
+            memcpy(uT[k], w.b[k].u, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *uT[k]);
         pt->te_half_um = NAN;
         pt->k_tan = NAN;
-        if (o.tangent) {
+        if (o.tangent && o.tangent_step > 0.0) {
+            /* Central difference about T, each load started from the
+             * solution at T. */
+            double hs = o.tangent_step, dd[2];
+            for (int q = 0; q < 2; q++) {
+                int ih, ch;
+                double ph;
+                for (int k = 0; k < 2; k++)
+                    memcpy(w.b[k].u, uT[k], (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
+                dd[q] = delta;
+                e = solve_load(&w, (q ? 1.0 - hs : 1.0 + hs) * T, o.max_iter, delta0, &dd[q], &nr, &ih, &ch,
+                               &ph, d);
+                if (e != GS_OK)
+                    goto done;
+                pt->converged = pt->converged && ch;
+            }
+            pt->k_tan = 2.0 * hs * F / (w.rb * w.sgn * (dd[0] - dd[1]) * 1e6) / bmm;
+        } else if (o.tangent) {
             double dh = delta;
             int ih, ch;
             double ph;
@@ -725,6 +755,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     out->seconds = gs_now() - t_start;
 done:
     work_free(&w);
+    free(uT[0]);
+    free(uT[1]);
     if (e != GS_OK) {
         if (d && !d->message[0])
             gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));

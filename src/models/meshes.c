@@ -9,7 +9,11 @@
  *             gradient of V = 1/2 k(phi) f(s)^2 split over the two arguments,
  *             so that V(q1) - V(q0) = grad_bar V . dq holds exactly and the
  *             stiffness jumps exchange energy with the motion instead of
- *             creating it. */
+ *             creating it. With the tangent calibration (docs/STIFFNESS.md)
+ *             the spring is affine about the FE static TE,
+ *             V = 1/2 k_t(phi) (|f| - delta_0(phi))_+^2, stepped with the
+ *             symmetrised coordinate-increment discrete gradient, which
+ *             reduces to the split above when delta_0 = 0. */
 #include <math.h>
 #include <stdio.h>
 
@@ -27,6 +31,59 @@ static double dead(double x, double hb)
     return 0.0;
 }
 
+/* A calibrated table (n_table values over one mesh cycle from phase0 in
+ * the direction phase_dir), periodic piecewise-linear; its derivative in the
+ * phase in *dv. */
+static double table_d(const gs_gmesh_rt *m, const double *tab, double phi, double *dv)
+{
+    int n = m->n_table;
+    double f = (phi - m->phase0) * m->phase_dir;
+    f -= floor(f);
+    double x = f * n;
+    int i = (int)x;
+    if (i >= n)
+        i = n - 1;
+    double t = x - i, v0 = tab[i], v1 = tab[(i + 1) % n];
+    *dv = (v1 - v0) * n * m->phase_dir;
+    return v0 + t * (v1 - v0);
+}
+
+/* Difference quotient of a calibrated table between phases p0 and p1,
+ * (v(p1) - v(p0)) / (p1 - p0) (v'(p0) when equal), and its derivative in p1.
+ * Within one interval it is the interval's slope and across one node the
+ * average of the two slopes weighted by the lengths on either side, so it
+ * carries no cancellation however small p1 - p0 is. */
+static void table_quot(const gs_gmesh_rt *m, const double *tab, double p0, double p1, double *q, double *dq)
+{
+    int n = m->n_table;
+    double x0 = (p0 - m->phase0) * m->phase_dir * n, x1 = (p1 - m->phase0) * m->phase_dir * n;
+    double i0 = floor(x0), i1 = floor(x1);
+    if (i0 == i1 || p0 == p1) {
+        double dv;
+        table_d(m, tab, p0, &dv);
+        *q = dv;
+        *dq = 0.0;
+        return;
+    }
+    if (fabs(i1 - i0) == 1.0) {
+        double lo = fmin(i0, i1), xn = lo + 1.0; /* the node crossed */
+        long il = (long)lo % n;
+        if (il < 0)
+            il += n;
+        double sl = (tab[(il + 1) % n] - tab[il]) * n * m->phase_dir; /* below */
+        double sh = (tab[(il + 2) % n] - tab[(il + 1) % n]) * n * m->phase_dir; /* above */
+        double s0 = x0 < x1 ? sl : sh, s1 = x0 < x1 ? sh : sl;
+        double w = (xn - x0) / (x1 - x0); /* share of the step on p0's side, in [0, 1] */
+        *q = w * s0 + (1.0 - w) * s1;
+        *dq = (s1 - *q) / (p1 - p0);
+        return;
+    }
+    double d0, d1;
+    double v0 = table_d(m, tab, p0, &d0), v1 = table_d(m, tab, p1, &d1);
+    *q = (v1 - v0) / (p1 - p0);
+    *dq = (d1 - *q) / (p1 - p0);
+}
+
 /* Stiffness over the mesh cycle and its derivative in the phase. Double
  * contact over the first (eps - 1) of each base pitch of roll, single contact
  * over the rest, with linear transitions of width `transition` (a fraction of
@@ -36,19 +93,8 @@ static double dead(double x, double hb)
  * resolve). */
 static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
 {
-    if (m->k_table) {
-        /* Calibrated: periodic piecewise-linear over one mesh cycle. */
-        int n = m->n_table;
-        double f = (phi - m->phase0) * m->phase_dir;
-        f -= floor(f);
-        double x = f * n;
-        int i = (int)x;
-        if (i >= n)
-            i = n - 1;
-        double t = x - i, k0 = m->k_table[i], k1 = m->k_table[(i + 1) % n];
-        *dk = (k1 - k0) * n * m->phase_dir;
-        return k0 + t * (k1 - k0);
-    }
+    if (m->k_table)
+        return table_d(m, m->k_table, phi, dk);
     double e1 = m->contact_ratio - 1.0, dlt = m->transition;
     *dk = 0.0;
     if (m->k_double == m->k_single || e1 <= 0.0)
@@ -111,13 +157,23 @@ static double kin_energy(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     return 0.0;
 }
 
+/* Relative load step of the tangent calibration's central difference. */
+#define CAL_TANGENT_STEP 0.05
+
 /* Mesh stiffness over one cycle from the quasi-static FE analysis of the
- * pair (src/contact/stiffness.c) at the scene's load on the driver: the gear
- * whose teeth count the mesh phase, so one driver pitch is one cycle. The
- * analysis starts at the gears' scene angles and rolls in the torque's
+ * pair (src/contact/stiffness.c) at the scene's load F on the driver: the
+ * gear whose teeth count the mesh phase, so one driver pitch is one cycle.
+ * The analysis starts at the gears' scene angles and rolls in the torque's
  * direction; entry j is at phase phase0 + phase_dir j / n. Every rank runs
- * it (deterministic); it costs about a tenth of a second per mesh at the
- * default density. */
+ * it (deterministic); it costs a few tenths of a second per mesh at the
+ * default density.
+ *
+ * Secant: k = F / TE. Tangent (default): k_t = dF/dTE at F, the central
+ * difference over F (1 -+ 5%), and the offset delta_0 = TE - F / k_t, so that
+ * the spring F = k_t (delta - delta_0) stands at the FE static TE under F
+ * and oscillates about it with the tangent stiffness. A position whose
+ * tangent comes out softer than its secant (delta_0 < 0: not met beyond
+ * round-off on the validation pair) keeps the secant law (delta_0 = 0). */
 static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
@@ -125,7 +181,9 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     gs_stiffness_opts_defaults(&o);
     o.positions = sm->calibrate_positions;
     o.driver = sys->scene->bodies[sm->gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
-    o.tangent = 0;
+    int tangent = !sm->calibrate_secant;
+    o.tangent = tangent;
+    o.tangent_step = tangent ? CAL_TANGENT_STEP : 0.0;
     gs_stiffness_result r;
     char field[64];
     snprintf(field, sizeof field, "meshes[%d].stiffness", m->index);
@@ -135,7 +193,9 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
         return gs_diag_set(d, e, field, "calibration by the quasi-static FE analysis failed: %s (%s)",
                            sd.message, sd.field);
     m->k_table = gs_calloc((size_t)r.positions, sizeof(double));
-    if (!m->k_table) {
+    if (tangent)
+        m->d0_table = gs_calloc((size_t)r.positions, sizeof(double));
+    if (!m->k_table || (tangent && !m->d0_table)) {
         gs_stiffness_result_clear(&r);
         return GS_ENOMEM;
     }
@@ -143,7 +203,21 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     double sum = 0;
     for (int j = 0; j < r.positions; j++) {
         /* N/(mm um) per mm of face width -> N/m */
-        m->k_table[j] = r.pt[j].k * r.face_width_mm * 1e6;
+        double ks = r.pt[j].k * r.face_width_mm * 1e6, te = r.pt[j].te_um * 1e-6;
+        m->k_table[j] = ks;
+        if (tangent) {
+            double kt = r.pt[j].k_tan * r.face_width_mm * 1e6;
+            if (!(kt > 0) || !isfinite(kt)) {
+                gs_stiffness_result_clear(&r);
+                return gs_diag_set(d, GS_ERANGE, field, "the calibration gave no tangent stiffness at roll %.3f",
+                                   r.pt[j].roll);
+            }
+            double d0 = te - r.force_n / kt;
+            if (d0 > 0) {
+                m->k_table[j] = kt;
+                m->d0_table[j] = d0;
+            }
+        }
         sum += m->k_table[j];
         if (!(m->k_table[j] > 0) || !isfinite(m->k_table[j])) {
             gs_stiffness_result_clear(&r);
@@ -191,6 +265,126 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     return GS_OK;
 }
 
+/* H(x) = 1/2 max(x, 0)^2, the spring energy per unit stiffness, and its
+ * derivative. */
+static double Hs(double x)
+{
+    return x > 0.0 ? 0.5 * x * x : 0.0;
+}
+
+static double Hd(double x)
+{
+    return x > 0.0 ? x : 0.0;
+}
+
+/* Difference quotient (H(x1) - H(x0)) / (x1 - x0) (H'(x0) when equal),
+ * computed without cancellation, and its partial derivatives in x0, x1. */
+static double Hq(double x0, double x1, double *d0, double *d1)
+{
+    if (x0 > 0.0 && x1 > 0.0) {
+        *d0 = *d1 = 0.5;
+        return 0.5 * (x0 + x1);
+    }
+    if (x0 <= 0.0 && x1 <= 0.0) {
+        *d0 = *d1 = 0.0;
+        return 0.0;
+    }
+    /* one on each side: x1 != x0 */
+    double q = (Hs(x1) - Hs(x0)) / (x1 - x0);
+    *d0 = (q - Hd(x0)) / (x1 - x0);
+    *d1 = (Hd(x1) - q) / (x1 - x0);
+    return q;
+}
+
+/* Fraction of the segment [x0, x1] on which x > 0, and its derivative in x1:
+ * the share of a step spent in contact, continuous in the step's end. */
+static double wet(double x0, double x1, double *dw1)
+{
+    *dw1 = 0.0;
+    if (x0 > 0.0 && x1 > 0.0)
+        return 1.0;
+    if (x0 <= 0.0 && x1 <= 0.0)
+        return 0.0;
+    double L = x1 - x0;
+    *dw1 = (x1 > 0.0 ? -x0 : x0) / (L * L);
+    return x1 > 0.0 ? x1 / L : x0 / -L;
+}
+
+/* The tangent-calibrated law, V(s, phi) = k(phi) sum_sig H(sig f - c(phi)),
+ * f = s - s_ref, c = half backlash + delta_0(phi), on either flank (sig = +-1;
+ * the calibration's table serves both, as the secant table does). Its
+ * symmetrised coordinate-increment discrete gradient
+ *   g_s = 1/2 [V(s1, p0) - V(s0, p0) + V(s1, p1) - V(s0, p1)] / ds,
+ *   g_p = 1/2 [V(s0, p1) - V(s0, p0) + V(s1, p1) - V(s1, p0)] / dp
+ * gives g_s ds + g_p dp = V(s1, p1) - V(s0, p0) exactly; every quotient is
+ * formed along its own argument (Hq; k and delta_0 piecewise linear in phi),
+ * and with delta_0 = 0 it is the split of lumped_force. The damper acts over
+ * the share of the step the teeth spend in contact (wet), which keeps the
+ * residual continuous when a flank closes or opens inside the step (the
+ * midpoint test of lumped_force switches the damping force on and off
+ * there, which Newton cannot resolve once delta_0 opens a clearance). */
+static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq,
+                          double h, double *g, double *J, double *diss, double *force)
+{
+    int n = sys->n_coords;
+    double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
+    double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
+    double s1 = s0 + ds, p1 = p0 + dp, hb = m->half_backlash;
+    double dk0, dk1, dd0, dd1;
+    double k0 = table_d(m, m->k_table, p0, &dk0), k1 = table_d(m, m->k_table, p1, &dk1);
+    double c0 = hb + table_d(m, m->d0_table, p0, &dd0), c1 = hb + table_d(m, m->d0_table, p1, &dd1);
+    double kbar = 0.5 * (k0 + k1);
+    /* Quotients of k and c along phi, and their derivatives in dp. */
+    double Dk, Dc, dDk, dDc;
+    table_quot(m, m->k_table, p0, p1, &Dk, &dDk);
+    table_quot(m, m->d0_table, p0, p1, &Dc, &dDc);
+    double gs = 0.0, gp = 0.0, jss = 0.0, jsp = 0.0, jps = 0.0, jpp = 0.0;
+    for (int side = 0; side < 2; side++) {
+        double sg = side ? -1.0 : 1.0;
+        /* s-quotients at p0 and p1 */
+        double a0, a1, b0, b1;
+        double q0s = Hq(sg * s0 - c0, sg * s1 - c0, &a0, &a1);
+        double q1s = Hq(sg * s0 - c1, sg * s1 - c1, &b0, &b1);
+        gs += 0.5 * sg * (k0 * q0s + k1 * q1s);
+        jss += 0.5 * (k0 * a1 + k1 * b1);
+        jsp += 0.5 * sg * (dk1 * q1s - k1 * (b0 + b1) * dd1);
+        /* phi-quotients at s0 and s1 */
+        for (int e = 0; e < 2; e++) {
+            double s = e ? s1 : s0, x0 = sg * s - c0, x1 = sg * s - c1;
+            double e0, e1;
+            double B = Hq(x0, x1, &e0, &e1), A = 0.5 * (Hs(x1) + Hs(x0));
+            gp += 0.5 * (Dk * A - kbar * B * Dc);
+            jpp += 0.5 * (dDk * A - Dk * 0.5 * Hd(x1) * dd1 - 0.5 * dk1 * B * Dc + kbar * e1 * dd1 * Dc -
+                          kbar * B * dDc);
+            if (e)
+                jps += 0.5 * sg * (Dk * 0.5 * (Hd(x1) + Hd(x0)) - kbar * (e0 + e1) * Dc);
+        }
+    }
+    /* Damping over the share of the step in contact: f_d = c W ds / h. */
+    double W = 0.0, dWs = 0.0, dWp = 0.0;
+    for (int side = 0; side < 2; side++) {
+        double sg = side ? -1.0 : 1.0, dw1;
+        W += wet(sg * s0 - c0, sg * s1 - c1, &dw1);
+        dWs += sg * dw1;
+        dWp -= dw1 * dd1;
+    }
+    double cd = m->damping * W;
+    double fd = cd * ds / h;
+    jss += (cd + m->damping * dWs * ds) / h;
+    jsp += m->damping * dWp * ds / h;
+    for (int i = 0; i < n; i++)
+        g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
+    for (int i = 0; i < n; i++) {
+        if (m->a[i] == 0.0 && m->c[i] == 0.0)
+            continue;
+        for (int j = 0; j < n; j++)
+            J[i * n + j] += m->a[i] * (jss * m->a[j] + jsp * m->c[j]) +
+                            m->c[i] * (jps * m->a[j] + jpp * m->c[j]);
+    }
+    *diss = fd * ds;
+    *force = gs + fd;
+}
+
 /* Discrete gradient split (see file comment):
  *   dV = (k0+k1)/2 * (f1^2 - f0^2)/2  +  (f0^2+f1^2)/2 * (k1 - k0)/2
  * and each difference quotient is taken along its own scalar argument. */
@@ -198,6 +392,10 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
                          const double *dq, double h, double *g, double *J, double *diss,
                          double *force)
 {
+    if (m->d0_table) {
+        tangent_force(sys, m, q0, dq, h, g, J, diss, force);
+        return;
+    }
     int n = sys->n_coords;
     double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
@@ -247,8 +445,14 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
 static double lumped_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
     int n = sys->n_coords;
-    double f = dead(dot(m->a, q, n) - m->s_ref, m->half_backlash);
-    return 0.5 * stiffness(m, dot(m->c, q, n)) * f * f;
+    double s = dot(m->a, q, n) - m->s_ref, p = dot(m->c, q, n);
+    if (m->d0_table) {
+        double dv;
+        double c = m->half_backlash + table_d(m, m->d0_table, p, &dv);
+        return stiffness(m, p) * (Hs(s - c) + Hs(-s - c));
+    }
+    double f = dead(s, m->half_backlash);
+    return 0.5 * stiffness(m, p) * f * f;
 }
 
 const gs_gmesh_ops gsi_gmesh_kinematic = {

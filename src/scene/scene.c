@@ -32,7 +32,8 @@ static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", 
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "restitution", "law", "patches", "bending", "transition",
                                          "max_line_load_n_per_mm", NULL};
-static const char *const stiff_keys[] = {"type", "value", "single", "double", "transition", "positions", NULL};
+static const char *const stiff_keys[] = {"type",      "value",     "single",      "double",
+                                         "transition", "positions", "calibration", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
 static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", "adaptive", NULL};
@@ -533,6 +534,14 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
                 int64_t np;
                 GS_TRY(gsi_json_int(st, "positions", p, 4, 720, false, 24, &np, d));
                 m->calibrate_positions = (int)np;
+                static const char *const claws[] = {"tangent", "secant"};
+                int cl;
+                GS_TRY(enum_field(st, "calibration", p, "tangent", claws, 2, &cl, d));
+                m->calibrate_secant = cl;
+            } else if (json_object_object_get_ex(st, "calibration", NULL)) {
+                char q[256];
+                gsi_path(q, sizeof q, p, "calibration");
+                return gs_diag_set(d, GS_ESCHEMA, q, "'calibration' belongs to a calibrated stiffness");
             } else if (ty == GS_STIFF_CONSTANT) {
                 GS_TRY(gsi_json_positive(st, "value", p, 1e14, true, 0, &m->k_single, d));
                 m->k_double = m->k_single;

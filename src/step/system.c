@@ -26,6 +26,7 @@ void gs_system_free(gs_system **ps)
         free(s->meshes[i].a);
         free(s->meshes[i].c);
         free(s->meshes[i].k_table);
+        free(s->meshes[i].d0_table);
     }
     gsi_contact_free(s);
     gsi_plan_free(&s->plan, s->n_bodies);

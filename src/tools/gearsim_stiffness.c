@@ -4,7 +4,7 @@
  * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
- *                     [--refine R] [--driver 0|1] [--phase P] [--no-tangent]
+ *                     [--refine R] [--driver 0|1] [--phase P] [--no-tangent] [--tangent-step H]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -12,7 +12,8 @@
  * 200 N/mm line load; --refine to the scene's mesh density; --driver to
  * gear 0 of the mesh. Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
- * docs/STIFFNESS.md). Exit status 0 on success, 1 on bad usage, 2 on an
+ * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
+ * over T (1 -+ H) instead of the chord from T/2. Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
@@ -28,7 +29,7 @@
 static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
-               "                         [--refine R] [--driver 0|1] [--phase P] [--no-tangent]\n"
+               "                         [--refine R] [--driver 0|1] [--phase P] [--no-tangent] [--tangent-step H]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -127,6 +128,11 @@ int main(int argc, char **argv)
         } else if (!strcmp(a, "--phase") && has) {
             if (!parse_double(argv[++i], &o.phase)) {
                 fprintf(stderr, "gearsim-stiffness: --phase must be a number (pitches)\n");
+                return 1;
+            }
+        } else if (!strcmp(a, "--tangent-step") && has) {
+            if (!parse_double(argv[++i], &o.tangent_step) || !(o.tangent_step >= 0.0 && o.tangent_step <= 0.5)) {
+                fprintf(stderr, "gearsim-stiffness: --tangent-step must be in [0, 0.5]\n");
                 return 1;
             }
         } else if (!strcmp(a, "--no-tangent"))
