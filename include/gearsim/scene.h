@@ -84,7 +84,8 @@ typedef struct gs_scene_mesh {
     double friction;           /* Coulomb coefficient on the tooth flanks (contact meshes), 0: none */
     /* compliant (also damping, damping_ratio, backlash, transition): */
     int patches;               /* strips of the patch model across a contact */
-    int bending;               /* 0: beam (tooth bending in series), 1: none */
+    int bending;               /* 0: beam (tooth bending in series), 1: none,
+                                  2: beam_foundation (beam + fillet foundation) */
     double max_line_load;      /* N/m: the top of the force-approach table */
 } gs_scene_mesh;
 

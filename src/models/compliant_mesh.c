@@ -9,12 +9,14 @@
  * gears). A pair at distance v along the path of contact carries
  * F(delta; v): its line contact (relative radius from the two flanks' radii
  * of curvature at that point, face width b) solved by gs_compliant_solve in
- * series with the bending compliance of both teeth (a cantilever of the
- * exact tooth section: bending, shear and compression, from the root
- * circle; no fillet-foundation term). F(delta; v) is tabulated at build time
- * (stations along the path x line loads) and integrated exactly to the pair
- * potential W(delta; v) (piecewise-linear F, piecewise-quadratic W). The
- * mesh potential is
+ * series with the compliance of both teeth: a cantilever of the exact tooth
+ * section (bending, shear and compression) clamped at the root circle, and
+ * by default ("bending": "beam_foundation") the fillet-foundation (gear
+ * body) deflection of Sainsot, Velex & Duverger (2004) under that root
+ * (external gears; a ring's teeth stay clamped). F(delta; v) is tabulated
+ * at build time (stations along the path x line loads) and integrated
+ * exactly to the pair potential W(delta; v) (piecewise-linear F,
+ * piecewise-quadratic W). The mesh potential is
  *     V(x, phi) = sum_j w(u_j) W(delta(x); v_j),   u_j = (frac(phi) + j) p_b,
  * v_j = u_j on the drive flank (x > 0) and L - u_j on the coast flank,
  * w a linear ramp over `transition` base pitches centred on each end of the
@@ -49,7 +51,10 @@ typedef struct cmesh {
     double L, pb, tw; /* path length, base pitch, transition width (m) */
     double b, e_star, pmax;
     int patches;
-    bool bending;
+    int bending;           /* 0 none, 1 beam, 2 beam + fillet foundation */
+    bool found[2];         /* the foundation term applies to gear k */
+    double hfi[2], thf[2]; /* r_f / r_int and the root half angle theta_f */
+    double lmpq[2][4];     /* Sainsot's L*, M*, P*, Q* of gear k */
     double v0, dv;           /* station k at v0 + k dv */
     double *del, *frc, *wrk; /* [STATIONS][LOADS + 1]: approach, force, potential */
     double xscale;           /* approach at a moderate load: the scale of x */
@@ -114,6 +119,47 @@ static double tooth_compliance(const gs_gear_geom *g, double rc, double eb, doub
     return sum;
 }
 
+/* Fillet-foundation (gear body) compliance, Sainsot, Velex & Duverger,
+ * "Contribution of gear body to tooth deflections - a new bidimensional
+ * analytical formula", J. Mech. Des. 126 (2004) 748-752: the deflection
+ * along the load of a tooth whose root (the root circle, between the two
+ * fillets at half angle theta_f) sits on a gear body bored at r_int,
+ *     delta_f = F cos^2(a_m) / (E b) [L* (u_f/S_f)^2 + M* (u_f/S_f)
+ *                                      + P* (1 + Q* tan^2 a_m)],
+ * each of L*, M*, P*, Q* = A/theta_f^2 + B h_fi^2 + C h_fi/theta_f
+ * + D/theta_f + E h_fi + F, h_fi = r_f / r_int, with the fitted
+ * coefficients below (the paper's table, as reproduced by Chaari, Fakhfakh
+ * & Haddar, Eur. J. Mech. A/Solids 28 (2009) 461-468, Table 1). */
+static const double sainsot[4][6] = {
+    /*        A            B           C            D          E       F */
+    {-5.574e-5, -1.9986e-3, -2.3015e-4, 4.7702e-3, 0.0271, 6.8045},  /* L* */
+    {60.111e-5, 28.100e-3, -83.431e-4, -9.9256e-3, 0.1624, 0.9086},  /* M* */
+    {-50.952e-5, 185.50e-3, 0.0538e-4, 53.300e-3, 0.2895, 0.9236},   /* P* */
+    {-6.2042e-5, 9.0889e-3, -4.0964e-4, 7.8297e-3, -0.1472, 0.6904}, /* Q* */
+};
+
+static void sainsot_coefficients(double hfi, double thf, double out[4])
+{
+    for (int i = 0; i < 4; i++) {
+        const double *c = sainsot[i];
+        out[i] = c[0] / (thf * thf) + c[1] * hfi * hfi + c[2] * hfi / thf + c[3] / thf + c[4] * hfi + c[5];
+    }
+}
+
+/* delta_f / F times b (m/N times m) of gear k loaded along the line of
+ * action at radius rc: the load angle a_m is the angle beta of
+ * tooth_compliance (between the load and the normal to the tooth
+ * centreline), u_f the distance along the centreline from the root circle
+ * to where the load line crosses it, S_f = 2 r_f theta_f the tooth's
+ * thickness at the root circle. */
+static double foundation_compliance(const double lmpq[4], const gs_gear_geom *g, double thf, double rc, double eb)
+{
+    double psic = gs_gear_involute_psi(g, rc), beta = acos(g->rb / rc) - psic;
+    double yc = rc * cos(psic), e = rc * sin(psic), tb = tan(beta), cb = cos(beta);
+    double x = (yc - e * tb - g->rf) / (2 * g->rf * thf);
+    return cb * cb / eb * (lmpq[0] * x * x + lmpq[1] * x + lmpq[2] * (1 + lmpq[3] * tb * tb));
+}
+
 void gsi_compliant_point_at(const gs_gmesh_rt *m, double v, gsi_compliant_point *pt)
 {
     const cmesh *cm = m->contact;
@@ -122,13 +168,15 @@ void gsi_compliant_point_at(const gs_gmesh_rt *m, double v, gsi_compliant_point 
     pt->rho[0] = rp;
     pt->rho[1] = ro;
     pt->radius = 1.0 / (1.0 / rp + (cm->internal ? -1.0 : 1.0) / ro);
-    double rc[2] = {hypot(cm->g[0].rb, rp), hypot(cm->g[1].rb, ro)}, lnd = 0, kb = 0;
+    double rc[2] = {hypot(cm->g[0].rb, rp), hypot(cm->g[1].rb, ro)}, lnd = 0, kb = 0, kf = 0;
     for (int k = 0; k < 2; k++) {
         double r = fmin(fmax(rc[k], fmax(cm->g[k].rb, cm->g[k].internal ? cm->g[k].ra : cm->g[k].r_form)),
                         cm->g[k].internal ? cm->g[k].r_form : cm->g[k].ra);
         rc[k] = r;
         lnd += cm->c[k] * log(0.5 * gs_gear_tooth_thickness(&cm->g[k], r));
         kb += tooth_compliance(&cm->g[k], r, cm->eb[k], cm->gm[k]);
+        if (cm->found[k])
+            kf += foundation_compliance(cm->lmpq[k], &cm->g[k], cm->thf[k], r, cm->eb[k]);
     }
     /* Both bodies' displacements to their own datum (half the tooth
      * thickness at the contact: the tooth centreline, where the bending
@@ -136,7 +184,9 @@ void gsi_compliant_point_at(const gs_gmesh_rt *m, double v, gsi_compliant_point 
      * geometric mean. */
     pt->datum = exp(lnd / (cm->c[0] + cm->c[1]));
     pt->e_star = cm->e_star;
-    pt->k_bend = cm->bending ? cm->b / kb : INFINITY;
+    pt->k_beam = cm->bending > 0 ? cm->b / kb : INFINITY;
+    pt->k_found = cm->bending == 2 && kf > 0 ? cm->b / kf : INFINITY;
+    pt->k_bend = cm->bending == 2 ? cm->b / (kb + kf) : pt->k_beam;
     pt->face_width = cm->b;
 }
 
@@ -233,6 +283,13 @@ bool gsi_compliant_info_get(const gs_gmesh_rt *m, gsi_compliant_info *info)
     info->loads = LOADS;
     info->patches = cm->patches;
     info->max_line_load = cm->pmax;
+    info->bending = cm->bending;
+    for (int k = 0; k < 2; k++) {
+        info->h_fi[k] = cm->found[k] ? cm->hfi[k] : 0.0;
+        info->theta_f[k] = cm->found[k] ? cm->thf[k] : 0.0;
+        for (int i = 0; i < 4; i++)
+            info->lmpq[k][i] = cm->found[k] ? cm->lmpq[k][i] : 0.0;
+    }
     return true;
 }
 
@@ -379,7 +436,31 @@ static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     cm->e_star = 1.0 / (cm->c[0] + cm->c[1]);
     cm->b = fmin(bp->gear.face_width_m, bo->gear.face_width_m);
     cm->patches = sm->patches;
-    cm->bending = sm->bending == 0;
+    /* scene: 0 beam, 1 none, 2 beam_foundation */
+    cm->bending = sm->bending == 0 ? 1 : (sm->bending == 2 ? 2 : 0);
+    for (int k = 0; k < 2 && cm->bending == 2; k++) {
+        /* The formula is for a gear body inside its teeth (bore r_int, here
+         * the rigid core): not for a ring, whose rim lies outside. */
+        if (cm->g[k].internal)
+            continue;
+        cm->found[k] = true;
+        cm->hfi[k] = cm->g[k].rf / cm->g[k].hub;
+        cm->thf[k] = cm->g[k].psi_root;
+        sainsot_coefficients(cm->hfi[k], cm->thf[k], cm->lmpq[k]);
+        /* the fit can only be trusted where its bracket stays positive:
+         * check it along the flank, form circle to tip */
+        double rlo = fmax(cm->g[k].rb, cm->g[k].r_form), rhi = cm->g[k].ra;
+        for (int j = 0; j <= 8; j++) {
+            double r = rlo + (rhi - rlo) * j / 8;
+            if (!(foundation_compliance(cm->lmpq[k], &cm->g[k], cm->thf[k], r, cm->eb[k]) > 0)) {
+                snprintf(field, sizeof field, "meshes[%d].bending", m->index);
+                return gs_diag_set(d, GS_ERANGE, field,
+                                   "the fillet-foundation formula (Sainsot et al. 2004) gives a non-positive "
+                                   "compliance for '%s' (r_f/r_int %.3g, theta_f %.3g rad): use 'beam'",
+                                   k == 0 ? bp->name : bo->name, cm->hfi[k], cm->thf[k]);
+            }
+        }
+    }
     cm->pmax = sm->max_line_load;
     m->half_backlash = 0.5 * sm->backlash;
     m->transition = sm->transition;

@@ -17,8 +17,13 @@ typedef struct gsi_compliant_point {
                           m */
     double datum;      /* displacement datum of the patch model, m */
     double e_star;     /* plane-strain contact modulus, Pa */
-    double k_bend;     /* pair bending stiffness (both teeth in series), N/m over the
-                        * face width; INFINITY with "bending": "none" */
+    double k_bend;     /* pair tooth stiffness (both teeth, every term of the
+                        * `bending` option in series), N/m over the face width;
+                        * INFINITY with "bending": "none" */
+    double k_beam;     /* the cantilevers alone (both teeth in series), N/m;
+                        * INFINITY with "none" */
+    double k_found;    /* the fillet-foundation terms alone (both gears in
+                        * series), N/m; INFINITY unless "beam_foundation" */
     double face_width; /* contact line length b, m */
 } gsi_compliant_point;
 
@@ -26,6 +31,11 @@ typedef struct gsi_compliant_info {
     double path_length, base_pitch, transition; /* m, m, fraction of a base pitch */
     int stations, loads, patches;
     double max_line_load; /* N/m */
+    int bending;          /* 0 none, 1 beam, 2 beam_foundation */
+    /* Sainsot's fillet-foundation coefficients of each gear ([0] the
+     * pinion), for the record: h_fi = r_f / r_int, theta_f (rad), L*, M*,
+     * P*, Q*; zero for a ring (no foundation term) */
+    double h_fi[2], theta_f[2], lmpq[2][4];
 } gsi_compliant_info;
 
 /* The model's data of a built `compliant` mesh; false for another model. */

@@ -494,11 +494,12 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
             return gs_diag_set(d, GS_ESCHEMA, p,
                                "a compliant mesh has no 'stiffness': its force comes from the patch model");
         }
-        static const char *const bend[] = {"beam", "none"};
+        /* scene order kept: 0 beam, 1 none, 2 beam_foundation (the default) */
+        static const char *const bend[] = {"beam", "none", "beam_foundation"};
         int64_t np;
         GS_TRY(gsi_json_int(o, "patches", path, 8, 400, false, 40, &np, d));
         m->patches = (int)np;
-        GS_TRY(enum_field(o, "bending", path, "beam", bend, 2, &m->bending, d));
+        GS_TRY(enum_field(o, "bending", path, "beam_foundation", bend, 3, &m->bending, d));
         GS_TRY(gsi_json_number(o, "transition", path, 1e-3, 0.5, false, 0.05, &m->transition, d));
         double pl, bl;
         GS_TRY(gsi_json_positive(o, "max_line_load_n_per_mm", path, 1e5, false, 1000, &pl, d));

@@ -16,13 +16,18 @@
  *    constant moment on the pinion,
  *    heavy mesh damping until it settles; the deflection against the
  *    static balance solved directly with gs_compliant_solve for each
- *    engaged pair (pair geometry from the model, bending in series), in
- *    single and double contact: within 0.5 % (the model interpolates a
- *    table of 24 loads x 25 stations; seen 0.005 % and 0.026 %);
- *  - mesh stiffness against ISO 6336: single-pair stiffness at the pitch
- *    point (c') and mean mesh stiffness over a cycle (c_gamma) per mm of
- *    face width at the scene's load, printed; the order of magnitude
- *    checked (within a factor 3 of ISO's 14 and 20 N/(mm um));
+ *    engaged pair (pair geometry from the model, the same tooth law in
+ *    series: beam and fillet foundation by default), in single and double
+ *    contact: within 0.5 % (the model interpolates a table of 24 loads x 25
+ *    stations; seen 0.001 % and 0.026 %);
+ *  - mesh stiffness for `bending` none / beam / beam_foundation: single
+ *    pair at the pitch point (c'), single- and two-pair zone means and the
+ *    mean over a cycle (c_gamma) per mm of face width, at the scene's load
+ *    and hubs and at the FE analysis' (docs/STIFFNESS.md: default hubs,
+ *    200 N/mm), printed with the FE and ISO 6336 figures; beam_foundation
+ *    within 25 % of the FE cycle mean and zone means (seen -9 % .. -14 %),
+ *    the beam alone outside it, and within a factor 3 of ISO's 14 and 20
+ *    N/(mm um) at the scene's load;
  *  - scene checks: every compliant field validated with its field named. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -269,17 +274,33 @@ static void static_deflection(void **state)
     }
 }
 
-static void stiffness_iso(void **state)
+/* The compliant pair with a `bending` option; default_hubs drops the
+ * scene's hub radii (10 and 15 mm) for the default 0.6 r_f, the hubs of the
+ * FE stiffness analysis (docs/STIFFNESS.md, deploy/scenes/stiffness_pair.json). */
+static gs_system *stiffness_pair(const char *bending, bool default_hubs)
 {
-    (void)state;
-    gs_system *s = vt_system(compliant_pair());
+    json_object *root = compliant_pair();
+    json_object_object_add(mesh0(root), "bending", json_object_new_string(bending));
+    for (int k = 0; k < 2 && default_hubs; k++)
+        json_object_object_del(json_object_array_get_idx(json_object_object_get(root, "bodies"), (size_t)k),
+                               "hub_radius_mm");
+    return vt_system(root);
+}
+
+typedef struct stiff {
+    double c1, cbeam, cfound, ccontact; /* one pair at the pitch point, N/(mm um) */
+    double single, dbl, kmin, kmax, cg; /* single- and two-pair zone means, cycle min, max, mean */
+} stiff;
+
+/* Secant stiffnesses per mm of face width at total force W (N) along the
+ * line of action: one pair at the pitch point, and the mesh over one cycle
+ * (200 phases) from the model's own law. */
+static stiff measure(gs_system *s, double W)
+{
     gs_gmesh_rt *m = &s->meshes[0];
     int pin = gs_scene_find_body(s->scene, "pinion");
     const gs_gear_params *g = &s->scene->bodies[pin].gear;
-    double W = 20.0 / gs_gear_base_radius(g), b = g->face_width_m * 1e3; /* N, mm */
-    gsi_compliant_info info;
-    assert_true(gsi_compliant_info_get(m, &info));
-    /* c': one pair at the pitch point (secant at the scene's load) */
+    double b = g->face_width_m * 1e3; /* mm */
     gs_pair_info pi;
     assert_int_equal(gs_pair_analyse(g, &s->scene->bodies[1 - pin].gear, 62.5e-3, &pi, NULL), GS_OK);
     double vp = pi.r1w * sin(pi.alpha_w) - sqrt(pi.r1_start * pi.r1_start - pow(gs_gear_base_radius(g), 2));
@@ -288,29 +309,115 @@ static void stiffness_iso(void **state)
         double mid = 0.5 * (lo + hi);
         *(gsi_compliant_pair_force(m, vp, mid) < W ? &lo : &hi) = mid;
     }
-    double c1 = W / lo * 1e-6 / b; /* N/m per mm of face width -> N/(mm um) */
+    stiff r;
+    r.c1 = W / lo * 1e-6 / b; /* N/m per mm of face width -> N/(mm um) */
     gsi_compliant_point pt;
     gsi_compliant_point_at(m, vp, &pt);
-    double cb = pt.k_bend * 1e-6 / b;
-    /* c_gamma: mean over one mesh cycle of the mesh's secant stiffness */
-    double sum = 0, kmin = INFINITY, kmax = 0;
-    int n = 100;
+    r.cbeam = pt.k_beam * 1e-6 / b;
+    r.cfound = pt.k_found * 1e-6 / b;
+    r.ccontact = 1.0 / (1.0 / r.c1 - 1.0 / (pt.k_bend * 1e-6 / b));
+    double sum = 0, ssum = 0, dsum = 0;
+    int n = 200, ns = 0, nd = 0;
+    r.kmin = INFINITY;
+    r.kmax = 0;
     for (int i = 0; i < n; i++) {
-        double k = W / model_static(m, (i + 0.5) / n, W) * 1e-6 / b;
+        double phi = (i + 0.5) / n, k = W / model_static(m, phi, W) * 1e-6 / b, v[8], wt[8];
+        int np = gsi_compliant_pairs(m, phi, 1, v, wt, 8), engaged = 0;
+        for (int j = 0; j < np; j++)
+            engaged += wt[j] > 0;
+        if (engaged == 1) {
+            ssum += k;
+            ns++;
+        } else {
+            dsum += k;
+            nd++;
+        }
         sum += k;
-        kmin = fmin(kmin, k);
-        kmax = fmax(kmax, k);
+        r.kmin = fmin(r.kmin, k);
+        r.kmax = fmax(r.kmax, k);
     }
-    double cg = sum / n;
-    print_message("stiffness at %.1f N (%.1f N/mm): single pair at the pitch point c' = "
-                  "%.2f N/(mm um) "
-                  "(bending alone %.2f, contact alone %.2f); mesh over a cycle %.2f .. "
-                  "%.2f, mean c_gamma = %.2f "
-                  "N/(mm um); ISO 6336: c' ~ 14, c_gamma ~ 14-23 (20 for eps_alpha %.2f)\n",
-                  W, W / b, c1, cb, 1.0 / (1.0 / c1 - 1.0 / cb), kmin, kmax, cg, pi.contact_ratio);
-    assert_true(c1 > 14.0 / 3 && c1 < 14.0 * 3);
-    assert_true(cg > 20.0 / 3 && cg < 20.0 * 3);
-    gs_system_free(&s);
+    r.cg = sum / n;
+    r.single = ns ? ssum / ns : NAN;
+    r.dbl = nd ? dsum / nd : NAN;
+    return r;
+}
+
+static void print_stiff(const char *what, const stiff *r)
+{
+    print_message("  %-40s c' %.2f (beam %.2f, foundation %.2f, contact %.2f); zones: single %.2f, two "
+                  "pairs %.2f; cycle %.2f .. %.2f, mean c_gamma %.2f\n",
+                  what, r->c1, r->cbeam, r->cfound, r->ccontact, r->single, r->dbl, r->kmin, r->kmax, r->cg);
+}
+
+static void stiffness_iso(void **state)
+{
+    (void)state;
+    /* FE analysis of the same pair (docs/STIFFNESS.md: both gears elastic,
+     * plane stress, default hubs, 200 N/mm), refine 0 / 1 / 2: cycle mean
+     * 19.91 / 19.83 / 19.21, single-pair zone 16.59 / 15.09 / 14.26, two-pair
+     * zone 21.28 / 21.41 / 20.86. ISO 6336-1 method B: c' 12.26 (c'_th
+     * 15.72), c_gamma 17.83 .. 22.86. */
+    const double fe_mean[2] = {19.21, 19.91}, fe_single = 14.26, fe_double = 20.86;
+    const char *opts[3] = {"none", "beam", "beam_foundation"};
+    stiff at_scene[3], at_fe[3];
+    print_message("secant stiffness, N/(mm um):\n");
+    for (int o = 0; o < 3; o++) {
+        for (int hubs = 0; hubs < 2; hubs++) {
+            gs_system *s = stiffness_pair(opts[o], hubs == 1);
+            int pin = gs_scene_find_body(s->scene, "pinion");
+            const gs_gear_params *g = &s->scene->bodies[pin].gear;
+            double bw = g->face_width_m * 1e3;
+            /* the scene's 20 N m (85 N/mm) with its hubs; the FE analysis'
+             * 200 N/mm with its default hubs */
+            double W = hubs ? 200.0 * bw : 20.0 / gs_gear_base_radius(g);
+            gsi_compliant_info info;
+            assert_true(gsi_compliant_info_get(&s->meshes[0], &info));
+            assert_int_equal(info.bending, o);
+            stiff *r = hubs ? &at_fe[o] : &at_scene[o];
+            *r = measure(s, W);
+            char what[96];
+            snprintf(what, sizeof what, "%s, %s hubs, %.0f N/mm:", opts[o], hubs ? "default" : "scene", W / bw);
+            print_stiff(what, r);
+            for (int k = 0; k < 2 && o == 2; k++)
+                print_message("    %s foundation: h_fi = r_f/r_int %.3f, theta_f %.4f rad, "
+                              "L* %.3f M* %.3f P* %.3f Q* %.3f\n",
+                              k == 0 ? "pinion" : "wheel", info.h_fi[k], info.theta_f[k], info.lmpq[k][0],
+                              info.lmpq[k][1], info.lmpq[k][2], info.lmpq[k][3]);
+            gs_system_free(&s);
+        }
+    }
+    const stiff *f = &at_fe[2];
+    print_message("FE (default hubs, 200 N/mm): mean %.2f .. %.2f (refine 2 .. 0), single zone %.2f, two-pair "
+                  "zone %.2f (refine 2); ISO 6336: c' 12.26 .. 15.72, c_gamma 17.83 .. 22.86\n",
+                  fe_mean[0], fe_mean[1], fe_single, fe_double);
+    print_message("beam_foundation against FE: mean %+.1f %% (refine 2) %+.1f %% (refine 0), single zone %+.1f %%, "
+                  "two-pair zone %+.1f %%; beam alone: mean %+.1f %%, single zone %+.1f %%\n",
+                  100 * (f->cg / fe_mean[0] - 1), 100 * (f->cg / fe_mean[1] - 1), 100 * (f->single / fe_single - 1),
+                  100 * (f->dbl / fe_double - 1), 100 * (at_fe[1].cg / fe_mean[0] - 1),
+                  100 * (at_fe[1].single / fe_single - 1));
+    /* each option adds a compliance in series */
+    for (int o = 1; o < 3; o++) {
+        assert_true(at_scene[o].cg < at_scene[o - 1].cg);
+        assert_true(at_fe[o].cg < at_fe[o - 1].cg);
+    }
+    /* the beam does not see the hubs; the foundation does: the scene's
+     * smaller hubs (r_f/r_int 2.2-2.3 against 1.67) leave more body to
+     * deform */
+    assert_true(fabs(at_fe[2].cbeam / at_scene[2].cbeam - 1) < 1e-12);
+    assert_true(at_scene[2].cfound < at_fe[2].cfound);
+    /* Against the FE analysis at its own hubs and load: within 25 % of its
+     * cycle mean (refine 0..2) and of its converged (refine 2) single- and
+     * two-pair zone means. Seen -9 % / -12 %, -14 % and -2 %: the single
+     * pair is the softest figure (see docs/IMPACT.md for what is left out:
+     * the beam's section below the form circle, the loaded contact ratio);
+     * 25 % keeps that margin while the beam alone (+50 % on the mean) fails. */
+    assert_true(f->cg > 0.75 * fe_mean[1] && f->cg < 1.25 * fe_mean[0]);
+    assert_true(fabs(f->single / fe_single - 1) < 0.25);
+    assert_true(fabs(f->dbl / fe_double - 1) < 0.25);
+    assert_false(at_fe[1].cg < 1.25 * fe_mean[0]);
+    /* and the order of magnitude against ISO at the scene's load */
+    assert_true(at_scene[2].c1 > 14.0 / 3 && at_scene[2].c1 < 14.0 * 3);
+    assert_true(at_scene[2].cg > 20.0 / 3 && at_scene[2].cg < 20.0 * 3);
 }
 
 /* A compliant pair scene with one mesh field set; returns the parse error. */
@@ -382,7 +489,55 @@ static void scene_checks(void **state)
     gsi_compliant_point pt;
     gsi_compliant_point_at(&s->meshes[0], 0.5 * info.path_length, &pt);
     assert_true(isinf(pt.k_bend));
+    assert_int_equal(info.bending, 0);
     gs_system_free(&s);
+    /* the default is beam_foundation, both external gears founded; "beam"
+     * leaves the foundation out */
+    for (int o = 0; o < 2; o++) {
+        root = compliant_pair();
+        if (o == 1)
+            json_object_object_add(mesh0(root), "bending", json_object_new_string("beam"));
+        s = vt_system(root);
+        assert_true(gsi_compliant_info_get(&s->meshes[0], &info));
+        assert_int_equal(info.bending, o == 0 ? 2 : 1);
+        gsi_compliant_point_at(&s->meshes[0], 0.5 * info.path_length, &pt);
+        assert_true(isfinite(pt.k_beam));
+        assert_true(o == 0 ? isfinite(pt.k_found) && info.h_fi[0] > 1 && info.h_fi[1] > 1 : isinf(pt.k_found));
+        assert_true(fabs(pt.k_bend / (o == 0 ? 1.0 / (1.0 / pt.k_beam + 1.0 / pt.k_found) : pt.k_beam) - 1) < 1e-12);
+        gs_system_free(&s);
+    }
+    /* a ring keeps its teeth clamped, the planet is founded */
+    root = vt_scene("planetary");
+    json_object_object_add(root, "fidelity", json_object_new_string("compliant"));
+    s = vt_system(root);
+    int rings = 0;
+    for (int i = 0; i < s->n_meshes; i++) {
+        assert_true(gsi_compliant_info_get(&s->meshes[i], &info));
+        bool ring = s->scene->bodies[s->scene->meshes[i].gear[0]].gear.kind == GS_GEAR_INTERNAL ||
+                    s->scene->bodies[s->scene->meshes[i].gear[1]].gear.kind == GS_GEAR_INTERNAL;
+        rings += ring;
+        assert_true(info.h_fi[0] > 1);
+        assert_true(ring ? info.h_fi[1] == 0 : info.h_fi[1] > 1);
+    }
+    assert_int_equal(rings, 3);
+    gs_system_free(&s);
+    /* far outside the fit (a 400-tooth wheel: theta_f 0.0075 rad) the
+     * formula's bracket turns negative: refused, field named */
+    root = compliant_pair();
+    json_object *wheel = json_object_array_get_idx(json_object_object_get(root, "bodies"), 1);
+    json_object_object_add(wheel, "teeth", json_object_new_int(400));
+    json_object_object_del(wheel, "hub_radius_mm");
+    json_object *cen = json_object_new_array();
+    json_object_array_add(cen, json_object_new_double(525.0));
+    json_object_array_add(cen, json_object_new_double(0.0));
+    json_object_object_add(json_object_array_get_idx(json_object_object_get(root, "joints"), 1), "centre_mm", cen);
+    txt = json_object_to_json_string(root);
+    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+    json_object_put(root);
+    s = NULL;
+    assert_int_not_equal(gs_system_new(sc, 0, 1, &s, &d), GS_OK);
+    print_message("400-tooth wheel: %s: %s\n", d.field, d.message);
+    assert_string_equal(d.field, "meshes[0].bending");
 }
 
 int main(void)
