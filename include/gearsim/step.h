@@ -151,6 +151,10 @@ bool gs_step_advance(gs_system *sys);
 /* When a solve answered GS_EREFINE (adaptive step): take the substep again
  * at half the size (every rank; the bodies' begun steps start again). */
 void gs_step_refine(gs_system *sys);
+/* One whole step of h: substep(ctx) (prepare to apply, on every rank) until
+ * gs_step_advance says the step is complete, taken again finer each time it
+ * answers GS_EREFINE; its other errors end the step. */
+gs_err gs_step_whole(gs_system *sys, gs_err (*substep)(void *ctx), void *ctx);
 void gs_step_records(gs_system *sys, double *rec);
 gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol);
 gs_err gs_step_apply(gs_system *sys, const double *sol);

@@ -307,21 +307,16 @@ static gs_err dist_substep(gs_engine *e)
     return err;
 }
 
+static gs_err dist_substep_cb(void *e)
+{
+    return dist_substep(e);
+}
+
 /* One step of h: one substep, or several with numerics.adaptive. */
 static gs_err dist_step(gs_engine *e)
 {
     gs_system *s = e->sys;
-    for (;;) {
-        gs_err err = dist_substep(e);
-        if (err == GS_EREFINE) {
-            gs_step_refine(s);
-            continue;
-        }
-        if (err != GS_OK)
-            return err;
-        if (gs_step_advance(s))
-            break;
-    }
+    GS_TRY(gs_step_whole(s, dist_substep_cb, e));
     int fe = s->scene->fields_every;
     if (fe > 0 && s->step % fe == 0) {
         double t0 = gs_now();

@@ -32,6 +32,7 @@
 #include <string.h>
 
 #include "compliant_mesh.h"
+#include "mesh_common.h"
 #include "gearsim/geometry.h"
 #include "gearsim/impact.h"
 #include "gearsim/step.h"
@@ -393,17 +394,7 @@ static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];
-    for (int k = 0; k < 2; k++) {
-        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
-        if (b->model == GS_MODEL_ELASTIC) {
-            snprintf(field, sizeof field, "meshes[%d].gears", m->index);
-            return gs_diag_set(d, GS_ERANGE, field,
-                               "compliant mesh '%s' needs rigid gears: '%s' is "
-                               "elastic (use a contact "
-                               "mesh for elastic teeth)",
-                               sm->name, b->name);
-        }
-    }
+    GS_TRY(gsi_mesh_needs_rigid(sys, m, "compliant", d));
     cmesh *cm = gs_calloc(1, sizeof *cm);
     if (!cm)
         return GS_ENOMEM;
@@ -476,18 +467,7 @@ static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     ks /= STATIONS;
     m->k_single = ks;
     m->k_double = 2 * ks;
-    if (sm->damping >= 0) {
-        m->damping = sm->damping;
-    } else {
-        double inv = 0;
-        for (int i = 0; i < sys->n_bodies; i++) {
-            const gs_body_rt *b = &sys->bodies[i];
-            if (b->coord >= 0 && m->a[b->coord] != 0)
-                inv += m->a[b->coord] * m->a[b->coord] / b->inertia_eff;
-        }
-        double km = ks * cm->L / cm->pb; /* mean engaged pairs = contact ratio */
-        m->damping = inv > 0 ? 2 * sm->damping_ratio * sqrt(km / inv) : 0;
-    }
+    m->damping = gsi_mesh_damping(sys, m, ks * cm->L / cm->pb); /* mean engaged pairs = contact ratio */
     return GS_OK;
 }
 
@@ -645,12 +625,7 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
     jxx += cd / h;
     for (int i = 0; i < n; i++)
         g[i] += m->a[i] * (gx + fd) + m->c[i] * gp;
-    for (int i = 0; i < n; i++) {
-        if (m->a[i] == 0.0 && m->c[i] == 0.0)
-            continue;
-        for (int j = 0; j < n; j++)
-            J[i * n + j] += m->a[i] * (jxx * m->a[j] + jxp * m->c[j]) + m->c[i] * (jpx * m->a[j] + jpp * m->c[j]);
-    }
+    gsi_mesh_add_jacobian(m, n, J, jxx, jxp, jpx, jpp);
     *diss = fd * dx;
     *force = gx + fd;
 }

@@ -37,6 +37,7 @@
 #include "gearsim/impact.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "mesh_common.h"
 
 typedef struct impact_mesh {
     double *u;          /* n_coords: M^-1 a on the kinematic rows */
@@ -72,15 +73,7 @@ static gs_err impact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];
-    for (int k = 0; k < 2; k++) {
-        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
-        if (b->model == GS_MODEL_ELASTIC) {
-            snprintf(field, sizeof field, "meshes[%d].gears", m->index);
-            return gs_diag_set(d, GS_ERANGE, field,
-                               "impact mesh '%s' needs rigid gears: '%s' is elastic (use a contact "
-                               "mesh for elastic teeth)", sm->name, b->name);
-        }
-    }
+    GS_TRY(gsi_mesh_needs_rigid(sys, m, "impact", d));
     if (!(sm->backlash > 0)) {
         snprintf(field, sizeof field, "meshes[%d].backlash_mm", m->index);
         return gs_diag_set(d, GS_ERANGE, field, "impact mesh '%s' needs a backlash > 0", sm->name);

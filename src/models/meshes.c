@@ -20,6 +20,7 @@
 #include "gearsim/stiffness.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "mesh_common.h"
 
 /* Deflection beyond the backlash dead zone. */
 static double dead(double x, double hb)
@@ -247,21 +248,8 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     m->transition = fmin(sm->transition, 0.5 * fmin(e1, 1.0 - e1));
     if (!(m->transition > 0))
         m->transition = 1e-3;
-    if (sm->damping >= 0) {
-        m->damping = sm->damping;
-    } else {
-        /* Damping ratio of the mesh mode: c = 2 zeta sqrt(k_mean m_eq),
-         * m_eq = 1 / sum a_i^2 / I_i over the coordinates the mesh moves. */
-        double inv = 0;
-        for (int i = 0; i < sys->n_bodies; i++) {
-            const gs_body_rt *b = &sys->bodies[i];
-            if (b->coord >= 0 && m->a[b->coord] != 0)
-                inv += m->a[b->coord] * m->a[b->coord] / b->inertia_eff;
-        }
-        double eps = m->contact_ratio;
-        double km = eps >= 2 ? m->k_double : m->k_single * (2 - eps) + m->k_double * (eps - 1);
-        m->damping = inv > 0 ? 2 * sm->damping_ratio * sqrt(km / inv) : 0;
-    }
+    double eps = m->contact_ratio;
+    m->damping = gsi_mesh_damping(sys, m, eps >= 2 ? m->k_double : m->k_single * (2 - eps) + m->k_double * (eps - 1));
     return GS_OK;
 }
 
@@ -374,13 +362,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     jsp += m->damping * dWp * ds / h;
     for (int i = 0; i < n; i++)
         g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
-    for (int i = 0; i < n; i++) {
-        if (m->a[i] == 0.0 && m->c[i] == 0.0)
-            continue;
-        for (int j = 0; j < n; j++)
-            J[i * n + j] += m->a[i] * (jss * m->a[j] + jsp * m->c[j]) +
-                            m->c[i] * (jps * m->a[j] + jpp * m->c[j]);
-    }
+    gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
     *diss = fd * ds;
     *force = gs + fd;
 }
@@ -431,13 +413,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
-    for (int i = 0; i < n; i++) {
-        if (m->a[i] == 0.0 && m->c[i] == 0.0)
-            continue;
-        for (int j = 0; j < n; j++)
-            J[i * n + j] += m->a[i] * (jss * m->a[j] + jsp * m->c[j]) +
-                            m->c[i] * (jps * m->a[j] + jpp * m->c[j]);
-    }
+    gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
     *diss = fd * ds;
     *force = gs + fd;
 }

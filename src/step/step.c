@@ -331,10 +331,10 @@ static gs_err serial_substep(gs_system *sys)
     return e;
 }
 
-gs_err gs_step_serial(gs_system *sys)
+gs_err gs_step_whole(gs_system *sys, gs_err (*substep)(void *ctx), void *ctx)
 {
     for (;;) {
-        gs_err e = serial_substep(sys);
+        gs_err e = substep(ctx);
         if (e == GS_EREFINE) {
             gs_step_refine(sys);
             continue;
@@ -344,4 +344,14 @@ gs_err gs_step_serial(gs_system *sys)
         if (gs_step_advance(sys))
             return GS_OK;
     }
+}
+
+static gs_err serial_substep_cb(void *sys)
+{
+    return serial_substep(sys);
+}
+
+gs_err gs_step_serial(gs_system *sys)
+{
+    return gs_step_whole(sys, serial_substep_cb, sys);
 }

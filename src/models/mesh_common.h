@@ -1,0 +1,24 @@
+/* SPDX-License-Identifier: MIT
+ * Library-internal pieces shared by the mesh models with a force along the
+ * line of action (src/models/meshes.c, compliant_mesh.c, impact_mesh.c). */
+#ifndef GEARSIM_MODELS_MESH_COMMON_H
+#define GEARSIM_MODELS_MESH_COMMON_H
+
+#include "gearsim/step.h"
+
+/* Refuse a mesh of model `kind` whose gears are not both rigid, naming
+ * meshes[i].gears. */
+gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d);
+
+/* The mesh's damper coefficient (N s/m): the scene's `damping`, or from its
+ * `damping_ratio` zeta at the mesh mode of mean stiffness k_mean:
+ * c = 2 zeta sqrt(k_mean m_eq), m_eq = 1 / sum a_i^2 / I_i over the
+ * coordinates the mesh moves. */
+double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mean);
+
+/* Add to J (n x n, row-major) the Jacobian of a force law in the line-of-
+ * action coordinate s = a.q and the phase p = c.q: the derivatives of the
+ * s-force (jss by s, jsp by p) and of the p-force (jps, jpp). */
+void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
+
+#endif
