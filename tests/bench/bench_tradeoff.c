@@ -14,8 +14,13 @@
  *   dte       dynamic transmission error amplitude: rms of the first mesh's
  *             line-of-action deflection about its mean, m (0 for kinematic)
  *   force     peak force of the first mesh, N
+ *   mesh      the dominant mesh-frequency response: amplitude of the first
+ *             mesh's deflection at the tooth-mesh order (one Fourier
+ *             coefficient over the mesh phase z_A (theta_A - theta_C), A its
+ *             gear on a fixed axis, C the mate's carrier if any: order
+ *             tracking, so speed fluctuations do not smear it), m
  *   balance   worst energy balance residual / energy scale
- * and the errors of speed, dte and force against the richest run (contact,
+ * and the errors of speed, dte, force and mesh against the richest run (contact,
  * finest setting). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
  * Wall times are ratios in one run on one machine; rerun to compare. */
@@ -35,7 +40,7 @@ typedef struct spec {
 } spec;
 
 typedef struct result {
-    double cost, speed, ratio, dte, force, balance;
+    double cost, speed, ratio, dte, force, balance, mesh;
     int ok;
 } result;
 
@@ -105,6 +110,17 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     int o = gs_scene_find_body(sys->scene, out_body), in = gs_scene_find_body(sys->scene, in_body);
     int n = (int)lround(duration / s->h), half = n / 2;
     double th_o = 0, th_i = 0, d1 = 0, d2 = 0, worst = 0, scale = 0, fmaxv = 0;
+    /* The mesh phase of the first mesh: its gear on a fixed axis (A), the
+     * mate's carrier (C) when the mate is a planet. */
+    const gs_scene_mesh *m0 = &sys->scene->meshes[0];
+    int ga = m0->gear[0], gb = m0->gear[1];
+    if (sys->scene->bodies[ga].joint == GS_JOINT_ON_CARRIER) {
+        int t = ga;
+        ga = gb;
+        gb = t;
+    }
+    int gc = sys->scene->bodies[gb].joint == GS_JOINT_ON_CARRIER ? sys->scene->bodies[gb].carrier : -1;
+    double za = sys->scene->bodies[ga].gear.teeth, xc = 0, xs = 0, c1 = 0, s1 = 0;
     gs_energy e;
     double t0 = gs_now();
     for (int i = 0; i < n; i++) {
@@ -123,6 +139,11 @@ static result run(const spec *s, double duration, const char *out_body, const ch
             double x = sys->meshes[0].deflection;
             d1 += x;
             d2 += x * x;
+            double ph = za * (gs_system_angle(sys, ga) - (gc >= 0 ? gs_system_angle(sys, gc) : 0.0));
+            xc += x * cos(ph);
+            xs += x * sin(ph);
+            c1 += cos(ph);
+            s1 += sin(ph);
             fmaxv = fmax(fmaxv, fabs(sys->meshes[0].force));
         }
     }
@@ -132,6 +153,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
     double mean = d1 / half;
     r.dte = sqrt(fmax(d2 / half - mean * mean, 0.0));
+    r.mesh = 2.0 / half * hypot(xc - mean * c1, xs - mean * s1);
     r.force = fmaxv;
     r.balance = worst / scale;
     r.ok = 1;
@@ -152,7 +174,7 @@ int main(int argc, char **argv)
         perror(csv);
         return 1;
     }
-    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,err_speed,err_dte,err_force\n");
+    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh\n");
     const spec pair[] = {
         {"contact_drive", "kinematic", 1e-4, 0},  {"contact_drive", "kinematic", 1e-5, 0},
         {"contact_drive", "kinematic", 1e-6, 0},  {"contact_drive", "impact", 1e-4, 0},
@@ -202,20 +224,23 @@ int main(int argc, char **argv)
         printf("\n## %s\n\nreference: the last row (richest model, finest setting); closed-form output speed "
                "%.4f rad/s\n\n", st->title, st->speed_expect);
         printf("| level | h (s) | refine | wall s per sim. s | output speed (rad/s) | ratio error | DTE rms (m) | "
-               "peak mesh force (N) | balance / scale | speed err vs ref | DTE err vs ref | force err vs ref |\n");
-        printf("|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+               "peak mesh force (N) | balance / scale | mesh-order amplitude (m) | speed err vs ref | DTE err vs ref | "
+               "force err vs ref | mesh-order err vs ref |\n");
+        printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for (int i = 0; i < st->n; i++) {
             const spec *s = &st->s[i];
             const result *r = &res[i];
             if (!r->ok) {
-                printf("| %s | %g | %d | failed | | | | | | | | |\n", s->level, s->h, s->refine);
+                printf("| %s | %g | %d | failed | | | | | | | | | | |\n", s->level, s->h, s->refine);
                 continue;
             }
             double es = rel(r->speed, ref->speed), ed = rel(r->dte, ref->dte), ef = rel(r->force, ref->force);
-            printf("| %s | %g | %d | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.2e | %.2e | %.2e |\n", s->level, s->h,
-                   s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, es, ed, ef);
-            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g\n", s->scene, s->level, s->h,
-                    s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, es, ed, ef);
+            double em = rel(r->mesh, ref->mesh);
+            printf("| %s | %g | %d | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
+                   s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es,
+                   ed, ef, em);
+            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g\n", s->scene, s->level,
+                    s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed, ef, em);
         }
     }
     fclose(f);
