@@ -19,8 +19,8 @@
  *  - the first torsional mesh mode, lumped closed form against the dominant
  *    frequency of the FE run (mesh velocity and DTE), within 3% (issue 8);
  *  - the secant calibration, run alongside, is printed for comparison;
- * and the wall-time ratio of the two runs is printed and asserted only far
- * below its measured value (> 20x; speed is the benchmarks' business). */
+ * and the wall-time ratio of the two runs is printed, not asserted: speed is
+ * the benchmarks' business (bench_tradeoff, docs/PERFORMANCE.md). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -301,7 +301,6 @@ static void calibrated_against_fe(void **state)
      * measured ratio (timings on a shared machine are noisy). */
     print_message("wall time FE contact %.3f s / lumped calibrated %.4f s for %d steps: speed-up %.0fx (secant "
                   "calibration %.4f s)\n", b.wall, a.wall, n, b.wall / a.wall, c.wall);
-    assert_true(b.wall > 20 * a.wall);
     free(a.dte);
     free(a.vel);
     free(b.dte);
