@@ -14,6 +14,7 @@ build=${GEARSIM_BUILD:-build}
 ninja -C "$build" >/dev/null
 out=${GEARSIM_OUT:-$root/out}
 mkdir -p "$out"
+chmod 700 "$out"   # the connection file in it holds the client key pair
 rm -f "$out/gearsimd.json"
 ranks=${GEARSIM_RANKS:-2}
 mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \

@@ -23,6 +23,7 @@ static void usage(FILE *f)
             "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
             "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
             "                [--resume] [--max-scene-mb N] [--max-record-mb N] [--max-clients N]\n"
+            "                [--insecure-loopback]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
             "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
@@ -34,13 +35,21 @@ static void usage(FILE *f)
             "scenes whose estimated memory exceeds N MiB (default 4096); --max-record-mb\n"
             "stops a recording (error event, the run goes on) past N MiB (default 65536);\n"
             "--max-clients answers a new client 'too_large' while N others are active\n"
-            "(a request in the last 60 s; default 256).\n");
+            "(a request in the last 60 s; default 256). On loopback the daemon makes a\n"
+            "CURVE key pair for itself and one for its clients at every start and\n"
+            "writes both into the 0600 connection file: only who can read that file\n"
+            "can talk to it; --insecure-loopback turns this off (any local user could\n"
+            "then send commands). A lock in DATA_DIR/.gearsimd.lock and beside the\n"
+            "connection file keeps a second daemon off both. SIGTERM (to mpirun or to\n"
+            "every rank) stops cleanly: the running advance ends with a cancelled\n"
+            "`done`, the record is flushed, the connection file removed.\n");
 }
 
 typedef struct daemon_opts {
     gs_service_config cfg;
     const char *curve_key, *curve_allow;
     bool resume;
+    bool insecure_loopback;
     int64_t max_scene_mb;
     int64_t max_record_mb;
     int64_t max_clients;
@@ -99,6 +108,13 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
             o->resume = true;
         else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
             o->resume = false;
+        else
+            return -1;
+    } else if (!strcmp(name, "insecure-loopback")) {
+        if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
+            o->insecure_loopback = true;
+        else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
+            o->insecure_loopback = false;
         else
             return -1;
     } else if (!strcmp(name, "max-scene-mb")) {
@@ -183,6 +199,10 @@ int main(int argc, char **argv)
     MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    /* Every rank catches SIGTERM/SIGINT (mpirun forwards them to all): rank 0
+     * stops the service cleanly and then tells the others, which must not
+     * die first. */
+    gs_service_catch_signals();
     static char conn[4096];
     const char *xdg = getenv("XDG_RUNTIME_DIR");
     if (xdg && xdg[0])
@@ -200,7 +220,8 @@ int main(int argc, char **argv)
         {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
         {"curve-allow", required_argument, 0, 'a'},     {"resume", no_argument, 0, 'r'},
         {"max-scene-mb", required_argument, 0, 'm'},    {"max-record-mb", required_argument, 0, 'R'},
-        {"max-clients", required_argument, 0, 'C'},     {0, 0, 0, 0}};
+        {"max-clients", required_argument, 0, 'C'},     {"insecure-loopback", no_argument, 0, 'I'},
+        {0, 0, 0, 0}};
     int c, bad = 0;
     /* The configuration file first, so that command-line flags win. */
     for (int i = 1; i < argc; i++) {
@@ -220,6 +241,7 @@ int main(int argc, char **argv)
         switch (c) {
         case 'f': break;
         case 'r': o.resume = true; break;
+        case 'I': o.insecure_loopback = true; break;
         case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm': case 'R': case 'C':
             if (set_option(&o, opts[idx].name, optarg) != 0) {
                 if (rank == 0)
@@ -249,11 +271,31 @@ int main(int argc, char **argv)
             fprintf(stderr, "gearsimd: %s\n", err);
             key_ok = 0;
         }
+    } else if (rank == 0 && !o.insecure_loopback && gs_bind_is_loopback(o.cfg.bind)) {
+        char err[512];
+        if (gs_service_set_curve_local(err, sizeof err) != 0) {
+            fprintf(stderr, "gearsimd: %s\n", err);
+            key_ok = 0;
+        }
     }
     MPI_Bcast(&key_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
     if (!key_ok) {
         MPI_Finalize();
         return 2;
+    }
+    /* One daemon per data directory and per connection file. */
+    int lock_ok = 1;
+    if (rank == 0) {
+        char err[1024];
+        if (gs_service_lock(&o.cfg, err, sizeof err) != 0) {
+            fprintf(stderr, "gearsimd: %s\n", err);
+            lock_ok = 0;
+        }
+    }
+    MPI_Bcast(&lock_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (!lock_ok) {
+        MPI_Finalize();
+        return 3;
     }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
