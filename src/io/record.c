@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "gearsim/mesh_io.h"
 #include "gearsim/record.h"
@@ -620,9 +621,13 @@ static int write_xmf(gs_record *r)
                 times[u++] = times[i];
         nt = u;
     }
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp", r->xmf);
-    FILE *f = st ? NULL : fopen(tmp, "w");
+    char tmp[1200];
+    int fd = st ? -1 : gs_tmp_create_beside(r->xmf, tmp, sizeof tmp);
+    FILE *f = fd < 0 ? NULL : fdopen(fd, "w");
+    if (fd >= 0 && !f) {
+        close(fd);
+        remove(tmp);
+    }
     if (f) {
         fprintf(f, "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n");
         fprintf(f, "<Xdmf Version=\"3.0\">\n  <Domain>\n");

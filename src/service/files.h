@@ -31,11 +31,6 @@ typedef struct gsi_beneath {
  * locks are held until the process exits. */
 int gs_service_lock(const gs_service_config *cfg, char *err, size_t cap);
 
-/* Create a new file beside `target` under an unguessable name
- * (.BASE.<32 hex>.tmp) with O_CREAT|O_EXCL|O_NOFOLLOW, mode 0600; the
- * descriptor, or -1 with errno. The name goes to tmp. */
-int gs_tmp_create_beside(const char *target, char *tmp, size_t cap);
-
 /* Write the connection file: a new temporary file (above), then rename. */
 int gsi_write_connection_text(const char *path, const char *txt, char *err, size_t cap);
 
