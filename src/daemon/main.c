@@ -86,6 +86,18 @@ static int parse_count(const char *v, long long hi, int64_t *out)
     return 0;
 }
 
+/* true/yes/1 or false/no/0; 0, or -1 for anything else. */
+static int parse_bool(const char *v, bool *out)
+{
+    if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
+        *out = true;
+    else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
+        *out = false;
+    else
+        return -1;
+    return 0;
+}
+
 /* One option by its long name; 0, or -1 when the name or value is bad. */
 static int set_option(daemon_opts *o, const char *name, const char *v)
 {
@@ -103,21 +115,11 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
         o->curve_key = v;
     else if (!strcmp(name, "curve-allow"))
         o->curve_allow = v;
-    else if (!strcmp(name, "resume")) {
-        if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
-            o->resume = true;
-        else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
-            o->resume = false;
-        else
-            return -1;
-    } else if (!strcmp(name, "insecure-loopback")) {
-        if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
-            o->insecure_loopback = true;
-        else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
-            o->insecure_loopback = false;
-        else
-            return -1;
-    } else if (!strcmp(name, "max-scene-mb")) {
+    else if (!strcmp(name, "resume"))
+        return parse_bool(v, &o->resume);
+    else if (!strcmp(name, "insecure-loopback"))
+        return parse_bool(v, &o->insecure_loopback);
+    else if (!strcmp(name, "max-scene-mb")) {
         return parse_count(v, 1ll << 40, &o->max_scene_mb);
     } else if (!strcmp(name, "max-record-mb")) {
         return parse_count(v, 1ll << 40, &o->max_record_mb);
@@ -263,39 +265,26 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return 2;
     }
-    /* CURVE keys are read on rank 0; every rank learns whether they were good. */
-    int key_ok = 1;
-    if (rank == 0 && (o.curve_key || o.curve_allow)) {
-        char err[512];
-        if (gs_service_set_curve(o.curve_key, o.curve_allow, err, sizeof err) != 0) {
-            fprintf(stderr, "gearsimd: %s\n", err);
-            key_ok = 0;
-        }
-    } else if (rank == 0 && !o.insecure_loopback && gs_bind_is_loopback(o.cfg.bind)) {
-        char err[512];
-        if (gs_service_set_curve_local(err, sizeof err) != 0) {
-            fprintf(stderr, "gearsimd: %s\n", err);
-            key_ok = 0;
-        }
-    }
-    MPI_Bcast(&key_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (!key_ok) {
-        MPI_Finalize();
-        return 2;
-    }
-    /* One daemon per data directory and per connection file. */
-    int lock_ok = 1;
+    /* Rank 0 sets up CURVE (the operator's keys, or keys made now for a
+     * loopback bind) and takes the locks, one daemon per data directory
+     * and per connection file; every rank learns the outcome and exits with
+     * the same status: 2 for bad keys, 3 when another daemon holds a lock. */
+    int status = 0;
     if (rank == 0) {
         char err[1024];
-        if (gs_service_lock(&o.cfg, err, sizeof err) != 0) {
+        if (o.curve_key || o.curve_allow)
+            status = gs_service_set_curve(o.curve_key, o.curve_allow, err, sizeof err) != 0 ? 2 : 0;
+        else if (!o.insecure_loopback && gs_bind_is_loopback(o.cfg.bind))
+            status = gs_service_set_curve_local(err, sizeof err) != 0 ? 2 : 0;
+        if (status == 0)
+            status = gs_service_lock(&o.cfg, err, sizeof err) != 0 ? 3 : 0;
+        if (status)
             fprintf(stderr, "gearsimd: %s\n", err);
-            lock_ok = 0;
-        }
     }
-    MPI_Bcast(&lock_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (!lock_ok) {
+    MPI_Bcast(&status, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (status) {
         MPI_Finalize();
-        return 3;
+        return status;
     }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
