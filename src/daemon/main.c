@@ -42,7 +42,10 @@ static void usage(FILE *f)
             "then send commands). A lock in DATA_DIR/.gearsimd.lock and beside the\n"
             "connection file keeps a second daemon off both. SIGTERM (to mpirun or to\n"
             "every rank) stops cleanly: the running advance ends with a cancelled\n"
-            "`done`, the record is flushed, the connection file removed.\n");
+            "`done`, the record is flushed, the connection file removed.\n"
+            "Exit status of each rank: 0 after `shutdown` or SIGTERM, 1 on a failure\n"
+            "while serving, 2 for bad options or keys, 3 when another daemon holds a\n"
+            "lock (mpirun itself exits 1 after forwarding a signal).\n");
 }
 
 typedef struct daemon_opts {
