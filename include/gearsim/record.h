@@ -48,6 +48,11 @@
 typedef struct gs_record gs_record;
 
 gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, gs_diag *d);
+/* The same, but HDF5 creates the file through `create_as` (e.g.
+ * /proc/self/fd/N of a file the caller created and checked), while `path`
+ * remains the record's name (gs_record_path, the XDMF file beside it). */
+gs_err gs_record_open_as(const char *path, const char *create_as, const gs_system *sys, gs_record **out,
+                         gs_diag *d);
 /* Buffer one sample of the current state. */
 gs_err gs_record_sample(gs_record *r, const gs_system *sys);
 gs_err gs_record_flush(gs_record *r);

@@ -84,13 +84,19 @@ static hid_t make_ds(hid_t g, const char *name, int cols, bool integer, int rank
 
 gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, gs_diag *d)
 {
+    return gs_record_open_as(path, path, sys, out, d);
+}
+
+gs_err gs_record_open_as(const char *path, const char *create_as, const gs_system *sys, gs_record **out,
+                         gs_diag *d)
+{
     *out = NULL;
     gs_record *r = gs_calloc(1, sizeof *r);
     if (!r)
         return GS_ENOMEM;
     snprintf(r->path, sizeof r->path, "%s", path);
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    r->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    r->file = H5Fcreate(create_as, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (r->file < 0) {
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot create the record file '%s'", path);

@@ -419,13 +419,18 @@ static const char *rel_of(gs_service *s, const char *full)
 
 /* Open a record for writing at `full` (gsi_resolve_path'd): checked and
  * created without following links, not one of the daemon's own files nor a
- * file with another name, then handed to HDF5 by name and checked again. */
+ * file with another name, then handed to HDF5 through its descriptor; the
+ * name is checked to still be that file (else the record is refused). */
 static gs_err open_record_safely(gs_service *s, const char *full, gs_record **r, const char *field, gs_diag *d)
 {
     gsi_beneath b;
     const char *rel = rel_of(s, full);
     GS_TRY(gsi_check_write(s, rel, field, true, &b, d));
-    gs_err e = gsi_record_open(s, full, r, d);
+    /* HDF5 creates (truncates) the very file checked, through its
+     * descriptor: no name is resolved again. */
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
+    gs_err e = gsi_record_open_as(s, full, via_fd, r, d);
     if (e == GS_OK && (e = gsi_confirm_same(&b, rel, field, d)) != GS_OK)
         gs_record_close(r);
     if (e != GS_OK)
@@ -476,7 +481,11 @@ static gs_err write_stiffness_safely(gs_service *s, const char *full, const gs_s
     gsi_beneath b;
     const char *rel = rel_of(s, full);
     GS_TRY(gsi_check_write(s, rel, "args.path", true, &b, d));
-    gs_err e = gs_stiffness_write_h5(full, sc, r, d);
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
+    gs_err e = gs_stiffness_write_h5(via_fd, sc, r, d);
+    if (e != GS_OK)
+        gs_diag_set(d, e, "args.path", "cannot write the stiffness table '%s'", rel);
     if (e == GS_OK)
         e = gsi_confirm_same(&b, rel, "args.path", d);
     gsi_beneath_close(&b);

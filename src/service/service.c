@@ -174,8 +174,13 @@ json_object *gsi_state_json(gs_service *s)
 
 gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d)
 {
+    return gsi_record_open_as(s, path, path, out, d);
+}
+
+gs_err gsi_record_open_as(gs_service *s, const char *path, const char *create_as, gs_record **out, gs_diag *d)
+{
     gs_system *sys = gs_engine_system(s->eng);
-    GS_TRY(gs_record_open(path, sys, out, d));
+    GS_TRY(gs_record_open_as(path, create_as, sys, out, d));
     if (sys->scene->fields_every <= 0)
         return GS_OK;
     gs_record_mesh bm[64];
