@@ -130,5 +130,8 @@ gs_err gs_autosave_read_info(const char *path, gs_autosave_info *info, gs_diag *
  * GS_EINVAL (field "path") naming what does not match. */
 gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
                         const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d);
+/* The same, HDF5 opening the file through `open_as` (/proc/self/fd/N). */
+gs_err gs_record_reopen_as(const char *path, const char *open_as, const gs_system *sys, int64_t rows,
+                           const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d);
 
 #endif

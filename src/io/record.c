@@ -759,6 +759,12 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
 gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
                         const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d)
 {
+    return gs_record_reopen_as(path, path, sys, rows, field_frames, n_frames, out, d);
+}
+
+gs_err gs_record_reopen_as(const char *path, const char *open_as, const gs_system *sys, int64_t rows,
+                           const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d)
+{
     *out = NULL;
     gs_record *r = gs_calloc(1, sizeof *r);
     if (!r)
@@ -767,7 +773,7 @@ gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
     for (int i = 0; i < DS_N; i++)
         r->ds[i] = -1;
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    r->file = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    r->file = H5Fopen(open_as, H5F_ACC_RDWR, H5P_DEFAULT);
     if (r->file < 0) {
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot reopen the record file '%s'", path);

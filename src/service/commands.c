@@ -673,11 +673,14 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
         gs_diag rd;
         gs_diag_clear(&rd);
         gs_err re = gsi_resolve_path(s, a.record, rec, sizeof rec, false, &rd);
-        gsi_beneath rb;
-        if (re == GS_OK && (re = gsi_check_write(s, a.record, "path", false, &rb, &rd)) == GS_OK)
-            gsi_beneath_close(&rb);
-        if (re == GS_OK)
-            re = gs_record_reopen(rec, sys, a.record_rows, a.field_frames, a.n_field_bodies, &s->record, &rd);
+        gsi_beneath rb = {.dirfd = -1, .fd = -1};
+        char via_fd[64];
+        if (re == GS_OK && (re = gsi_check_write(s, a.record, "path", true, &rb, &rd)) == GS_OK) {
+            gsi_fd_path(rb.fd, via_fd, sizeof via_fd);
+            re = gs_record_reopen_as(rec, via_fd, sys, a.record_rows, a.field_frames, a.n_field_bodies,
+                                     &s->record, &rd);
+        }
+        gsi_beneath_close(&rb);
         if (re != GS_OK)
             fprintf(stderr, "gearsimd: --resume: the advance goes on without its record: %s\n",
                     rd.message[0] ? rd.message : gs_strerror(re));
