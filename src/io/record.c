@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gearsim/mesh_io.h"
@@ -629,6 +630,10 @@ static int write_xmf(gs_record *r)
     }
     char tmp[1200];
     int fd = st ? -1 : gs_tmp_create_beside(r->xmf, tmp, sizeof tmp);
+    struct stat rs; /* the XDMF file is as readable as its record */
+    if (fd >= 0 && stat(r->path, &rs) == 0 && fchmod(fd, rs.st_mode & 0666) != 0) {
+        /* keeps 0600 */
+    }
     FILE *f = fd < 0 ? NULL : fdopen(fd, "w");
     if (fd >= 0 && !f) {
         close(fd);
