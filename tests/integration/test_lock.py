@@ -5,6 +5,7 @@ file, refuses to start: a clear message naming the lock, a non-zero exit of
 every rank (mpirun reports it), and the first daemon's connection file and
 service untouched. Once the first has stopped, a new daemon starts there."""
 import os
+import signal
 import subprocess
 import sys
 import tempfile
@@ -18,10 +19,23 @@ R = Results("test_lock: one daemon per data directory and connection file")
 
 
 def second(conn, data, ranks=2):
+    """Run a second daemon to its end (it must refuse at once); one that
+    starts anyway (no lock) is stopped with SIGTERM after 60 s."""
     env = dict(os.environ, **dmod.MPI_ENV)
-    return subprocess.run(["mpirun", "-n", str(ranks), dmod.gearsimd_path(), "--connection-file", conn,
-                           "--data-dir", data], env=env, stdin=subprocess.DEVNULL, capture_output=True,
-                          text=True, timeout=120)
+    p = subprocess.Popen(["mpirun", "-n", str(ranks), dmod.gearsimd_path(), "--connection-file", conn,
+                          "--data-dir", data], env=env, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = p.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        p.send_signal(signal.SIGTERM)     # mpirun forwards it to its ranks
+        try:
+            out, err = p.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            out, err = p.communicate()
+        err = "still running after 60 s (no lock?)\n" + err
+    return subprocess.CompletedProcess(p.args, p.returncode, out, err)
 
 
 def case(tmp):
