@@ -14,9 +14,11 @@ build=${GEARSIM_BUILD:-build}
 ninja -C "$build" >/dev/null
 out=${GEARSIM_OUT:-$root/out}
 mkdir -p "$out"
+chmod 700 "$out"   # the connection file in it holds the client key pair
 rm -f "$out/gearsimd.json"
 ranks=${GEARSIM_RANKS:-2}
-mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \
+# mpirun's own listeners on loopback too (deploy/env.sh, docs/RELIABILITY.md)
+LD_PRELOAD="$build/src/daemon/gearsim-loopback.so" mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \
   --data-dir "$out" 2>"$out/gearsimd.log" &
 daemon=$!
 cleanup() { kill "$daemon" 2>/dev/null || true; }

@@ -27,7 +27,22 @@ struct gsc_client {
     int all_topics;
     long long last_seq;    /* -1: none yet */
     long gaps;
+    /* CURVE (Z85): the daemon's key and this client's pair, from the
+     * connection file (a loopback daemon's own pair); empty when off. */
+    char curve_server[41], curve_public[41], curve_secret[41];
 };
+
+/* Make sock a CURVE client when the connection file named a server key. */
+static int apply_curve(const gsc_client *c, void *sock)
+{
+    if (!c->curve_server[0])
+        return 0;
+    if (zmq_setsockopt(sock, ZMQ_CURVE_SERVERKEY, c->curve_server, 40) ||
+        zmq_setsockopt(sock, ZMQ_CURVE_PUBLICKEY, c->curve_public, 40) ||
+        zmq_setsockopt(sock, ZMQ_CURVE_SECRETKEY, c->curve_secret, 40))
+        return -1;
+    return 0;
+}
 
 static void set_err(gsc_error *err, const char *code, const char *field, const char *fmt, ...)
     __attribute__((format(printf, 4, 5)));
@@ -98,11 +113,21 @@ int gsc_client_new(const char *connection_file, gsc_client **out, gsc_error *err
         return -1;
     }
     copy_string(info, "session", c->session, sizeof c->session);
+    if (copy_string(info, "curve_server_key", c->curve_server, sizeof c->curve_server) == 0 &&
+        (copy_string(info, "curve_client_public_key", c->curve_public, sizeof c->curve_public) ||
+         copy_string(info, "curve_client_secret_key", c->curve_secret, sizeof c->curve_secret) ||
+         strlen(c->curve_server) != 40 || strlen(c->curve_public) != 40 || strlen(c->curve_secret) != 40)) {
+        json_object_put(info);
+        free(c);
+        set_err(err, "invalid_argument", "", "the daemon requires CURVE and connection file %s holds no "
+                "client key pair (a daemon on another host: use gearctl with --curve-key)", connection_file);
+        return -1;
+    }
     json_object_put(info);
     c->ctx = zmq_ctx_new();
     c->cmd = c->ctx ? zmq_socket(c->ctx, ZMQ_DEALER) : NULL;
     int linger = 0;
-    if (!c->cmd || zmq_setsockopt(c->cmd, ZMQ_LINGER, &linger, sizeof linger) ||
+    if (!c->cmd || zmq_setsockopt(c->cmd, ZMQ_LINGER, &linger, sizeof linger) || apply_curve(c, c->cmd) ||
         zmq_connect(c->cmd, c->command_ep)) {
         set_err(err, "io_error", "", "cannot connect to %s: %s", c->command_ep, zmq_strerror(zmq_errno()));
         gsc_client_free(&c);
@@ -293,7 +318,7 @@ int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *e
     if (!c->sub || zmq_setsockopt(c->sub, ZMQ_LINGER, &linger, sizeof linger) ||
         zmq_setsockopt(c->sub, ZMQ_RCVHWM, &hwm, sizeof hwm) ||
         zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, topic, strlen(topic)) ||
-        (topic[0] && zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, "heartbeat", 9)) ||
+        (topic[0] && zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, "heartbeat", 9)) || apply_curve(c, c->sub) ||
         zmq_connect(c->sub, c->telemetry_ep)) {
         set_err(err, "io_error", "", "cannot subscribe to %s: %s", c->telemetry_ep,
                 zmq_strerror(zmq_errno()));

@@ -48,6 +48,11 @@
 typedef struct gs_record gs_record;
 
 gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, gs_diag *d);
+/* The same, but HDF5 creates the file through `create_as` (e.g.
+ * /proc/self/fd/N of a file the caller created and checked), while `path`
+ * remains the record's name (gs_record_path, the XDMF file beside it). */
+gs_err gs_record_open_as(const char *path, const char *create_as, const gs_system *sys, gs_record **out,
+                         gs_diag *d);
 /* Buffer one sample of the current state. */
 gs_err gs_record_sample(gs_record *r, const gs_system *sys);
 gs_err gs_record_flush(gs_record *r);
@@ -125,5 +130,8 @@ gs_err gs_autosave_read_info(const char *path, gs_autosave_info *info, gs_diag *
  * GS_EINVAL (field "path") naming what does not match. */
 gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
                         const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d);
+/* The same, HDF5 opening the file through `open_as` (/proc/self/fd/N). */
+gs_err gs_record_reopen_as(const char *path, const char *open_as, const gs_system *sys, int64_t rows,
+                           const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d);
 
 #endif

@@ -19,5 +19,10 @@ char *gs_strdup(const char *s);
 /* Read a whole file into a NUL-terminated buffer (owned by the caller).
  * Returns NULL and sets *len = 0 on failure. max_bytes bounds the size. */
 char *gs_read_file(const char *path, size_t max_bytes, size_t *len);
+/* Create a new file beside `target` (same directory) under an unguessable
+ * name, .BASE.<32 hex>.tmp, with O_CREAT|O_EXCL|O_NOFOLLOW, mode 0600: a
+ * planted symlink or file of that name is never followed or reused. Returns
+ * the descriptor (the name in tmp), or -1 with errno. */
+int gs_tmp_create_beside(const char *target, char *tmp, size_t cap);
 
 #endif

@@ -1,10 +1,14 @@
 /* SPDX-License-Identifier: MIT
  * Clocks, checked allocation and file reading. */
+#include <errno.h>
+#include <fcntl.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/random.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "gearsim/util.h"
 
@@ -87,4 +91,44 @@ char *gs_read_file(const char *path, size_t max_bytes, size_t *len)
     buf[n] = '\0';
     *len = n;
     return buf;
+}
+
+static void random_hex(char *out, int nbytes)
+{
+    unsigned char b[32];
+    if (nbytes > 32)
+        nbytes = 32;
+    if (getrandom(b, (size_t)nbytes, 0) != nbytes) {
+        /* No kernel randomness: time and pid still differ per call; O_EXCL
+         * keeps the creation safe, only less unguessable. */
+        struct timespec ts;
+        clock_gettime(CLOCK_REALTIME, &ts);
+        unsigned long long x = (unsigned long long)ts.tv_nsec ^ ((unsigned long long)getpid() << 32) ^
+                               (unsigned long long)ts.tv_sec * 2654435761ull;
+        for (int i = 0; i < nbytes; i++, x = x * 6364136223846793005ull + 1442695040888963407ull)
+            b[i] = (unsigned char)(x >> 56);
+    }
+    for (int i = 0; i < nbytes; i++)
+        snprintf(out + 2 * i, 3, "%02x", b[i]);
+}
+
+int gs_tmp_create_beside(const char *target, char *tmp, size_t cap)
+{
+    const char *slash = strrchr(target, '/');
+    int dl = slash ? (int)(slash - target + 1) : 0;
+    const char *base = slash ? slash + 1 : target;
+    for (int attempt = 0; attempt < 16; attempt++) {
+        char rnd[33];
+        random_hex(rnd, 16);
+        int n = snprintf(tmp, cap, "%.*s.%.64s.%s.tmp", dl, target, base, rnd);
+        if (n < 0 || (size_t)n >= cap) {
+            errno = ENAMETOOLONG;
+            return -1;
+        }
+        int fd = open(tmp, O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+        if (fd >= 0 || errno != EEXIST)
+            return fd;
+    }
+    errno = EEXIST;
+    return -1;
 }

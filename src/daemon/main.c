@@ -23,6 +23,7 @@ static void usage(FILE *f)
             "                [--bind ADDR] [--command-port N] [--telemetry-port N]\n"
             "                [--curve-server-key FILE --curve-allow DIR_OR_FILE]\n"
             "                [--resume] [--max-scene-mb N] [--max-record-mb N] [--max-clients N]\n"
+            "                [--insecure-loopback]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
             "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
@@ -34,13 +35,24 @@ static void usage(FILE *f)
             "scenes whose estimated memory exceeds N MiB (default 4096); --max-record-mb\n"
             "stops a recording (error event, the run goes on) past N MiB (default 65536);\n"
             "--max-clients answers a new client 'too_large' while N others are active\n"
-            "(a request in the last 60 s; default 256).\n");
+            "(a request in the last 60 s; default 256). On loopback the daemon makes a\n"
+            "CURVE key pair for itself and one for its clients at every start and\n"
+            "writes both into the 0600 connection file: only who can read that file\n"
+            "can talk to it; --insecure-loopback turns this off (any local user could\n"
+            "then send commands). A lock in DATA_DIR/.gearsimd.lock and beside the\n"
+            "connection file keeps a second daemon off both. SIGTERM (to mpirun or to\n"
+            "every rank) stops cleanly: the running advance ends with a cancelled\n"
+            "`done`, the record is flushed, the connection file removed.\n"
+            "Exit status of each rank: 0 after `shutdown` or SIGTERM, 1 on a failure\n"
+            "while serving, 2 for bad options or keys, 3 when another daemon holds a\n"
+            "lock (mpirun itself exits 1 after forwarding a signal).\n");
 }
 
 typedef struct daemon_opts {
     gs_service_config cfg;
     const char *curve_key, *curve_allow;
     bool resume;
+    bool insecure_loopback;
     int64_t max_scene_mb;
     int64_t max_record_mb;
     int64_t max_clients;
@@ -77,6 +89,18 @@ static int parse_count(const char *v, long long hi, int64_t *out)
     return 0;
 }
 
+/* true/yes/1 or false/no/0; 0, or -1 for anything else. */
+static int parse_bool(const char *v, bool *out)
+{
+    if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
+        *out = true;
+    else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
+        *out = false;
+    else
+        return -1;
+    return 0;
+}
+
 /* One option by its long name; 0, or -1 when the name or value is bad. */
 static int set_option(daemon_opts *o, const char *name, const char *v)
 {
@@ -94,14 +118,11 @@ static int set_option(daemon_opts *o, const char *name, const char *v)
         o->curve_key = v;
     else if (!strcmp(name, "curve-allow"))
         o->curve_allow = v;
-    else if (!strcmp(name, "resume")) {
-        if (!strcmp(v, "true") || !strcmp(v, "yes") || !strcmp(v, "1"))
-            o->resume = true;
-        else if (!strcmp(v, "false") || !strcmp(v, "no") || !strcmp(v, "0"))
-            o->resume = false;
-        else
-            return -1;
-    } else if (!strcmp(name, "max-scene-mb")) {
+    else if (!strcmp(name, "resume"))
+        return parse_bool(v, &o->resume);
+    else if (!strcmp(name, "insecure-loopback"))
+        return parse_bool(v, &o->insecure_loopback);
+    else if (!strcmp(name, "max-scene-mb")) {
         return parse_count(v, 1ll << 40, &o->max_scene_mb);
     } else if (!strcmp(name, "max-record-mb")) {
         return parse_count(v, 1ll << 40, &o->max_record_mb);
@@ -183,6 +204,10 @@ int main(int argc, char **argv)
     MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    /* Every rank catches SIGTERM/SIGINT (mpirun forwards them to all): rank 0
+     * stops the service cleanly and then tells the others, which must not
+     * die first. */
+    gs_service_catch_signals();
     static char conn[4096];
     const char *xdg = getenv("XDG_RUNTIME_DIR");
     if (xdg && xdg[0])
@@ -200,7 +225,8 @@ int main(int argc, char **argv)
         {"config", required_argument, 0, 'f'},          {"curve-server-key", required_argument, 0, 'k'},
         {"curve-allow", required_argument, 0, 'a'},     {"resume", no_argument, 0, 'r'},
         {"max-scene-mb", required_argument, 0, 'm'},    {"max-record-mb", required_argument, 0, 'R'},
-        {"max-clients", required_argument, 0, 'C'},     {0, 0, 0, 0}};
+        {"max-clients", required_argument, 0, 'C'},     {"insecure-loopback", no_argument, 0, 'I'},
+        {0, 0, 0, 0}};
     int c, bad = 0;
     /* The configuration file first, so that command-line flags win. */
     for (int i = 1; i < argc; i++) {
@@ -220,6 +246,7 @@ int main(int argc, char **argv)
         switch (c) {
         case 'f': break;
         case 'r': o.resume = true; break;
+        case 'I': o.insecure_loopback = true; break;
         case 'c': case 'd': case 'b': case 'p': case 't': case 'k': case 'a': case 'm': case 'R': case 'C':
             if (set_option(&o, opts[idx].name, optarg) != 0) {
                 if (rank == 0)
@@ -241,19 +268,26 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return 2;
     }
-    /* CURVE keys are read on rank 0; every rank learns whether they were good. */
-    int key_ok = 1;
-    if (rank == 0 && (o.curve_key || o.curve_allow)) {
-        char err[512];
-        if (gs_service_set_curve(o.curve_key, o.curve_allow, err, sizeof err) != 0) {
+    /* Rank 0 sets up CURVE (the operator's keys, or keys made now for a
+     * loopback bind) and takes the locks, one daemon per data directory
+     * and per connection file; every rank learns the outcome and exits with
+     * the same status: 2 for bad keys, 3 when another daemon holds a lock. */
+    int status = 0;
+    if (rank == 0) {
+        char err[1024];
+        if (o.curve_key || o.curve_allow)
+            status = gs_service_set_curve(o.curve_key, o.curve_allow, err, sizeof err) != 0 ? 2 : 0;
+        else if (!o.insecure_loopback && gs_bind_is_loopback(o.cfg.bind))
+            status = gs_service_set_curve_local(err, sizeof err) != 0 ? 2 : 0;
+        if (status == 0)
+            status = gs_service_lock(&o.cfg, err, sizeof err) != 0 ? 3 : 0;
+        if (status)
             fprintf(stderr, "gearsimd: %s\n", err);
-            key_ok = 0;
-        }
     }
-    MPI_Bcast(&key_ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    if (!key_ok) {
+    MPI_Bcast(&status, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (status) {
         MPI_Finalize();
-        return 2;
+        return status;
     }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);

@@ -6,8 +6,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "gearsim/record.h"
+#include "gearsim/util.h"
 #include "io/h5attr.h"
 
 static herr_t write_info(hid_t f, const gs_autosave_info *a)
@@ -34,12 +36,21 @@ static herr_t write_info(hid_t f, const gs_autosave_info *a)
 static gs_err write_file(const char *path, const char *bytes, size_t len, const char *scene_json,
                          int64_t step, double time, const gs_autosave_info *info, gs_diag *d)
 {
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-    if (f < 0)
+    /* A new file under an unguessable name (never a planted symlink), handed
+     * to HDF5 through its descriptor, then renamed over the target: rename
+     * replaces a symlink at the target instead of following it. */
+    char tmp[1200], via_fd[64];
+    int fd = gs_tmp_create_beside(path, tmp, sizeof tmp);
+    if (fd < 0)
         return gs_diag_set(d, GS_EIO, "path", "cannot create the checkpoint '%s'", path);
+    snprintf(via_fd, sizeof via_fd, "/proc/self/fd/%d", fd);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    hid_t f = H5Fcreate(via_fd, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    close(fd);
+    if (f < 0) {
+        remove(tmp);
+        return gs_diag_set(d, GS_EIO, "path", "cannot create the checkpoint '%s'", path);
+    }
     herr_t st = gsi_h5_fixed_ds(f, "snapshot", H5T_NATIVE_UINT8, bytes, len, 0);
     if (gsi_h5_string_attr(f, "scene", scene_json) < 0 ||
         gsi_h5_scalar_attr(f, "step", H5T_NATIVE_INT64, &step) < 0 ||

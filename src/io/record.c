@@ -6,6 +6,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "gearsim/mesh_io.h"
 #include "gearsim/record.h"
@@ -83,13 +85,19 @@ static hid_t make_ds(hid_t g, const char *name, int cols, bool integer, int rank
 
 gs_err gs_record_open(const char *path, const gs_system *sys, gs_record **out, gs_diag *d)
 {
+    return gs_record_open_as(path, path, sys, out, d);
+}
+
+gs_err gs_record_open_as(const char *path, const char *create_as, const gs_system *sys, gs_record **out,
+                         gs_diag *d)
+{
     *out = NULL;
     gs_record *r = gs_calloc(1, sizeof *r);
     if (!r)
         return GS_ENOMEM;
     snprintf(r->path, sizeof r->path, "%s", path);
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    r->file = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    r->file = H5Fcreate(create_as, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (r->file < 0) {
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot create the record file '%s'", path);
@@ -620,9 +628,17 @@ static int write_xmf(gs_record *r)
                 times[u++] = times[i];
         nt = u;
     }
-    char tmp[1100];
-    snprintf(tmp, sizeof tmp, "%s.tmp", r->xmf);
-    FILE *f = st ? NULL : fopen(tmp, "w");
+    char tmp[1200];
+    int fd = st ? -1 : gs_tmp_create_beside(r->xmf, tmp, sizeof tmp);
+    struct stat rs; /* the XDMF file is as readable as its record */
+    if (fd >= 0 && stat(r->path, &rs) == 0 && fchmod(fd, rs.st_mode & 0666) != 0) {
+        /* keeps 0600 */
+    }
+    FILE *f = fd < 0 ? NULL : fdopen(fd, "w");
+    if (fd >= 0 && !f) {
+        close(fd);
+        remove(tmp);
+    }
     if (f) {
         fprintf(f, "<?xml version=\"1.0\" ?>\n<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" []>\n");
         fprintf(f, "<Xdmf Version=\"3.0\">\n  <Domain>\n");
@@ -748,6 +764,12 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
 gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
                         const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d)
 {
+    return gs_record_reopen_as(path, path, sys, rows, field_frames, n_frames, out, d);
+}
+
+gs_err gs_record_reopen_as(const char *path, const char *open_as, const gs_system *sys, int64_t rows,
+                           const int64_t *field_frames, int n_frames, gs_record **out, gs_diag *d)
+{
     *out = NULL;
     gs_record *r = gs_calloc(1, sizeof *r);
     if (!r)
@@ -756,7 +778,7 @@ gs_err gs_record_reopen(const char *path, const gs_system *sys, int64_t rows,
     for (int i = 0; i < DS_N; i++)
         r->ds[i] = -1;
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
-    r->file = H5Fopen(path, H5F_ACC_RDWR, H5P_DEFAULT);
+    r->file = H5Fopen(open_as, H5F_ACC_RDWR, H5P_DEFAULT);
     if (r->file < 0) {
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot reopen the record file '%s'", path);

@@ -25,6 +25,9 @@ static struct {
     char server_secret[KEY_Z85 + 1];
     uint8_t allowed[MAX_ALLOWED][KEY_BYTES];
     int n_allowed;
+    bool local_client;      /* keys made at start for loopback clients */
+    char client_public[KEY_Z85 + 1];
+    char client_secret[KEY_Z85 + 1];
     void *zap;
     pthread_t thread;
     bool running;
@@ -171,6 +174,37 @@ int gs_service_set_curve(const char *server_key_file, const char *allow_path, ch
     snprintf(A.server_public, sizeof A.server_public, "%s", pub_seen);
     A.enabled = true;
     return 0;
+}
+
+int gs_service_set_curve_local(char *err, size_t cap)
+{
+    char cpub[KEY_Z85 + 1], csec[KEY_Z85 + 1];
+    if (!zmq_has("curve") || zmq_curve_keypair(A.server_public, A.server_secret) != 0 ||
+        zmq_curve_keypair(cpub, csec) != 0) {
+        snprintf(err, cap, "cannot make the loopback CURVE keys (libzmq without CURVE?); "
+                           "--insecure-loopback runs without them");
+        return -1;
+    }
+    A.n_allowed = 0;
+    add_allowed(cpub, NULL);
+    if (A.n_allowed != 1) {
+        snprintf(err, cap, "cannot decode the loopback client key");
+        return -1;
+    }
+    snprintf(A.client_public, sizeof A.client_public, "%s", cpub);
+    snprintf(A.client_secret, sizeof A.client_secret, "%s", csec);
+    A.local_client = true;
+    A.enabled = true;
+    return 0;
+}
+
+bool gsi_curve_local_client(const char **pub, const char **secret)
+{
+    if (!A.local_client)
+        return false;
+    *pub = A.client_public;
+    *secret = A.client_secret;
+    return true;
 }
 
 bool gs_bind_is_loopback(const char *bind)

@@ -20,6 +20,10 @@
  * directory of *.pub / *.key files). Call before gs_service_run, once.
  * Returns 0, or -1 with a sentence in err. */
 int gs_service_set_curve(const char *server_key_file, const char *allow_path, char *err, size_t cap);
+/* Loopback default: make a server key pair and one client key pair now,
+ * allow only that client key; both go into the 0600 connection file so
+ * that only who can read it can talk to the daemon. 0, or -1 with err. */
+int gs_service_set_curve_local(char *err, size_t cap);
 /* True for addresses that only this machine can reach (127.x.y.z, ::1,
  * localhost, lo): those may be bound without CURVE. */
 bool gs_bind_is_loopback(const char *bind);
@@ -28,6 +32,9 @@ bool gs_bind_is_loopback(const char *bind);
 bool gsi_curve_enabled(void);
 const char *gsi_curve_server_public(void); /* Z85, 40 chars */
 int gsi_curve_allowed_count(void);
+/* The client key pair made by gs_service_set_curve_local (Z85); false
+ * when the keys were given by the operator (or CURVE is off). */
+bool gsi_curve_local_client(const char **pub, const char **secret);
 /* Make sock a CURVE server (before bind). */
 int gsi_curve_apply(void *sock);
 /* Bind the ZAP endpoint in zctx and start the handler thread (before any

@@ -13,6 +13,7 @@
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "service/files.h"
 #include "service/options.h"
 #include "service/service_internal.h"
 
@@ -409,6 +410,35 @@ static gs_err cmd_state(gs_service *s, json_object *args, const char *id, json_o
     return GS_OK;
 }
 
+/* The path relative to the data directory of a resolved path. */
+static const char *rel_of(gs_service *s, const char *full)
+{
+    size_t dl = strlen(s->data_dir);
+    return strncmp(full, s->data_dir, dl) == 0 && full[dl] == '/' ? full + dl + 1 : full;
+}
+
+/* Open a record for writing at `full` (gsi_resolve_path'd): checked and
+ * created without following links, not one of the daemon's own files nor a
+ * file with another name, then handed to HDF5 through its descriptor; the
+ * name is checked to still be that file (else the record is refused). */
+static gs_err open_record_safely(gs_service *s, const char *full, gs_record **r, const char *field, gs_diag *d)
+{
+    gsi_beneath b;
+    const char *rel = rel_of(s, full);
+    GS_TRY(gsi_check_write(s, rel, field, true, &b, d));
+    /* HDF5 creates (truncates) the very file checked, through its
+     * descriptor: no name is resolved again. */
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
+    gs_err e = gsi_record_open_as(s, full, via_fd, r, d);
+    if (e == GS_OK && (e = gsi_confirm_same(&b, rel, field, d)) != GS_OK)
+        gs_record_close(r);
+    if (e != GS_OK)
+        snprintf(d->field, sizeof d->field, "%s", field);
+    gsi_beneath_close(&b);
+    return e;
+}
+
 static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
@@ -431,11 +461,9 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
             return e;
         }
         gs_record *r;
-        e = gsi_record_open(s, full, &r, d);
-        if (e != GS_OK) {
-            snprintf(d->field, sizeof d->field, "args.path");
+        e = open_record_safely(s, full, &r, "args.path", d);
+        if (e != GS_OK)
             return e;
-        }
         gs_record_close(&s->record);
         s->record = r;
         gs_record_sample(r, gs_engine_system(s->eng));
@@ -444,6 +472,24 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
     *res = json_object_new_object();
     json_object_object_add(*res, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
     return GS_OK;
+}
+
+/* The stiffness table file: the same checks as a record. */
+static gs_err write_stiffness_safely(gs_service *s, const char *full, const gs_scene *sc,
+                                     const gs_stiffness_result *r, gs_diag *d)
+{
+    gsi_beneath b;
+    const char *rel = rel_of(s, full);
+    GS_TRY(gsi_check_write(s, rel, "args.path", true, &b, d));
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
+    gs_err e = gs_stiffness_write_h5(via_fd, sc, r, d);
+    if (e != GS_OK)
+        gs_diag_set(d, e, "args.path", "cannot write the stiffness table '%s'", rel);
+    if (e == GS_OK)
+        e = gsi_confirm_same(&b, rel, "args.path", d);
+    gsi_beneath_close(&b);
+    return e;
 }
 
 static gs_err path_arg(gs_service *s, json_object *args, bool for_write, char *full, size_t cap, gs_diag *d)
@@ -464,16 +510,27 @@ static gs_err cmd_checkpoint(gs_service *s, json_object *args, const char *id, j
     GS_TRY(path_arg(s, args, true, full, sizeof full, d));
     if (s->adv.active && s->state != SVC_PAUSED)
         return gs_diag_set(d, GS_ESTATE, "cmd", "pause the advance before a checkpoint");
+    /* Written beside the target through the directory's descriptor, then
+     * renamed over it: never through a symlink, never onto the daemon's
+     * own files. */
+    gsi_beneath b;
+    const char *rel = rel_of(s, full);
+    GS_TRY(gsi_check_write(s, rel, "args.path", false, &b, d));
+    char target[PATH_MAX];
+    snprintf(target, sizeof target, "/proc/self/fd/%d/%s", b.dirfd, b.leaf);
     char *bytes;
     size_t len;
-    GS_TRY(gs_engine_snapshot(s->eng, &bytes, &len));
+    gs_err e = gs_engine_snapshot(s->eng, &bytes, &len);
     gs_system *sys = gs_engine_system(s->eng);
-    gs_err e = gs_checkpoint_write(full, bytes, len, sys->scene->json, sys->step, sys->time, d);
-    free(bytes);
-    if (e != GS_OK) {
-        snprintf(d->field, sizeof d->field, "args.path");
-        return e;
+    if (e == GS_OK) {
+        e = gs_checkpoint_write(target, bytes, len, sys->scene->json, sys->step, sys->time, d);
+        free(bytes);
+        if (e != GS_OK)
+            gs_diag_set(d, e, "args.path", "cannot write the checkpoint '%s'", rel);
     }
+    gsi_beneath_close(&b);
+    if (e != GS_OK)
+        return e;
     *res = json_object_new_object();
     json_object_object_add(*res, "path", json_object_object_get(args, "path") ? json_object_get(json_object_object_get(args, "path")) : NULL);
     json_object_object_add(*res, "step", json_object_new_int64(sys->step));
@@ -486,11 +543,17 @@ static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json
     (void)id;
     char full[PATH_MAX];
     GS_TRY(path_arg(s, args, false, full, sizeof full, d));
+    gsi_beneath b;
+    struct stat st;
+    GS_TRY(gsi_open_read(s, rel_of(s, full), "args.path", &b, &st, d));
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
     char *bytes;
     size_t len;
-    gs_err e = gs_checkpoint_read(full, &bytes, &len, d);
+    gs_err e = gs_checkpoint_read(via_fd, &bytes, &len, d);
+    gsi_beneath_close(&b);
     if (e != GS_OK) {
-        snprintf(d->field, sizeof d->field, "args.path");
+        gs_diag_set(d, e, "args.path", "'%s' is not a readable gearsim checkpoint", rel_of(s, full));
         return e;
     }
     gs_record_close(&s->record);
@@ -582,10 +645,19 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
     if (access(path, F_OK) != 0)
         return gs_diag_set(d, GS_ENOTFOUND, "path", "no %s in the data directory", GSI_AUTOSAVE_NAME);
     gs_autosave_info a;
-    GS_TRY(gs_autosave_read_info(path, &a, d));
-    char *bytes;
+    gsi_beneath b;
+    struct stat st;
+    GS_TRY(gsi_open_read(s, GSI_AUTOSAVE_NAME, "path", &b, &st, d));
+    char via_fd[64];
+    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
+    char *bytes = NULL;
     size_t len;
-    GS_TRY(gs_checkpoint_read(path, &bytes, &len, d));
+    gs_err ie = gs_autosave_read_info(via_fd, &a, d);
+    if (ie == GS_OK)
+        ie = gs_checkpoint_read(via_fd, &bytes, &len, d);
+    gsi_beneath_close(&b);
+    if (ie != GS_OK)
+        return ie;
     gs_record_close(&s->record);
     gs_err e = gs_engine_run(s->eng, GS_OP_RESTORE, bytes, len, d, NULL);
     free(bytes);
@@ -601,8 +673,14 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
         gs_diag rd;
         gs_diag_clear(&rd);
         gs_err re = gsi_resolve_path(s, a.record, rec, sizeof rec, false, &rd);
-        if (re == GS_OK)
-            re = gs_record_reopen(rec, sys, a.record_rows, a.field_frames, a.n_field_bodies, &s->record, &rd);
+        gsi_beneath rb = {.dirfd = -1, .fd = -1};
+        char via_fd[64];
+        if (re == GS_OK && (re = gsi_check_write(s, a.record, "path", true, &rb, &rd)) == GS_OK) {
+            gsi_fd_path(rb.fd, via_fd, sizeof via_fd);
+            re = gs_record_reopen_as(rec, via_fd, sys, a.record_rows, a.field_frames, a.n_field_bodies,
+                                     &s->record, &rd);
+        }
+        gsi_beneath_close(&rb);
         if (re != GS_OK)
             fprintf(stderr, "gearsimd: --resume: the advance goes on without its record: %s\n",
                     rd.message[0] ? rd.message : gs_strerror(re));
@@ -657,6 +735,9 @@ static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_
         e = gsi_json_string(args, "record", "args", true, NULL, rel, sizeof rel, d);
         if (e == GS_OK && (e = gsi_resolve_path(s, rel, full, sizeof full, true, d)) != GS_OK)
             snprintf(d->field, sizeof d->field, "args.record");
+        gsi_beneath b;
+        if (e == GS_OK && (e = gsi_check_write(s, rel, "args.record", false, &b, d)) == GS_OK)
+            gsi_beneath_close(&b);
     }
     json_object *copy = NULL;
     if (e == GS_OK)
@@ -724,7 +805,7 @@ void gsi_start_next_job(gs_service *s)
         snprintf(j->state, sizeof j->state, "running");
         gs_err e = load_scene_text(s, j->scene_json, &d);
         if (e == GS_OK && j->record[0])
-            e = gsi_record_open(s, j->record, &s->record, &d);
+            e = open_record_safely(s, j->record, &s->record, "args.record", &d);
         if (e != GS_OK) {
             snprintf(j->state, sizeof j->state, "failed");
             snprintf(j->error, sizeof j->error, "%.250s", d.message[0] ? d.message : gs_strerror(e));
@@ -810,13 +891,18 @@ static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_o
     GS_TRY(gsi_json_int(args, "length", "args", 1, 1 << 20, false, 1 << 20, &len, d));
     if (s->record && strcmp(full, gs_record_path(s->record)) == 0)
         gsi_record_flush_or_stop(s, "the record could not be written");
-    FILE *f = fopen(full, "rb");
+    /* Never through a symlink, never a FIFO or device (which could block
+     * the daemon), never a file with a second name (a hard link). */
+    gsi_beneath b;
     struct stat st;
-    if (!f || fstat(fileno(f), &st) != 0 || !S_ISREG(st.st_mode)) {
-        if (f)
-            fclose(f);
-        return gs_diag_set(d, GS_ENOTFOUND, "args.path", "cannot read that file");
+    GS_TRY(gsi_open_read(s, rel_of(s, full), "args.path", &b, &st, d));
+    FILE *f = fdopen(b.fd, "rb");
+    if (!f) {
+        gsi_beneath_close(&b);
+        return gs_diag_set(d, GS_EIO, "args.path", "cannot read that file");
     }
+    b.fd = -1; /* owned by f now */
+    gsi_beneath_close(&b);
     unsigned char *buf = malloc((size_t)len);
     size_t got = 0;
     if (buf && fseeko(f, (off_t)off, SEEK_SET) == 0)
@@ -893,7 +979,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
         return e;
     }
     if (full[0]) {
-        e = gs_stiffness_write_h5(full, sys->scene, &r, d);
+        e = write_stiffness_safely(s, full, sys->scene, &r, d);
         if (e != GS_OK) {
             gs_stiffness_result_clear(&r);
             snprintf(d->field, sizeof d->field, "args.path");

@@ -5,7 +5,10 @@
 #define GSI_OPTIONS_H
 
 #include <stdbool.h>
+#include <stddef.h>
 #include <stdint.h>
+
+#include "gearsim/service.h"
 
 /* --resume: at start, continue the advance saved in <data dir>/autosave.h5. */
 void gs_service_set_resume(bool on);
@@ -19,6 +22,15 @@ void gs_service_set_max_record_mb(int64_t mb);
  * may be active at once; one counts from its first request until it has
  * been silent for GSI_CLIENT_IDLE_S seconds. */
 void gs_service_set_max_clients(int64_t n);
+
+/* Every rank, right after MPI_Init: SIGTERM and SIGINT ask rank 0's
+ * service loop to stop (cancelled `done`, record flushed, connection file
+ * removed); the other ranks then end on its GS_OP_SHUTDOWN. */
+void gs_service_catch_signals(void);
+
+/* Rank 0 before the service: lock the data directory and the connection
+ * file (service/files.h). */
+int gs_service_lock(const gs_service_config *cfg, char *err, size_t cap);
 
 int64_t gsi_opt_max_clients(void);
 int64_t gsi_opt_max_scene_mb(void);

@@ -18,6 +18,7 @@
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
 #include "service/auth.h"
+#include "service/files.h"
 #include "service/options.h"
 #include "service/service_internal.h"
 
@@ -42,6 +43,15 @@ static void on_signal(int sig)
 {
     (void)sig;
     stop_signal = 1;
+}
+
+void gs_service_catch_signals(void)
+{
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigaction(SIGTERM, &sa, NULL);
+    sigaction(SIGINT, &sa, NULL);
 }
 
 void gsi_publish(gs_service *s, const char *type, json_object *o)
@@ -164,8 +174,13 @@ json_object *gsi_state_json(gs_service *s)
 
 gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d)
 {
+    return gsi_record_open_as(s, path, path, out, d);
+}
+
+gs_err gsi_record_open_as(gs_service *s, const char *path, const char *create_as, gs_record **out, gs_diag *d)
+{
     gs_system *sys = gs_engine_system(s->eng);
-    GS_TRY(gs_record_open(path, sys, out, d));
+    GS_TRY(gs_record_open_as(path, create_as, sys, out, d));
     if (sys->scene->fields_every <= 0)
         return GS_OK;
     gs_record_mesh bm[64];
@@ -716,20 +731,19 @@ static gs_err write_connection_file(gs_service *s)
     json_object_object_add(o, "data_dir", json_object_new_string(s->data_dir));
     if (gsi_curve_enabled())
         json_object_object_add(o, "curve_server_key", json_object_new_string(gsi_curve_server_public()));
-    char tmp[PATH_MAX + 8];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    int fd = open(tmp, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    const char *cpub, *csec;
+    if (gsi_curve_local_client(&cpub, &csec)) {
+        /* The loopback client key pair: who can read this 0600 file can
+         * talk to the daemon, nobody else (docs/PROTOCOL.md). */
+        json_object_object_add(o, "curve_client_public_key", json_object_new_string(cpub));
+        json_object_object_add(o, "curve_client_secret_key", json_object_new_string(csec));
+    }
+    char err[PATH_MAX + 200];
     gs_err e = GS_OK;
-    if (fd < 0) {
+    if (gsi_write_connection_text(path, json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY), err,
+                                  sizeof err) != 0) {
+        fprintf(stderr, "gearsimd: %s\n", err);
         e = GS_EIO;
-    } else {
-        const char *txt = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY);
-        size_t n = strlen(txt);
-        if (write(fd, txt, n) != (ssize_t)n || write(fd, "\n", 1) != 1)
-            e = GS_EIO;
-        close(fd);
-        if (e == GS_OK && rename(tmp, path) != 0)
-            e = GS_EIO;
     }
     json_object_put(o);
     return e;
@@ -891,6 +905,9 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
     if (cfg->connection_file)
         unlink(cfg->connection_file);
+    /* The last events (the cancelled `done`) leave before the socket goes. */
+    int flush_ms = 1000;
+    zmq_setsockopt(s->pub, ZMQ_LINGER, &flush_ms, sizeof flush_ms);
     zmq_close(s->router);
     zmq_close(s->pub);
     gsi_curve_stop(s->zctx);

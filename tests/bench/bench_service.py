@@ -29,6 +29,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "integration"))
 import zmq  # noqa: E402
 
 import daemon as dmod  # noqa: E402
+from gearsim.connection import apply_curve  # noqa: E402
 
 N_STATUS = int(os.environ.get("GEARSIM_BENCH_STATUS", "200"))
 BLOCKS = int(os.environ.get("GEARSIM_BENCH_BLOCKS", "4"))
@@ -63,13 +64,14 @@ def status_latency(ranks):
     return idle, busy, running
 
 
-def stalled_sub(ctx, endpoint):
+def stalled_sub(ctx, info):
     s = ctx.socket(zmq.SUB)
     s.setsockopt(zmq.LINGER, 0)
     s.setsockopt(zmq.RCVHWM, 1)
     s.setsockopt(zmq.RCVBUF, 4096)
     s.setsockopt(zmq.SUBSCRIBE, b"")
-    s.connect(endpoint)
+    apply_curve(s, info)
+    s.connect(info["telemetry"])
     return s
 
 
@@ -93,7 +95,7 @@ def stalled_speed():
                 for cond in ("without", "stalled", "stalled", "without"):
                     if (cond == "stalled") != (stalled is not None):
                         if stalled is None:
-                            stalled = stalled_sub(ctx, d.connection["telemetry"])
+                            stalled = stalled_sub(ctx, d.connection)
                         else:
                             stalled.close(0)
                             stalled = None

@@ -34,7 +34,18 @@ MPI_ENV = {
     "HDF5_USE_FILE_LOCKING": "FALSE",
     "OPENBLAS_NUM_THREADS": "1",
     "OMP_NUM_THREADS": "1",
+    # Open MPI on loopback only (deploy/env.sh, docs/RELIABILITY.md): shared
+    # memory between ranks, runtime advertised on lo, and the wildcard
+    # listeners of mpirun turned into loopback ones by the preloaded shim.
+    "OMPI_MCA_btl": "self,vader",
+    "OMPI_MCA_oob_tcp_if_include": "lo",
+    "OMPI_MCA_btl_tcp_if_include": "lo",
 }
+
+
+def loopback_preload():
+    """The shim that binds mpirun's wildcard listeners to loopback."""
+    return os.path.join(BUILD_ROOT, "src", "daemon", "gearsim-loopback.so")
 FAKE = os.environ.get("GEARSIM_FAKE_DAEMON") == "1"
 _live = []
 
@@ -100,6 +111,8 @@ class Daemon:
         if self.given_dir and os.path.exists(self.conn_file):
             os.unlink(self.conn_file)   # left by a killed run
         env = dict(os.environ, **MPI_ENV)
+        if not FAKE and os.path.exists(loopback_preload()):
+            env["LD_PRELOAD"] = loopback_preload()
         mode = "ab" if self.given_dir else "wb"
         self._out = open(os.path.join(self.dir, "daemon.out"), mode)
         self._err = open(os.path.join(self.dir, "daemon.err"), mode)

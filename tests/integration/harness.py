@@ -9,6 +9,20 @@ import traceback
 import zmq
 
 
+def apply_curve(sock, info):
+    """The client keys of the connection file `info` (a loopback daemon's
+    own pair, or none): what every legitimate client does."""
+    import os
+    here = os.path.dirname(os.path.abspath(__file__))
+    root = os.environ.get("GEARSIM_SOURCE_ROOT") or os.path.abspath(os.path.join(here, "..", ".."))
+    path = os.path.join(root, "clients", "python")
+    if path not in sys.path:
+        sys.path.insert(0, path)
+    from gearsim.connection import apply_curve as apply
+    if info.get("curve_client_secret_key"):
+        apply(sock, info)
+
+
 class Results:
     def __init__(self, title):
         self.title = title
@@ -60,6 +74,7 @@ class RawDealer:
         self.ctx = ctx or zmq.Context.instance()
         self.sock = self.ctx.socket(zmq.DEALER)
         self.sock.setsockopt(zmq.LINGER, 0)
+        apply_curve(self.sock, self.info)
         self.sock.connect(self.info["command"])
 
     def send(self, data):
@@ -106,6 +121,7 @@ class Probe:
         self.ctx = ctx or zmq.Context.instance()
         self.dealer = self.ctx.socket(zmq.DEALER)
         self.dealer.setsockopt(zmq.LINGER, 0)
+        apply_curve(self.dealer, self.info)
         self.dealer.connect(self.info["command"])
         self.sub = None
         self.events = []        # (frames, parsed or None, error text or None)
@@ -122,6 +138,7 @@ class Probe:
         self.sub.setsockopt(zmq.LINGER, 0)
         self.sub.setsockopt(zmq.RCVHWM, 1000000)
         self.sub.setsockopt(zmq.SUBSCRIBE, b"")
+        apply_curve(self.sub, self.info)
         self.sub.connect(self.info["telemetry"])
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
@@ -255,3 +272,53 @@ def snap(client):
     between runs that should be the same."""
     s = client.state()
     return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}
+
+
+def _proc_net_listen():
+    """inode -> (address, port) of every listening TCP socket of the machine
+    (/proc/net/tcp and tcp6, state 0A)."""
+    import socket
+    import struct
+    out = {}
+    for name, fam in (("tcp", socket.AF_INET), ("tcp6", socket.AF_INET6)):
+        try:
+            with open(f"/proc/net/{name}") as f:
+                lines = f.read().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            parts = line.split()
+            if len(parts) < 10 or parts[3] != "0A":
+                continue
+            hexaddr, hexport = parts[1].split(":")
+            raw = bytes.fromhex(hexaddr)
+            # the kernel prints each 32-bit word in host (little-endian) order
+            raw = b"".join(struct.pack("<I", struct.unpack(">I", raw[i:i + 4])[0]) for i in range(0, len(raw), 4))
+            out[int(parts[9])] = (socket.inet_ntop(fam, raw), int(hexport, 16))
+    return out
+
+
+def listening_sockets(pids=None):
+    """(address, port) of the listening TCP sockets owned by `pids` (every
+    process when None), from /proc/<pid>/fd and /proc/net/tcp{,6}: what a
+    local user can see without any file of the daemon."""
+    import os
+    listen = _proc_net_listen()
+    if pids is None:
+        return sorted(set(listen.values()))
+    found = set()
+    for p in pids:
+        try:
+            fds = os.listdir(f"/proc/{p}/fd")
+        except OSError:
+            continue
+        for fd in fds:
+            try:
+                target = os.readlink(f"/proc/{p}/fd/{fd}")
+            except OSError:
+                continue
+            if target.startswith("socket:["):
+                ino = int(target[8:-1])
+                if ino in listen:
+                    found.add(listen[ino])
+    return sorted(found)

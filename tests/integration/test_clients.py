@@ -22,7 +22,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import zmq  # noqa: E402
 
 import daemon as dmod  # noqa: E402
-from harness import Probe, RawDealer, Results  # noqa: E402
+from harness import Probe, RawDealer, Results, apply_curve  # noqa: E402
 
 R = Results("test_clients: C client, idempotent retries, concurrent clients")
 UNTIL = 0.01
@@ -165,6 +165,7 @@ def concurrent(d):
     for i in range(6):
         s = ctx.socket(zmq.DEALER)
         s.setsockopt(zmq.LINGER, 0)
+        apply_curve(s, d.connection)
         s.connect(d.connection["command"])
         socks.append(s)
     sent = {}

@@ -31,7 +31,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import zmq  # noqa: E402
 
 import daemon as dmod  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, apply_curve  # noqa: E402
 
 N_CLIENTS = 50
 PER_CLIENT = 20          # requests per client (2 in flight at a time)
@@ -40,14 +40,15 @@ TELEMETRY_EVERY = 50
 FIXED_STEPS = 20000     # an advance run with the stalled subscriber connected
 
 
-def reader(endpoint, ready, stop, out):
+def reader(info, ready, stop, out):
     """A subscriber that reads everything; reports (events, seq gaps)."""
     ctx = zmq.Context()
     s = ctx.socket(zmq.SUB)
     s.setsockopt(zmq.LINGER, 0)
     s.setsockopt(zmq.RCVHWM, 100000)
     s.setsockopt(zmq.SUBSCRIBE, b"")
-    s.connect(endpoint)
+    apply_curve(s, info)
+    s.connect(info["telemetry"])
     n = gaps = 0
     last = None
     signalled = False
@@ -72,14 +73,15 @@ def reader(endpoint, ready, stop, out):
     ctx.term()
 
 
-def stalled_sub(ctx, endpoint):
+def stalled_sub(ctx, info):
     """Connects, subscribes to everything, never reads; tiny buffers."""
     s = ctx.socket(zmq.SUB)
     s.setsockopt(zmq.LINGER, 0)
     s.setsockopt(zmq.RCVHWM, 1)
     s.setsockopt(zmq.RCVBUF, 4096)
     s.setsockopt(zmq.SUBSCRIBE, b"")
-    s.connect(endpoint)
+    apply_curve(s, info)
+    s.connect(info["telemetry"])
     return s
 
 
@@ -94,6 +96,7 @@ def command_load(R, d, ctx, info):
     for _ in range(N_CLIENTS):
         s = ctx.socket(zmq.DEALER)
         s.setsockopt(zmq.LINGER, 0)
+        apply_curve(s, info)
         s.connect(info["command"])
         socks.append(s)
     kinds = ["status", "status", "state", "hello", "jobs", "nope"]   # "nope": an unknown command
@@ -166,11 +169,12 @@ def command_load(R, d, ctx, info):
 def stalled_run(R, d, ctx, info, c):
     """A fixed advance with a stalled subscriber whose queue is full: it
     must complete, and a reading subscriber sees the events go on."""
-    stalled = stalled_sub(ctx, info["telemetry"])
+    stalled = stalled_sub(ctx, info)
     probe = ctx.socket(zmq.SUB)
     probe.setsockopt(zmq.LINGER, 0)
     probe.setsockopt(zmq.RCVHWM, 100000)
     probe.setsockopt(zmq.SUBSCRIBE, b"")
+    apply_curve(probe, info)
     probe.connect(info["telemetry"])
     try:
         c.advance(steps=FIXED_STEPS // 4, timeout=300)   # fills the stalled queue
@@ -205,14 +209,14 @@ def main(R):
         stop = spawn.Event()
         ready = spawn.Semaphore(0)
         out = spawn.Queue()
-        procs = [spawn.Process(target=reader, args=(info["telemetry"], ready, stop, out), daemon=True)
+        procs = [spawn.Process(target=reader, args=(info, ready, stop, out), daemon=True)
                  for _ in range(N_SUBS - 1)]
         for p in procs:
             p.start()
         for _ in procs:
             if not ready.acquire(timeout=30):
                 raise RuntimeError("a reader saw no heartbeat")
-        stalled = stalled_sub(ctx, info["telemetry"])
+        stalled = stalled_sub(ctx, info)
         with d.client(timeout=30.0, retries=0) as c:
             c.load(scene=scene)
             c.subscribe(topics=["done"])   # this client only waits for done events

@@ -36,8 +36,9 @@ class Client:
     curve_key       -- client key for a daemon that requires CURVE (its
                        connection file has `curve_server_key`): a `gearctl
                        keys` .key file or a (public, secret) Z85 pair;
-                       default $GEARSIM_CURVE_KEY. An unknown key gets no
-                       reply at all (GearsimTimeout).
+                       default the client pair of a loopback daemon's
+                       connection file, else $GEARSIM_CURVE_KEY. An unknown
+                       key gets no reply at all (GearsimTimeout).
 
     Every command method returns the reply's `result` (a dict) or raises
     GearsimError(code, message, field). Not thread-safe: use one Client per

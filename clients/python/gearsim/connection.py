@@ -93,14 +93,19 @@ def write_key_files(base, force=False):
     return pub_path, key_path, public.decode()
 
 
-def apply_curve(sock, info, curve_key):
+def apply_curve(sock, info, curve_key=None):
     """Make sock a CURVE client of the daemon described by `info` (the
     connection file) when the daemon announces a server key. curve_key is a
-    .key file path or a (public, secret) pair of Z85 strings; default
+    .key file path or a (public, secret) pair of Z85 strings; by default the
+    client key pair that a loopback daemon writes into its 0600 connection
+    file (curve_client_public_key, curve_client_secret_key), else
     $GEARSIM_CURVE_KEY. Without a server key in info nothing is done."""
     server = info.get("curve_server_key")
     if not server:
         return False
+    if not curve_key and info.get("curve_client_secret_key"):
+        # the daemon's own client pair: always the right key for this daemon
+        curve_key = (info.get("curve_client_public_key", ""), info["curve_client_secret_key"])
     curve_key = curve_key or os.environ.get("GEARSIM_CURVE_KEY")
     if not curve_key:
         raise GearsimError("invalid_argument",
