@@ -27,6 +27,7 @@
 #include "gearsim/fe.h"
 #include "gearsim/fe_static.h"
 #include "gearsim/mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/qp.h"
 #include "gearsim/stiffness.h"
 #include "io/h5attr.h"
@@ -91,16 +92,9 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     if (b->sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
     gs_scene_body_centre(sc, bi, b->c);
-    gs_gear_mesh_opts o;
-    gs_gear_mesh_opts_defaults(&o);
-    o.flank = b->sb->mesh.flank;
-    o.across = b->sb->mesh.across;
-    o.rim = b->sb->mesh.rim;
-    o.refine = refine >= 0 ? refine : b->sb->mesh.refine;
-    o.grading = b->sb->mesh.grading;
     gs_diag md;
     gs_diag_clear(&md);
-    gs_err e = gs_gear_mesh(&b->sb->gear, &o, &b->mesh, &md);
+    gs_err e = gs_scene_gear_mesh_refined(b->sb, refine, &b->mesh, &md);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
                            md.field);
