@@ -39,7 +39,7 @@ gs_err gs_scene_gear_mesh(const gs_scene_body *sb, gs_mesh **out, gs_diag *d)
     return gs_scene_gear_mesh_refined(sb, -1, out, d);
 }
 
-gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, gs_mesh **out, gs_diag *d)
+gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, gs_mesh **out, gs_diag *d)
 {
     gs_gear_mesh_opts o;
     gs_gear_mesh_opts_defaults(&o);
@@ -48,7 +48,12 @@ gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, gs_mesh *
     o.rim = sb->mesh.rim;
     o.refine = refine >= 0 ? refine : sb->mesh.refine;
     o.grading = sb->mesh.grading;
-    GS_TRY(gs_gear_mesh(&sb->gear, &o, out, d));
+    return gs_gear_mesh(&sb->gear, &o, out, d);
+}
+
+gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, gs_mesh **out, gs_diag *d)
+{
+    GS_TRY(gs_scene_gear_mesh_perfect(sb, refine, out, d));
     /* The single pitch_error of a body (the scene folds it into mods; a
      * body filled by hand may carry it alone). */
     const gs_gear_mods *mods = sb->mods;

@@ -84,6 +84,11 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
            r->k_mean, r->k_max, r->k_tan_mean);
     printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um\n", r->te_min, r->te_mean,
            r->te_max, r->te_max - r->te_min);
+    if (r->modified)
+        printf("loaded TE with modifications (from the perfect gears' no-load position) min %.4f  "
+               "mean %.4f  max %.4f um   peak-to-peak %.4f um\n",
+               r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max,
+               r->te_loaded_max - r->te_loaded_min);
     printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
            r->solves);
 }

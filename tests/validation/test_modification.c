@@ -1,0 +1,349 @@
+/* SPDX-License-Identifier: MIT
+ * Profile modifications and tooth errors (include/gearsim/modification.h,
+ * docs/GEOMETRY.md, docs/STIFFNESS.md "Profile modifications and the Harris
+ * map"). Checks (each can fail):
+ *  - geometry: every flank node of a gear with tip and root relief (linear
+ *    and parabolic, different on the two flanks) lies on the modified
+ *    profile psi(R) - C(R)/rb to 1e-12 m (1e-9 mm), C computed here from
+ *    the relief's closed form; nodes below the stated start diameter are
+ *    bit-identical to the unmodified mesh, nodes above it are relieved;
+ *    the relief given as a roll length starts at the radius of that roll
+ *    length; the tip corner is relieved by the full amount;
+ *  - unmodified gears are bit-identical to the plain mesher (gs_gear_mesh),
+ *    and an empty / zero modification gives a byte-identical stiffness run;
+ *  - pitch error table and run-out move the nodes as stated;
+ *  - bad input names its field;
+ *  - the textbook result on the 20/30 steel pair (module 2.5, face 10 mm)
+ *    at the design load 200 N/mm: a linear long tip relief on both gears
+ *    sized for that load (C = 2 x the unmodified peak-to-peak TE: with two
+ *    pairs the relief raises the double-zone TE by C/2 on average) gives a
+ *    peak-to-peak loaded static TE below half the unmodified one, and over
+ *    the loads 100..300 N/mm (the Harris map) its minimum lies at the design
+ *    load or next to it. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/mesh.h"
+#include "gearsim/models.h"
+#include "gearsim/modification.h"
+#include "gearsim/scene.h"
+#include "gearsim/stiffness.h"
+
+/* The 20/30 pair of docs/STIFFNESS.md; `mod0`, `mod1` are JSON members
+ * added to the pinion and the wheel (may be ""). */
+static gs_scene *pair_scene(const char *mod0, const char *mod1, gs_err *err, gs_diag *d)
+{
+    char txt[8192];
+    snprintf(txt, sizeof txt,
+             "{\"name\": \"pair\", \"bodies\": ["
+             "{\"name\": \"pinion\", \"teeth\": 20, \"module_mm\": 2.5, \"face_width_mm\": 10, "
+             "\"model\": \"elastic\"%s%s},"
+             "{\"name\": \"wheel\", \"teeth\": 30, \"module_mm\": 2.5, \"face_width_mm\": 10, "
+             "\"model\": \"elastic\"%s%s}],"
+             "\"joints\": [{\"body\": \"pinion\", \"type\": \"fixed_axis\", \"centre_mm\": [0, 0]},"
+             "{\"body\": \"wheel\", \"type\": \"fixed_axis\", \"centre_mm\": [62.5, 0]}],"
+             "\"meshes\": [{\"name\": \"pw\", \"gears\": [\"pinion\", \"wheel\"], \"model\": \"contact\"}],"
+             "\"initial\": {\"wheel\": {\"angle\": 0.10471975511965977}}}",
+             mod0[0] ? ", " : "", mod0, mod1[0] ? ", " : "", mod1);
+    gs_scene *sc = NULL;
+    gs_diag_clear(d);
+    *err = gs_scene_parse(txt, strlen(txt), &sc, d);
+    return sc;
+}
+
+static gs_scene *pair_ok(const char *mod0, const char *mod1)
+{
+    gs_err e;
+    gs_diag d;
+    gs_scene *sc = pair_scene(mod0, mod1, &e, &d);
+    if (e != GS_OK)
+        print_error("scene: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    return sc;
+}
+
+/* Relief removed at roll length L, from the definition (independent of
+ * modification.c's code path). */
+static double relief(double amount, double L, double Ls, double Le, int parabolic)
+{
+    double u = (L - Ls) / (Le - Ls);
+    if (u <= 0)
+        return 0;
+    if (u > 1)
+        u = 1;
+    return amount * (parabolic ? u * u : u);
+}
+
+static void flank_nodes_on_profile(void **state)
+{
+    (void)state;
+    /* Pinion: cw flank linear tip relief 20 um from diameter 53.5 mm and
+     * parabolic root relief 8 um over 1.5 mm of roll from the form point;
+     * ccw flank parabolic tip relief 12 um over 2 mm of roll. */
+    gs_scene *sc = pair_ok(
+        "\"modification\": {\"cw\": {\"tip_relief\": {\"amount_um\": 20, \"start_diameter_mm\": 53.5}, "
+        "\"root_relief\": {\"amount_um\": 8, \"length_mm\": 1.5, \"shape\": \"parabolic\"}}, "
+        "\"ccw\": {\"tip_relief\": {\"amount_um\": 12, \"length_mm\": 2.0, \"shape\": \"parabolic\"}}}",
+        "");
+    const gs_scene_body *b = &sc->bodies[0];
+    gs_gear_geom g;
+    gs_diag d;
+    assert_int_equal(gs_gear_geometry(&b->gear, &g, &d), GS_OK);
+    gs_mesh *m0 = NULL, *m1 = NULL;
+    assert_int_equal(gs_scene_gear_mesh_perfect(b, 1, &m0, &d), GS_OK);
+    assert_int_equal(gs_scene_gear_mesh_refined(b, 1, &m1, &d), GS_OK);
+    assert_int_equal(m0->n_nodes, m1->n_nodes);
+    double rb = g.rb;
+    double La = sqrt(g.ra * g.ra - rb * rb), Lf = sqrt(g.r_form * g.r_form - rb * rb);
+    /* Starts: cw tip at 53.5/2 mm; cw root at Lf + 1.5 mm; ccw tip at La - 2 mm. */
+    double Ls_cw_tip = sqrt(0.02675 * 0.02675 - rb * rb), Ls_cw_root = Lf + 1.5e-3,
+           Ls_ccw_tip = La - 2.0e-3;
+    assert_true(fabs(b->mods->flank[GS_FLANK_CW].tip.start_radius_m - 0.02675) < 1e-15);
+    assert_true(fabs(sqrt(pow(b->mods->flank[GS_FLANK_CCW].tip.start_radius_m, 2) - rb * rb) -
+                     Ls_ccw_tip) < 1e-15);
+    double worst = 0, worst_tipcorner = 0;
+    int relieved[2] = {0, 0}, below_same = 0, below_moved = 0, n = 0;
+    double pitch = 2 * GS_PI / g.z;
+    for (gs_index i = 0; i < m1->n_nodes; i++) {
+        if (m1->node_tag[i] != GS_NODE_FLANK) {
+            /* everything else untouched */
+            assert_true(m1->xy[2 * i] == m0->xy[2 * i] && m1->xy[2 * i + 1] == m0->xy[2 * i + 1]);
+            continue;
+        }
+        n++;
+        double x = m1->xy[2 * i], y = m1->xy[2 * i + 1], R = hypot(x, y);
+        double x0 = m0->xy[2 * i], y0 = m0->xy[2 * i + 1];
+        double th = atan2(y, x), k = nearbyint(th / pitch), a = th - k * pitch;
+        int ccw = a > 0;
+        double L = sqrt(R * R - rb * rb), C;
+        if (ccw)
+            C = relief(12e-6, L, Ls_ccw_tip, La, 1);
+        else
+            C = relief(20e-6, L, Ls_cw_tip, La, 0) + relief(8e-6, L, Ls_cw_root, Lf, 1);
+        /* the involute half angle at R, from METHOD.md's polar equation */
+        double phi = acos(rb / R);
+        double psi = g.s_pitch / (2 * g.r) + (tan(g.alpha) - g.alpha) - (tan(phi) - phi);
+        double err = R * fabs(fabs(a) - (psi - C / rb));
+        worst = fmax(worst, err);
+        if (C > 0) {
+            relieved[ccw]++;
+            if (fabs(R - g.ra) < 1e-12 * g.ra)
+                worst_tipcorner = fmax(worst_tipcorner, fabs(rb * (psi - fabs(a)) - (ccw ? 12e-6 : 20e-6)));
+        } else {
+            if (x == x0 && y == y0)
+                below_same++;
+            else
+                below_moved++;
+        }
+        /* radius kept */
+        assert_true(fabs(R - hypot(x0, y0)) < 1e-15 * g.ra);
+    }
+    print_message("%d flank nodes: worst distance from the modified profile %.3e m; relieved cw %d, "
+                  "ccw %d; unrelieved bit-identical %d, moved %d; tip corner relief error %.2e m\n",
+                  n, worst, relieved[0], relieved[1], below_same, below_moved, worst_tipcorner);
+    assert_true(worst < 1e-12);
+    assert_true(worst_tipcorner < 1e-12);
+    assert_true(relieved[0] > 0 && relieved[1] > 0 && below_same > 0);
+    assert_int_equal(below_moved, 0);
+    /* The relief starts at the stated diameter: zero at it, positive just above. */
+    double R0 = 0.02675;
+    assert_true(gs_gear_flank_offset(&g, b->mods, GS_FLANK_CW, R0) == 0.0);
+    assert_true(gs_gear_flank_offset(&g, b->mods, GS_FLANK_CW, R0 * (1 + 1e-9)) < 0.0);
+    assert_true(gs_gear_flank_offset(&g, b->mods, GS_FLANK_CW, R0 * (1 - 1e-9)) == 0.0);
+    gs_mesh_free(&m0);
+    gs_mesh_free(&m1);
+    gs_scene_free(&sc);
+}
+
+static void unmodified_bit_identical(void **state)
+{
+    (void)state;
+    gs_scene *s0 = pair_ok("", "");
+    gs_scene *s1 = pair_ok("\"modification\": {}", "\"modification\": {\"tip_relief\": {\"amount_um\": 0, "
+                                                   "\"length_mm\": 2}}, \"pitch_errors_um\": [" 
+                                                   "0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0]");
+    gs_diag d;
+    for (int k = 0; k < 2; k++) {
+        gs_mesh *a = NULL, *b = NULL;
+        gs_gear_mesh_opts o;
+        gs_gear_mesh_opts_defaults(&o);
+        assert_int_equal(gs_gear_mesh(&s0->bodies[k].gear, &o, &a, &d), GS_OK);
+        assert_int_equal(gs_scene_gear_mesh(&s1->bodies[k], &b, &d), GS_OK);
+        assert_int_equal(a->n_nodes, b->n_nodes);
+        assert_int_equal(memcmp(a->xy, b->xy, 2 * (size_t)a->n_nodes * sizeof(double)), 0);
+        gs_mesh_free(&a);
+        gs_mesh_free(&b);
+    }
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 6;
+    o.tangent = 0;
+    gs_stiffness_result r0, r1;
+    assert_int_equal(gs_stiffness_analyse(s0, 0, &o, &r0, &d), GS_OK);
+    assert_int_equal(gs_stiffness_analyse(s1, 0, &o, &r1, &d), GS_OK);
+    assert_int_equal(r1.modified, 0);
+    for (int j = 0; j < o.positions; j++) {
+        assert_int_equal(memcmp(&r0.pt[j].te_raw_um, &r1.pt[j].te_raw_um, sizeof(double)), 0);
+        assert_int_equal(memcmp(&r0.pt[j].te0_um, &r1.pt[j].te0_um, sizeof(double)), 0);
+        assert_true(r0.pt[j].te_loaded_um == r0.pt[j].te_um);
+    }
+    print_message("unmodified: meshes and a 6-position stiffness run byte-identical (TE p-p %.4f um)\n",
+                  r0.te_max - r0.te_min);
+    gs_stiffness_result_clear(&r0);
+    gs_stiffness_result_clear(&r1);
+    gs_scene_free(&s0);
+    gs_scene_free(&s1);
+}
+
+static void pitch_and_runout(void **state)
+{
+    (void)state;
+    char pe[1024] = "\"pitch_errors_um\": [";
+    for (int k = 0; k < 20; k++) {
+        char v[32];
+        snprintf(v, sizeof v, "%s%g", k ? "," : "", k == 3 ? 15.0 : k == 11 ? -7.5 : 0.0);
+        strcat(pe, v);
+    }
+    strcat(pe, "], \"runout\": {\"eccentricity_um\": 25, \"phase_deg\": 30}");
+    gs_scene *sc = pair_ok(pe, "");
+    gs_diag d;
+    gs_mesh *m0 = NULL, *m1 = NULL;
+    assert_int_equal(gs_scene_gear_mesh_perfect(&sc->bodies[0], -1, &m0, &d), GS_OK);
+    assert_int_equal(gs_scene_gear_mesh(&sc->bodies[0], &m1, &d), GS_OK);
+    const gs_gear_params *g = &sc->bodies[0].gear;
+    double r = gs_gear_pitch_radius(g), rf = gs_gear_root_radius(g);
+    double ex = 25e-6 * cos(GS_PI / 6), ey = 25e-6 * sin(GS_PI / 6), worst = 0;
+    for (int t = 0; t < m0->n_teeth; t++)
+        for (gs_index q = m0->flank_ptr[2 * t]; q < m0->flank_ptr[2 * t + 2]; q++) {
+            gs_index n = m0->flank_nodes[q];
+            double x0 = m0->xy[2 * n], y0 = m0->xy[2 * n + 1];
+            if (hypot(x0, y0) < 0.5 * (r + rf))
+                continue;
+            double e = t == 3 ? 15e-6 : t == 11 ? -7.5e-6 : 0.0, a = e / r;
+            double xe = cos(a) * x0 - sin(a) * y0 + ex, ye = sin(a) * x0 + cos(a) * y0 + ey;
+            worst = fmax(worst, hypot(m1->xy[2 * n] - xe, m1->xy[2 * n + 1] - ye));
+        }
+    print_message("pitch errors (tooth 3 +15 um, tooth 11 -7.5 um) and run-out 25 um at 30 deg: "
+                  "flank nodes off by at most %.2e m\n", worst);
+    assert_true(worst < 1e-15);
+    gs_mesh_free(&m0);
+    gs_mesh_free(&m1);
+    gs_scene_free(&sc);
+}
+
+static void bad_input(void **state)
+{
+    (void)state;
+    struct {
+        const char *mod, *field;
+    } cases[] = {
+        {"\"modification\": {\"tip_relief\": {\"amount_um\": 10, \"start_diameter_mm\": 60}}",
+         "bodies[0].modification.cw.tip_relief"},
+        {"\"modification\": {\"tip_relief\": {\"amount_um\": -1, \"length_mm\": 1}}",
+         "bodies[0].modification.tip_relief.amount_um"},
+        {"\"modification\": {\"tip_relief\": {\"amount_um\": 10}}", "bodies[0].modification.tip_relief"},
+        {"\"modification\": {\"tip_relief\": {\"amount_um\": 10, \"length_mm\": 1, \"shape\": \"cubic\"}}",
+         "bodies[0].modification.tip_relief.shape"},
+        {"\"modification\": {\"deviation\": {\"roll_deg\": [10, 5], \"um\": [1, 2]}}",
+         "bodies[0].modification.cw.deviation"},
+        {"\"modification\": {\"crowning\": 3}", "bodies[0].modification.crowning"},
+        {"\"pitch_errors_um\": [1, 2, 3]", "bodies[0].pitch_errors_um"},
+        {"\"runout\": {\"eccentricity_um\": 1000}", "bodies[0].runout"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        gs_err e;
+        gs_diag d;
+        gs_scene *sc = pair_scene(cases[i].mod, "", &e, &d);
+        print_message("%s -> %s: %s\n", cases[i].mod, d.field, d.message);
+        assert_int_not_equal(e, GS_OK);
+        assert_null(sc);
+        assert_string_equal(d.field, cases[i].field);
+    }
+}
+
+static double pp_at(const gs_scene *sc, double w_n_per_mm, double *mean)
+{
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 24;
+    o.refine = 1;
+    o.tangent = 0;
+    double rb = gs_gear_base_radius(&sc->bodies[0].gear);
+    o.torque_nm = w_n_per_mm * 10.0 * rb;
+    gs_stiffness_result r;
+    gs_diag d;
+    gs_err e = gs_stiffness_analyse(sc, 0, &o, &r, &d);
+    if (e != GS_OK)
+        print_error("stiffness: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    for (int j = 0; j < r.positions; j++)
+        assert_true(r.pt[j].converged);
+    double pp = r.te_loaded_max - r.te_loaded_min;
+    if (mean)
+        *mean = r.te_loaded_mean;
+    gs_stiffness_result_clear(&r);
+    return pp;
+}
+
+static void harris_map(void **state)
+{
+    (void)state;
+    gs_scene *s0 = pair_ok("", "");
+    double design = 200.0;
+    double pp0 = pp_at(s0, design, NULL);
+    /* Long linear relief from the highest point of single contact,
+     * (eps - 1) p_b of roll from the tip, on both gears. */
+    gs_pair_info info;
+    gs_diag d;
+    assert_int_equal(gs_pair_analyse(&s0->bodies[0].gear, &s0->bodies[1].gear, 0.0625, &info, &d), GS_OK);
+    double len_mm = (info.contact_ratio - 1.0) * info.base_pitch * 1e3;
+    double C = 2.0 * pp0;
+    char mod[512];
+    snprintf(mod, sizeof mod,
+             "\"modification\": {\"tip_relief\": {\"amount_um\": %.6f, \"length_mm\": %.6f}}", C, len_mm);
+    gs_scene *s1 = pair_ok(mod, mod);
+    static const double loads[] = {100, 150, 200, 250, 300};
+    double pp[5], best = INFINITY;
+    int ib = -1;
+    for (int i = 0; i < 5; i++) {
+        pp[i] = pp_at(s1, loads[i], NULL);
+        if (pp[i] < best) {
+            best = pp[i];
+            ib = i;
+        }
+    }
+    double pp0_150 = pp_at(s0, 150, NULL), pp0_250 = pp_at(s0, 250, NULL);
+    print_message("20/30 pair, 200 N/mm: p-p static TE without relief %.4f um; with linear tip relief "
+                  "%.3f um over %.3f mm of roll on both gears %.4f um (ratio %.3f)\n",
+                  pp0, C, len_mm, pp[2], pp[2] / pp0);
+    print_message("Harris map (relief %.3f um): ", C);
+    for (int i = 0; i < 5; i++)
+        print_message("%g N/mm: %.4f  ", loads[i], pp[i]);
+    print_message("\nwithout relief: 150 N/mm %.4f, 200 N/mm %.4f, 250 N/mm %.4f um\n", pp0_150, pp0,
+                  pp0_250);
+    assert_true(pp[2] < 0.5 * pp0);
+    assert_true(ib >= 1 && ib <= 3);
+    /* Without relief p-p grows with the load (no minimum inside). */
+    assert_true(pp0_150 < pp0 && pp0 < pp0_250);
+    gs_scene_free(&s0);
+    gs_scene_free(&s1);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(flank_nodes_on_profile),
+        cmocka_unit_test(unmodified_bit_identical),
+        cmocka_unit_test(pitch_and_runout),
+        cmocka_unit_test(bad_input),
+        cmocka_unit_test(harris_map),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
