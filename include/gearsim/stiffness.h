@@ -57,6 +57,8 @@ typedef struct gs_stiffness_opts {
                         * h in (0, 0.5]: the central difference over T (1 -+ h), the
                         * tangent at T (te_half NaN) */
     int max_iter;      /* linearisations per load case (default 12) */
+    int cycles;        /* mesh cycles (driver pitches) the positions span (default 1; more to
+                        * see tooth errors and run-out, which are not periodic in one pitch) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

@@ -43,6 +43,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->tangent = 1;
     o->tangent_step = 0.0;
     o->max_iter = 12;
+    o->cycles = 1;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -603,6 +604,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         return gs_diag_set(d, GS_ERANGE, "tangent_step", "the tangent's load step must be in [0, 0.5]");
     if (o.max_iter < 1)
         o.max_iter = 12;
+    if (o.cycles < 1 || o.cycles > 10000)
+        return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
     double t_start = gs_now();
     const gs_scene_mesh *sm = &sc->meshes[mesh_index];
     work w;
@@ -683,7 +686,7 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
                    (gA->kind == GS_GEAR_INTERNAL || gB->kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
     for (int j = 0; j < o.positions; j++) {
         gs_stiffness_point *pt = &out->pt[j];
-        double roll = (double)j / o.positions;
+        double roll = (double)j / o.positions * o.cycles;
         pt->roll = roll;
         pt->angle_rad = roll * pitch;
         w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
