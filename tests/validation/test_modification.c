@@ -617,6 +617,46 @@ static void runout_spectrum(void **state)
     assert_true(h[0][0] < 0.01);
 }
 
+/* The example scenes parse, carry what their descriptions say, and the
+ * planetary train with sun run-out builds and steps with the balance held. */
+static void example_scenes(void **state)
+{
+    (void)state;
+    const char *root = getenv("GEARSIM_SOURCE_ROOT");
+    if (!root)
+        skip();
+    char path[1024];
+    gs_diag d;
+    gs_scene *sc = NULL;
+    snprintf(path, sizeof path, "%s/deploy/scenes/pair_relief.json", root);
+    assert_int_equal(gs_scene_load_file(path, &sc, &d), GS_OK);
+    for (int k = 0; k < 2; k++) {
+        const gs_gear_mods *m = sc->bodies[k].mods;
+        assert_non_null(m);
+        assert_true(fabs(m->flank[0].tip.amount_m - 9.6e-6) < 1e-15);
+        assert_int_equal(memcmp(&m->flank[0], &m->flank[1], sizeof m->flank[0]), 0);
+    }
+    gs_scene_free(&sc);
+    snprintf(path, sizeof path, "%s/deploy/scenes/planetary_runout.json", root);
+    assert_int_equal(gs_scene_load_file(path, &sc, &d), GS_OK);
+    int sun = gs_scene_find_body(sc, "sun");
+    assert_non_null(sc->bodies[sun].mods);
+    assert_true(fabs(sc->bodies[sun].mods->runout_m - 20e-6) < 1e-15);
+    gs_system *s = NULL;
+    gs_err err = gs_system_new(sc, 0, 1, &s, &d); /* takes the scene */
+    sc = NULL;
+    if (err != GS_OK)
+        print_error("%s: %s\n", d.field, d.message);
+    assert_int_equal(err, GS_OK);
+    double worst = 0, scale = 0;
+    gs_energy e;
+    for (int i = 0; i < 50; i++)
+        vt_step_balance(s, &e, &worst, &scale);
+    print_message("planetary_runout: 50 steps, balance %.2e of %.2e J\n", worst, scale);
+    assert_true(worst <= 1e-11 * fmax(scale, 1e-3));
+    gs_system_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -629,6 +669,7 @@ int main(void)
         cmocka_unit_test(contact_dynamic_relief),
         cmocka_unit_test(calibrated_relief),
         cmocka_unit_test(runout_spectrum),
+        cmocka_unit_test(example_scenes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
