@@ -915,6 +915,17 @@ static json_object *json_num(double v)
     return isfinite(v) ? json_object_new_double(v) : NULL;
 }
 
+/* {min, mean, max, peak_to_peak} of a TE over the positions. */
+static json_object *json_te_range(double lo, double mean, double hi)
+{
+    json_object *t = json_object_new_object();
+    json_object_object_add(t, "min", json_num(lo));
+    json_object_object_add(t, "mean", json_num(mean));
+    json_object_object_add(t, "max", json_num(hi));
+    json_object_object_add(t, "peak_to_peak", json_num(hi - lo));
+    return t;
+}
+
 json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
 {
     json_object *o = json_object_new_object();
@@ -976,18 +987,9 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(k, "max", json_num(r->k_max));
     json_object_object_add(k, "tangent_mean", json_num(r->k_tan_mean));
     json_object_object_add(o, "k", k);
-    json_object *te = json_object_new_object();
-    json_object_object_add(te, "min", json_num(r->te_min));
-    json_object_object_add(te, "mean", json_num(r->te_mean));
-    json_object_object_add(te, "max", json_num(r->te_max));
-    json_object_object_add(te, "peak_to_peak", json_num(r->te_max - r->te_min));
-    json_object_object_add(o, "te_um", te);
-    json_object *tl = json_object_new_object();
-    json_object_object_add(tl, "min", json_num(r->te_loaded_min));
-    json_object_object_add(tl, "mean", json_num(r->te_loaded_mean));
-    json_object_object_add(tl, "max", json_num(r->te_loaded_max));
-    json_object_object_add(tl, "peak_to_peak", json_num(r->te_loaded_max - r->te_loaded_min));
-    json_object_object_add(o, "te_loaded_um", tl);
+    json_object_object_add(o, "te_um", json_te_range(r->te_min, r->te_mean, r->te_max));
+    json_object_object_add(o, "te_loaded_um",
+                           json_te_range(r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max));
     json_object_object_add(o, "modified", json_object_new_boolean(r->modified));
     json_object_object_add(o, "fraction_multi_pair", json_num(r->frac_multi));
     json_object_object_add(o, "seconds", json_num(r->seconds));

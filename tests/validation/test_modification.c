@@ -52,6 +52,7 @@
 #include "gearsim/scene.h"
 #include "gearsim/stiffness.h"
 #include "models/compliant_mesh.h"
+#include "compliant_static.h"
 #include "scene_build.h"
 
 /* The 20/30 pair of docs/STIFFNESS.md; `mod0`, `mod1` are JSON members
@@ -396,21 +397,6 @@ static gs_scene *parse_tree(json_object *root)
     return sc;
 }
 
-/* Static TE of the compliant model at phase phi under force W (bisection
- * on the approach, the drive flank). */
-static double compliant_static(const gs_gmesh_rt *m, double phi, double W)
-{
-    double v[8], wt[8];
-    int n = gsi_compliant_pairs(m, phi, 1, v, wt, 8);
-    double lo = 0, hi = 1e-3;
-    for (int it = 0; it < 200; it++) {
-        double mid = 0.5 * (lo + hi), F = 0;
-        for (int j = 0; j < n; j++)
-            F += wt[j] * gsi_compliant_pair_force(m, v[j], mid);
-        *(F < W ? &lo : &hi) = mid;
-    }
-    return 0.5 * (lo + hi);
-}
 
 /* The compliant mesh with relief: every pair's law is the unrelieved law
  * moved by the two flanks' relief at its contact point; the quasi-static TE
@@ -454,7 +440,7 @@ static void compliant_relief(void **state)
     for (int q = 0; q < 2; q++) {
         double lo = INFINITY, hi = -INFINITY;
         for (int j = 0; j < 48; j++) {
-            double te = compliant_static(q ? m1 : m0, j / 48.0, W);
+            double te = vt_compliant_static(q ? m1 : m0, j / 48.0, W);
             lo = fmin(lo, te);
             hi = fmax(hi, te);
         }
