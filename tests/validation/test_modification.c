@@ -643,10 +643,64 @@ static void example_scenes(void **state)
     gs_system_free(&s);
 }
 
+/* A ring (internal gear, its tip the smaller radius): parabolic tip relief
+ * over 1.5 mm of roll from its tip, the nodes on psi(R) - C(R)/rb with the
+ * ring's involute (psi = s/2r - inv(alpha) + inv(phi)). */
+static void ring_relief(void **state)
+{
+    (void)state;
+    json_object *root = vt_scene("planetary_contact");
+    json_object *bodies = json_object_object_get(root, "bodies");
+    json_object *ring = NULL;
+    for (size_t i = 0; i < json_object_array_length(bodies); i++) {
+        json_object *b = json_object_array_get_idx(bodies, i);
+        if (!strcmp(json_object_get_string(json_object_object_get(b, "name")), "ring"))
+            ring = b;
+    }
+    assert_non_null(ring);
+    json_object *mo = json_tokener_parse(
+        "{\"tip_relief\": {\"amount_um\": 15, \"length_mm\": 1.5, \"shape\": \"parabolic\"}}");
+    json_object_object_add(ring, "modification", mo);
+    gs_scene *sc = parse_tree(root);
+    json_object_put(root);
+    const gs_scene_body *b = &sc->bodies[gs_scene_find_body(sc, "ring")];
+    gs_gear_geom g;
+    gs_diag d;
+    assert_int_equal(gs_gear_geometry(&b->gear, &g, &d), GS_OK);
+    gs_mesh *m0 = NULL, *m1 = NULL;
+    assert_int_equal(gs_scene_gear_mesh_perfect(b, -1, &m0, &d), GS_OK);
+    assert_int_equal(gs_scene_gear_mesh(b, &m1, &d), GS_OK);
+    double rb = g.rb, La = sqrt(g.ra * g.ra - rb * rb), Ls = La + 1.5e-3;
+    double pitch = 2 * GS_PI / g.z, worst = 0;
+    int relieved = 0, same = 0;
+    for (gs_index i = 0; i < m1->n_nodes; i++) {
+        if (m1->node_tag[i] != GS_NODE_FLANK)
+            continue;
+        double x = m1->xy[2 * i], y = m1->xy[2 * i + 1], R = hypot(x, y);
+        double th = atan2(y, x), a = th - nearbyint(th / pitch) * pitch;
+        double L = sqrt(R * R - rb * rb), C = relief(15e-6, L, Ls, La, 1);
+        double phi = acos(rb / R);
+        double psi = g.s_pitch / (2 * g.r) - (tan(g.alpha) - g.alpha) + (tan(phi) - phi);
+        worst = fmax(worst, R * fabs(fabs(a) - (psi - C / rb)));
+        if (C > 0)
+            relieved++;
+        else
+            same += x == m0->xy[2 * i] && y == m0->xy[2 * i + 1];
+    }
+    print_message("ring z%d, parabolic tip relief 15 um over 1.5 mm: %d flank nodes relieved, %d untouched, "
+                  "worst distance from the modified profile %.2e m\n", g.z, relieved, same, worst);
+    assert_true(worst < 1e-12);
+    assert_true(relieved > 0 && same > 0);
+    gs_mesh_free(&m0);
+    gs_mesh_free(&m1);
+    gs_scene_free(&sc);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(flank_nodes_on_profile),
+        cmocka_unit_test(ring_relief),
         cmocka_unit_test(unmodified_bit_identical),
         cmocka_unit_test(pitch_and_runout),
         cmocka_unit_test(bad_input),
