@@ -89,6 +89,15 @@ typedef struct gs_gmesh_ops {
  * failed; the caller names the field. */
 struct gs_mesh;
 gs_err gs_scene_gear_mesh(const gs_scene_body *sb, struct gs_mesh **out, gs_diag *d);
+/* The same with `refine` uniform refinements instead of the scene's (< 0:
+ * the scene's). Profile modifications, pitch errors and run-out of the body
+ * (sb->mods) are applied to the mesh (gs_gear_mods_apply_mesh). */
+gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, struct gs_mesh **out,
+                                  gs_diag *d);
+/* The mesh of the same gear without its modifications and tooth errors (the
+ * perfect involute gear; same topology and numbering as the modified one). */
+gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, struct gs_mesh **out,
+                                  gs_diag *d);
 
 /* Registered implementations, by name (the scene's `model`). */
 const gs_body_ops *gs_body_ops_find(const char *name);

@@ -9,6 +9,7 @@
 
 #include "gearsim/fe.h"
 #include "gearsim/geometry.h"
+#include "gearsim/modification.h"
 #include "gearsim/types.h"
 
 #define GS_NAME_MAX 64
@@ -54,6 +55,9 @@ typedef struct gs_scene_body {
     double pin_error[2];       /* m: radial, tangential error of a planet's pin (on_carrier) */
     int pitch_error_tooth;     /* tooth whose flanks are displaced along the pitch circle, -1 none */
     double pitch_error;        /* m, counter-clockwise */
+    gs_gear_mods *mods;        /* profile modifications, pitch errors, run-out (owned; NULL:
+                                * a perfect involute gear); the single pitch_error above is
+                                * folded into its pitch table */
     /* initial state */
     double angle0, omega0;
     bool angle_given;          /* angle0 from the scene (else contact meshes phase the gear) */

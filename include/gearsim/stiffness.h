@@ -57,6 +57,8 @@ typedef struct gs_stiffness_opts {
                         * h in (0, 0.5]: the central difference over T (1 -+ h), the
                         * tangent at T (te_half NaN) */
     int max_iter;      /* linearisations per load case (default 12) */
+    int cycles;        /* mesh cycles (driver pitches) the positions span (default 1; more to
+                        * see tooth errors and run-out, which are not periodic in one pitch) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
@@ -74,6 +76,12 @@ typedef struct gs_stiffness_point {
     double te_um;         /* te_raw - te0 (header) */
     double te_raw_um;
     double te0_um;
+    double te_ref_um;     /* r_b1 s delta_ref: the no-load closing of the perfect gears (the
+                           * same meshes without modifications and tooth errors); te0 when
+                           * neither gear is modified */
+    double te_loaded_um;  /* te_raw - te_ref: the loaded static TE including the geometric
+                           * TE of the modifications (the Harris map's quantity); te when
+                           * neither gear is modified */
     double k;             /* F / te / b, N/(mm um) */
     double te_half_um;    /* te_raw at T/2 (NaN without the tangent option or with
                            * tangent_step) */
@@ -108,6 +116,8 @@ typedef struct gs_stiffness_result {
     double k_min, k_mean, k_max;     /* of k over the positions */
     double k_tan_mean;               /* NaN without the tangent option */
     double te_min, te_mean, te_max;  /* of te_um */
+    double te_loaded_min, te_loaded_mean, te_loaded_max; /* of te_loaded_um */
+    int modified;         /* 1 when a gear carries modifications or tooth errors */
     double frac_multi;    /* fraction of positions with 2 or more pairs in contact */
     long solves;          /* right-hand sides solved (both bodies) */
     double seconds;       /* wall time of the analysis */

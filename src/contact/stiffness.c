@@ -27,6 +27,7 @@
 #include "gearsim/fe.h"
 #include "gearsim/fe_static.h"
 #include "gearsim/mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/qp.h"
 #include "gearsim/stiffness.h"
 #include "io/h5attr.h"
@@ -42,6 +43,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->tangent = 1;
     o->tangent_step = 0.0;
     o->max_iter = 12;
+    o->cycles = 1;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -66,6 +68,7 @@ typedef struct sbody {
     double *u;            /* 2 n_nodes: current displacement (boundary nodes only) */
     double *v;            /* scratch 2 nb */
     double c[2];          /* axis */
+    double *xy_ref;       /* 2 n_nodes: the perfect gear's nodes (NULL: not modified) */
 } sbody;
 
 static void sbody_free(sbody *b)
@@ -76,6 +79,7 @@ static void sbody_free(sbody *b)
     free(b->col);
     free(b->bpos);
     free(b->bdof);
+    free(b->xy_ref);
     free(b->u);
     free(b->v);
     gs_fe_static_free(&b->fs);
@@ -91,19 +95,27 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     if (b->sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
     gs_scene_body_centre(sc, bi, b->c);
-    gs_gear_mesh_opts o;
-    gs_gear_mesh_opts_defaults(&o);
-    o.flank = b->sb->mesh.flank;
-    o.across = b->sb->mesh.across;
-    o.rim = b->sb->mesh.rim;
-    o.refine = refine >= 0 ? refine : b->sb->mesh.refine;
-    o.grading = b->sb->mesh.grading;
     gs_diag md;
     gs_diag_clear(&md);
-    gs_err e = gs_gear_mesh(&b->sb->gear, &o, &b->mesh, &md);
+    gs_err e = gs_scene_gear_mesh_refined(b->sb, refine, &b->mesh, &md);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
                            md.field);
+    if (gs_gear_mods_any(b->sb->mods) ||
+        (b->sb->pitch_error_tooth >= 0 && b->sb->pitch_error != 0.0)) {
+        /* The perfect gear's nodes, for the no-load reference of te_loaded. */
+        gs_mesh *pm = NULL;
+        e = gs_scene_gear_mesh_perfect(b->sb, refine, &pm, &md);
+        if (e == GS_OK && pm->n_nodes != b->mesh->n_nodes)
+            e = GS_EINTERNAL;
+        if (e == GS_OK) {
+            b->xy_ref = pm->xy;
+            pm->xy = NULL;
+        }
+        gs_mesh_free(&pm);
+        if (e != GS_OK)
+            return gs_diag_set(d, e, field, "cannot mesh the perfect '%s'", b->sb->name);
+    }
     e = gs_fe_model_new(b->mesh, &b->sb->material, b->sb->gear.face_width_m, 0.0, &b->model);
     if (e == GS_OK)
         e = gs_fe_static_new(b->model, &b->fs);
@@ -539,6 +551,32 @@ static double default_torque(const gs_scene *sc, int body, double rb, double b_m
     return 200.0 * (b_m * 1e3) * rb; /* 200 N/mm line load */
 }
 
+/* No-load closing rotation: rigid bodies (u = 0) turned until the first row
+ * closes, the rows re-evaluated at each new angle (with backlash the
+ * linearisation at the kinematic angle alone is too crude). */
+static gs_err close_rigid(work *w, double *delta0, double roll, const char *name, gs_diag *d)
+{
+    int nr;
+    double gmin;
+    for (int it = 0; it < 30; it++) {
+        GS_TRY(collect(w, *delta0, &nr, &gmin));
+        double close = INFINITY;
+        for (int i = 0; i < nr; i++) {
+            double a = w->row[i].dg_dtheta[w->si[0]];
+            if (a * w->sgn < -1e-6 * w->rb)
+                close = fmin(close, w->row[i].gap.g / fabs(a));
+        }
+        if (!isfinite(close))
+            return gs_diag_set(d, GS_EINFEASIBLE, "meshes",
+                               "'%s' at roll %.3f: no flank closes in the torque direction", name,
+                               roll);
+        *delta0 += w->sgn * close;
+        if (fabs(close) * w->rb < 1e-12)
+            break;
+    }
+    return GS_OK;
+}
+
 gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
                             gs_stiffness_result *out, gs_diag *d)
 {
@@ -566,6 +604,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         return gs_diag_set(d, GS_ERANGE, "tangent_step", "the tangent's load step must be in [0, 0.5]");
     if (o.max_iter < 1)
         o.max_iter = 12;
+    if (o.cycles < 1 || o.cycles > 10000)
+        return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
     double t_start = gs_now();
     const gs_scene_mesh *sm = &sc->meshes[mesh_index];
     work w;
@@ -646,7 +686,7 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
                    (gA->kind == GS_GEAR_INTERNAL || gB->kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
     for (int j = 0; j < o.positions; j++) {
         gs_stiffness_point *pt = &out->pt[j];
-        double roll = (double)j / o.positions;
+        double roll = (double)j / o.positions * o.cycles;
         pt->roll = roll;
         pt->angle_rad = roll * pitch;
         w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
@@ -658,27 +698,27 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
          * closes, the rows re-evaluated at each new angle (with backlash the
          * linearisation at the kinematic angle alone is too crude). */
         int nr;
-        double gmin, delta0 = 0.0;
-        for (int it = 0; it < 30; it++) {
-            e = collect(&w, delta0, &nr, &gmin);
+        double delta0 = 0.0, delta_ref = 0.0;
+        if (w.b[0].xy_ref || w.b[1].xy_ref) {
+            /* The perfect gears' no-load closing: the reference of the loaded
+             * TE with modifications (their geometric TE included). */
+            double *keep[2];
+            for (int k = 0; k < 2; k++) {
+                keep[k] = w.b[k].mesh->xy;
+                if (w.b[k].xy_ref)
+                    w.b[k].mesh->xy = w.b[k].xy_ref;
+            }
+            e = close_rigid(&w, &delta_ref, roll, sm->name, d);
+            for (int k = 0; k < 2; k++)
+                w.b[k].mesh->xy = keep[k];
             if (e != GS_OK)
                 goto done;
-            double close = INFINITY;
-            for (int i = 0; i < nr; i++) {
-                double a = w.row[i].dg_dtheta[w.si[0]];
-                if (a * w.sgn < -1e-6 * w.rb)
-                    close = fmin(close, w.row[i].gap.g / fabs(a));
-            }
-            if (!isfinite(close)) {
-                e = gs_diag_set(d, GS_EINFEASIBLE, "meshes",
-                                "'%s' at roll %.3f: no flank closes in the torque direction",
-                                sm->name, roll);
-                goto done;
-            }
-            delta0 += w.sgn * close;
-            if (fabs(close) * w.rb < 1e-12)
-                break;
         }
+        e = close_rigid(&w, &delta0, roll, sm->name, d);
+        if (e != GS_OK)
+            goto done;
+        if (!w.b[0].xy_ref && !w.b[1].xy_ref)
+            delta_ref = delta0;
         double delta = delta0;
         int iters = 0, conv = 0;
         double pen = 0.0;
@@ -689,6 +729,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         pt->te_raw_um = w.rb * w.sgn * delta * 1e6;
         pt->te0_um = w.rb * w.sgn * delta0 * 1e6;
         pt->te_um = pt->te_raw_um - pt->te0_um;
+        pt->te_ref_um = w.rb * w.sgn * delta_ref * 1e6;
+        pt->te_loaded_um = pt->te_raw_um - pt->te_ref_um;
         pt->k = F / pt->te_um / bmm;
         pt->rows = nr;
         pt->active = 0;
@@ -732,9 +774,9 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         }
     }
     /* Summary. */
-    out->k_min = out->te_min = INFINITY;
-    out->k_max = out->te_max = -INFINITY;
-    double ks = 0, ts = 0, kt = 0;
+    out->k_min = out->te_min = out->te_loaded_min = INFINITY;
+    out->k_max = out->te_max = out->te_loaded_max = -INFINITY;
+    double ks = 0, ts = 0, kt = 0, tl = 0;
     int multi = 0;
     for (int j = 0; j < o.positions; j++) {
         const gs_stiffness_point *pt = &out->pt[j];
@@ -742,6 +784,9 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         out->k_max = fmax(out->k_max, pt->k);
         out->te_min = fmin(out->te_min, pt->te_um);
         out->te_max = fmax(out->te_max, pt->te_um);
+        out->te_loaded_min = fmin(out->te_loaded_min, pt->te_loaded_um);
+        out->te_loaded_max = fmax(out->te_loaded_max, pt->te_loaded_um);
+        tl += pt->te_loaded_um;
         ks += pt->k;
         ts += pt->te_um;
         kt += pt->k_tan;
@@ -749,6 +794,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     }
     out->k_mean = ks / o.positions;
     out->te_mean = ts / o.positions;
+    out->te_loaded_mean = tl / o.positions;
+    out->modified = w.b[0].xy_ref || w.b[1].xy_ref;
     out->k_tan_mean = o.tangent ? kt / o.positions : NAN;
     out->frac_multi = (double)multi / o.positions;
     out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
@@ -788,7 +835,7 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
         return gs_diag_set(d, GS_EINVAL, "out", "NULL path or empty result");
     int n = r->positions;
     size_t nn = n > 0 ? (size_t)n : 1;
-    double *col = malloc(nn * 8 * sizeof *col);
+    double *col = malloc(nn * 10 * sizeof *col);
     int *pairs = malloc(nn * sizeof *pairs);
     int *pt_tooth = malloc(nn * GS_STIFF_MAX_PAIRS * 2 * sizeof *pt_tooth);
     double *pf = malloc(nn * GS_STIFF_MAX_PAIRS * sizeof *pf);
@@ -801,9 +848,9 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
     }
     for (int j = 0; j < n; j++) {
         const gs_stiffness_point *p = &r->pt[j];
-        double v[8] = {p->roll, p->angle_rad * 180.0 / GS_PI, p->te_um, p->te_raw_um, p->te0_um,
-                       p->k, p->te_half_um, p->k_tan};
-        for (int c = 0; c < 8; c++)
+        double v[10] = {p->roll, p->angle_rad * 180.0 / GS_PI, p->te_um, p->te_raw_um, p->te0_um,
+                        p->k, p->te_half_um, p->k_tan, p->te_ref_um, p->te_loaded_um};
+        for (int c = 0; c < 10; c++)
             col[(size_t)c * nn + (size_t)j] = v[c];
         pairs[j] = p->pairs;
         for (int q = 0; q < GS_STIFF_MAX_PAIRS; q++) {
@@ -818,12 +865,13 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
     hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     hid_t g = f < 0 ? -1 : H5Gcreate2(f, "stiffness", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (g >= 0) {
-        static const char *const names[8] = {"roll", "angle_deg", "te_um", "te_raw_um",
-                                             "te0_um", "k", "te_half_um", "k_tan"};
+        static const char *const names[10] = {"roll", "angle_deg", "te_um", "te_raw_um",
+                                              "te0_um", "k", "te_half_um", "k_tan",
+                                              "te_ref_um", "te_loaded_um"};
         hsize_t d1[1] = {(hsize_t)n}, d2[2] = {(hsize_t)n, GS_STIFF_MAX_PAIRS},
                 d3[3] = {(hsize_t)n, GS_STIFF_MAX_PAIRS, 2};
         herr_t st = 0;
-        for (int c = 0; c < 8; c++)
+        for (int c = 0; c < 10; c++)
             st |= put_ds(g, names[c], H5T_NATIVE_DOUBLE, 1, d1, col + (size_t)c * nn);
         st |= put_ds(g, "pairs", H5T_NATIVE_INT, 1, d1, pairs);
         st |= put_ds(g, "pair_tooth", H5T_NATIVE_INT, 3, d3, pt_tooth);
@@ -842,7 +890,8 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
                        {"contact_ratio", r->contact_ratio}, {"k_min", r->k_min},
                        {"k_mean", r->k_mean},               {"k_max", r->k_max},
                        {"te_min", r->te_min},               {"te_mean", r->te_mean},
-                       {"te_max", r->te_max}};
+                       {"te_max", r->te_max},               {"te_loaded_min", r->te_loaded_min},
+                       {"te_loaded_mean", r->te_loaded_mean}, {"te_loaded_max", r->te_loaded_max}};
         for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
             st |= gsi_h5_scalar_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
         if (st >= 0)
@@ -864,6 +913,17 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
 static json_object *json_num(double v)
 {
     return isfinite(v) ? json_object_new_double(v) : NULL;
+}
+
+/* {min, mean, max, peak_to_peak} of a TE over the positions. */
+static json_object *json_te_range(double lo, double mean, double hi)
+{
+    json_object *t = json_object_new_object();
+    json_object_object_add(t, "min", json_num(lo));
+    json_object_object_add(t, "mean", json_num(mean));
+    json_object_object_add(t, "max", json_num(hi));
+    json_object_object_add(t, "peak_to_peak", json_num(hi - lo));
+    return t;
 }
 
 json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
@@ -901,6 +961,8 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
         json_object_object_add(q, "te_um", json_num(p->te_um));
         json_object_object_add(q, "te_raw_um", json_num(p->te_raw_um));
         json_object_object_add(q, "te0_um", json_num(p->te0_um));
+        json_object_object_add(q, "te_ref_um", json_num(p->te_ref_um));
+        json_object_object_add(q, "te_loaded_um", json_num(p->te_loaded_um));
         json_object_object_add(q, "k_tan", json_num(p->k_tan));
         json_object_object_add(q, "pairs", json_object_new_int(p->pairs));
         json_object *fa = json_object_new_array();
@@ -925,12 +987,10 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(k, "max", json_num(r->k_max));
     json_object_object_add(k, "tangent_mean", json_num(r->k_tan_mean));
     json_object_object_add(o, "k", k);
-    json_object *te = json_object_new_object();
-    json_object_object_add(te, "min", json_num(r->te_min));
-    json_object_object_add(te, "mean", json_num(r->te_mean));
-    json_object_object_add(te, "max", json_num(r->te_max));
-    json_object_object_add(te, "peak_to_peak", json_num(r->te_max - r->te_min));
-    json_object_object_add(o, "te_um", te);
+    json_object_object_add(o, "te_um", json_te_range(r->te_min, r->te_mean, r->te_max));
+    json_object_object_add(o, "te_loaded_um",
+                           json_te_range(r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max));
+    json_object_object_add(o, "modified", json_object_new_boolean(r->modified));
     json_object_object_add(o, "fraction_multi_pair", json_num(r->frac_multi));
     json_object_object_add(o, "seconds", json_num(r->seconds));
     return o;

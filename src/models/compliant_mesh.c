@@ -34,6 +34,7 @@
 #include "compliant_mesh.h"
 #include "mesh_common.h"
 #include "gearsim/geometry.h"
+#include "gearsim/modification.h"
 #include "gearsim/impact.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
@@ -197,6 +198,10 @@ static void law(const cmesh *cm, int k, double dl, double *W, double *F, double 
     const double *x = cm->del + (size_t)k * (LOADS + 1), *f = cm->frc + (size_t)k * (LOADS + 1),
                  *w = cm->wrk + (size_t)k * (LOADS + 1);
     int lo = 0, hi = LOADS;
+    if (dl < x[0]) { /* x[0] > 0: a relieved station's clearance */
+        *W = *F = *S = 0.0;
+        return;
+    }
     if (dl >= x[LOADS - 1]) {
         lo = LOADS - 1;
     } else {
@@ -389,12 +394,56 @@ static void cm_destroy(gs_gmesh_rt *m)
     m->contact = NULL;
 }
 
+/* Profile modifications: the pair at station v starts to carry load only
+ * once the approach exceeds the two flanks' relief C(v) there (the sum of
+ * both gears' offsets at their roll lengths rho0 + v and t12 -+ it): each
+ * station's force-approach table moves by C(v). W stays piecewise quadratic
+ * in the approach and linear between stations, so the exact mean slopes of
+ * the discrete gradient keep holding. Both flanks of a gear must carry the
+ * same modification (one table serves drive and coast), and the offset must
+ * remove material (a clearance; an interference at zero approach would make
+ * the potential jump at the backlash edge). */
+static gs_err relieve_table(cmesh *cm, const gs_scene_mesh *sm, const gs_scene_body *bp, const gs_scene_body *bo,
+                            int ip, int io, gs_diag *d)
+{
+    const gs_gear_mods *md[2] = {bp->mods, bo->mods};
+    const int bi[2] = {ip, io};
+    if (!gs_gear_mods_has_profile(md[0]) && !gs_gear_mods_has_profile(md[1]))
+        return GS_OK;
+    char field[64];
+    for (int k = 0; k < 2; k++)
+        if (md[k] && memcmp(&md[k]->flank[0], &md[k]->flank[1], sizeof md[k]->flank[0]) != 0) {
+            snprintf(field, sizeof field, "bodies[%d].modification", bi[k]);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "the compliant mesh '%s' needs the same modification on both flanks", sm->name);
+        }
+    for (int k = 0; k < STATIONS; k++) {
+        double v = fmin(fmax(cm->v0 + k * cm->dv, 0.0), cm->L);
+        double rp = cm->rho0 + v, ro = cm->internal ? rp + cm->t12 : cm->t12 - rp;
+        double off = gs_gear_flank_offset(&cm->g[0], md[0], 0, hypot(cm->g[0].rb, rp)) +
+                     gs_gear_flank_offset(&cm->g[1], md[1], 0, hypot(cm->g[1].rb, ro));
+        double c = -off;
+        if (c < 0) {
+            snprintf(field, sizeof field, "bodies[%d].modification", bi[0]);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "the compliant mesh '%s' represents relief only: the modifications add %.3g um "
+                               "of material %.3g mm along the path of contact",
+                               sm->name, -c * 1e6, v * 1e3);
+        }
+        double *x = cm->del + (size_t)k * (LOADS + 1);
+        for (int i = 0; i <= LOADS; i++)
+            x[i] += c;
+    }
+    return GS_OK;
+}
+
 static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];
     GS_TRY(gsi_mesh_needs_rigid(sys, m, "compliant", d));
+    GS_TRY(gsi_mesh_mods_supported(sys, m, "compliant", 1, 0, d));
     cmesh *cm = gs_calloc(1, sizeof *cm);
     if (!cm)
         return GS_ENOMEM;
@@ -457,6 +506,7 @@ static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     m->transition = sm->transition;
     snprintf(field, sizeof field, "meshes[%d].patches", m->index);
     GS_TRY(build_table(m, d, field));
+    GS_TRY(relieve_table(cm, sm, bp, bo, sm->gear[kp], sm->gear[1 - kp], d));
     /* Secant stiffness of one pair at a moderate load, averaged over the
      * path (for the default damper and the telemetry's k_single). */
     double ks = 0;
@@ -487,6 +537,10 @@ static double avg_force_station(const cmesh *cm, int k, double da, double db)
         return Fa;
     const double *x = cm->del + (size_t)k * (LOADS + 1);
     double sum = 0, cur = da;
+    if (cur < x[0]) { /* no force inside a relieved station's clearance */
+        cur = fmin(db, x[0]);
+        Fa = 0.0;
+    }
     while (cur < db) {
         int i = 0;
         while (i < LOADS - 1 && x[i + 1] <= cur)

@@ -70,6 +70,7 @@ static double minv(const gs_system *sys, int coord)
 
 static gs_err impact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
+    GS_TRY(gsi_mesh_mods_supported(sys, m, "impact", 0, 0, d));
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];

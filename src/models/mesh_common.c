@@ -22,6 +22,36 @@ gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const ch
     return GS_OK;
 }
 
+gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, int profile,
+                               int errors, gs_diag *d)
+{
+    const gs_scene *sc = sys->scene;
+    const gs_scene_mesh *sm = &sc->meshes[m->index];
+    for (int k = 0; k < 2; k++) {
+        int bi = sm->gear[k];
+        const gs_scene_body *b = &sc->bodies[bi];
+        const gs_gear_mods *md = b->mods;
+        char field[64];
+        if (!profile && gs_gear_mods_has_profile(md)) {
+            snprintf(field, sizeof field, "bodies[%d].modification", bi);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "a %s mesh ('%s') cannot represent the profile modifications of '%s': use a "
+                               "contact, compliant or calibrated lumped mesh", kind, sm->name, b->name);
+        }
+        int errs = (b->pitch_error_tooth >= 0 && b->pitch_error != 0.0) || (md && md->runout_m != 0.0);
+        for (int t = 0; md && t < md->n_pitch; t++)
+            errs |= md->pitch_m[t] != 0.0;
+        if (!errors && errs) {
+            snprintf(field, sizeof field, "bodies[%d].%s", bi,
+                     md && md->runout_m != 0.0 ? "runout" : "pitch_errors_um");
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "a %s mesh ('%s') cannot represent the pitch errors or run-out of '%s': use a "
+                               "contact mesh", kind, sm->name, b->name);
+        }
+    }
+    return GS_OK;
+}
+
 double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mean)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];

@@ -10,6 +10,12 @@
  * meshes[i].gears. */
 gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d);
 
+/* Refuse modifications a mesh model of `kind` cannot represent, naming
+ * bodies[i].modification (profile) or bodies[i].pitch_errors_um / runout
+ * (tooth errors): `profile` and `errors` say what the model can carry. */
+gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, int profile,
+                               int errors, gs_diag *d);
+
 /* The mesh's damper coefficient (N s/m): the scene's `damping`, or from its
  * `damping_ratio` zeta at the mesh mode of mean stiffness k_mean:
  * c = 2 zeta sqrt(k_mean m_eq), m_eq = 1 / sum a_i^2 / I_i over the

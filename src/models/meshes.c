@@ -205,6 +205,13 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     for (int j = 0; j < r.positions; j++) {
         /* N/(mm um) per mm of face width -> N/m */
         double ks = r.pt[j].k * r.face_width_mm * 1e6, te = r.pt[j].te_um * 1e-6;
+        if (r.modified) {
+            /* Profile modifications: the static TE from the perfect gears'
+             * no-load position, their geometric TE included (te_loaded =
+             * te_raw - te_ref; te itself would hide the relief). */
+            te = r.pt[j].te_loaded_um * 1e-6;
+            ks = r.force_n / te;
+        }
         m->k_table[j] = ks;
         if (tangent) {
             double kt = r.pt[j].k_tan * r.face_width_mm * 1e6;
@@ -239,6 +246,8 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
+    GS_TRY(gsi_mesh_mods_supported(sys, m, sm->stiffness_type == GS_STIFF_CALIBRATED ? "calibrated lumped" : "lumped",
+                                   sm->stiffness_type == GS_STIFF_CALIBRATED, 0, d));
     m->k_single = sm->k_single;
     m->k_double = sm->stiffness_type == GS_STIFF_CONSTANT ? sm->k_single : sm->k_double;
     if (sm->stiffness_type == GS_STIFF_CALIBRATED)

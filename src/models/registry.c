@@ -2,10 +2,13 @@
  * Registry of body and mesh models by the names the scene uses. Adding a
  * fidelity level is adding a table here. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "gearsim/mesh.h"
+#include "gearsim/modification.h"
 #include "gearsim/models.h"
+#include "gearsim/util.h"
 
 extern const gs_body_ops gsi_body_rigid, gsi_body_elastic;
 extern const gs_gmesh_ops gsi_gmesh_kinematic, gsi_gmesh_lumped, gsi_gmesh_contact, gsi_gmesh_impact,
@@ -33,40 +36,59 @@ const gs_gmesh_ops *gs_gmesh_ops_find(const char *name)
 
 gs_err gs_scene_gear_mesh(const gs_scene_body *sb, gs_mesh **out, gs_diag *d)
 {
+    return gs_scene_gear_mesh_refined(sb, -1, out, d);
+}
+
+gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, gs_mesh **out, gs_diag *d)
+{
     gs_gear_mesh_opts o;
     gs_gear_mesh_opts_defaults(&o);
     o.flank = sb->mesh.flank;
     o.across = sb->mesh.across;
     o.rim = sb->mesh.rim;
-    o.refine = sb->mesh.refine;
+    o.refine = refine >= 0 ? refine : sb->mesh.refine;
     o.grading = sb->mesh.grading;
-    GS_TRY(gs_gear_mesh(&sb->gear, &o, out, d));
-    if (sb->pitch_error_tooth >= 0 && sb->pitch_error != 0.0) {
-        /* A pitch error on one tooth: the tooth turned along the pitch
-         * circle by e / r. The rotation is full from half-way between root
-         * and pitch circles outwards and fades to nothing at the root
-         * circle, so the elements there take up the step (micrometres
-         * against millimetre elements); flank nodes above stay on the
-         * (turned) involute. */
-        gs_mesh *m = *out;
-        const gs_gear_params *g = &sb->gear;
-        double r = gs_gear_pitch_radius(g), rr = gs_gear_root_radius(g);
-        double span = 0.5 * fabs(r - rr), dphi = sb->pitch_error / r;
-        double c0 = 2.0 * GS_PI * sb->pitch_error_tooth / g->teeth, half = GS_PI / g->teeth;
-        bool internal = g->kind == GS_GEAR_INTERNAL;
-        for (gs_index i = 0; i < m->n_nodes; i++) {
-            double x = m->xy[2 * i], y = m->xy[2 * i + 1], rad = hypot(x, y);
-            double a = remainder(atan2(y, x) - c0, 2.0 * GS_PI);
-            if (fabs(a) > half)
-                continue;
-            /* depth into the tooth from the root circle (the ring's root is
-             * outside its pitch circle), 0 at the root, 1 half-way to pitch */
-            double w = (internal ? rr - rad : rad - rr) / span;
-            w = w < 0 ? 0 : (w > 1 ? 1 : w);
-            double t = dphi * w, ct = cos(t), st = sin(t);
-            m->xy[2 * i] = ct * x - st * y;
-            m->xy[2 * i + 1] = st * x + ct * y;
+    return gs_gear_mesh(&sb->gear, &o, out, d);
+}
+
+gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, gs_mesh **out, gs_diag *d)
+{
+    GS_TRY(gs_scene_gear_mesh_perfect(sb, refine, out, d));
+    /* The single pitch_error of a body (the scene folds it into mods; a
+     * body filled by hand may carry it alone). */
+    const gs_gear_mods *mods = sb->mods;
+    gs_gear_mods one;
+    double *table = NULL;
+    if (sb->pitch_error_tooth >= 0 && sb->pitch_error != 0.0 && sb->pitch_error_tooth < sb->gear.teeth &&
+        (!mods || mods->n_pitch == 0)) {
+        table = gs_calloc((size_t)sb->gear.teeth, sizeof *table);
+        if (!table) {
+            gs_mesh_free(out);
+            return GS_ENOMEM;
+        }
+        if (mods)
+            one = *mods;
+        else
+            memset(&one, 0, sizeof one);
+        table[sb->pitch_error_tooth] = sb->pitch_error;
+        one.n_pitch = sb->gear.teeth;
+        one.pitch_m = table;
+        mods = &one;
+    }
+    if (gs_gear_mods_any(mods)) {
+        /* Profile modifications, pitch errors and run-out
+         * (include/gearsim/modification.h). */
+        gs_gear_geom g;
+        gs_err e = gs_gear_geometry(&sb->gear, &g, d);
+        if (e == GS_OK)
+            e = gs_gear_mods_apply_mesh(&g, mods, *out, d);
+        free(table);
+        table = NULL;
+        if (e != GS_OK) {
+            gs_mesh_free(out);
+            return e;
         }
     }
+    free(table);
     return GS_OK;
 }

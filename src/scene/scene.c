@@ -11,6 +11,7 @@
 #include "gearsim/scene.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "scene/scene_mods.h"
 
 #define MAX_BODIES 64
 #define MAX_MESHES 256
@@ -23,7 +24,8 @@ static const char *const top_keys[] = {"name", "bodies", "joints", "meshes", "lo
                                        "train", NULL};
 static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
-    "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error", NULL};
+    "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error",
+    "modification", "pitch_errors_um", "runout", NULL};
 static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", NULL};
 static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
@@ -80,6 +82,8 @@ void gs_scene_free(gs_scene **ps)
     gs_scene *s = *ps;
     for (int i = 0; i < s->n_loads; i++)
         gs_scene_load_clear(&s->loads[i]);
+    for (int i = 0; s->bodies && i < s->n_bodies; i++)
+        gs_gear_mods_free(&s->bodies[i].mods);
     free(s->bodies);
     free(s->meshes);
     free(s->loads);
@@ -194,7 +198,8 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     if (b->type == GS_BODY_CARRIER) {
         static const char *const gear_only[] = {"kind", "teeth", "module_mm", "pressure_angle_deg",
             "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm", "face_width_mm",
-            "hub_radius_mm", "material", "mesh", "pitch_error", NULL};
+            "hub_radius_mm", "material", "mesh", "pitch_error", "modification", "pitch_errors_um",
+            "runout", NULL};
         for (const char *const *k = gear_only; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 char p[256];
@@ -282,6 +287,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         b->pitch_error = x * 1e-6;
     }
     GS_TRY(prefix_diag(gs_gear_validate(g, d), d, path));
+    GS_TRY(gsi_scene_parse_mods(o, path, b, d));
     /* Size limit before anything is meshed: every gear counts, since
      * contact meshes mesh rigid gears too. */
     double unknowns = gs_scene_body_unknowns(b);
@@ -930,6 +936,8 @@ static gs_err expand_train(json_object *c, gs_diag *d)
         double a = 0;
         if (e == GS_OK)
             e = gs_pair_tight_centre_distance(&sb.gear, &pb.gear, &a, d);
+        gs_gear_mods_free(&sb.mods);
+        gs_gear_mods_free(&pb.mods);
         if (e != GS_OK) {
             json_object_put(bodies), json_object_put(joints), json_object_put(meshes);
             return e;

@@ -20,6 +20,7 @@
 
 #include "gearsim/geometry.h"
 #include "gearsim/mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/mesh_io.h"
 #include "gearsim/scene.h"
 #include "tool.h"
@@ -107,14 +108,8 @@ int main(int argc, char **argv)
         const gs_scene_body *b = &s->bodies[i];
         if (b->type != GS_BODY_GEAR)
             continue;
-        gs_gear_mesh_opts o;
-        gs_gear_mesh_opts_defaults(&o);
-        o.flank = b->mesh.flank;
-        o.across = b->mesh.across;
-        o.rim = b->mesh.rim;
-        o.refine = refine;
         gs_diag_clear(&d);
-        e = gs_gear_mesh(&b->gear, &o, &meshes[i], &d);
+        e = gs_scene_gear_mesh_refined(b, refine, &meshes[i], &d);
         if (e != GS_OK) {
             fprintf(stderr, "gearsim-mesh: bodies[%d] (%s): %s: %s (%s)\n", i, b->name, d.field,
                     d.message, gs_errcode(e));

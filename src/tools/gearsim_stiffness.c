@@ -4,7 +4,7 @@
  * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
- *                     [--refine R] [--driver 0|1] [--phase P] [--no-tangent] [--tangent-step H]
+ *                     [--refine R] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -29,7 +29,7 @@
 static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
-               "                         [--refine R] [--driver 0|1] [--phase P] [--no-tangent] [--tangent-step H]\n"
+               "                         [--refine R] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -84,6 +84,11 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
            r->k_mean, r->k_max, r->k_tan_mean);
     printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um\n", r->te_min, r->te_mean,
            r->te_max, r->te_max - r->te_min);
+    if (r->modified)
+        printf("loaded TE with modifications (from the perfect gears' no-load position) min %.4f  "
+               "mean %.4f  max %.4f um   peak-to-peak %.4f um\n",
+               r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max,
+               r->te_loaded_max - r->te_loaded_min);
     printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
            r->solves);
 }
@@ -108,6 +113,12 @@ int main(int argc, char **argv)
                 return 1;
             }
             o.positions = (int)v;
+        } else if (!strcmp(a, "--cycles") && has) {
+            if (!parse_long(argv[++i], 1, 10000, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --cycles must be 1..10000\n");
+                return 1;
+            }
+            o.cycles = (int)v;
         } else if (!strcmp(a, "--refine") && has) {
             if (!parse_long(argv[++i], 0, 6, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --refine must be 0..6\n");

@@ -118,6 +118,39 @@ def mesh(d):
             r.stderr[-2000:])
 
 
+def harris(d):
+    """gearctl stiffness --loads --relief: the Harris map's plumbing (table,
+    plot, JSON) on a coarse, short analysis; the physics is in
+    tests/validation/test_modification.c."""
+    import shutil
+    tool = os.path.join(dmod.BUILD_ROOT, "src", "tools", "gearsim-stiffness")
+    if not (shutil.which("gearsim-stiffness") or os.access(tool, os.X_OK)):
+        R.skip("gearctl stiffness --loads", f"gearsim-stiffness is not built ({tool})")
+        return
+    scene = os.path.join(dmod.SOURCE_ROOT, "deploy", "scenes", "stiffness_pair.json")
+    csv, png = os.path.join(d.dir, "harris.csv"), os.path.join(d.dir, "harris.png")
+    env = dict(os.environ, GEARSIM_BUILD_ROOT=dmod.BUILD_ROOT)
+    r = subprocess.run([GEARCTL, "stiffness", scene, "--mesh", "pw", "--loads", "100,200", "--relief", "0,9.6",
+                        "--positions", "6", "--refine", "0", "--table", csv, "--plot", png, "--json"],
+                       capture_output=True, text=True, timeout=600, env=env)
+    R.check("gearctl stiffness --loads --relief: exit 0, a table and a PNG",
+            r.returncode == 0 and os.path.exists(csv) and is_png(png), r.stdout[-500:] + r.stderr[-2000:])
+    if r.returncode != 0:
+        return
+    out = json.loads(r.stdout)
+    rows = out["rows"]
+    R.check("... 4 rows (2 reliefs x 2 loads), the long relief's default extent (eps - 1) p_b = 4.47 mm",
+            len(rows) == 4 and abs(out["relief_length_mm"] - 4.466) < 0.01, out)
+    with open(csv) as f:
+        lines = f.read().strip().splitlines()
+    R.check("... the CSV has a header and 4 rows", len(lines) == 5 and lines[0].startswith("relief_um,"), lines)
+    pp = {(r_["relief_um"], r_["line_load_n_per_mm"]): r_["te_pp_um"] for r_ in rows}
+    R.check("... the relief changes the peak-to-peak TE", pp[(0.0, 200.0)] != pp[(9.6, 200.0)], pp)
+    r = subprocess.run([GEARCTL, "stiffness", scene, "--relief", "5"], capture_output=True, text=True,
+                       timeout=600, env=env)
+    R.check("... --relief without --loads: refused", r.returncode != 0 and "--loads" in r.stderr, r.stderr)
+
+
 def live_pipe(d):
     r = gearctl(d, "run", "builtin:planetary", "--until", "0.01", "--live")
     pct = [ln for ln in r.stdout.splitlines() if "%" in ln]
@@ -198,6 +231,7 @@ def main():
         R.guard("run and plot", run_and_plot, d)
         R.guard("bad scene", bad_scene, d)
         R.guard("mesh", mesh, d)
+        R.guard("Harris map", harris, d)
         R.guard("live display on a pipe", live_pipe, d)
         R.guard("live display on a terminal", live_tty, d)
         R.guard("simple commands and fetch", simple, d)

@@ -47,6 +47,7 @@
 #include "gearsim/impact.h"
 #include "gearsim/step.h"
 #include "models/compliant_mesh.h"
+#include "compliant_static.h"
 #include "scene_build.h"
 
 static json_object *mesh0(json_object *root)
@@ -196,23 +197,6 @@ static double direct_static(const gs_gmesh_rt *m, double phi, double W, int patc
     return 0.5 * (lo + hi);
 }
 
-/* Same from the model's own tabulated law. */
-static double model_static(const gs_gmesh_rt *m, double phi, double W)
-{
-    double v[8], wt[8];
-    int n = gsi_compliant_pairs(m, phi, 1, v, wt, 8);
-    double lo = 0, hi = 1e-4;
-    for (int it = 0; it < 80; it++) {
-        double mid = 0.5 * (lo + hi), F = 0;
-        for (int j = 0; j < n; j++)
-            F += wt[j] * gsi_compliant_pair_force(m, v[j], mid);
-        if (F < W)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return 0.5 * (lo + hi);
-}
 
 static void static_deflection(void **state)
 {
@@ -256,7 +240,7 @@ static void static_deflection(void **state)
         gsi_compliant_info info;
         assert_true(gsi_compliant_info_get(me, &info));
         int npairs;
-        double xd = direct_static(me, phi, W, info.patches, &npairs), xm = model_static(me, phi, W);
+        double xd = direct_static(me, phi, W, info.patches, &npairs), xm = vt_compliant_static(me, phi, W);
         print_message("static, phase %.3f (%d pair%s): settled deflection %.6f um "
                       "(omega %.2e rad/s, force %.3f N, "
                       "W = M/rb = %.3f N); direct patch-model balance %.6f um "
@@ -321,7 +305,7 @@ static stiff measure(gs_system *s, double W)
     r.kmin = INFINITY;
     r.kmax = 0;
     for (int i = 0; i < n; i++) {
-        double phi = (i + 0.5) / n, k = W / model_static(m, phi, W) * 1e-6 / b, v[8], wt[8];
+        double phi = (i + 0.5) / n, k = W / vt_compliant_static(m, phi, W) * 1e-6 / b, v[8], wt[8];
         int np = gsi_compliant_pairs(m, phi, 1, v, wt, 8), engaged = 0;
         for (int j = 0; j < np; j++)
             engaged += wt[j] > 0;
