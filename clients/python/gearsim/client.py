@@ -59,6 +59,7 @@ class Client:
         except GearsimError:
             self._cmd.close(linger=0)
             raise
+        self._cmd.setsockopt(zmq.IPV6, 1)   # the daemon may listen on ::1 (--bind ::1)
         self._cmd.connect(self.info["command"])
         self._sub = None
         self._topics = None
@@ -300,6 +301,7 @@ class Client:
             self._topics = set(topics)
             for t in self._topics | {"heartbeat"}:
                 sub.setsockopt(zmq.SUBSCRIBE, t.encode())
+        sub.setsockopt(zmq.IPV6, 1)
         sub.connect(self.info["telemetry"])
         self._sub = sub
         deadline = _time.monotonic() + timeout
