@@ -247,6 +247,16 @@ class Client:
     def jobs(self):
         return self.request("jobs")
 
+    def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, timeout=None):
+        """Quasi-static mesh stiffness and transmission error of one mesh of
+        the loaded scene (docs/STIFFNESS.md); blocks the daemon for its
+        duration (seconds), so the reply timeout defaults to 600 s."""
+        args = {"mesh": mesh}
+        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
+            if v is not None:
+                args[k] = str(v) if k == "path" else v
+        return self.request("stiffness", args, timeout=600.0 if timeout is None else timeout)
+
     def fetch(self, path, out_path=None, chunk=FETCH_CHUNK):
         """Download a file of the daemon's data directory in chunks (base64).
         Writes it to out_path and returns its size, or returns the bytes if
