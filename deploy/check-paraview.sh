@@ -12,12 +12,12 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 out=${1:-docs/img}
-if ! command -v pvbatch >/dev/null; then
+if ! command -v pvbatch >/dev/null || ! dpkg-query -W python3-paraview >/dev/null 2>&1; then
   SUDO=""
   [ "$(id -u)" -eq 0 ] || SUDO="sudo"
   export DEBIAN_FRONTEND=noninteractive
   $SUDO apt-get update -qq
-  $SUDO apt-get install -y -qq --no-install-recommends paraview xvfb xauth >/dev/null
+  $SUDO apt-get install -y -qq --no-install-recommends paraview python3-paraview xvfb xauth >/dev/null
 fi
 . deploy/env.sh
 build=${GEARSIM_BUILD:-build}

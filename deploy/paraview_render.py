@@ -12,7 +12,7 @@ import json
 import sys
 
 from paraview.simple import (ColorBy, CreateView, GetColorTransferFunction, GetScalarBar, OpenDataFile,
-                             SaveScreenshot, Show, UpdatePipeline)
+                             SaveScreenshot, Show, Text, UpdatePipeline)
 
 
 def main():
@@ -34,13 +34,19 @@ def main():
     disp = Show(reader, view)
     ColorBy(disp, ("POINTS", "von_mises"))
     lut = GetColorTransferFunction("von_mises")
-    lut.ApplyPreset("Turbo" if "Turbo" in str(lut.ListColorPresetNames()) else "Jet", True)
+    if not lut.ApplyPreset("Turbo", True):
+        lut.ApplyPreset("Jet", True)
     bar = GetScalarBar(lut, view)
     bar.Title = "von Mises (Pa)"
     bar.ComponentTitle = ""
     bar.TitleColor = bar.LabelColor = [0.0, 0.0, 0.0]
     bar.Visibility = 1
     disp.SetScalarBarVisibility(view, True)
+    label = Text()
+    label_disp = Show(label, view)
+    label_disp.WindowLocation = "Upper Center"
+    label_disp.FontSize = 14
+    label_disp.Color = [0.0, 0.0, 0.0]
     for i, t in enumerate(instants):
         # the frame at or before t
         tk = max([x for x in times if x <= t + 1e-12] or times[:1])
@@ -49,6 +55,8 @@ def main():
         info = reader.GetDataInformation()
         rng = reader.PointData["von_mises"].GetRange() if "von_mises" in reader.PointData.keys() else (None, None)
         lut.RescaleTransferFunction(0.0, max(rng[1] or 1.0, 1.0))
+        label.Text = (f"contact_impact, t = {tk * 1e3:.1f} ms: von Mises stress on the deformed gears "
+                      f"(max {rng[1] / 1e6:.0f} MPa), read by {name}")
         view.ResetCamera()
         view.CameraParallelProjection = 1
         out = f"{prefix}_{i + 1}.png"
