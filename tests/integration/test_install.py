@@ -31,13 +31,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from daemon import BUILD_ROOT, MPI_ENV, SOURCE_ROOT  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, scratch_dir  # noqa: E402
 
 LONG = os.environ.get("GEARSIM_LONG") == "1"
 CHECKOUT_VARS = ("GEARSIM_SOURCE_ROOT", "GEARSIM_BUILD_ROOT", "PYTHONPATH", "PKG_CONFIG_PATH")
@@ -286,15 +285,11 @@ def pip_install(R, P, env, tmp, work):
 
 def main():
     R = Results("meson install into a prefix, then only the installed programs")
-    tmp = tempfile.mkdtemp(prefix="gearsim-install-")
-    try:
+    with scratch_dir("gearsim-install-") as tmp:
         P, libdir = R.guard("install", install, R, tmp) or (None, None)
         if P and os.path.isdir(P):
             R.guard("layout", check_layout, R, P, libdir)
             R.guard("installed programs", with_daemon, R, P, libdir, tmp)
-    finally:
-        if os.environ.get("GEARSIM_KEEP_TMP") != "1":
-            shutil.rmtree(tmp, ignore_errors=True)
     R.finish()
 
 

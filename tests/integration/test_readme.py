@@ -28,13 +28,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from daemon import BUILD_ROOT, SOURCE_ROOT  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, scratch_dir  # noqa: E402
 
 DOCS = ["README.md", os.path.join("clients", "README.md")]
 SKIP_SECTIONS = {"Quick start"}
@@ -346,37 +345,33 @@ def self_check(R, tmp):
 
 
 # ---------------------------------------------------------------- breaking
+def replace_once(path, old, new):
+    """Replace the first `old` in the file by `new`; returns the new text."""
+    with open(path) as f:
+        text = f.read()
+    assert old in text, (path, old)
+    text = text.replace(old, new, 1)
+    with open(path, "w") as f:
+        f.write(text)
+    return text
+
+
 def break_copy(tree):
     """One command and one sample output broken in the copy; returns the
     two (doc, line) that must fail."""
-    want = []
-    p = os.path.join(tree, "README.md")
-    with open(p) as f:
-        text = f.read()
-    old = "gearctl plot run.h5 -o run.png"
-    assert old in text
-    text = text.replace(old, "gearctl plot no-such-record.h5 -o run.png", 1)
-    with open(p, "w") as f:
-        f.write(text)
-    want.append(("README.md", next(b.line for b in parse("README.md", text) if "no-such-record" in b.text)))
-    p = os.path.join(tree, "clients", "README.md")
-    with open(p) as f:
-        text = f.read()
-    old = "pinion=6.721805421"
-    assert old in text
-    text = text.replace(old, "pinion=6.731805421", 1)
-    with open(p, "w") as f:
-        f.write(text)
-    want.append((os.path.join("clients", "README.md"),
-                 next(b.line for b in parse("clients/README.md", text) if b.expected and "6.731805421" in b.expected)))
+    text = replace_once(os.path.join(tree, "README.md"), "gearctl plot run.h5 -o run.png",
+                        "gearctl plot no-such-record.h5 -o run.png")
+    want = [("README.md", next(b.line for b in parse("README.md", text) if "no-such-record" in b.text))]
+    doc = os.path.join("clients", "README.md")
+    text = replace_once(os.path.join(tree, doc), "pinion=6.721805421", "pinion=6.731805421")
+    want.append((doc, next(b.line for b in parse(doc, text) if b.expected and "6.731805421" in b.expected)))
     return want
 
 
 def main():
     broken = "--broken" in sys.argv[1:]
     R = Results("README snippets run as typed" + (" (deliberately broken copy)" if broken else ""))
-    tmp = tempfile.mkdtemp(prefix="gearsim-readme-")
-    try:
+    with scratch_dir("gearsim-readme-") as tmp:
         if broken:
             tree = copy_tree(tmp)
             want = break_copy(tree)
@@ -390,9 +385,6 @@ def main():
             R.guard("self-check", self_check, R, tmp)
             tree = copy_tree(tmp)
             run_docs(R, tree, tmp, DOCS)
-    finally:
-        if os.environ.get("GEARSIM_KEEP_TMP") != "1":
-            shutil.rmtree(tmp, ignore_errors=True)
     R.finish()
 
 

@@ -15,17 +15,15 @@ clients look for each other, the data directory, and start-up errors.
 import json
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 from daemon import BUILD_ROOT, MPI_ENV, SOURCE_ROOT, gearsimd_path  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, scratch_dir  # noqa: E402
 
 import gearsim  # noqa: E402
 
@@ -199,14 +197,11 @@ def default_connection_file(R, tmp):
 
 def main():
     R = Results("gearsimd start-up: data directory, errors on every rank, binds, default connection file")
-    tmp = tempfile.mkdtemp(prefix="gearsim-startup-")
-    try:
+    with scratch_dir("gearsim-startup-") as tmp:
         for name, fn in (("bad data dir", bad_data_dir), ("refused bind", refused_bind),
                          ("created data dir", created_data_dir), ("binds", binds),
                          ("default connection file", default_connection_file)):
             R.guard(name, fn, R, tmp)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
     R.finish()
 
 
