@@ -15,7 +15,8 @@ P/lib/python3/dist-packages for the Python session):
     env.sh, man pages;
   * gearsimd --help and gearctl --help; the man pages format;
   * gearsimd under mpirun (with the installed env.sh), found through the
-    default connection file; hello lists every installed scene as builtin;
+    default connection file; hello lists every installed scene as builtin,
+    including one added to share/gearsim/scenes, which loads by name;
   * gearctl run (telemetry and record downloaded), gearctl plot, gearctl
     advise (the installed table), gearctl mesh (the installed gearsim-mesh);
   * a C program built with `pkg-config gearsim-client` against the installed
@@ -185,6 +186,17 @@ def with_daemon(R, P, libdir, tmp):
         r = run(["man", "-l", "-P", "cat", os.path.join(P, "share", "man", "man1", page + ".1")],
                 dict(env, MANWIDTH="80"), work, timeout=60)
         R.check(f"man page {page}(1) formats", r.returncode == 0 and "SYNOPSIS" in r.stdout, r.stderr[-500:])
+    # A scene added to the installation is a builtin too. With --destdir the
+    # daemon's compiled-in scenes directory is the final prefix's, so point
+    # it at P (GEARSIM_SCENE_DIR); the fresh-clone mode uses the default.
+    scenes = os.path.join(P, "share", "gearsim", "scenes")
+    with open(os.path.join(scenes, "pair.json")) as f:
+        mine = json.load(f)
+    mine["name"] = "my own pair"
+    with open(os.path.join(scenes, "my_pair.json"), "w") as f:
+        json.dump(mine, f)
+    if not LONG:
+        env["GEARSIM_SCENE_DIR"] = scenes
     env_sh = os.path.join(P, "share", "gearsim", "deploy", "env.sh")
     daemon = subprocess.Popen(["bash", "-c", f'. "{env_sh}" && exec mpirun -n 2 gearsimd --data-dir data'],
                               env=env, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -202,6 +214,10 @@ def with_daemon(R, P, libdir, tmp):
                       for p in glob.glob(os.path.join(P, "share", "gearsim", "scenes", "*.json")))
         R.check("gearctl hello: every installed scene is a builtin", sorted(hello.get("builtin_scenes", [])) == inst,
                 f"{hello.get('builtin_scenes')} vs {inst}; {r.stderr}")
+        R.check("a scene added to share/gearsim/scenes is listed as builtin", "my_pair" in hello.get("builtin_scenes", []))
+        r = run(["gearctl", "run", "builtin:my_pair", "--until", "0.002"], env, work)
+        R.check("gearctl run builtin:my_pair (the added scene)", r.returncode == 0 and "done:" in r.stdout,
+                r.stdout[-1000:] + r.stderr[-1000:])
         r = run(["gearctl", "run", "builtin:pair", "--until", "0.02", "--telemetry", "out.jsonl",
                  "--record", "run.h5"], env, work)
         ok = r.returncode == 0 and os.path.isfile(os.path.join(work, "run.h5"))
