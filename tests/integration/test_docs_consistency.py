@@ -69,6 +69,13 @@ def main():
     R = Results("docs and schemas against the daemon's hello, command table and error table")
     with Daemon(ranks=1) as d:
         hello = d.hello
+        # Client.stiffness (added with the command's schema entry) works
+        with d.client() as c:
+            c.load(builtin="stiffness_pair")
+            mesh = c.state()["meshes"][0]["name"]
+            r = c.stiffness(mesh, positions=2)
+        R.check("Client.stiffness returns the schema's result", r.get("positions") == 2 and len(r.get("points", [])) == 2
+                and 0 < r["k"]["min"] <= r["k"]["max"], r)
     cmds = set(hello["commands"])
     R.check("hello lists commands", len(cmds) > 10, hello.get("commands"))
 
