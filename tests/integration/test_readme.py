@@ -236,8 +236,15 @@ def copy_tree(tmp):
     tmp/tree, with build/ a link to the build under test."""
     tree = os.path.join(tmp, "tree")
     r = subprocess.run(["git", "-C", SOURCE_ROOT, "ls-files", "-co", "--exclude-standard", "-z"],
-                       capture_output=True, check=True)
-    for rel in r.stdout.decode().split("\0"):
+                       capture_output=True)
+    if r.returncode == 0:
+        files = r.stdout.decode().split("\0")
+    else:   # not a git checkout (an unpacked tarball): every file but build trees and caches
+        files = []
+        for d, dirs, names in os.walk(SOURCE_ROOT):
+            dirs[:] = [x for x in dirs if not x.startswith(("build", ".git", "__pycache__"))]
+            files += [os.path.relpath(os.path.join(d, n), SOURCE_ROOT) for n in names]
+    for rel in files:
         src = os.path.join(SOURCE_ROOT, rel)
         if not rel or not os.path.isfile(src):
             continue
