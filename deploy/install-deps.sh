@@ -8,7 +8,9 @@ pkgs=(build-essential pkgconf meson ninja-build
       libhdf5-openmpi-dev hdf5-tools libsuitesparse-dev liblapacke-dev libopenblas-dev
       libcmocka-dev python3 python3-zmq python3-h5py python3-numpy python3-jsonschema
       python3-matplotlib python3-cvxopt
-      clang libclang-rt-14-dev)  # clang + libFuzzer: tests/fuzz, deploy/fuzz.sh
+      clang libclang-rt-14-dev  # clang + libFuzzer: tests/fuzz, deploy/fuzz.sh
+      jupyter-nbconvert python3-ipykernel python3-nbclient python3-nbformat  # the example notebook
+      python3-pip python3-setuptools python3-wheel)  # pip install ./clients/python (test_install)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -126,8 +126,9 @@ int gsc_client_new(const char *connection_file, gsc_client **out, gsc_error *err
     json_object_put(info);
     c->ctx = zmq_ctx_new();
     c->cmd = c->ctx ? zmq_socket(c->ctx, ZMQ_DEALER) : NULL;
-    int linger = 0;
-    if (!c->cmd || zmq_setsockopt(c->cmd, ZMQ_LINGER, &linger, sizeof linger) || apply_curve(c, c->cmd) ||
+    int linger = 0, v6 = 1; /* IPv6 on: the daemon may listen on ::1 */
+    if (!c->cmd || zmq_setsockopt(c->cmd, ZMQ_LINGER, &linger, sizeof linger) ||
+        zmq_setsockopt(c->cmd, ZMQ_IPV6, &v6, sizeof v6) || apply_curve(c, c->cmd) ||
         zmq_connect(c->cmd, c->command_ep)) {
         set_err(err, "io_error", "", "cannot connect to %s: %s", c->command_ep, zmq_strerror(zmq_errno()));
         gsc_client_free(&c);
@@ -314,8 +315,9 @@ int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *e
     if (c->sub)
         return 0;
     c->sub = zmq_socket(c->ctx, ZMQ_SUB);
-    int linger = 0, hwm = 100000;
+    int linger = 0, hwm = 100000, v6 = 1;
     if (!c->sub || zmq_setsockopt(c->sub, ZMQ_LINGER, &linger, sizeof linger) ||
+        zmq_setsockopt(c->sub, ZMQ_IPV6, &v6, sizeof v6) ||
         zmq_setsockopt(c->sub, ZMQ_RCVHWM, &hwm, sizeof hwm) ||
         zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, topic, strlen(topic)) ||
         (topic[0] && zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, "heartbeat", 9)) || apply_curve(c, c->sub) ||

@@ -127,9 +127,13 @@ gs_err gs_scene_parse(const char *json_text, size_t len, gs_scene **out, gs_diag
 /* Validate an already parsed JSON object (borrowed). */
 struct json_object;
 gs_err gs_scene_from_json(struct json_object *root, gs_scene **out, gs_diag *d);
-/* Embedded example scenes ("pair", "planetary"); NULL if unknown. */
+/* Embedded example scenes ("pair", "planetary"), else NAME.json of the
+ * installed scenes directory (share/gearsim/scenes; $GEARSIM_SCENE_DIR
+ * overrides it; names of letters, digits, '_' and '-' only); NULL if
+ * unknown. Not thread-safe. */
 const char *gs_scene_builtin(const char *name);
-/* NULL-terminated list of builtin scene names. */
+/* NULL-terminated list of builtin scene names: the embedded ones, then the
+ * other scenes of the installed directory. */
 const char *const *gs_scene_builtin_names(void);
 /* Read a file and parse it. */
 gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d);

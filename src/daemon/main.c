@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gearsim/engine.h"
@@ -26,7 +27,9 @@ static void usage(FILE *f)
             "                [--insecure-loopback]\n"
             "Run under mpirun -n N. Binds loopback by default; the endpoints go to the\n"
             "connection file (default $XDG_RUNTIME_DIR/gearsim/gearsimd.json or\n"
-            "/tmp/gearsim-$UID/gearsimd.json). Any other --bind needs CURVE: the\n"
+            "/tmp/gearsim-$UID/gearsimd.json, where the clients look by default).\n"
+            "--data-dir (default: the working directory) is created when missing; an\n"
+            "unusable one stops every rank with status 2. Any other --bind needs CURVE: the\n"
             "server's secret key file and the client public keys allowed (files of\n"
             "`gearctl keys`). --config reads `key = value` lines whose keys are the\n"
             "long options without '--' (deploy/gearsimd.conf); flags given on the\n"
@@ -184,6 +187,68 @@ static int read_config(daemon_opts *o, const char *path, int rank)
     return bad ? -1 : 0;
 }
 
+/* mkdir -p: every missing component of dir is created (mode 0755 less the
+ * umask). 0, or -1 with errno set. */
+static int make_dirs(const char *dir)
+{
+    char p[4096];
+    if (snprintf(p, sizeof p, "%s", dir) >= (int)sizeof p) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    for (char *q = p + 1;; q++) {
+        if (*q == '/' || *q == '\0') {
+            char keep = *q;
+            *q = '\0';
+            if (mkdir(p, 0755) != 0 && errno != EEXIST)
+                return -1;
+            *q = keep;
+            if (!keep)
+                break;
+        }
+    }
+    return 0;
+}
+
+/* The data directory, created when missing, must be a writable directory.
+ * Rank 0 creates it first (on a shared file system the others then find it),
+ * then every rank checks it (and creates it on a node-local file system).
+ * 0 on every rank when all are fine, else -1 on every rank, with the reason
+ * printed by each rank that failed. */
+static int prepare_data_dir(const char *dir, int rank)
+{
+    int ok = 1;
+    if (!dir[0]) {
+        if (rank == 0)
+            fprintf(stderr, "gearsimd: --data-dir: empty path\n");
+        return -1;
+    }
+    for (int pass = 0; pass < 2; pass++) {
+        if ((pass == 0) == (rank == 0)) {
+            struct stat st;
+            const char *why = NULL;
+            if (make_dirs(dir) != 0)
+                why = strerror(errno);
+            else if (stat(dir, &st) != 0)
+                why = strerror(errno);
+            else if (!S_ISDIR(st.st_mode))
+                why = "not a directory";
+            else if (access(dir, W_OK | X_OK) != 0)
+                why = "not writable";
+            if (why) {
+                fprintf(stderr, "gearsimd: --data-dir '%s' cannot be used (rank %d): %s\n", dir, rank, why);
+                ok = 0;
+            }
+        }
+        if (pass == 0)
+            MPI_Bcast(&ok, 1, MPI_INT, 0, MPI_COMM_WORLD);
+        if (!ok)
+            return -1; /* rank 0 failed: nobody goes on */
+    }
+    MPI_Allreduce(MPI_IN_PLACE, &ok, 1, MPI_INT, MPI_MIN, MPI_COMM_WORLD);
+    return ok ? 0 : -1;
+}
+
 int main(int argc, char **argv)
 {
     /* A write past RLIMIT_FSIZE fails with EFBIG instead of killing the
@@ -289,6 +354,10 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return status;
     }
+    if (prepare_data_dir(o.cfg.data_dir, rank) != 0) {
+        MPI_Finalize();
+        return 2;
+    }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
     gs_service_set_max_record_mb(o.max_record_mb);
@@ -297,7 +366,11 @@ int main(int argc, char **argv)
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);
     gs_err e = rank == 0 ? gs_service_run(eng, &o.cfg) : gs_engine_serve(eng);
+    /* Every rank exits with rank 0's status: a start-up error of the service
+     * (bind, connection file) fails the whole job, not rank 0 alone. */
+    int status = e == GS_OK ? 0 : 1;
+    MPI_Bcast(&status, 1, MPI_INT, 0, MPI_COMM_WORLD);
     gs_engine_free(&eng);
     MPI_Finalize();
-    return e == GS_OK ? 0 : 1;
+    return status;
 }

@@ -540,27 +540,30 @@ static void xml_text(FILE *f, const char *s)
     }
 }
 
+/* Frame k of /fields/<body>/<ds> (T frames of n nodes, c columns, or one
+ * value per node when c == 0), in XDMF 3's own hyperslab form: the HDF path
+ * followed by |start:stride:count:dimensions of the dataset. This is what
+ * ParaView's default .xmf reader (Xdmf3 Reader S/T) reads; it ignores the
+ * XDMF 2 form (ItemType="HyperSlab" with two child items) and crashes on it
+ * in a Geometry (ParaView 5.11, deploy/check-paraview.sh). */
 static void xmf_slab(FILE *f, const char *h5, const char *body, const char *ds, int64_t k,
                      int64_t T, gs_index n, int c)
 {
     const char *ind = "            ";
-    if (c > 0) {
-        fprintf(f, "%s<DataItem ItemType=\"HyperSlab\" Dimensions=\"1 %lld %d\" Type=\"HyperSlab\">\n",
+    if (c > 0)
+        fprintf(f, "%s<DataItem Dimensions=\"1 %lld %d\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">",
                 ind, (long long)n, c);
-        fprintf(f, "%s  <DataItem Dimensions=\"3 3\" Format=\"XML\">%lld 0 0 1 1 1 1 %lld %d</DataItem>\n",
-                ind, (long long)k, (long long)n, c);
-        fprintf(f, "%s  <DataItem Dimensions=\"%lld %lld %d\" NumberType=\"Float\" Precision=\"8\" "
-                   "Format=\"HDF\">", ind, (long long)T, (long long)n, c);
-    } else {
-        fprintf(f, "%s<DataItem ItemType=\"HyperSlab\" Dimensions=\"1 %lld\" Type=\"HyperSlab\">\n",
+    else
+        fprintf(f, "%s<DataItem Dimensions=\"1 %lld\" NumberType=\"Float\" Precision=\"8\" Format=\"HDF\">",
                 ind, (long long)n);
-        fprintf(f, "%s  <DataItem Dimensions=\"3 2\" Format=\"XML\">%lld 0 1 1 1 %lld</DataItem>\n",
-                ind, (long long)k, (long long)n);
-        fprintf(f, "%s  <DataItem Dimensions=\"%lld %lld\" NumberType=\"Float\" Precision=\"8\" "
-                   "Format=\"HDF\">", ind, (long long)T, (long long)n);
-    }
     xml_text(f, h5);
-    fprintf(f, ":/fields/%s/%s</DataItem>\n%s</DataItem>\n", body, ds, ind);
+    fprintf(f, ":/fields/%s/%s", body, ds);
+    if (c > 0)
+        fprintf(f, "|%lld 0 0:1 1 1:1 %lld %d:%lld %lld %d", (long long)k, (long long)n, c, (long long)T,
+                (long long)n, c);
+    else
+        fprintf(f, "|%lld 0:1 1:1 %lld:%lld %lld", (long long)k, (long long)n, (long long)T, (long long)n);
+    fprintf(f, "</DataItem>\n");
 }
 
 static void xmf_grid(FILE *f, const char *h5, const rec_body *rb, int64_t k)

@@ -354,7 +354,7 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     } else {
         json_object_object_add(o, "advance", NULL);
     }
-    json_object_object_add(o, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
+    json_object_object_add(o, "recording", s->record ? json_object_new_string(gsi_data_relative(s, gs_record_path(s->record))) : NULL);
     int queued = 0;
     for (int i = 0; i < s->n_jobs; i++)
         queued += strcmp(s->jobs[i].state, "queued") == 0;
@@ -470,7 +470,7 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
         gsi_record_flush_or_stop(s, "the record could not be written");
     }
     *res = json_object_new_object();
-    json_object_object_add(*res, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
+    json_object_object_add(*res, "recording", s->record ? json_object_new_string(gsi_data_relative(s, gs_record_path(s->record))) : NULL);
     return GS_OK;
 }
 
@@ -608,10 +608,7 @@ void gsi_autosave_if_due(gs_service *s)
     /* Everything recorded before the checkpoint goes to disk first. */
     gsi_record_flush_or_stop(s, "the record could not be written");
     if (s->record) {
-        const char *rp = gs_record_path(s->record);
-        size_t dl = strlen(s->data_dir);
-        snprintf(a.record, sizeof a.record, "%s",
-                 strncmp(rp, s->data_dir, dl) == 0 && rp[dl] == '/' ? rp + dl + 1 : rp);
+        snprintf(a.record, sizeof a.record, "%s", gsi_data_relative(s, gs_record_path(s->record)));
         a.record_rows = gs_record_rows(s->record);
         a.n_field_bodies = gs_record_n_meshes(s->record);
         if (a.n_field_bodies > GS_AUTOSAVE_MAX_BODIES)

@@ -310,6 +310,14 @@ gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, b
     return GS_OK;
 }
 
+const char *gsi_data_relative(const gs_service *s, const char *full)
+{
+    size_t dl = strlen(s->data_dir);
+    if (strncmp(full, s->data_dir, dl) == 0 && full[dl] == '/')
+        return full + dl + 1;
+    return full;
+}
+
 /* Strict UTF-8 (no overlongs, surrogates or code points above U+10FFFF):
  * a request that is not text is refused before anything echoes it. */
 static bool valid_utf8(const unsigned char *p, size_t n)
@@ -751,11 +759,25 @@ static gs_err write_connection_file(gs_service *s)
 
 static gs_err bind_socket(void *sock, const char *bind, int port, char *out, size_t cap)
 {
+    /* ZeroMQ binds addresses and interface names, not host names: localhost
+     * is 127.0.0.1; an IPv6 address ("::1", "[::1]") needs ZMQ_IPV6 and
+     * brackets. */
+    char host[256];
+    if (!strcmp(bind, "localhost"))
+        snprintf(host, sizeof host, "127.0.0.1");
+    else if (strchr(bind, ':') && bind[0] != '[')
+        snprintf(host, sizeof host, "[%s]", bind);
+    else
+        snprintf(host, sizeof host, "%s", bind);
+    if (strchr(host, ':')) {
+        int v6 = 1;
+        zmq_setsockopt(sock, ZMQ_IPV6, &v6, sizeof v6);
+    }
     char ep[300];
     if (port > 0)
-        snprintf(ep, sizeof ep, "tcp://%s:%d", bind, port);
+        snprintf(ep, sizeof ep, "tcp://%s:%d", host, port);
     else
-        snprintf(ep, sizeof ep, "tcp://%s:*", bind);
+        snprintf(ep, sizeof ep, "tcp://%s:*", host);
     if (zmq_bind(sock, ep) != 0) {
         fprintf(stderr, "gearsimd: cannot bind %s: %s\n", ep, zmq_strerror(errno));
         return GS_EIO;
@@ -812,6 +834,8 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     if (!s)
         return GS_ENOMEM;
     if (gsi_service_init(s, eng, cfg) != GS_OK) {
+        gs_diag d;
+        gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL); /* release the other ranks */
         free(s);
         return GS_EIO;
     }

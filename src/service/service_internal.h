@@ -84,6 +84,9 @@ json_object *gsi_state_json(gs_service *s);
 gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d);
 /* The same, HDF5 creating the file through create_as (/proc/self/fd/N). */
 gs_err gsi_record_open_as(gs_service *s, const char *path, const char *create_as, gs_record **out, gs_diag *d);
+/* A path under the data directory as the client gave it (relative to it);
+ * any other path unchanged. Points into full. */
+const char *gsi_data_relative(const gs_service *s, const char *full);
 /* Resolve a client path inside the data directory; refuses absolute paths,
  * '..' components and symlinks that lead outside. */
 gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,

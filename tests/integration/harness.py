@@ -1,8 +1,12 @@
 # SPDX-License-Identifier: MIT
 """Tiny test harness shared by the integration tests: named checks, a final
 `N passed, N failed` line, and a non-zero exit status on failure."""
+import contextlib
 import json
+import os
+import shutil
 import sys
+import tempfile
 import time
 import traceback
 
@@ -63,6 +67,20 @@ class Results:
             print("# failed: " + ", ".join(self.failures))
         print(f"{self.passed} passed, {self.failed} failed", flush=True)
         sys.exit(1 if self.failed else 0)
+
+
+@contextlib.contextmanager
+def scratch_dir(prefix):
+    """A temporary directory for one test, removed at the end unless
+    GEARSIM_KEEP_TMP=1 (then its path is printed)."""
+    tmp = tempfile.mkdtemp(prefix=prefix)
+    try:
+        yield tmp
+    finally:
+        if os.environ.get("GEARSIM_KEEP_TMP") == "1":
+            print(f"# kept {tmp}", flush=True)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
 
 
 class RawDealer:

@@ -60,6 +60,7 @@ class Client:
         except GearsimError:
             self._cmd.close(linger=0)
             raise
+        self._cmd.setsockopt(zmq.IPV6, 1)   # the daemon may listen on ::1 (--bind ::1)
         self._cmd.connect(self.info["command"])
         self._sub = None
         self._topics = None
@@ -247,6 +248,16 @@ class Client:
     def jobs(self):
         return self.request("jobs")
 
+    def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, timeout=None):
+        """Quasi-static mesh stiffness and transmission error of one mesh of
+        the loaded scene (docs/STIFFNESS.md); blocks the daemon for its
+        duration (seconds), so the reply timeout defaults to 600 s."""
+        args = {"mesh": mesh}
+        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
+            if v is not None:
+                args[k] = str(v) if k == "path" else v
+        return self.request("stiffness", args, timeout=600.0 if timeout is None else timeout)
+
     def fetch(self, path, out_path=None, chunk=FETCH_CHUNK):
         """Download a file of the daemon's data directory in chunks (base64).
         Writes it to out_path and returns its size, or returns the bytes if
@@ -301,6 +312,7 @@ class Client:
             self._topics = set(topics)
             for t in self._topics | {"heartbeat"}:
                 sub.setsockopt(zmq.SUBSCRIBE, t.encode())
+        sub.setsockopt(zmq.IPV6, 1)
         sub.connect(self.info["telemetry"])
         self._sub = sub
         deadline = _time.monotonic() + timeout
