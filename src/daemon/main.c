@@ -333,6 +333,11 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return 2;
     }
+    /* The data directory first: the lock lives in it. */
+    if (prepare_data_dir(o.cfg.data_dir, rank) != 0) {
+        MPI_Finalize();
+        return 2;
+    }
     /* Rank 0 sets up CURVE (the operator's keys, or keys made now for a
      * loopback bind) and takes the locks, one daemon per data directory
      * and per connection file; every rank learns the outcome and exits with
@@ -354,10 +359,6 @@ int main(int argc, char **argv)
         MPI_Finalize();
         return status;
     }
-    if (prepare_data_dir(o.cfg.data_dir, rank) != 0) {
-        MPI_Finalize();
-        return 2;
-    }
     gs_service_set_resume(o.resume);
     gs_service_set_max_scene_mb(o.max_scene_mb);
     gs_service_set_max_record_mb(o.max_record_mb);
@@ -368,7 +369,7 @@ int main(int argc, char **argv)
     gs_err e = rank == 0 ? gs_service_run(eng, &o.cfg) : gs_engine_serve(eng);
     /* Every rank exits with rank 0's status: a start-up error of the service
      * (bind, connection file) fails the whole job, not rank 0 alone. */
-    int status = e == GS_OK ? 0 : 1;
+    status = e == GS_OK ? 0 : 1;
     MPI_Bcast(&status, 1, MPI_INT, 0, MPI_COMM_WORLD);
     gs_engine_free(&eng);
     MPI_Finalize();
