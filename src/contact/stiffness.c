@@ -98,6 +98,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     o.rim = b->sb->mesh.rim;
     o.refine = refine >= 0 ? refine : b->sb->mesh.refine;
     o.grading = b->sb->mesh.grading;
+    o.order = b->sb->mesh.order;
     gs_diag md;
     gs_diag_clear(&md);
     gs_err e = gs_gear_mesh(&b->sb->gear, &o, &b->mesh, &md);

@@ -40,6 +40,7 @@ gs_err gs_scene_gear_mesh(const gs_scene_body *sb, gs_mesh **out, gs_diag *d)
     o.rim = sb->mesh.rim;
     o.refine = sb->mesh.refine;
     o.grading = sb->mesh.grading;
+    o.order = sb->mesh.order;
     GS_TRY(gs_gear_mesh(&sb->gear, &o, out, d));
     if (sb->pitch_error_tooth >= 0 && sb->pitch_error != 0.0) {
         /* A pitch error on one tooth: the tooth turned along the pitch
