@@ -132,7 +132,8 @@ typedef struct gs_mesh_quality {
 void gs_mesh_quality_eval(const gs_mesh *m, gs_mesh_quality *q);
 
 /* Make a linear mesh quadratic: one new node at the middle of every edge
- * (shared by the two elements of an interior edge), on the straight chord;
+ * (shared by the two elements of an interior edge), on the straight chord
+ * (fixed when both ends are fixed);
  * tag GS_NODE_INTERIOR for interior edges and the common tag of the ends
  * (else GS_NODE_OTHER) on the boundary. Flank tables and the boundary loop,
  * when present, get the new nodes inserted. For gear meshes gs_gear_mesh

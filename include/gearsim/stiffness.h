@@ -57,6 +57,8 @@ typedef struct gs_stiffness_opts {
                         * h in (0, 0.5]: the central difference over T (1 -+ h), the
                         * tangent at T (te_half NaN) */
     int max_iter;      /* linearisations per load case (default 12) */
+    int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
+                        * for both gears */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

@@ -42,6 +42,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->tangent = 1;
     o->tangent_step = 0.0;
     o->max_iter = 12;
+    o->order = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -83,7 +84,7 @@ static void sbody_free(sbody *b)
     gs_mesh_free(&b->mesh);
 }
 
-static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_diag *d)
+static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbody *b, gs_diag *d)
 {
     char field[64];
     snprintf(field, sizeof field, "bodies[%d]", bi);
@@ -98,7 +99,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     o.rim = b->sb->mesh.rim;
     o.refine = refine >= 0 ? refine : b->sb->mesh.refine;
     o.grading = b->sb->mesh.grading;
-    o.order = b->sb->mesh.order;
+    o.order = order > 0 ? order : b->sb->mesh.order;
     gs_diag md;
     gs_diag_clear(&md);
     gs_err e = gs_gear_mesh(&b->sb->gear, &o, &b->mesh, &md);
@@ -561,6 +562,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         return gs_diag_set(d, GS_ERANGE, "driver", "driver must be gear 0 or 1 of the mesh");
     if (o.refine < -1 || o.refine > 6)
         return gs_diag_set(d, GS_ERANGE, "refine", "refine must be -1 (scene) or 0..6");
+    if (o.order < 0 || o.order > 2)
+        return gs_diag_set(d, GS_ERANGE, "order", "order must be 0 (scene), 1 or 2");
     if (!isfinite(o.torque_nm) || !isfinite(o.phase))
         return gs_diag_set(d, GS_ERANGE, "torque", "torque and phase must be finite");
     if (!(o.tangent_step >= 0.0 && o.tangent_step <= 0.5))
@@ -577,7 +580,7 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
     for (int k = 0; k < 2 && e == GS_OK; k++)
-        e = sbody_init(sc, bidx[k], o.refine, &w.b[k], d);
+        e = sbody_init(sc, bidx[k], o.refine, o.order, &w.b[k], d);
     if (e != GS_OK)
         goto done;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;

@@ -246,9 +246,12 @@ gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
     gs_err err = GS_ENOMEM;
     double *xy = NULL;
     signed char *tag = NULL;
-    gs_index *bnd = NULL, *fn = NULL, *fp = NULL;
-    if (!E || !mid)
+    gs_index *bnd = NULL, *fn = NULL, *fp = NULL, *fx = NULL;
+    char *isfix = calloc((size_t)m->n_nodes + 1, 1);
+    if (!E || !mid || !isfix)
         goto out;
+    for (gs_index i = 0; i < m->n_fixed; i++)
+        isfix[m->fixed[i]] = 1;
     for (gs_index t = 0; t < m->n_tris; t++)
         for (int i = 0; i < 3; i++) {
             gs_index a = m->tri[3 * t + i], b = m->tri[3 * t + (i + 1) % 3];
@@ -261,8 +264,14 @@ gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
     for (gs_index i = 0; i < ne; i++)
         if (i == 0 || E[i].a != E[i - 1].a || E[i].b != E[i - 1].b)
             nu++;
-    gs_index n0 = m->n_nodes, n1 = n0 + nu;
+    gs_index n0 = m->n_nodes, n1 = n0 + nu, nfx = m->n_fixed;
     xy = malloc((size_t)(2 * n1) * sizeof *xy);
+    /* a mid-side node between two fixed nodes is fixed (core circle, clamp) */
+    fx = malloc((size_t)(m->n_fixed + nu + 1) * sizeof *fx);
+    if (!fx)
+        goto out;
+    if (m->n_fixed > 0)
+        memcpy(fx, m->fixed, (size_t)m->n_fixed * sizeof *fx);
     if (m->node_tag)
         tag = malloc((size_t)n1);
     if (!xy || (m->node_tag && !tag))
@@ -291,6 +300,8 @@ gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
             tag[k] = (signed char)tg;
         for (gs_index q = i; q < j; q++)
             mid[E[q].id] = k;
+        if (isfix[E[i].a] && isfix[E[i].b])
+            fx[nfx++] = k;
         k++;
         i = j;
     }
@@ -371,6 +382,10 @@ gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
         m->flank_nodes = fn;
         fp = fn = NULL;
     }
+    free(m->fixed);
+    m->fixed = fx;
+    m->n_fixed = nfx;
+    fx = NULL;
     m->n_nodes = n1;
     m->mid = mid;
     mid = NULL;
@@ -383,6 +398,8 @@ out:
     free(bnd);
     free(fp);
     free(fn);
+    free(fx);
+    free(isfix);
     return err;
 }
 
