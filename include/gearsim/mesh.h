@@ -141,6 +141,11 @@ void gs_mesh_quality_eval(const gs_mesh *m, gs_mesh_quality *q);
  * Errors: GS_EINVAL (NULL, already quadratic), GS_ENOMEM. */
 gs_err gs_mesh_make_quadratic(gs_mesh *m);
 
+/* The connectivity of a quadratic mesh in Triangle_6 order (6 * n_tris:
+ * corners, then mid-side nodes), newly allocated (free()); NULL for a linear
+ * mesh or when out of memory. For field output (XDMF Triangle_6). */
+gs_index *gs_mesh_triangle6(const gs_mesh *m);
+
 /* Topology: every edge in at most two triangles, no repeated node in a
  * triangle, every node used. Returns the number of boundary edges in
  * *n_boundary_edges and the number of boundary loops in *n_loops (either

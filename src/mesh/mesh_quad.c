@@ -407,3 +407,18 @@ gs_err gs_mesh_make_quadratic(gs_mesh *m)
 {
     return gsi_mesh_quadratic(m, NULL);
 }
+
+gs_index *gs_mesh_triangle6(const gs_mesh *m)
+{
+    if (!m || !m->mid || m->n_tris < 1)
+        return NULL;
+    gs_index *t6 = malloc((size_t)(6 * m->n_tris) * sizeof *t6);
+    if (!t6)
+        return NULL;
+    for (gs_index e = 0; e < m->n_tris; e++)
+        for (int i = 0; i < 3; i++) {
+            t6[6 * e + i] = m->tri[3 * e + i];
+            t6[6 * e + 3 + i] = m->mid[3 * e + i];
+        }
+    return t6;
+}

@@ -113,6 +113,8 @@ int main(int argc, char **argv)
         o.across = b->mesh.across;
         o.rim = b->mesh.rim;
         o.refine = refine;
+        o.grading = b->mesh.grading;
+        o.order = b->mesh.order;
         gs_diag_clear(&d);
         e = gs_gear_mesh(&b->gear, &o, &meshes[i], &d);
         if (e != GS_OK) {
