@@ -81,6 +81,12 @@ struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double
  * gs_mesh_free. Errors: GS_EINVAL, GS_ENOMEM. */
 gs_err gsi_fe_mesh_annulus(double r_in, double r_out, int n_r, int n_t, gs_mesh **out);
 
+/* The same annulus with elements of order 1 or 2; for order 2 the mid-side
+ * nodes of the edges on the two circles lie on the circles (curved
+ * quadratic elements), those on the inner circle fixed. */
+gs_err gsi_fe_mesh_annulus_order(double r_in, double r_out, int n_r, int n_t, int order,
+                                 gs_mesh **out);
+
 /* Time `reps` bare CHOLMOD solves (solve2, one right-hand side, preallocated
  * workspace) on the body's current factor; returns seconds per solve, or a
  * negative value if no factor exists. For the benchmark. */
