@@ -15,11 +15,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "fe/fe_internal.h"
 #include "gearsim/fe.h"
 #include "gearsim/geometry.h"
 #include "gearsim/mesh.h"
+#include "gearsim/mesh_io.h"
 #include "../common/gears.h"
 
 static const double T = 0.02; /* thickness, m */
@@ -355,6 +357,69 @@ static void gear_quadratic_mesh(void **state)
     assert_true(e2[0] < 0.1 * e1[0]);
 }
 
+/* A quadratic gear mesh written with gs_mesh_io and read back keeps its
+ * mid-side nodes; the XDMF declares Triangle_6 cells over the 6-column
+ * connectivity (what ParaView reads as curved quadratic triangles). */
+static void mesh_file_triangle6(void **state)
+{
+    (void)state;
+    char dir[] = "/tmp/gs_test_quad_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char h5[128], xmf[128];
+    snprintf(h5, sizeof h5, "%s/m.h5", dir);
+    snprintf(xmf, sizeof xmf, "%s/m.xmf", dir);
+    gs_gear_params p = gear(GS_GEAR_EXTERNAL, 17, 2e-3, 0.2);
+    p.face_width_m = 0.01;
+    gs_gear_mesh_opts o;
+    gs_gear_mesh_opts_defaults(&o);
+    o.order = 2;
+    gs_mesh *m = NULL;
+    assert_int_equal(gs_gear_mesh(&p, &o, &m, NULL), GS_OK);
+    gs_mesh_io_gear g = {"pinion", m, &p, {0.0, 0.0}, 0.0};
+    assert_int_equal(gs_mesh_io_write(h5, xmf, &g, 1, NULL), GS_OK);
+    gs_mesh *back = NULL;
+    assert_int_equal(gs_mesh_io_read(h5, "pinion", &back, NULL, NULL, NULL), GS_OK);
+    assert_int_equal(gs_mesh_order(back), 2);
+    assert_int_equal(back->n_tris, m->n_tris);
+    assert_memory_equal(back->mid, m->mid, (size_t)(3 * m->n_tris) * sizeof *m->mid);
+    FILE *f = fopen(xmf, "r");
+    assert_non_null(f);
+    char buf[4096];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    assert_non_null(strstr(buf, "TopologyType=\"Triangle_6\""));
+    assert_non_null(strstr(buf, "/triangles6<"));
+    gs_mesh_free(&back);
+    gs_mesh_free(&m);
+    remove(h5);
+    remove(xmf);
+    rmdir(dir);
+}
+
+/* Bad element order is refused with the field named. */
+static void order_errors(void **state)
+{
+    (void)state;
+    gs_gear_params p = gear(GS_GEAR_EXTERNAL, 20, 2e-3, 0.0);
+    gs_gear_mesh_opts o;
+    gs_gear_mesh_opts_defaults(&o);
+    o.order = 3;
+    gs_mesh *m = NULL;
+    gs_diag d;
+    gs_diag_clear(&d);
+    assert_int_equal(gs_gear_mesh(&p, &o, &m, &d), GS_ERANGE);
+    assert_string_equal(d.field, "mesh.order");
+    assert_null(m);
+    gs_mesh *r = NULL;
+    assert_int_equal(gs_mesh_rectangle(1, 1, 2, 2, &r), GS_OK);
+    assert_int_equal(gs_mesh_make_quadratic(r), GS_OK);
+    assert_int_equal(gs_mesh_make_quadratic(r), GS_EINVAL); /* already quadratic */
+    /* a clamp stays a clamp: the mid-side nodes on x = 0 are fixed */
+    assert_int_equal(r->n_fixed, 3 + 2);
+    gs_mesh_free(&r);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -363,6 +428,8 @@ int main(void)
         cmocka_unit_test(consistent_mass),
         cmocka_unit_test(curved_area_order),
         cmocka_unit_test(gear_quadratic_mesh),
+        cmocka_unit_test(mesh_file_triangle6),
+        cmocka_unit_test(order_errors),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
