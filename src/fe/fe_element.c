@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "fe/fe_internal.h"
+#include "mesh/mesh_internal.h"
 
 /* ---- linear triangle ---------------------------------------------------- */
 
@@ -118,46 +119,7 @@ const gsi_fe_element gsi_fe_tri3 = {"tri3", 3, cst_matrices, cst_stress};
 
 /* ---- quadratic triangle ------------------------------------------------- */
 
-/* Node order (Triangle_6): corners 0, 1, 2 at area coordinates l1, l2, l3;
- * mid-side nodes 3 (edge 0-1), 4 (1-2), 5 (2-0).
- * N = l1(2l1-1), l2(2l2-1), l3(2l3-1), 4 l1 l2, 4 l2 l3, 4 l3 l1. */
-static void t6_shape(double l1, double l2, double N[6], double d1[6], double d2[6])
-{
-    double l3 = 1.0 - l1 - l2;
-    N[0] = l1 * (2 * l1 - 1);
-    N[1] = l2 * (2 * l2 - 1);
-    N[2] = l3 * (2 * l3 - 1);
-    N[3] = 4 * l1 * l2;
-    N[4] = 4 * l2 * l3;
-    N[5] = 4 * l3 * l1;
-    /* derivatives in (l1, l2), l3 eliminated */
-    double a[6] = {4 * l1 - 1, 0, -(4 * l3 - 1), 4 * l2, -4 * l2, 4 * (l3 - l1)};
-    double b[6] = {0, 4 * l2 - 1, -(4 * l3 - 1), 4 * l1, 4 * (l3 - l2), -4 * l1};
-    memcpy(d1, a, sizeof a);
-    memcpy(d2, b, sizeof b);
-}
-
-/* Cartesian derivatives at (l1, l2); returns det J (the area factor of the
- * reference triangle of area 1/2). */
-static double t6_deriv(const double *x, const double *y, double l1, double l2, double N[6],
-                       double dNx[6], double dNy[6])
-{
-    double d1[6], d2[6];
-    t6_shape(l1, l2, N, d1, d2);
-    double xa = 0, xb = 0, ya = 0, yb = 0;
-    for (int i = 0; i < 6; i++) {
-        xa += d1[i] * x[i];
-        xb += d2[i] * x[i];
-        ya += d1[i] * y[i];
-        yb += d2[i] * y[i];
-    }
-    double det = xa * yb - xb * ya;
-    for (int i = 0; i < 6; i++) {
-        dNx[i] = (yb * d1[i] - ya * d2[i]) / det;
-        dNy[i] = (-xb * d1[i] + xa * d2[i]) / det;
-    }
-    return det;
-}
+/* Node order and shape functions: gsi_t6_shape (mesh/mesh_internal.h). */
 
 /* Dunavant's 12-point rule, degree 6; weights sum to 1 (times the area). */
 static const double q12[12][3] = {
@@ -179,7 +141,7 @@ static gs_err t6_matrices(const double *x, const double *y, const double D[9], d
                           double rho, double *ke, double *me, gsi_fe_props *pr)
 {
     double N[6], dNx[6], dNy[6], B[36];
-    double det0 = t6_deriv(x, y, 1.0 / 3, 1.0 / 3, N, dNx, dNy);
+    double det0 = gsi_t6_jacobian(x, y, 1.0 / 3, 1.0 / 3, N, dNx, dNy);
     double w2 = 0;
     for (int i = 0; i < 3; i++) {
         double ex = x[(i + 1) % 3] - x[i], ey = y[(i + 1) % 3] - y[i];
@@ -192,7 +154,7 @@ static gs_err t6_matrices(const double *x, const double *y, const double D[9], d
     memset(me, 0, 36 * sizeof *me);
     memset(pr, 0, sizeof *pr);
     for (int q = 0; q < 12; q++) {
-        double det = t6_deriv(x, y, q12[q][0], q12[q][1], N, dNx, dNy);
+        double det = gsi_t6_jacobian(x, y, q12[q][0], q12[q][1], N, dNx, dNy);
         if (!(det > 1e-3 * det0))
             return GS_EGEOMETRY;
         double w = 0.5 * q12[q][2] * det; /* area element */
@@ -227,16 +189,16 @@ static void t6_stress(const double *x, const double *y, const double D[9], const
     static const double nodes[6][2] = {{1, 0}, {0, 1}, {0, 0}, {0.5, 0.5}, {0, 0.5}, {0.5, 0}};
     double N[6], dNx[6], dNy[6], B[36];
     for (int i = 0; i < 6; i++) {
-        t6_deriv(x, y, nodes[i][0], nodes[i][1], N, dNx, dNy);
+        gsi_t6_jacobian(x, y, nodes[i][0], nodes[i][1], N, dNx, dNy);
         strain_matrix(6, dNx, dNy, B);
         stress_of(D, B, 6, ue, sn + 3 * i);
     }
-    t6_deriv(x, y, 1.0 / 3, 1.0 / 3, N, dNx, dNy);
+    gsi_t6_jacobian(x, y, 1.0 / 3, 1.0 / 3, N, dNx, dNy);
     strain_matrix(6, dNx, dNy, B);
     stress_of(D, B, 6, ue, sc);
     double A = 0;
     for (int q = 0; q < 12; q++)
-        A += 0.5 * q12[q][2] * t6_deriv(x, y, q12[q][0], q12[q][1], N, dNx, dNy);
+        A += 0.5 * q12[q][2] * gsi_t6_jacobian(x, y, q12[q][0], q12[q][1], N, dNx, dNy);
     *area = A;
 }
 

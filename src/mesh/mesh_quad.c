@@ -217,15 +217,30 @@ static void gear_mid(const gs_gear_geom *g, const double A[2], const double B[2]
 
 /* ---- promotion ---------------------------------------------------------- */
 
-/* Signed Jacobian determinant of a 6-node triangle at area coordinates
- * (l1, l2, l3 = 1 - l1 - l2), nodes in Triangle_6 order. */
-static double t6_detj(const double *x, const double *y, double l1, double l2)
+void gsi_t6_shape(double l1, double l2, double N[6], double d1[6], double d2[6])
 {
     double l3 = 1.0 - l1 - l2;
-    /* dN/dl1 and dN/dl2 with l3 eliminated */
-    double d1[6] = {4 * l1 - 1, 0, -(4 * l3 - 1), 4 * l2, -4 * l2, 4 * (l3 - l1)};
-    double d2[6] = {0, 4 * l2 - 1, -(4 * l3 - 1), 4 * l1, 4 * (l3 - l2), -4 * l1};
-    /* node order: corners 0 (l1), 1 (l2), 2 (l3); mids 01, 12, 20 */
+    if (N) {
+        N[0] = l1 * (2 * l1 - 1);
+        N[1] = l2 * (2 * l2 - 1);
+        N[2] = l3 * (2 * l3 - 1);
+        N[3] = 4 * l1 * l2;
+        N[4] = 4 * l2 * l3;
+        N[5] = 4 * l3 * l1;
+    }
+    double a[6] = {4 * l1 - 1, 0, -(4 * l3 - 1), 4 * l2, -4 * l2, 4 * (l3 - l1)};
+    double b[6] = {0, 4 * l2 - 1, -(4 * l3 - 1), 4 * l1, 4 * (l3 - l2), -4 * l1};
+    if (d1)
+        memcpy(d1, a, sizeof a);
+    if (d2)
+        memcpy(d2, b, sizeof b);
+}
+
+double gsi_t6_jacobian(const double *x, const double *y, double l1, double l2, double N[6],
+                       double dNx[6], double dNy[6])
+{
+    double d1[6], d2[6];
+    gsi_t6_shape(l1, l2, N, d1, d2);
     double xa = 0, xb = 0, ya = 0, yb = 0;
     for (int i = 0; i < 6; i++) {
         xa += d1[i] * x[i];
@@ -233,7 +248,13 @@ static double t6_detj(const double *x, const double *y, double l1, double l2)
         ya += d1[i] * y[i];
         yb += d2[i] * y[i];
     }
-    return xa * yb - xb * ya;
+    double det = xa * yb - xb * ya;
+    if (dNx && dNy)
+        for (int i = 0; i < 6; i++) {
+            dNx[i] = (yb * d1[i] - ya * d2[i]) / det;
+            dNy[i] = (-xb * d1[i] + xa * d2[i]) / det;
+        }
+    return det;
 }
 
 gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
@@ -316,9 +337,9 @@ gs_err gsi_mesh_quadratic(gs_mesh *m, const gs_gear_geom *g)
         }
         static const double pts[7][2] = {{1, 0}, {0, 1}, {0, 0}, {0.5, 0.5},
                                          {0, 0.5}, {0.5, 0}, {1.0 / 3, 1.0 / 3}};
-        double d0 = t6_detj(x, y, 1.0 / 3, 1.0 / 3);
+        double d0 = gsi_t6_jacobian(x, y, 1.0 / 3, 1.0 / 3, NULL, NULL, NULL);
         for (int q = 0; q < 7; q++)
-            if (!(t6_detj(x, y, pts[q][0], pts[q][1]) > 1e-3 * d0)) {
+            if (!(gsi_t6_jacobian(x, y, pts[q][0], pts[q][1], NULL, NULL, NULL) > 1e-3 * d0)) {
                 err = GS_EGEOMETRY;
                 goto out;
             }
