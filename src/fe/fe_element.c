@@ -60,17 +60,24 @@ static void stress_of(const double D[9], const double *B, int n, const double *u
         sg[r] = D[3 * r] * eps[0] + D[3 * r + 1] * eps[1] + D[3 * r + 2] * eps[2];
 }
 
-static gs_err cst_matrices(const double *x, const double *y, const double D[9], double t,
-                           double rho, double *ke, double *me, gsi_fe_props *pr)
+/* Squared longest corner-to-corner edge (the scale of the degeneracy test). */
+static double longest_edge2(const double *x, const double *y)
 {
-    double b[3], c[3], B[18], dNx[3], dNy[3];
-    double twoA = cst_geometry(x, y, b, c);
     double w2 = 0;
     for (int i = 0; i < 3; i++) {
         double ex = x[(i + 1) % 3] - x[i], ey = y[(i + 1) % 3] - y[i];
         if (ex * ex + ey * ey > w2)
             w2 = ex * ex + ey * ey;
     }
+    return w2;
+}
+
+static gs_err cst_matrices(const double *x, const double *y, const double D[9], double t,
+                           double rho, double *ke, double *me, gsi_fe_props *pr)
+{
+    double b[3], c[3], B[18], dNx[3], dNy[3];
+    double twoA = cst_geometry(x, y, b, c);
+    double w2 = longest_edge2(x, y);
     if (!(twoA > 1e-12 * w2))
         return GS_EGEOMETRY;
     for (int i = 0; i < 3; i++) {
@@ -142,12 +149,7 @@ static gs_err t6_matrices(const double *x, const double *y, const double D[9], d
 {
     double N[6], dNx[6], dNy[6], B[36];
     double det0 = gsi_t6_jacobian(x, y, 1.0 / 3, 1.0 / 3, N, dNx, dNy);
-    double w2 = 0;
-    for (int i = 0; i < 3; i++) {
-        double ex = x[(i + 1) % 3] - x[i], ey = y[(i + 1) % 3] - y[i];
-        if (ex * ex + ey * ey > w2)
-            w2 = ex * ex + ey * ey;
-    }
+    double w2 = longest_edge2(x, y);
     if (!(det0 > 1e-12 * w2))
         return GS_EGEOMETRY;
     memset(ke, 0, 144 * sizeof *ke);

@@ -23,6 +23,7 @@
 #include "gearsim/mesh.h"
 #include "gearsim/mesh_io.h"
 #include "../common/gears.h"
+#include "../common/rect.h"
 
 static const double T = 0.02; /* thickness, m */
 
@@ -31,15 +32,7 @@ static const double T = 0.02; /* thickness, m */
  * moved off their chords too (curved isoparametric elements). */
 static gs_mesh *quad_rectangle(double lx, double ly, int nx, int ny, double distort, double bend)
 {
-    gs_mesh *m = NULL;
-    assert_int_equal(gs_mesh_rectangle(lx, ly, nx, ny, &m), GS_OK);
-    m->n_fixed = 0;
-    for (int j = 1; j < ny; j++)
-        for (int i = 1; i < nx; i++) {
-            gs_index k = (gs_index)j * (nx + 1) + i;
-            m->xy[2 * k] += distort * lx / nx * sin(1.7 * k + 0.3);
-            m->xy[2 * k + 1] += distort * ly / ny * cos(2.3 * k + 0.1);
-        }
+    gs_mesh *m = free_rectangle(lx, ly, nx, ny, distort);
     gs_index n0 = m->n_nodes;
     assert_int_equal(gs_mesh_make_quadratic(m), GS_OK);
     assert_int_equal(gs_mesh_order(m), 2);
