@@ -1,8 +1,9 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: finite element meshes of the elastic part of a body.
  *
- * Linear triangles (3 nodes, counter-clockwise), coordinates in the body's
- * material frame (origin on the axis), metres. Nodes on the interface with the
+ * Triangles (3 corner nodes, counter-clockwise; quadratic meshes add a node
+ * on every edge, see `mid`), coordinates in the body's material frame
+ * (origin on the axis), metres. Nodes on the interface with the
  * rigid core carry zero elastic displacement (METHOD.md section 1); they are
  * listed in `fixed`. The geometry/mesh module may add fields (flank tables
  * for the contact search, etc.), but the fields below keep their meaning: the
@@ -58,7 +59,21 @@ typedef struct gs_mesh {
     gs_index *boundary;      /* increasing polar angle (counter-clockwise about the axis);
                               * the material is on its left for an external gear, on its
                               * right for an internal one. Not repeated at the end. */
+    /* Element order. NULL: linear triangles (3 nodes). Otherwise quadratic
+     * 6-node triangles: mid[3e + i] is the node on edge i of element e, the
+     * edge from tri[3e + i] to tri[3e + (i + 1) % 3] (the Triangle_6 / VTK
+     * node order is tri[3e..3e+2] then mid[3e..3e+2]). Mid-side nodes of
+     * gear boundary edges lie on the exact curve (involute, fillet, tip,
+     * root) and carry the curve's tag; they are part of the flank tables and
+     * of the boundary loop, which then alternate corner and mid-side nodes. */
+    gs_index *mid;
 } gs_mesh;
+
+/* 1 for linear, 2 for quadratic triangles. */
+static inline int gs_mesh_order(const gs_mesh *m)
+{
+    return m->mid ? 2 : 1;
+}
 
 /* Free all arrays and the struct; safe on NULL; sets *m = NULL. */
 void gs_mesh_free(gs_mesh **m);
@@ -80,9 +95,12 @@ typedef struct gs_gear_mesh_opts {
     double grading;  /* ratio of the largest to the smallest element size across a tooth
                       * (smallest at the flanks, where teeth touch) and through the band
                       * under the teeth (smallest at the root); 1 = uniform; 1..8 */
+    int order;       /* element order: 1 linear (CST), 2 quadratic 6-node triangles with
+                      * curved boundary edges (scene mesh.order) */
 } gs_gear_mesh_opts;
 
-/* flank 8, across 4, rim 3 (the scene's defaults), refine 0, grading 2. */
+/* flank 8, across 4, rim 3 (the scene's defaults), refine 0, grading 2,
+ * order 1. */
 void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o);
 
 /* Mesh the elastic part of a gear: for an external gear the region between
@@ -112,6 +130,21 @@ typedef struct gs_mesh_quality {
 } gs_mesh_quality;
 
 void gs_mesh_quality_eval(const gs_mesh *m, gs_mesh_quality *q);
+
+/* Make a linear mesh quadratic: one new node at the middle of every edge
+ * (shared by the two elements of an interior edge), on the straight chord
+ * (fixed when both ends are fixed);
+ * tag GS_NODE_INTERIOR for interior edges and the common tag of the ends
+ * (else GS_NODE_OTHER) on the boundary. Flank tables and the boundary loop,
+ * when present, get the new nodes inserted. For gear meshes gs_gear_mesh
+ * (order 2) places boundary mid-side nodes on the exact curves instead.
+ * Errors: GS_EINVAL (NULL, already quadratic), GS_ENOMEM. */
+gs_err gs_mesh_make_quadratic(gs_mesh *m);
+
+/* The connectivity of a quadratic mesh in Triangle_6 order (6 * n_tris:
+ * corners, then mid-side nodes), newly allocated (free()); NULL for a linear
+ * mesh or when out of memory. For field output (XDMF Triangle_6). */
+gs_index *gs_mesh_triangle6(const gs_mesh *m);
 
 /* Topology: every edge in at most two triangles, no repeated node in a
  * triangle, every node used. Returns the number of boundary edges in

@@ -33,6 +33,7 @@ typedef struct gs_mesh_density {
     int rim;     /* radial element layers in the rim */
     int refine;  /* uniform refinements: counts times 2^refine */
     double grading; /* largest / smallest element size across a tooth */
+    int order;   /* element order: 1 linear, 2 quadratic (curved 6-node triangles) */
 } gs_mesh_density;
 
 typedef struct gs_scene_body {

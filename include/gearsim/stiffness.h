@@ -59,6 +59,8 @@ typedef struct gs_stiffness_opts {
     int max_iter;      /* linearisations per load case (default 12) */
     int cycles;        /* mesh cycles (driver pitches) the positions span (default 1; more to
                         * see tooth errors and run-out, which are not periodic in one pitch) */
+    int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
+                        * for both gears */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

@@ -44,6 +44,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->tangent_step = 0.0;
     o->max_iter = 12;
     o->cycles = 1;
+    o->order = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -87,7 +88,7 @@ static void sbody_free(sbody *b)
     gs_mesh_free(&b->mesh);
 }
 
-static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_diag *d)
+static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbody *b, gs_diag *d)
 {
     char field[64];
     snprintf(field, sizeof field, "bodies[%d]", bi);
@@ -95,9 +96,12 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
     if (b->sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
     gs_scene_body_centre(sc, bi, b->c);
+    gs_scene_body sbo = *b->sb; /* the scene's body with the analysis' element order */
+    if (order > 0)
+        sbo.mesh.order = order;
     gs_diag md;
     gs_diag_clear(&md);
-    gs_err e = gs_scene_gear_mesh_refined(b->sb, refine, &b->mesh, &md);
+    gs_err e = gs_scene_gear_mesh_refined(&sbo, refine, &b->mesh, &md);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
                            md.field);
@@ -105,7 +109,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, sbody *b, gs_di
         (b->sb->pitch_error_tooth >= 0 && b->sb->pitch_error != 0.0)) {
         /* The perfect gear's nodes, for the no-load reference of te_loaded. */
         gs_mesh *pm = NULL;
-        e = gs_scene_gear_mesh_perfect(b->sb, refine, &pm, &md);
+        e = gs_scene_gear_mesh_perfect(&sbo, refine, &pm, &md);
         if (e == GS_OK && pm->n_nodes != b->mesh->n_nodes)
             e = GS_EINTERNAL;
         if (e == GS_OK) {
@@ -598,6 +602,8 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         return gs_diag_set(d, GS_ERANGE, "driver", "driver must be gear 0 or 1 of the mesh");
     if (o.refine < -1 || o.refine > 6)
         return gs_diag_set(d, GS_ERANGE, "refine", "refine must be -1 (scene) or 0..6");
+    if (o.order < 0 || o.order > 2)
+        return gs_diag_set(d, GS_ERANGE, "order", "order must be 0 (scene), 1 or 2");
     if (!isfinite(o.torque_nm) || !isfinite(o.phase))
         return gs_diag_set(d, GS_ERANGE, "torque", "torque and phase must be finite");
     if (!(o.tangent_step >= 0.0 && o.tangent_step <= 0.5))
@@ -616,7 +622,7 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
     for (int k = 0; k < 2 && e == GS_OK; k++)
-        e = sbody_init(sc, bidx[k], o.refine, &w.b[k], d);
+        e = sbody_init(sc, bidx[k], o.refine, o.order, &w.b[k], d);
     if (e != GS_OK)
         goto done;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;

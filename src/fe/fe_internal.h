@@ -7,6 +7,36 @@
 
 #include "gearsim/fe.h"
 
+/* Mass properties of one element (rho t included): area (m^2, without
+ * rho t), first moments rho t int X, rho t int Y, polar rho t int |X|^2,
+ * and the angular coupling s_i = sum_j m_ij J X_j per node (x, y). */
+typedef struct gsi_fe_props {
+    double area, mx, my, polar;
+    double s[12];
+} gsi_fe_props;
+
+/* An element type: the operations the model needs. Nodes in the mesh's
+ * order (corners, then mid-side nodes for quadratic elements; docs/FE.md).
+ * matrices: stiffness ke (2 nn x 2 nn, row-major, dofs x1 y1 x2 y2 ...,
+ *   thickness t included), consistent mass me (nn x nn per direction, rho t
+ *   included) and the mass properties; GS_EGEOMETRY for an inverted or
+ *   degenerate element.
+ * stress: sigma_xx, sigma_yy, tau_xy at each node (sn, 3 nn) and at the
+ *   centroid (sc, 3) from the element displacements ue (2 nn), and the
+ *   element's area. */
+typedef struct gsi_fe_element {
+    const char *name;
+    int nn;
+    gs_err (*matrices)(const double *x, const double *y, const double D[9], double t, double rho,
+                       double *ke, double *me, gsi_fe_props *props);
+    void (*stress)(const double *x, const double *y, const double D[9], const double *ue,
+                   double *sn, double *sc, double *area);
+} gsi_fe_element;
+
+extern const gsi_fe_element gsi_fe_tri3, gsi_fe_tri6;
+/* The element of a mesh: 6-node triangles when it has mid-side nodes. */
+const gsi_fe_element *gsi_fe_element_of(const gs_mesh *m);
+
 /* The matrices live in one compressed-column pattern of the upper triangle of
  * the elastic block (rows sorted, diagonal last in each column), which is
  * exactly CHOLMOD's packed, sorted, stype = 1 layout. K and M share it: every
@@ -15,7 +45,9 @@
 struct gs_fe_model {
     gs_index n_nodes, n_tris, n_free_nodes, ne, nnz;
     double *xy;          /* 2 * n_nodes (copy of the mesh) */
-    gs_index *tri;       /* 3 * n_tris (copy of the mesh) */
+    const gsi_fe_element *el; /* element operations */
+    int nn;              /* nodes per element */
+    gs_index *en;        /* nn * n_tris element nodes (corners, then mid-side nodes) */
     gs_index *dof;       /* 2 * n_nodes: index in q, or -1 for fixed nodes */
     gs_index *free_node; /* n_free_nodes: mesh node of free node k (dofs 2k, 2k+1) */
     gs_index *colp;      /* ne + 1 */
@@ -48,6 +80,12 @@ struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double
  * tests and the benchmark until the gear mesher is there. Freed with
  * gs_mesh_free. Errors: GS_EINVAL, GS_ENOMEM. */
 gs_err gsi_fe_mesh_annulus(double r_in, double r_out, int n_r, int n_t, gs_mesh **out);
+
+/* The same annulus with elements of order 1 or 2; for order 2 the mid-side
+ * nodes of the edges on the two circles lie on the circles (curved
+ * quadratic elements), those on the inner circle fixed. */
+gs_err gsi_fe_mesh_annulus_order(double r_in, double r_out, int n_r, int n_t, int order,
+                                 gs_mesh **out);
 
 /* Time `reps` bare CHOLMOD solves (solve2, one right-hand side, preallocated
  * workspace) on the body's current factor; returns seconds per solve, or a

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * The FE model of a body's elastic part (METHOD.md section 1): constant strain
- * triangles, consistent mass, the angular coupling vector s, the inertias,
+ * The FE model of a body's elastic part (METHOD.md section 1): linear or
+ * quadratic triangles (element operations in fe_element.c), consistent mass, the angular coupling vector s, the inertias,
  * elimination of the fixed (core interface) nodes, assembly into one
  * compressed-column pattern shared by K and M; static solve and stress
  * recovery. */
@@ -33,59 +33,6 @@ static void material_matrix(const gs_material *mat, double D[9])
     }
 }
 
-/* Shape function derivatives of a triangle: dN_i/dx = b[i] / (2A),
- * dN_i/dy = c[i] / (2A). Returns 2A (positive when counter-clockwise). */
-static double tri_geometry(const double *xy, const gs_index *t, double b[3], double c[3])
-{
-    double x[3], y[3];
-    for (int i = 0; i < 3; i++) {
-        x[i] = xy[2 * t[i]];
-        y[i] = xy[2 * t[i] + 1];
-    }
-    for (int i = 0; i < 3; i++) {
-        int j = (i + 1) % 3, k = (i + 2) % 3;
-        b[i] = y[j] - y[k];
-        c[i] = x[k] - x[j];
-    }
-    return (x[1] - x[0]) * (y[2] - y[0]) - (x[2] - x[0]) * (y[1] - y[0]);
-}
-
-/* Strain-displacement matrix B (3x6, row-major) for dofs (u1 v1 u2 v2 u3 v3). */
-static void strain_matrix(const double b[3], const double c[3], double twoA, double B[18])
-{
-    memset(B, 0, 18 * sizeof *B);
-    for (int i = 0; i < 3; i++) {
-        B[0 * 6 + 2 * i] = b[i] / twoA;
-        B[1 * 6 + 2 * i + 1] = c[i] / twoA;
-        B[2 * 6 + 2 * i] = c[i] / twoA;
-        B[2 * 6 + 2 * i + 1] = b[i] / twoA;
-    }
-}
-
-/* ke = t A B^T D B (6x6 row-major). */
-static void cst_stiffness(const double B[18], const double D[9], double tA, double ke[36])
-{
-    double DB[18];
-    for (int r = 0; r < 3; r++)
-        for (int k = 0; k < 6; k++)
-            DB[r * 6 + k] = D[r * 3] * B[k] + D[r * 3 + 1] * B[6 + k] + D[r * 3 + 2] * B[12 + k];
-    for (int i = 0; i < 6; i++)
-        for (int j = 0; j < 6; j++)
-            ke[i * 6 + j] = tA * (B[i] * DB[j] + B[6 + i] * DB[6 + j] + B[12 + i] * DB[12 + j]);
-}
-
-static double worst_edge2(const double *xy, const gs_index *t)
-{
-    double w = 0;
-    for (int i = 0; i < 3; i++) {
-        const double *p = xy + 2 * t[i], *q = xy + 2 * t[(i + 1) % 3];
-        double d = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]);
-        if (d > w)
-            w = d;
-    }
-    return w;
-}
-
 /* ---- pattern ------------------------------------------------------------ */
 
 static int cmp_index(const void *a, const void *b)
@@ -102,10 +49,11 @@ static gs_err node_graph(gs_fe_model *m, gs_index **nbp_out, gs_index **nb_out)
     gs_index *cnt = gs_calloc((size_t)nf + 1, sizeof *cnt);
     if (!cnt)
         return GS_ENOMEM;
+    const int nn = m->nn;
     for (gs_index e = 0; e < m->n_tris; e++)
-        for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) {
-                gs_index fa = m->dof[2 * m->tri[3 * e + i]], fb = m->dof[2 * m->tri[3 * e + j]];
+        for (int i = 0; i < nn; i++)
+            for (int j = 0; j < nn; j++) {
+                gs_index fa = m->dof[2 * m->en[nn * e + i]], fb = m->dof[2 * m->en[nn * e + j]];
                 if (fa >= 0 && fb >= 0 && fa <= fb && (fa < fb || i == j))
                     cnt[fb / 2 + 1]++;
             }
@@ -121,9 +69,9 @@ static gs_err node_graph(gs_fe_model *m, gs_index **nbp_out, gs_index **nb_out)
     }
     memcpy(pos, cnt, (size_t)nf * sizeof *pos);
     for (gs_index e = 0; e < m->n_tris; e++)
-        for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) {
-                gs_index fa = m->dof[2 * m->tri[3 * e + i]], fb = m->dof[2 * m->tri[3 * e + j]];
+        for (int i = 0; i < nn; i++)
+            for (int j = 0; j < nn; j++) {
+                gs_index fa = m->dof[2 * m->en[nn * e + i]], fb = m->dof[2 * m->en[nn * e + j]];
                 if (fa >= 0 && fb >= 0 && fa <= fb && (fa < fb || i == j))
                     raw[pos[fb / 2]++] = fa / 2;
             }
@@ -183,7 +131,8 @@ static gs_err check_inputs(const gs_mesh *mesh, const gs_material *mat, double t
         if (!isfinite(mesh->xy[i]))
             return GS_EINVAL;
     for (gs_index i = 0; i < 3 * mesh->n_tris; i++)
-        if (mesh->tri[i] < 0 || mesh->tri[i] >= mesh->n_nodes)
+        if (mesh->tri[i] < 0 || mesh->tri[i] >= mesh->n_nodes ||
+            (mesh->mid && (mesh->mid[i] < 0 || mesh->mid[i] >= mesh->n_nodes)))
             return GS_EINVAL;
     for (gs_index i = 0; i < mesh->n_fixed; i++)
         if (mesh->fixed[i] < 0 || mesh->fixed[i] >= mesh->n_nodes)
@@ -197,7 +146,7 @@ void gs_fe_model_free(gs_fe_model **pm)
         return;
     gs_fe_model *m = *pm;
     free(m->xy);
-    free(m->tri);
+    free(m->en);
     free(m->dof);
     free(m->free_node);
     free(m->colp);
@@ -241,57 +190,50 @@ static gs_err assemble(gs_fe_model *m)
         }
 
     const double rho = m->mat.density, t = m->thickness;
+    const int nn = m->nn;
     double sx = 0, sy = 0;
     for (gs_index e = 0; e < m->n_tris; e++) {
-        const gs_index *tn = m->tri + 3 * e;
-        double b[3], c[3], B[18], ke[36];
-        double twoA = tri_geometry(m->xy, tn, b, c);
-        if (tn[0] == tn[1] || tn[1] == tn[2] || tn[0] == tn[2] ||
-            !(twoA > 1e-12 * worst_edge2(m->xy, tn))) {
-            err = GS_EGEOMETRY;
-            goto out;
-        }
-        double A = 0.5 * twoA;
-        strain_matrix(b, c, twoA, B);
-        cst_stiffness(B, m->Dmat, t * A, ke);
-        double mfac = rho * t * A / 12.0; /* consistent mass: mfac (1 + delta_ij) */
-
-        /* mass properties from the nodal interpolation, exact for linear X */
-        double X[3], Y[3];
-        for (int i = 0; i < 3; i++) {
+        const gs_index *tn = m->en + nn * e;
+        double ke[144], me[36], X[6], Y[6];
+        gsi_fe_props pr;
+        for (int i = 0; i < nn; i++) {
             X[i] = m->xy[2 * tn[i]];
             Y[i] = m->xy[2 * tn[i] + 1];
+            for (int j = 0; j < i; j++)
+                if (tn[i] == tn[j]) {
+                    err = GS_EGEOMETRY;
+                    goto out;
+                }
         }
-        double Xs = X[0] + X[1] + X[2], Ys = Y[0] + Y[1] + Y[2];
-        m->area += A;
-        sx += rho * t * A * Xs / 3.0;
-        sy += rho * t * A * Ys / 3.0;
-        m->inertia_elastic +=
-            mfac * (X[0] * X[0] + X[1] * X[1] + X[2] * X[2] + Y[0] * Y[0] + Y[1] * Y[1] +
-                    Y[2] * Y[2] + Xs * Xs + Ys * Ys);
-        for (int i = 0; i < 3; i++) {
+        err = m->el->matrices(X, Y, m->Dmat, t, rho, ke, me, &pr);
+        if (err != GS_OK)
+            goto out;
+        m->area += pr.area;
+        sx += pr.mx;
+        sy += pr.my;
+        m->inertia_elastic += pr.polar;
+        for (int i = 0; i < nn; i++) {
             gs_index fi = m->dof[2 * tn[i]];
             if (fi < 0)
                 continue;
-            /* s_i = sum_j m_ij J X_j, J X = (-Y, X) */
-            m->s[fi] += mfac * (-Y[i] - Ys);
-            m->s[fi + 1] += mfac * (X[i] + Xs);
+            m->s[fi] += pr.s[2 * i];
+            m->s[fi + 1] += pr.s[2 * i + 1];
         }
 
-        for (int i = 0; i < 3; i++)
-            for (int j = 0; j < 3; j++) {
+        for (int i = 0; i < nn; i++)
+            for (int j = 0; j < nn; j++) {
                 gs_index fa = m->dof[2 * tn[i]], fb = m->dof[2 * tn[j]];
                 if (fa < 0 || fb < 0 || fa > fb || (fa == fb && i != j))
                     continue;
                 gs_index kb = fb / 2;
                 gs_index p = find_neighbour(nb, nbp[kb], nbp[kb + 1], fa / 2) - nbp[kb];
-                double mij = (i == j) ? 2.0 * mfac : mfac;
+                double mij = me[nn * i + j];
                 for (int cj = 0; cj < 2; cj++)
                     for (int ci = 0; ci < 2; ci++) {
                         if (fa == fb && ci > cj)
                             continue;
                         gs_index q = m->colp[fb + cj] + 2 * p + ci;
-                        m->kx[q] += ke[(2 * i + ci) * 6 + 2 * j + cj];
+                        m->kx[q] += ke[(2 * i + ci) * 2 * nn + 2 * j + cj];
                         if (ci == cj)
                             m->mx[q] += mij;
                     }
@@ -327,15 +269,22 @@ gs_err gs_fe_model_new(const gs_mesh *mesh, const gs_material *mat, double thick
     m->inertia_core = core_inertia;
     material_matrix(mat, m->Dmat);
     m->xy = gs_calloc((size_t)(2 * m->n_nodes), sizeof *m->xy);
-    m->tri = gs_calloc((size_t)(3 * m->n_tris), sizeof *m->tri);
+    m->el = gsi_fe_element_of(mesh);
+    m->nn = m->el->nn;
+    m->en = gs_calloc((size_t)(m->nn * m->n_tris), sizeof *m->en);
     m->dof = gs_calloc((size_t)(2 * m->n_nodes), sizeof *m->dof);
     m->free_node = gs_calloc((size_t)m->n_nodes, sizeof *m->free_node);
-    if (!m->xy || !m->tri || !m->dof || !m->free_node) {
+    if (!m->xy || !m->en || !m->dof || !m->free_node) {
         gs_fe_model_free(&m);
         return GS_ENOMEM;
     }
     memcpy(m->xy, mesh->xy, (size_t)(2 * m->n_nodes) * sizeof *m->xy);
-    memcpy(m->tri, mesh->tri, (size_t)(3 * m->n_tris) * sizeof *m->tri);
+    for (gs_index e = 0; e < m->n_tris; e++)
+        for (int i = 0; i < 3; i++) {
+            m->en[m->nn * e + i] = mesh->tri[3 * e + i];
+            if (m->nn == 6)
+                m->en[m->nn * e + 3 + i] = mesh->mid[3 * e + i];
+        }
     for (gs_index i = 0; i < mesh->n_fixed; i++)
         m->dof[2 * mesh->fixed[i]] = -1;
     for (gs_index i = 0; i < m->n_nodes; i++) {
@@ -568,6 +517,15 @@ out:
     return err;
 }
 
+/* Von Mises stress; plane strain includes sigma_zz = nu (sigma_xx + sigma_yy). */
+static double von_mises(const double sg[3], bool strain, double nu)
+{
+    double sz = strain ? nu * (sg[0] + sg[1]) : 0.0;
+    return sqrt(0.5 * ((sg[0] - sg[1]) * (sg[0] - sg[1]) + (sg[1] - sz) * (sg[1] - sz) +
+                       (sz - sg[0]) * (sz - sg[0])) +
+                3.0 * sg[2] * sg[2]);
+}
+
 gs_err gs_fe_model_stress(const gs_fe_model *m, const double *u_nodes, double *stress,
                           double *vm_elem, double *vm_node)
 {
@@ -581,33 +539,26 @@ gs_err gs_fe_model_stress(const gs_fe_model *m, const double *u_nodes, double *s
         memset(vm_node, 0, (size_t)m->n_nodes * sizeof *vm_node);
     }
     const double nu = m->mat.poisson;
+    const int nn = m->nn;
     for (gs_index e = 0; e < m->n_tris; e++) {
-        const gs_index *tn = m->tri + 3 * e;
-        double b[3], c[3], B[18], ue[6], eps[3] = {0, 0, 0}, sg[3];
-        double twoA = tri_geometry(m->xy, tn, b, c);
-        strain_matrix(b, c, twoA, B);
-        for (int i = 0; i < 3; i++) {
+        const gs_index *tn = m->en + nn * e;
+        double X[6], Y[6], ue[12], sn[18], sg[3], area;
+        for (int i = 0; i < nn; i++) {
             bool fixed = m->dof[2 * tn[i]] < 0;
+            X[i] = m->xy[2 * tn[i]];
+            Y[i] = m->xy[2 * tn[i] + 1];
             ue[2 * i] = fixed ? 0.0 : u_nodes[2 * tn[i]];
             ue[2 * i + 1] = fixed ? 0.0 : u_nodes[2 * tn[i] + 1];
         }
-        for (int r = 0; r < 3; r++)
-            for (int k = 0; k < 6; k++)
-                eps[r] += B[r * 6 + k] * ue[k];
-        for (int r = 0; r < 3; r++)
-            sg[r] = m->Dmat[3 * r] * eps[0] + m->Dmat[3 * r + 1] * eps[1] + m->Dmat[3 * r + 2] * eps[2];
+        m->el->stress(X, Y, m->Dmat, ue, sn, sg, &area);
         if (stress)
             memcpy(stress + 3 * e, sg, sizeof sg);
-        double sz = m->mat.plane == GS_PLANE_STRAIN ? nu * (sg[0] + sg[1]) : 0.0;
-        double vm = sqrt(0.5 * ((sg[0] - sg[1]) * (sg[0] - sg[1]) + (sg[1] - sz) * (sg[1] - sz) +
-                                (sz - sg[0]) * (sz - sg[0])) +
-                         3.0 * sg[2] * sg[2]);
         if (vm_elem)
-            vm_elem[e] = vm;
+            vm_elem[e] = von_mises(sg, m->mat.plane == GS_PLANE_STRAIN, nu);
         if (vm_node)
-            for (int i = 0; i < 3; i++) {
-                vm_node[tn[i]] += 0.5 * twoA * vm;
-                wsum[tn[i]] += 0.5 * twoA;
+            for (int i = 0; i < nn; i++) {
+                vm_node[tn[i]] += area * von_mises(sn + 3 * i, m->mat.plane == GS_PLANE_STRAIN, nu);
+                wsum[tn[i]] += area;
             }
     }
     if (vm_node)

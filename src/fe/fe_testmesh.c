@@ -62,3 +62,39 @@ gs_err gsi_fe_mesh_annulus(double r_in, double r_out, int n_r, int n_t, gs_mesh 
     *out = m;
     return GS_OK;
 }
+
+gs_err gsi_fe_mesh_annulus_order(double r_in, double r_out, int n_r, int n_t, int order,
+                                 gs_mesh **out)
+{
+    if (order != 1 && order != 2)
+        return GS_EINVAL;
+    GS_TRY(gsi_fe_mesh_annulus(r_in, r_out, n_r, n_t, out));
+    if (order == 1)
+        return GS_OK;
+    gs_mesh *m = *out;
+    gs_index n0 = m->n_nodes;
+    gs_err e = gs_mesh_make_quadratic(m);
+    if (e != GS_OK) {
+        gs_mesh_free(out);
+        return e;
+    }
+    /* boundary mid-side nodes: the middle of an edge with both ends on one
+     * circle goes onto that circle (same angle) */
+    for (gs_index t = 0; t < m->n_tris; t++)
+        for (int i = 0; i < 3; i++) {
+            gs_index k = m->mid[3 * t + i];
+            if (k < n0)
+                continue;
+            const double *p = m->xy + 2 * m->tri[3 * t + i], *q = m->xy + 2 * m->tri[3 * t + (i + 1) % 3];
+            double rp = hypot(p[0], p[1]), rq = hypot(q[0], q[1]);
+            for (int c = 0; c < 2; c++) {
+                double R = c ? r_out : r_in;
+                if (fabs(rp - R) < 1e-12 * R && fabs(rq - R) < 1e-12 * R) {
+                    double x = m->xy[2 * k], y = m->xy[2 * k + 1], r = hypot(x, y);
+                    m->xy[2 * k] = x * R / r;
+                    m->xy[2 * k + 1] = y * R / r;
+                }
+            }
+        }
+    return GS_OK;
+}

@@ -91,6 +91,11 @@ static int write_gear(hid_t root, const gs_mesh_io_gear *e, int index)
     r |= gsi_h5_fixed_ds(g, "nodes_placed", H5T_NATIVE_DOUBLE, placed, (hsize_t)m->n_nodes, 2);
     free(placed);
     r |= gsi_h5_fixed_ds(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
+    if (m->mid) { /* quadratic: Triangle_6 connectivity (corners, mid-side nodes) */
+        gs_index *t6 = gs_mesh_triangle6(m);
+        r |= t6 ? gsi_h5_fixed_ds(g, "triangles6", H5T_NATIVE_INT64, t6, (hsize_t)m->n_tris, 6) : -1;
+        free(t6);
+    }
     r |= gsi_h5_fixed_ds(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)m->n_fixed, 0);
     if (m->node_tag) {
         r |= gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, (hsize_t)m->n_nodes, 0);
@@ -127,12 +132,13 @@ static int write_xmf(const char *xmf_path, const char *h5_path, const gs_mesh_io
         const gs_mesh *m = gears[i].mesh;
         const char *nm = gears[i].name;
         fprintf(f, "      <Grid Name=\"%s\" GridType=\"Uniform\">\n", nm);
-        fprintf(f, "        <Topology TopologyType=\"Triangle\" NumberOfElements=\"%lld\">\n",
-                (long long)m->n_tris);
+        bool q = m->mid != NULL;
+        fprintf(f, "        <Topology TopologyType=\"%s\" NumberOfElements=\"%lld\">\n",
+                q ? "Triangle_6" : "Triangle", (long long)m->n_tris);
         fprintf(f,
-                "          <DataItem Dimensions=\"%lld 3\" NumberType=\"Int\" Precision=\"8\" "
-                "Format=\"HDF\">%s:/gears/%s/triangles</DataItem>\n",
-                (long long)m->n_tris, h5base, nm);
+                "          <DataItem Dimensions=\"%lld %d\" NumberType=\"Int\" Precision=\"8\" "
+                "Format=\"HDF\">%s:/gears/%s/%s</DataItem>\n",
+                (long long)m->n_tris, q ? 6 : 3, h5base, nm, q ? "triangles6" : "triangles");
         fprintf(f, "        </Topology>\n        <Geometry GeometryType=\"XY\">\n");
         fprintf(f,
                 "          <DataItem Dimensions=\"%lld 2\" NumberType=\"Float\" Precision=\"8\" "
@@ -284,6 +290,20 @@ gs_err gs_mesh_io_read(const char *h5_path, const char *name, gs_mesh **out, dou
     m->n_nodes = (gs_index)rows;
     m->tri = read_all(g, "triangles", H5T_NATIVE_INT64, sizeof(gs_index), &rows);
     m->n_tris = (gs_index)rows;
+    if (H5Lexists(g, "triangles6", H5P_DEFAULT) > 0) { /* quadratic mesh */
+        hsize_t r6;
+        gs_index *t6 = read_all(g, "triangles6", H5T_NATIVE_INT64, sizeof(gs_index), &r6);
+        m->mid = t6 && (gs_index)r6 == m->n_tris ? gs_calloc((size_t)(3 * r6) + 1, sizeof *m->mid) : NULL;
+        if (m->mid)
+            for (gs_index k = 0; k < m->n_tris; k++)
+                for (int i = 0; i < 3; i++)
+                    m->mid[3 * k + i] = t6[6 * k + 3 + i];
+        free(t6);
+        if (!m->mid) {
+            e = gs_diag_set(d, GS_EIO, "path", "bad quadratic connectivity in %s", path);
+            goto out;
+        }
+    }
     m->fixed = read_all(g, "fixed", H5T_NATIVE_INT64, sizeof(gs_index), &rows);
     m->n_fixed = (gs_index)rows;
     m->node_tag = read_all(g, "node_tag", H5T_NATIVE_SCHAR, 1, &rows);

@@ -22,6 +22,7 @@ enum { FD_TIME, FD_STEP, FD_THETA, FD_DISP, FD_VM, FD_POS, FD_N };
 typedef struct rec_body {
     char name[208];
     gs_index n_nodes, n_tris;
+    int npe;             /* nodes per element: 3, or 6 (quadratic, dataset triangles6) */
     double centre[2];
     double *xy;          /* copy of the body-frame nodes (2 n) */
     double *scratch;     /* 3 n: one frame of displacement / position / NaN */
@@ -312,6 +313,11 @@ static int write_body(hid_t gb, hid_t gf, const gs_record_mesh *e, int index, re
     st |= gsi_h5_array_attr(g, "centre_m", H5T_NATIVE_DOUBLE, e->centre, 2) < 0;
     st |= gsi_h5_fixed_ds(g, "nodes", H5T_NATIVE_DOUBLE, m->xy, nn, 2);
     st |= gsi_h5_fixed_ds(g, "triangles", H5T_NATIVE_INT64, m->tri, (hsize_t)m->n_tris, 3);
+    if (m->mid) { /* quadratic: the Triangle_6 connectivity for the XDMF */
+        gs_index *t6 = gs_mesh_triangle6(m);
+        st |= t6 ? gsi_h5_fixed_ds(g, "triangles6", H5T_NATIVE_INT64, t6, (hsize_t)m->n_tris, 6) : -1;
+        free(t6);
+    }
     st |= gsi_h5_fixed_ds(g, "fixed", H5T_NATIVE_INT64, m->fixed, (hsize_t)(m->fixed ? m->n_fixed : 0), 0);
     if (m->node_tag) {
         st |= gsi_h5_fixed_ds(g, "node_tag", H5T_NATIVE_SCHAR, m->node_tag, nn, 0);
@@ -385,6 +391,7 @@ gs_err gs_record_add_meshes(gs_record *r, const gs_record_mesh *bodies, int n, g
         snprintf(rb[i].name, sizeof rb[i].name, "%s", bodies[i].name);
         rb[i].n_nodes = m->n_nodes;
         rb[i].n_tris = m->n_tris;
+        rb[i].npe = m->mid ? 6 : 3;
         rb[i].centre[0] = bodies[i].centre[0];
         rb[i].centre[1] = bodies[i].centre[1];
         for (int k = 0; k < FD_N; k++)
@@ -571,11 +578,13 @@ static void xmf_grid(FILE *f, const char *h5, const rec_body *rb, int64_t k)
     const char *nm = rb->name;
     long long n = (long long)rb->n_nodes, m = (long long)rb->n_tris, T = (long long)rb->flushed;
     fprintf(f, "        <Grid Name=\"%s\" GridType=\"Uniform\">\n", nm);
-    fprintf(f, "          <Topology TopologyType=\"Triangle\" NumberOfElements=\"%lld\">\n", m);
-    fprintf(f, "            <DataItem Dimensions=\"%lld 3\" NumberType=\"Int\" Precision=\"8\" "
-               "Format=\"HDF\">", m);
+    bool q = rb->npe == 6;
+    fprintf(f, "          <Topology TopologyType=\"%s\" NumberOfElements=\"%lld\">\n",
+            q ? "Triangle_6" : "Triangle", m);
+    fprintf(f, "            <DataItem Dimensions=\"%lld %d\" NumberType=\"Int\" Precision=\"8\" "
+               "Format=\"HDF\">", m, rb->npe);
     xml_text(f, h5);
-    fprintf(f, ":/bodies/%s/triangles</DataItem>\n          </Topology>\n", nm);
+    fprintf(f, ":/bodies/%s/%s</DataItem>\n          </Topology>\n", nm, q ? "triangles6" : "triangles");
     fprintf(f, "          <Geometry GeometryType=\"XY\">\n");
     xmf_slab(f, h5, nm, "position", k, T, rb->n_nodes, 2);
     fprintf(f, "          </Geometry>\n");
@@ -729,6 +738,7 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
         H5Sclose(sp);
         rb->n_nodes = (gs_index)nd[0];
         rb->n_tris = (gs_index)td[0];
+        rb->npe = H5Lexists(g, "triangles6", H5P_DEFAULT) > 0 ? 6 : 3;
         rb->xy = gs_calloc(2 * (size_t)nd[0] + 1, sizeof(double));
         rb->scratch = gs_calloc(3 * (size_t)nd[0] + 1, sizeof(double));
         if (!rb->xy || !rb->scratch || nd[1] != 2 ||

@@ -33,6 +33,7 @@
 
 #include "gearsim/mesh.h"
 #include "gearsim/util.h"
+#include "mesh/mesh_internal.h"
 
 /* ------------------------------------------------------------------------ */
 /* Growable node and triangle lists                                         */
@@ -1007,6 +1008,7 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o)
     o->rim = 3;
     o->refine = 0;
     o->grading = 2.0;
+    o->order = 1;
 }
 
 static gs_err check_opts(const gs_gear_mesh_opts *o, gs_diag *d)
@@ -1024,6 +1026,8 @@ static gs_err check_opts(const gs_gear_mesh_opts *o, gs_diag *d)
         return gs_diag_set(d, GS_ERANGE, "refine", "refinement level: 0 to 8 (got %d)", o->refine);
     if (!(o->grading >= 1.0 && o->grading <= 8.0))
         return gs_diag_set(d, GS_ERANGE, "mesh.grading", "grading: 1 to 8 (got %g)", o->grading);
+    if (o->order != 1 && o->order != 2)
+        return gs_diag_set(d, GS_ERANGE, "mesh.order", "element order: 1 or 2 (got %d)", o->order);
     return GS_OK;
 }
 
@@ -1037,8 +1041,9 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         o = &def;
     }
     GS_TRY(check_opts(o, d));
-    gs_gear_geom g;
+    gs_gear_geom g, g_true;
     GS_TRY(gs_gear_geometry(p, &g, d));
+    g_true = g;
     /* Mesh the gear at a reference module of 10 mm and scale the result:
      * every size is a multiple of the module, so meshes of any module are
      * then exactly the same shape (round-off included, which the smoothing's
@@ -1226,6 +1231,17 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
                             p->profile_shift);
             goto fail;
         }
+    }
+    /* Quadratic elements: mid-side nodes, on the exact outline at the true
+     * module (after scaling, so they are exact to round-off). */
+    if (o->order == 2) {
+        e = gsi_mesh_quadratic(m, &g_true);
+        if (e == GS_EGEOMETRY)
+            e = gs_diag_set(d, GS_EGEOMETRY, "mesh.order",
+                            "a curved quadratic element came out with a non-positive Jacobian "
+                            "(%d teeth): try other mesh counts", z);
+        if (e != GS_OK)
+            goto fail;
     }
     e = GS_OK;
     *out = m;

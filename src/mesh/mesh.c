@@ -17,6 +17,7 @@ void gs_mesh_free(gs_mesh **pm)
     free(m->flank_nodes);
     free(m->node_tag);
     free(m->boundary);
+    free(m->mid);
     free(m);
     *pm = NULL;
 }

@@ -114,6 +114,12 @@ gs_err gs_mesh_check_topology(const gs_mesh *m, gs_index *n_boundary_edges, int 
             E[3 * t + k].b = a < b ? b : a;
         }
     }
+    if (m->mid)
+        for (gs_index i = 0; i < 3 * m->n_tris; i++) {
+            if (m->mid[i] < 0 || m->mid[i] >= m->n_nodes)
+                goto out;
+            used[m->mid[i]] = 1;
+        }
     for (gs_index i = 0; i < m->n_nodes; i++) {
         if (!used[i])
             goto out;

@@ -48,6 +48,7 @@ gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, gs_mesh *
     o.rim = sb->mesh.rim;
     o.refine = refine >= 0 ? refine : sb->mesh.refine;
     o.grading = sb->mesh.grading;
+    o.order = sb->mesh.order;
     return gs_gear_mesh(&sb->gear, &o, out, d);
 }
 

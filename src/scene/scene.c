@@ -27,7 +27,7 @@ static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth"
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error",
     "modification", "pitch_errors_um", "runout", NULL};
 static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", NULL};
-static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", NULL};
+static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", "order", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
@@ -149,8 +149,9 @@ double gs_scene_body_unknowns(const gs_scene_body *b)
     if (b->type != GS_BODY_GEAR)
         return 0.0;
     const gs_mesh_density *m = &b->mesh;
+    /* a quadratic mesh has about four times the nodes of the linear one */
     return 2.0 * b->gear.teeth * 1.5 * (m->flank + m->rim) * (2.0 * m->across + 2.0) *
-           ldexp(1.0, 2 * m->refine);
+           ldexp(1.0, 2 * m->refine) * (m->order == 2 ? 4.0 : 1.0);
 }
 
 double gs_scene_estimate_bytes(const gs_scene *s, int *largest)
@@ -188,7 +189,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     b->type = (gs_body_type)t;
     b->model = (gs_body_model)m;
     b->material = gs_material_steel();
-    b->mesh = (gs_mesh_density){8, 4, 3, 0, 2.0};
+    b->mesh = (gs_mesh_density){8, 4, 3, 0, 2.0, 1};
     b->pitch_error_tooth = -1;
     double x;
     b->mass_given = json_object_object_get_ex(o, "mass", NULL);
@@ -272,6 +273,8 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, 0, &v, d));
         b->mesh.refine = (int)v;
         GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, 2.0, &b->mesh.grading, d));
+        GS_TRY(gsi_json_int(md, "order", mp, 1, 2, false, 1, &v, d));
+        b->mesh.order = (int)v;
     }
     json_object *pe;
     GS_TRY(gsi_json_object(o, "pitch_error", path, false, &pe, d));

@@ -4,13 +4,13 @@
  * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
- *                     [--refine R] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
+ *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
  * (N m, signed, on the driver) to the scene's load on the driver or a
  * 200 N/mm line load; --refine to the scene's mesh density; --driver to
- * gear 0 of the mesh. Without --json prints a table (one row per roll
+ * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. Exit status 0 on success, 1 on bad usage, 2 on an
@@ -29,7 +29,7 @@
 static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
-               "                         [--refine R] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
+               "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -125,6 +125,12 @@ int main(int argc, char **argv)
                 return 1;
             }
             o.refine = (int)v;
+        } else if (!strcmp(a, "--order") && has) {
+            if (!parse_long(argv[++i], 1, 2, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --order must be 1 or 2\n");
+                return 1;
+            }
+            o.order = (int)v;
         } else if (!strcmp(a, "--driver") && has) {
             if (!parse_long(argv[++i], 0, 1, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --driver must be 0 or 1\n");

@@ -16,6 +16,7 @@
 #include "fe/fe_internal.h"
 #include "gearsim/fe.h"
 #include "gearsim/mesh.h"
+#include "../common/rect.h"
 
 static const double T = 0.02; /* thickness, m */
 
@@ -27,21 +28,8 @@ static double max_abs(const double *a, gs_index n)
     return m;
 }
 
-/* A rectangle mesh with no fixed node (the core inertia keeps M positive). */
-static gs_mesh *free_rectangle(double lx, double ly, int nx, int ny, double distort)
-{
-    gs_mesh *m = NULL;
-    assert_int_equal(gs_mesh_rectangle(lx, ly, nx, ny, &m), GS_OK);
-    m->n_fixed = 0;
-    /* move interior nodes by a fixed pseudo-random pattern (patch test) */
-    for (int j = 1; j < ny; j++)
-        for (int i = 1; i < nx; i++) {
-            gs_index k = (gs_index)j * (nx + 1) + i;
-            m->xy[2 * k] += distort * lx / nx * sin(1.7 * k + 0.3);
-            m->xy[2 * k + 1] += distort * ly / ny * cos(2.3 * k + 0.1);
-        }
-    return m;
-}
+/* free_rectangle (tests/common/rect.h): no fixed node, the core inertia
+ * keeps M positive. */
 
 static void single_triangle_rigid_modes(void **state)
 {

@@ -44,10 +44,14 @@ typedef struct ring {
     double inertia;
 } ring;
 
+/* Element order of the rings built below (the invariants are checked for
+ * both orders). */
+static int g_order = 1;
+
 static void ring_new_damped(ring *r, int n_r, int n_t, double damping_s)
 {
     memset(r, 0, sizeof *r);
-    assert_int_equal(gsi_fe_mesh_annulus(R_IN, R_OUT, n_r, n_t, &r->mesh), GS_OK);
+    assert_int_equal(gsi_fe_mesh_annulus_order(R_IN, R_OUT, n_r, n_t, g_order, &r->mesh), GS_OK);
     gs_material mat = gs_material_steel();
     mat.damping_s = damping_s;
     /* the hub: a solid steel disc of radius R_IN */
@@ -116,17 +120,16 @@ static double s_dot(const ring *r, const double *x)
 
 /* ---- 1. free spin ------------------------------------------------------- */
 
-static void free_spin_conserves(void **state)
+static void free_spin_run(int n_r, int n_t)
 {
-    (void)state;
     ring r;
-    ring_new(&r, 4, 48);
+    ring_new(&r, n_r, n_t);
     const double omega0 = 3000.0 / GS_RPM_PER_RAD_S;
     const double hs[5] = {1e-8, 1e-7, 1e-6, 1e-5, 1e-4};
     const int nsteps = 10000;
     double *u0 = malloc((size_t)r.ne * sizeof *u0), *du = malloc((size_t)r.ne * sizeof *du);
-    print_message("# free spin 3000 rpm, annulus %d elastic dofs, %d steps per h\n", (int)r.ne,
-                  nsteps);
+    print_message("# free spin 3000 rpm, annulus of order %d, %d elastic dofs, %d steps per h\n",
+                  g_order, (int)r.ne, nsteps);
     print_message("# %8s %12s %12s %14s %14s %14s %14s\n", "h (s)", "E0 (J)", "E_el0 (J)",
                   "max|dE|/E0", "max|dE_el|/E_el", "max|dL|/L0", "mean speed id.");
     for (int k = 0; k < 5; k++) {
@@ -177,6 +180,23 @@ static void free_spin_conserves(void **state)
     ring_free(&r);
 }
 
+static void free_spin_conserves(void **state)
+{
+    (void)state;
+    g_order = 1;
+    free_spin_run(4, 48);
+}
+
+/* The same invariants with curved quadratic elements (mid-side nodes on the
+ * circles), about the same number of unknowns. */
+static void free_spin_conserves_quadratic(void **state)
+{
+    (void)state;
+    g_order = 2;
+    free_spin_run(2, 24);
+    g_order = 1;
+}
+
 /* ---- 2. modes ----------------------------------------------------------- */
 
 /* Generalised eigenproblem K v = lambda M v (dense, n x n), ascending;
@@ -225,11 +245,10 @@ static double measured_period(ring *r, const double *v, double h, int nsteps, do
     return 2.0 * (last - first) / crossings;
 }
 
-static void modal_periods(void **state)
+static void modal_run(int n_r, int n_t)
 {
-    (void)state;
     ring r;
-    ring_new(&r, 3, 36);
+    ring_new(&r, n_r, n_t);
     gs_index n = r.ne + 1, ne = r.ne;
     double *K = calloc((size_t)(n * n), sizeof *K), *M = calloc((size_t)(n * n), sizeof *M);
     double *Kh = calloc((size_t)(ne * ne), sizeof *Kh), *Mh = calloc((size_t)(ne * ne), sizeof *Mh);
@@ -258,8 +277,8 @@ static void modal_periods(void **state)
     /* a degenerate pair (n = 1 and n = 2 shapes of a ring) counts once */
     while (pick[1] < n - 1 && fabs(lam[pick[1]] / lam[pick[0]] - 1) < 1e-6)
         pick[1]++;
-    print_message("# annulus %d elastic dofs; lowest omega (rad/s), theta free | theta held:\n",
-                  (int)ne);
+    print_message("# annulus of order %d, %d elastic dofs; lowest omega (rad/s), theta free | "
+                  "theta held:\n", g_order, (int)ne);
     for (int k = 1; k <= 6; k++)
         print_message("#   %2d  %12.2f | %12.2f\n", k, sqrt(lam[k]), sqrt(lamh[k - 1]));
     print_message("# %4s %12s %10s %12s %12s %10s %10s\n", "mode", "omega", "theta part",
@@ -289,6 +308,21 @@ static void modal_periods(void **state)
     free(lam);
     free(lamh);
     ring_free(&r);
+}
+
+static void modal_periods(void **state)
+{
+    (void)state;
+    g_order = 1;
+    modal_run(3, 36);
+}
+
+static void modal_periods_quadratic(void **state)
+{
+    (void)state;
+    g_order = 2;
+    modal_run(2, 18);
+    g_order = 1;
 }
 
 /* ---- 2b. material damping ----------------------------------------------- */
@@ -395,7 +429,9 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(free_spin_conserves),
+        cmocka_unit_test(free_spin_conserves_quadratic),
         cmocka_unit_test(modal_periods),
+        cmocka_unit_test(modal_periods_quadratic),
         cmocka_unit_test(damped_mode_decay),
         cmocka_unit_test(balance_with_moment_and_brake),
     };

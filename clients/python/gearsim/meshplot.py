@@ -33,6 +33,8 @@ def read_meshes(h5_path):
             d["xy"] = np.asarray(g["nodes_placed"])
             d["xy_body"] = np.asarray(g["nodes"])
             d["tri"] = np.asarray(g["triangles"])
+            # quadratic meshes: Triangle_6 connectivity (corners, mid-side nodes)
+            d["tri6"] = np.asarray(g["triangles6"]) if "triangles6" in g else None
             d["tag"] = np.asarray(g["node_tag"])
             d["fixed"] = np.asarray(g["fixed"])
             d["flank_ptr"] = np.asarray(g["flank_ptr"])
@@ -49,7 +51,21 @@ def _draw(ax, gears, lw, marks):
     for i, g in enumerate(gears):
         col = _COLOURS[int(g.get("index", i)) % len(_COLOURS)]
         xy = g["xy"] * 1e3
-        polys = xy[g["tri"]]
+        if g.get("tri6") is not None:
+            # curved edges: each edge the parabola through its corners and
+            # mid-side node, drawn with 4 chords
+            import numpy as np
+            t6 = g["tri6"]
+            s = np.linspace(0.0, 1.0, 5)[:-1]
+            pieces = []
+            for a, b, m in ((0, 1, 3), (1, 2, 4), (2, 0, 5)):
+                pa, pb, pm = xy[t6[:, a]], xy[t6[:, b]], xy[t6[:, m]]
+                for u in s:
+                    pieces.append(((1 - u) * (1 - 2 * u))[None] * pa + (4 * u * (1 - u)) * pm
+                                  + (u * (2 * u - 1)) * pb)
+            polys = np.stack(pieces, axis=1)
+        else:
+            polys = xy[g["tri"]]
         ax.add_collection(PolyCollection(polys, facecolors=col, alpha=0.25, edgecolors="none"))
         ax.add_collection(PolyCollection(polys, facecolors="none", edgecolors="k", linewidths=lw))
         if marks:
@@ -127,13 +143,13 @@ def plot_mesh(h5_path, png_path, zoom_tooth=None, dpi=150, title=None, overview=
     if zoom_tooth is None:
         fig, ax = plt.subplots(figsize=(8, 8))
         _draw(ax, gears, 0.15 if n_tris > 20000 else 0.3, marks=False)
-        ax.set_title(f"{head}\n{n_nodes} nodes, {n_tris} linear triangles", fontsize=9)
+        ax.set_title(f"{head}\n{n_nodes} nodes, {n_tris} {'quadratic 6-node' if any(g.get('tri6') is not None for g in gears) else 'linear'} triangles", fontsize=9)
     else:
         g, tooth, z = _pick_tooth(gears, zoom_tooth)
         if overview:
             fig, (ax, az) = plt.subplots(1, 2, figsize=(15, 7.5))
             _draw(ax, gears, 0.15 if n_tris > 20000 else 0.3, marks=False)
-            ax.set_title(f"{head}\n{n_nodes} nodes, {n_tris} linear triangles", fontsize=9)
+            ax.set_title(f"{head}\n{n_nodes} nodes, {n_tris} {'quadratic 6-node' if any(g.get('tri6') is not None for g in gears) else 'linear'} triangles", fontsize=9)
         else:
             fig, az = plt.subplots(figsize=(8, 8))
         others = [x for x in gears if x is not g]
