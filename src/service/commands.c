@@ -65,7 +65,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
 
 static json_object *scene_summary(gs_system *sys)
 {
-    static const char *const jt[] = {"fixed_axis", "on_carrier", "held"};
+    static const char *const jt[] = {"fixed_axis", "on_carrier", "held", "bearing"};
     json_object *o = json_object_new_object();
     json_object_object_add(o, "name", json_object_new_string(sys->scene->name));
     json_object *bs = json_object_new_array();

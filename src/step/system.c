@@ -250,6 +250,18 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         gs_scene_free(&scene);
         return GS_ENOMEM;
     }
+    for (int i = 0; i < scene->n_bodies; i++) {
+        const gs_scene_body *sb = &scene->bodies[i];
+        if (sb->joint == GS_JOINT_BEARING || sb->pin_bearing) {
+            gs_diag_set(d, GS_ERANGE, "joints",
+                        "body '%s': compliant supports (bearing joint, bearing_stiffness) are in the "
+                        "modal analysis only, not yet in the time integration (docs/MODAL.md)",
+                        sb->name);
+            gs_scene_free(&scene);
+            free(s);
+            return GS_ERANGE;
+        }
+    }
     s->scene = scene;
     s->rank = rank;
     s->nranks = nranks < 1 ? 1 : nranks;
