@@ -315,7 +315,8 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
                           double h, double *g, double *J, double *diss, double *force)
 {
     int n = sys->n_coords;
-    double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
     double s1 = s0 + ds, p1 = p0 + dp, hb = m->half_backlash;
     double dk0, dk1, dd0, dd1;
@@ -361,7 +362,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     jss += (cd + m->damping * dWs * ds) / h;
     jsp += m->damping * dWp * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
     *diss = fd * ds;
     *force = gs + fd;
@@ -379,7 +380,8 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         return;
     }
     int n = sys->n_coords;
-    double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
     double s1 = s0 + ds;
     double hb = m->half_backlash;
@@ -407,7 +409,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     double cd = touching ? m->damping : 0.0;
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
     double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + cd / h;
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
@@ -421,7 +423,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
 static double lumped_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
     int n = sys->n_coords;
-    double s = dot(m->a, q, n) - m->s_ref, p = dot(m->c, q, n);
+    double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = dot(m->c, q, n);
     if (m->d0_table) {
         double dv;
         double c = m->half_backlash + table_d(m, m->d0_table, p, &dv);

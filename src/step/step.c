@@ -18,6 +18,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "models/mesh_common.h"
 #include "step_internal.h"
 
 /* Records of the bodies this rank owns (every body when `all`); the
@@ -62,6 +63,11 @@ double gsi_mesh_forces(const gs_system *sys, const double *dq, double *g, double
         me->ops->force(sys, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
         diss += dd;
         force[i] = f;
+    }
+    for (int i = 0; i < sys->n_joints; i++) {
+        double dd;
+        sys->joints[i].ops->force(sys, &sys->joints[i], sys->q, dq, sys->h_sub, g, J, &dd);
+        diss += dd;
     }
     return diss;
 }
@@ -121,6 +127,18 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
             return GS_ESINGULAR;
         C[c] = r[0];
         d0[c] = r[1];
+    }
+    /* Translating centres (bearing joints): a free mass, 1/C = 2 m / h^2,
+     * free increment h v; their supports act through the joints' forces. */
+    for (int i = 0; i < sys->n_bodies; i++) {
+        int tc = sys->bodies[i].tcoord;
+        if (tc < 0)
+            continue;
+        double h = sys->h_sub, mass = sys->scene->bodies[i].mass;
+        for (int k = 0; k < 2; k++) {
+            C[tc + k] = h * h / (2.0 * mass);
+            d0[tc + k] = h * sys->w[tc + k];
+        }
     }
     /* Start from the free motion of each body: deterministic, no hidden state. */
     for (int i = 0; i < n; i++)
@@ -239,10 +257,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         gs_gmesh_rt *me = &sys->meshes[i];
         if (me->ops->after_step)
             sys->dissipated += me->ops->after_step(sys, me);
-        double s = 0;
-        for (int j = 0; j < n; j++)
-            s += me->a[j] * sys->q[j];
-        me->deflection = s - me->s_ref;
+        me->deflection = gsi_mesh_s(sys, me, sys->q) - me->s_ref;
         me->force = sol[gs_sol_mesh_force(sys, i)];
         const double *ct = sol + gs_sol_mesh_contact(sys, i);
         me->n_active = (int)ct[0];
