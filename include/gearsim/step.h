@@ -34,7 +34,9 @@ struct gs_gmesh_rt {
     const gs_gmesh_ops *ops;
     double *a;               /* n_coords: line-of-action displacement s = a . q (m/rad) */
     double *c;               /* n_coords: mesh phase (cycles) phi = c . q */
-    double s_ref;            /* s at the initial state: zero deflection */
+    double s_ref;            /* s at zero deflection: the initial state's, less s_pin */
+    double s_pin;            /* lumped meshes: deflection the planets' pin errors set at the
+                              * initial state, along the line of action (m) */
     /* Translations along the true line of action (bodies on bearing joints,
      * docs/MODAL.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
      * centre displacement of gear k (coordinates tr_coord[k], tr_coord[k]+1),

@@ -155,6 +155,17 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         int body[2] = {first, second};
         double sign[2] = {internal ? -1.0 : 1.0, internal ? 1.0 : -1.0};
         for (int k = 0; k < 2; k++) {
+            /* A planet's pin error in a lumped mesh: its centre stands off the
+             * tight-mesh position by e, a deflection sign n . e at the start
+             * (positive: pressed in, negative: a gap). */
+            const gs_scene_body *pb = &sc->bodies[body[k]];
+            if (sm->model == GS_MESH_LUMPED && pb->joint == GS_JOINT_ON_CARRIER &&
+                (pb->pin_error[0] != 0 || pb->pin_error[1] != 0)) {
+                double r = pb->carrier_radius, a = pb->carrier_angle;
+                double r0 = r - pb->pin_error[0], a0 = a - pb->pin_error[1] / r;
+                double ex = r * cos(a) - r0 * cos(a0), ey = r * sin(a) - r0 * sin(a0);
+                m->s_pin += sign[k] * (nv[0] * ex + nv[1] * ey);
+            }
             int tc = s->bodies[body[k]].tcoord;
             if (tc < 0)
                 continue;
@@ -416,7 +427,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         double sref = 0;
         for (int j = 0; j < n; j++)
             sref += m->a[j] * s->q[j];
-        m->s_ref = sref;
+        m->s_ref = sref - m->s_pin;
         e = m->ops->init(s, m, d);
         if (e != GS_OK)
             goto fail;
