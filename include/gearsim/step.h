@@ -98,6 +98,9 @@ struct gs_system {
     gs_body_rt *bodies;
     gs_gmesh_rt *meshes;
     int n_eq;                /* equality rows of all meshes */
+    bool smooth_contact;     /* lumped meshes close and open flanks with the continuous damper
+                              * and the exact Jacobian (bearing joints or pin errors, whose
+                              * coupled flanks need them; src/models/meshes.c) */
     int n_joints;            /* compliant supports (bearing joints) */
     gs_joint_rt *joints;
     double *eq_rows;         /* n_eq x n_coords */

@@ -403,15 +403,32 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         gp = Q * dk0; /* the limit: 1/2 f^2 k'(phi) */
         jpp = 0.0;
     }
-    /* Damping acts while the teeth are in contact at the midpoint. */
+    /* Damping acts while the teeth are in contact at the midpoint; with
+     * translating gears (bearing joints) over the share of the step in
+     * contact instead (continuous in the step's end, as tangent_force), which
+     * Newton needs when a floating member closes a flank inside a step (in
+     * every mesh of a scene with bearing joints or pin errors: sys->smooth_contact). */
     double smid = s0 + 0.5 * ds;
     bool touching = fabs(smid) > hb;
-    double cd = touching ? m->damping : 0.0;
+    double cd = touching ? m->damping : 0.0, dW = 0.0;
+    bool floating = sys->smooth_contact;
+    if (floating) {
+        double W = 0.0;
+        for (int side = 0; side < 2; side++) {
+            double sg = side ? -1.0 : 1.0, dw1;
+            W += wet(sg * s0 - hb, sg * s1 - hb, &dw1);
+            dW += sg * dw1;
+        }
+        cd = m->damping * W;
+    }
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
         g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
-    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + cd / h;
+    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + (cd + m->damping * dW * ds) / h;
+    if (floating && ds != 0.0) /* the exact slope of dfs across the dead zone's edges: a floating
+                               * member makes the step a coupled problem that needs it */
+        jss = kbar * ((f1 != 0.0 ? f1 : 0.0) - dfs) / ds + (cd + m->damping * dW * ds) / h;
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;

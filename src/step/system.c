@@ -428,6 +428,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         for (int j = 0; j < n; j++)
             sref += m->a[j] * s->q[j];
         m->s_ref = sref - m->s_pin;
+        s->smooth_contact |= s->n_joints > 0 || m->s_pin != 0.0;
         e = m->ops->init(s, m, d);
         if (e != GS_OK)
             goto fail;

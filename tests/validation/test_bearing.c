@@ -20,6 +20,7 @@
 #include <cmocka.h>
 
 #include "gearsim/modal.h"
+#include "gearsim/util.h"
 #include "scene_build.h"
 
 /* The builtin lumped planetary with the sun on a bearing of stiffness ks
@@ -198,6 +199,68 @@ static void translational_mode_stays(void **state)
     one_mode(GS_MODE_TRANSLATIONAL, "translational");
 }
 
+
+/* Load sharing with a 10 um tangential pin error on planet1
+ * (deploy/scenes/planetary_floating.json): the largest planet share over the
+ * mean, averaged over the last 5000 of 25000 steps (0.25 s; steady carrier
+ * speed), with the floating sun and with the sun on a fixed axis. */
+static double sharing(bool floating, double share_out[3], double *sun_offset)
+{
+    json_object *root = vt_scene("planetary_floating");
+    if (!floating) {
+        json_object *joints = json_object_object_get(root, "joints");
+        for (size_t i = 0; i < json_object_array_length(joints); i++) {
+            json_object *j = json_object_array_get_idx(joints, i);
+            if (!strcmp(json_object_get_string(json_object_object_get(j, "body")), "sun")) {
+                json_object_object_del(j, "stiffness");
+                json_object_object_del(j, "damping");
+                json_object_object_add(j, "type", json_object_new_string("fixed_axis"));
+            }
+        }
+    }
+    gs_system *s = vt_system(root);
+    int sun = gs_scene_find_body(s->scene, "sun");
+    double acc[3] = {0, 0, 0}, off = 0, worst = 0, scale = 0;
+    int n = 0;
+    gs_energy e;
+    for (int k = 0; k < 25000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        if (k >= 20000) {
+            int pl[8];
+            double sh[8];
+            int np = gs_system_planet_shares(s, pl, sh, 8);
+            assert_int_equal(np, 3);
+            for (int i = 0; i < 3; i++)
+                acc[i] += sh[i];
+            n++;
+            int tc = s->bodies[sun].tcoord;
+            if (tc >= 0)
+                off += hypot(s->q[tc], s->q[tc + 1]);
+        }
+    }
+    assert_true(worst < 1e-9 * scale);
+    double mx = 0;
+    for (int i = 0; i < 3; i++) {
+        share_out[i] = acc[i] / n;
+        mx = fmax(mx, share_out[i]);
+    }
+    *sun_offset = off / n;
+    gs_system_free(&s);
+    return mx; /* shares are normalised to mean 1 */
+}
+
+static void floating_sun_shares_load(void **state)
+{
+    (void)state;
+    double fl[3], fx[3], off_fl, off_fx;
+    double lsf_float = sharing(true, fl, &off_fl), lsf_fixed = sharing(false, fx, &off_fx);
+    print_message("pin error 10 um on planet1: floating sun LSF %.4f (shares %.4f %.4f %.4f, sun off centre %.2f um); "
+                  "fixed sun LSF %.4f (shares %.4f %.4f %.4f)\n",
+                  lsf_float, fl[0], fl[1], fl[2], off_fl * 1e6, lsf_fixed, fx[0], fx[1], fx[2]);
+    assert_true(lsf_float < 1.05);
+    assert_true(lsf_fixed > 1.3);
+}
+
 static void refusals(void **state)
 {
     (void)state;
@@ -223,6 +286,7 @@ int main(void)
         cmocka_unit_test(floating_sun_balance),
         cmocka_unit_test(rotational_mode_stays),
         cmocka_unit_test(translational_mode_stays),
+        cmocka_unit_test(floating_sun_shares_load),
         cmocka_unit_test(refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
