@@ -99,6 +99,50 @@ static double residual(gs_system *sys, const double *C, const double *d0, const 
     return maxabs(F, n);
 }
 
+/* Dense LU with partial pivoting of the small row-major k x k system A x = b
+ * (b overwritten by x): the KKT systems of rigid trains are a few unknowns,
+ * where LAPACKE's layout transposition and checks cost more than the
+ * elimination (tests/bench/bench_lumped.c). Returns nonzero when singular. */
+#define SMALL_SOLVE 24
+static int small_solve(int k, double *A, double *b)
+{
+    for (int c = 0; c < k; c++) {
+        int p = c;
+        double big = fabs(A[c * k + c]);
+        for (int r = c + 1; r < k; r++)
+            if (fabs(A[r * k + c]) > big)
+                big = fabs(A[r * k + c]), p = r;
+        if (!(big > 0.0))
+            return 1;
+        if (p != c) {
+            for (int j = c; j < k; j++) {
+                double t = A[c * k + j];
+                A[c * k + j] = A[p * k + j];
+                A[p * k + j] = t;
+            }
+            double t = b[c];
+            b[c] = b[p];
+            b[p] = t;
+        }
+        double inv = 1.0 / A[c * k + c];
+        for (int r = c + 1; r < k; r++) {
+            double f = A[r * k + c] * inv;
+            if (f == 0.0)
+                continue;
+            for (int j = c + 1; j < k; j++)
+                A[r * k + j] -= f * A[c * k + j];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int r = k - 1; r >= 0; r--) {
+        double v = b[r];
+        for (int j = r + 1; j < k; j++)
+            v -= A[r * k + j] * b[j];
+        b[r] = v / A[r * k + r];
+    }
+    return 0;
+}
+
 static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
 {
     int n = sys->n_coords, m = sys->n_eq, k = n + m;
@@ -171,7 +215,7 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
                 K[(n + a) * k + i] = v;
             }
         }
-        if (LAPACKE_dgesv(LAPACK_ROW_MAJOR, k, 1, K, k, piv, F, 1) != 0)
+        if (k <= SMALL_SOLVE ? small_solve(k, K, F) != 0 : LAPACKE_dgesv(LAPACK_ROW_MAJOR, k, 1, K, k, piv, F, 1) != 0)
             return GS_ESINGULAR;
         /* Backtracking on the residual: the discrete gradient is only
          * piecewise smooth (backlash, stiffness transitions). */
