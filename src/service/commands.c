@@ -140,26 +140,37 @@ static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
     return e;
 }
 
-static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+/* The scene text of args.scene (an object) or args.builtin (a name): the
+ * one given (*has_s tells which), or NULL in *text when neither is (an
+ * error when `required`, or when both are). */
+static gs_err scene_text_arg(json_object *args, bool required, const char **text, bool *has_s, gs_diag *d)
 {
-    (void)id;
     json_object *scene = NULL, *builtin = NULL;
-    bool has_s = json_object_object_get_ex(args, "scene", &scene);
+    *has_s = json_object_object_get_ex(args, "scene", &scene);
     bool has_b = json_object_object_get_ex(args, "builtin", &builtin);
-    if (has_s == has_b)
+    *text = NULL;
+    if ((*has_s && has_b) || (required && !*has_s && !has_b))
         return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'scene' (an object) or 'builtin' (a name)");
-    const char *text;
     if (has_b) {
         if (json_object_get_type(builtin) != json_type_string)
             return gs_diag_set(d, GS_ESCHEMA, "args.builtin", "'builtin' must be a string");
-        text = gs_scene_builtin(json_object_get_string(builtin));
-        if (!text)
+        *text = gs_scene_builtin(json_object_get_string(builtin));
+        if (!*text)
             return gs_diag_set(d, GS_ENOTFOUND, "args.builtin", "no builtin scene '%.64s'", json_object_get_string(builtin));
-    } else {
+    } else if (*has_s) {
         if (json_object_get_type(scene) != json_type_object)
             return gs_diag_set(d, GS_ESCHEMA, "args.scene", "'scene' must be an object");
-        text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
+        *text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
     }
+    return GS_OK;
+}
+
+static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    const char *text;
+    bool has_s;
+    GS_TRY(scene_text_arg(args, true, &text, &has_s, d));
     gs_err e = load_scene_text(s, text, d);
     if (e != GS_OK) {
         if (has_s && d->field[0]) {
@@ -917,11 +928,9 @@ static const char *const modal_args[] = {"scene", "builtin", "shapes", NULL};
 static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
-    json_object *scene = NULL, *builtin = NULL;
-    bool has_s = json_object_object_get_ex(args, "scene", &scene);
-    bool has_b = json_object_object_get_ex(args, "builtin", &builtin);
-    if (has_s && has_b)
-        return gs_diag_set(d, GS_ESCHEMA, "args", "give at most one of 'scene' (an object) or 'builtin' (a name)");
+    const char *text;
+    bool has_s;
+    GS_TRY(scene_text_arg(args, false, &text, &has_s, d));
     bool shapes = true;
     json_object *sh;
     if (json_object_object_get_ex(args, "shapes", &sh)) {
@@ -931,20 +940,7 @@ static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_o
     }
     gs_scene *own = NULL;
     const gs_scene *sc;
-    if (has_s || has_b) {
-        const char *text;
-        if (has_b) {
-            if (json_object_get_type(builtin) != json_type_string)
-                return gs_diag_set(d, GS_ESCHEMA, "args.builtin", "'builtin' must be a string");
-            text = gs_scene_builtin(json_object_get_string(builtin));
-            if (!text)
-                return gs_diag_set(d, GS_ENOTFOUND, "args.builtin", "no builtin scene '%.64s'",
-                                   json_object_get_string(builtin));
-        } else {
-            if (json_object_get_type(scene) != json_type_object)
-                return gs_diag_set(d, GS_ESCHEMA, "args.scene", "'scene' must be an object");
-            text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
-        }
+    if (text) {
         gs_err e = gs_scene_parse(text, strlen(text), &own, d);
         if (e != GS_OK) {
             char f[sizeof d->field];
