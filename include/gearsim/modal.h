@@ -16,7 +16,9 @@
  * a the operating pressure angle acos((rb_A +- rb_B) / centre distance); the flanks are those a
  * counter-clockwise moment on the sun (gear A) loads. Bearings add isotropic
  * radial springs and torsional springs. K q = w^2 M q is solved with LAPACK
- * dsygv. Modes of equal frequency form groups; a group is classified from
+ * dsygv; kinematic meshes are exact constraints (delta = 0): the problem is
+ * solved on the null space of their rows (SVD), rigid meshes in the modes.
+ * Modes of equal frequency form groups; a group is classified from
  * the kinetic energy it puts in the central members (bodies not on a
  * carrier) after Lin and Parker (1999): rotational (central members only
  * rotate), translational (they only translate), planet (they do not move),
@@ -36,16 +38,19 @@ typedef enum {
 
 typedef struct gs_modal {
     int n;                  /* generalised coordinates */
+    int n_modes;            /* modes: n less the rank of the kinematic meshes' rows */
     int n_bodies;
     int *dof_body;          /* n: body of each coordinate */
     int *dof_comp;          /* n: 0 x, 1 y, 2 rotation */
     double *T;              /* 3 n_bodies x n, column-major: body (x, y, theta) = T q */
     double *M, *K;          /* n x n, column-major */
-    double *omega2;         /* n eigenvalues w^2, ascending */
-    double *freq_hz;        /* n: sqrt(max(w^2, 0)) / 2 pi */
-    double *shape;          /* n x n column-major: mode j in column j, q' M q = 1 */
-    double *body_shape;     /* 3 n_bodies x n: body (x, y, theta) of each mode */
-    int *group;             /* n: group index of each mode (equal frequencies) */
+    double *G;              /* n_con x n, row-major: the kinematic meshes' rows (delta = G q) */
+    int n_con;
+    double *omega2;         /* n_modes eigenvalues w^2, ascending */
+    double *freq_hz;        /* n_modes: sqrt(max(w^2, 0)) / 2 pi */
+    double *shape;          /* n x n_modes column-major: mode j in column j, q' M q = 1 */
+    double *body_shape;     /* 3 n_bodies x n_modes: body (x, y, theta) of each mode */
+    int *group;             /* n_modes: group index of each mode (equal frequencies) */
     int n_groups;
     int *group_first, *group_mult; /* n_groups: first mode and multiplicity */
     int *group_kind;        /* n_groups: gs_mode_kind */
@@ -55,8 +60,9 @@ typedef struct gs_modal {
 } gs_modal;
 
 /* Build and solve. Errors name the field: meshes[i].model or .stiffness for
- * a mesh without a mean stiffness (kinematic, contact, compliant,
- * calibrated, impact), meshes[i].gears for impossible geometry. */
+ * a mesh without a mean stiffness (contact, compliant, calibrated, impact),
+ * meshes[i].gears for impossible geometry, meshes when kinematic meshes
+ * lock the whole train. */
 gs_err gs_modal_analyse(const gs_scene *s, gs_modal **out, gs_diag *d);
 void gs_modal_free(gs_modal **m);
 const char *gs_mode_kind_name(int kind);

@@ -27,7 +27,7 @@ void gs_modal_free(gs_modal **pm)
     free(m->dof_body), free(m->dof_comp), free(m->T), free(m->M), free(m->K);
     free(m->omega2), free(m->freq_hz), free(m->shape), free(m->body_shape);
     free(m->group), free(m->group_first), free(m->group_mult), free(m->group_kind);
-    free(m->group_central), free(m->lever);
+    free(m->group_central), free(m->lever), free(m->G);
     free(m);
     *pm = NULL;
 }
@@ -74,11 +74,11 @@ static gs_err mesh_row(const gs_scene *s, int mi, double *c, double *k, gs_diag 
 {
     const gs_scene_mesh *sm = &s->meshes[mi];
     char f[96];
-    if (sm->model != GS_MESH_LUMPED) {
+    if (sm->model != GS_MESH_LUMPED && sm->model != GS_MESH_KINEMATIC) {
         snprintf(f, sizeof f, "meshes[%d].model", mi);
         return gs_diag_set(d, GS_ERANGE, f,
-                           "mesh '%s': the modal analysis needs a mean mesh stiffness, i.e. a lumped mesh "
-                           "with constant or rectangular stiffness",
+                           "mesh '%s': the modal analysis needs a mean mesh stiffness (a lumped mesh with "
+                           "constant or rectangular stiffness) or an exact ratio (kinematic)",
                            sm->name);
     }
     int A = sm->gear[0], B = sm->gear[1];
@@ -116,7 +116,9 @@ static gs_err mesh_row(const gs_scene *s, int mi, double *c, double *k, gs_diag 
         c[3 * A] += n[0], c[3 * A + 1] += n[1], c[3 * A + 2] += rA;
         c[3 * B] -= n[0], c[3 * B + 1] -= n[1], c[3 * B + 2] += rB;
     }
-    if (sm->stiffness_type == GS_STIFF_CONSTANT) {
+    if (sm->model == GS_MESH_KINEMATIC) {
+        *k = -1.0; /* a constraint, not a spring */
+    } else if (sm->stiffness_type == GS_STIFF_CONSTANT) {
         *k = sm->k_single;
     } else if (sm->stiffness_type == GS_STIFF_RECTANGULAR) {
         double eps;
@@ -227,13 +229,29 @@ static gs_err build(const gs_scene *s, gs_modal *m, gs_diag *d)
             add_spring(m, c, k, g);
         }
     }
-    /* meshes */
+    /* meshes: springs, or constraint rows (kinematic) */
+    m->n_con = 0;
+    m->G = gs_calloc((size_t)(s->n_meshes ? s->n_meshes : 1) * (size_t)n, sizeof(double));
+    if (!m->G) {
+        e = GS_ENOMEM;
+        goto out;
+    }
     for (int mi = 0; mi < s->n_meshes; mi++) {
         double k = 0;
         e = mesh_row(s, mi, c, &k, d);
         if (e != GS_OK)
             goto out;
-        add_spring(m, c, k, g);
+        if (k >= 0) {
+            add_spring(m, c, k, g);
+            continue;
+        }
+        for (int j = 0; j < n; j++) { /* row-major n_con x n */
+            double v = 0;
+            for (int r = 0; r < nb3; r++)
+                v += c[r] * TT(m, r, j);
+            m->G[(size_t)m->n_con * n + j] = v;
+        }
+        m->n_con++;
     }
     e = GS_OK;
 out:
@@ -241,42 +259,108 @@ out:
     return e;
 }
 
+/* Null space of the constraint rows (n x r, column-major) by SVD; r = n
+ * when there are none. */
+static double *null_space(const gs_modal *m, int *r)
+{
+    int n = m->n, k = m->n_con;
+    double *N;
+    if (k == 0) {
+        N = gs_calloc((size_t)n * n, sizeof(double));
+        for (int i = 0; N && i < n; i++)
+            N[(size_t)i * n + i] = 1.0;
+        *r = n;
+        return N;
+    }
+    double *A = malloc(sizeof(double) * (size_t)k * n), *sv = malloc(sizeof(double) * (size_t)(k < n ? k : n));
+    double *Vt = malloc(sizeof(double) * (size_t)n * n), *sup = malloc(sizeof(double) * (size_t)(k < n ? k : n));
+    N = NULL;
+    if (A && sv && Vt && sup) {
+        memcpy(A, m->G, sizeof(double) * (size_t)k * n);
+        if (LAPACKE_dgesvd(LAPACK_ROW_MAJOR, 'N', 'A', k, n, A, n, sv, NULL, 1, Vt, n, sup) == 0) {
+            int rank = 0;
+            for (int i = 0; i < (k < n ? k : n); i++)
+                rank += sv[i] > 1e-12 * sv[0];
+            *r = n - rank;
+            N = gs_calloc((size_t)n * (size_t)(*r > 0 ? *r : 1), sizeof(double));
+            for (int c = 0; N && c < *r; c++) /* rows rank.. of V' are the null space */
+                for (int i = 0; i < n; i++)
+                    N[(size_t)c * n + i] = Vt[(size_t)(rank + c) * n + i];
+        }
+    }
+    free(A), free(sv), free(Vt), free(sup);
+    return N;
+}
+
 static gs_err solve(gs_modal *m, gs_diag *d)
 {
-    int n = m->n, nb3 = 3 * m->n_bodies;
-    size_t nn = (size_t)n * (size_t)n;
-    double *B = malloc(nn * sizeof(double));
-    m->shape = malloc(nn * sizeof(double));
-    m->omega2 = calloc((size_t)n, sizeof(double));
-    m->freq_hz = calloc((size_t)n, sizeof(double));
-    m->body_shape = calloc((size_t)nb3 * (size_t)n, sizeof(double));
-    if (!B || !m->shape || !m->omega2 || !m->freq_hz || !m->body_shape) {
-        free(B);
+    int n = m->n, nb3 = 3 * m->n_bodies, r = 0;
+    double *N = null_space(m, &r);
+    if (!N)
+        return GS_ENOMEM;
+    if (r == 0) {
+        free(N);
+        return gs_diag_set(d, GS_ERANGE, "meshes", "the kinematic meshes lock the whole train: nothing can vibrate");
+    }
+    m->n_modes = r;
+    size_t nr = (size_t)n * (size_t)r, rr = (size_t)r * (size_t)r;
+    double *Kr = calloc(rr, sizeof(double)), *Mr = calloc(rr, sizeof(double)), *tmp = calloc(nr, sizeof(double));
+    m->shape = calloc(nr, sizeof(double));
+    m->omega2 = calloc((size_t)r, sizeof(double));
+    m->freq_hz = calloc((size_t)r, sizeof(double));
+    m->body_shape = calloc((size_t)nb3 * (size_t)r, sizeof(double));
+    if (!Kr || !Mr || !tmp || !m->shape || !m->omega2 || !m->freq_hz || !m->body_shape) {
+        free(N), free(Kr), free(Mr), free(tmp);
         return GS_ENOMEM;
     }
-    memcpy(m->shape, m->K, nn * sizeof(double));
-    memcpy(B, m->M, nn * sizeof(double));
-    lapack_int info = LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'V', 'U', n, m->shape, n, B, n, m->omega2);
-    free(B);
-    if (info != 0)
+    /* reduced matrices N' K N, N' M N */
+    for (int pass = 0; pass < 2; pass++) {
+        const double *A = pass ? m->M : m->K;
+        double *R = pass ? Mr : Kr;
+        for (int c = 0; c < r; c++)
+            for (int i = 0; i < n; i++) {
+                double v = 0;
+                for (int j = 0; j < n; j++)
+                    v += A[(size_t)j * n + i] * N[(size_t)c * n + j];
+                tmp[(size_t)c * n + i] = v;
+            }
+        for (int c = 0; c < r; c++)
+            for (int a = 0; a < r; a++) {
+                double v = 0;
+                for (int i = 0; i < n; i++)
+                    v += N[(size_t)a * n + i] * tmp[(size_t)c * n + i];
+                R[(size_t)c * r + a] = v;
+            }
+    }
+    lapack_int info = LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'V', 'U', r, Kr, r, Mr, r, m->omega2);
+    if (info != 0) {
+        free(N), free(Kr), free(Mr), free(tmp);
         return gs_diag_set(d, GS_ESINGULAR, "bodies",
                            "the generalised eigenproblem failed (dsygv info %d): a moving body without mass?",
                            (int)info);
-    for (int j = 0; j < n; j++) {
+    }
+    for (int j = 0; j < r; j++) {
+        for (int i = 0; i < n; i++) {
+            double v = 0;
+            for (int c = 0; c < r; c++)
+                v += N[(size_t)c * n + i] * Kr[(size_t)j * r + c];
+            m->shape[(size_t)j * n + i] = v;
+        }
         m->freq_hz[j] = sqrt(m->omega2[j] > 0 ? m->omega2[j] : 0.0) / (2 * PI);
-        for (int r = 0; r < nb3; r++) {
+        for (int q = 0; q < nb3; q++) {
             double v = 0;
             for (int i = 0; i < n; i++)
-                v += TT(m, r, i) * m->shape[(size_t)j * n + i];
-            m->body_shape[(size_t)j * nb3 + r] = v;
+                v += TT(m, q, i) * m->shape[(size_t)j * n + i];
+            m->body_shape[(size_t)j * nb3 + q] = v;
         }
     }
+    free(N), free(Kr), free(Mr), free(tmp);
     return GS_OK;
 }
 
 static gs_err classify(const gs_scene *s, gs_modal *m)
 {
-    int n = m->n, nb = m->n_bodies;
+    int n = m->n_modes, nb = m->n_bodies;
     m->group = calloc((size_t)n, sizeof(int));
     m->group_first = calloc((size_t)n, sizeof(int));
     m->group_mult = calloc((size_t)n, sizeof(int));
@@ -346,10 +430,11 @@ gs_err gs_modal_analyse(const gs_scene *s, gs_modal **out, gs_diag *d)
 
 json_object *gs_modal_json(const gs_modal *m, const gs_scene *s)
 {
-    int n = m->n, nb = m->n_bodies;
+    int n = m->n_modes, nb = m->n_bodies;
     json_object *o = json_object_new_object();
     json_object_object_add(o, "scene", json_object_new_string(s->name));
-    json_object_object_add(o, "dof", json_object_new_int(n));
+    json_object_object_add(o, "dof", json_object_new_int(m->n));
+    json_object_object_add(o, "constraints", json_object_new_int(m->n - n));
     json_object *counts = json_object_new_object();
     int cnt[4] = {0, 0, 0, 0};
     for (int g = 0; g < m->n_groups; g++)

@@ -169,11 +169,27 @@ with dmod.Daemon(ranks=1) as d:
                     "joints" in (e.field or ""), (e.code, e.field, e.message))
         try:
             kin = {k: v for k, v in scene["meshes"][0].items() if k != "stiffness"}
-            c.modal(scene=dict(scene, meshes=[dict(kin, model="kinematic")] + scene["meshes"][1:]))
-            R.check("a kinematic mesh is refused by the modal analysis", False)
+            c.modal(scene=dict(scene, meshes=[dict(kin, model="compliant")] + scene["meshes"][1:]))
+            R.check("a compliant mesh is refused by the modal analysis", False)
         except dmod.gearsim.GearsimError as e:
-            R.check("a kinematic mesh is refused by the modal analysis, naming the mesh",
+            R.check("a compliant mesh is refused by the modal analysis, naming the mesh",
                     e.field == "args.scene.meshes[0].model", (e.code, e.field, e.message))
+        # kinematic meshes are exact constraints: the limit of a stiff lumped mesh
+        pair = dmod.load_scene("pair")
+        for j in pair["joints"]:
+            j.update(type="bearing", stiffness=1e8)
+        m0 = {k: v for k, v in pair["meshes"][0].items() if k in ("name", "gears")}
+        rk = R.guard("modal of a pair on bearings with a kinematic mesh", c.modal,
+                     scene=dict(pair, meshes=[dict(m0, model="kinematic")]), shapes=False)
+        rl = R.guard("the same with a lumped mesh of 1e12 N/m", c.modal,
+                     scene=dict(pair, meshes=[dict(m0, model="lumped", stiffness=1e12)]), shapes=False)
+        if rk and rl:
+            fk = [g["frequency_hz"] for g in rk["groups"]]
+            fl = [g["frequency_hz"] for g in rl["groups"]]
+            R.check("kinematic: one mode fewer than coordinates", rk["dof"] == 6 and rk["constraints"] == 1 and
+                    len(fk) == 5, rk)
+            R.check("kinematic modes are the stiff lumped mesh's lower modes (1e-5)",
+                    all(abs(a - b) <= 1e-5 * b for a, b in zip(fk[1:], fl[1:5])), (fk, fl))
         c.load(builtin="planetary")
         r = R.guard("modal command on the loaded planetary (rigid pins, fixed axes)", c.modal, shapes=False)
         if r:

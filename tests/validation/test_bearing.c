@@ -118,6 +118,7 @@ static void one_mode(int pick_kind, const char *what)
     gs_scene_free(&sc);
     gs_system *s = vt_system(root);
     assert_int_equal(s->n_coords, m->n);
+    assert_int_equal(m->n_modes, m->n);
     /* modal coordinate b -> system coordinate */
     int *map = calloc((size_t)m->n, sizeof(int));
     for (int b = 0; b < m->n; b++) {
