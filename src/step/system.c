@@ -169,10 +169,26 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
             int tc = s->bodies[body[k]].tcoord;
             if (tc < 0)
                 continue;
+            if (cc < 0) { /* a fixed line: linear in the translations */
+                m->a[tc] += sign[k] * nv[0];
+                m->a[tc + 1] += sign[k] * nv[1];
+                continue;
+            }
             m->tr_coord[m->n_tr] = tc;
             m->tr_n0[m->n_tr][0] = sign[k] * nv[0];
             m->tr_n0[m->n_tr][1] = sign[k] * nv[1];
             m->n_tr++;
+        }
+        bool translates = false;
+        for (int k = 0; k < 2; k++)
+            translates |= s->bodies[body[k]].tcoord >= 0;
+        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : sm->model != GS_MESH_LUMPED)) {
+            char f[64];
+            snprintf(f, sizeof f, "meshes[%d].model", m->index);
+            return gs_diag_set(d, GS_ERANGE, f,
+                               "mesh '%s': a gear on a bearing joint meshes through lumped meshes, or kinematic "
+                               "ones on a fixed line (not with a planet on a turning carrier), so far",
+                               sm->name);
         }
         if (m->n_tr) {
             m->tr_carrier = cc;
@@ -315,9 +331,9 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 why = "a carrier with planets cannot sit on a bearing joint yet (its translation would "
                       "carry the planets; modal analysis only)";
         for (int m = 0; !why && sb->joint == GS_JOINT_BEARING && m < scene->n_meshes; m++)
-            if (scene->meshes[m].model != GS_MESH_LUMPED)
-                why = "with a bearing joint every mesh of the scene must be lumped (the translations act "
-                      "along the line of action of lumped meshes only, so far)";
+            if (scene->meshes[m].model == GS_MESH_CONTACT)
+                why = "a scene with a bearing joint cannot have contact meshes yet (the contact step has no "
+                      "translations)";
         if (why) {
             gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
             gs_scene_free(&scene);
