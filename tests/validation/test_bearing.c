@@ -304,6 +304,53 @@ static void kinematic_pair_on_bearings(void **state)
     one_mode(pair_on_bearings(false), GS_MODE_MIXED, "kinematic pair, mixed");
 }
 
+/* Closed forms: a spur pair on fixed axes with a constant lumped mesh,
+ * w^2 = k (rb1^2 / I1 + rb2^2 / I2) beside the rigid rotation; one gear on
+ * a bearing, w^2 = k_r / m (double) and k_t / I. */
+static void modal_closed_forms(void **state)
+{
+    (void)state;
+    json_object *root = vt_scene("pair");
+    json_object *m0 = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+    json_object_object_add(m0, "stiffness", json_object_new_double(2e8));
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc;
+    gs_diag d;
+    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+    gs_modal *m;
+    assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
+    double r1 = gs_gear_base_radius(&sc->bodies[0].gear), r2 = gs_gear_base_radius(&sc->bodies[1].gear);
+    double w2 = 2e8 * (r1 * r1 / sc->bodies[0].inertia + r2 * r2 / sc->bodies[1].inertia);
+    assert_int_equal(m->n_modes, 2);
+    assert_true(fabs(m->omega2[0]) < 1e-9 * w2);
+    assert_true(fabs(m->omega2[1] / w2 - 1) < 1e-12);
+    print_message("pair: %.6f Hz, closed form %.6f Hz\n", m->freq_hz[1], sqrt(w2) / (2 * 3.14159265358979323846));
+    gs_modal_free(&m);
+    gs_scene_free(&sc);
+    json_object_put(root);
+
+    root = vt_scene("pair");
+    json_object_object_add(root, "meshes", json_object_new_array());
+    json_object *j0 = json_object_array_get_idx(json_object_object_get(root, "joints"), 0);
+    json_object_object_add(j0, "type", json_object_new_string("bearing"));
+    json_object_object_add(j0, "stiffness", json_object_new_double(3e7));
+    json_object_object_add(j0, "torsional_stiffness", json_object_new_double(5e4));
+    txt = json_object_to_json_string(root);
+    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+    assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
+    double wt = 3e7 / sc->bodies[0].mass, wr = 5e4 / sc->bodies[0].inertia;
+    int found_t = 0, found_r = 0;
+    for (int i = 0; i < m->n_modes; i++) {
+        found_t += fabs(m->omega2[i] / wt - 1) < 1e-12;
+        found_r += fabs(m->omega2[i] / wr - 1) < 1e-12;
+    }
+    assert_int_equal(found_t, 2);
+    assert_int_equal(found_r, 1);
+    gs_modal_free(&m);
+    gs_scene_free(&sc);
+    json_object_put(root);
+}
+
 static void refusals(void **state)
 {
     (void)state;
@@ -331,6 +378,7 @@ int main(void)
         cmocka_unit_test(translational_mode_stays),
         cmocka_unit_test(floating_sun_shares_load),
         cmocka_unit_test(kinematic_pair_on_bearings),
+        cmocka_unit_test(modal_closed_forms),
         cmocka_unit_test(refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
