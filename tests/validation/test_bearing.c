@@ -106,7 +106,9 @@ static double modal_coord(const gs_modal *m, const gs_system *s, const double *x
     return v;
 }
 
-static void one_mode(json_object *root, int pick_kind, const char *what)
+/* The modal analysis of the scene `root` (borrowed); its parsed scene in
+ * *out (freed when out is NULL). */
+static gs_modal *modal_of(json_object *root, gs_scene **out)
 {
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc;
@@ -114,7 +116,16 @@ static void one_mode(json_object *root, int pick_kind, const char *what)
     assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
     gs_modal *m;
     assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
-    gs_scene_free(&sc);
+    if (out)
+        *out = sc;
+    else
+        gs_scene_free(&sc);
+    return m;
+}
+
+static void one_mode(json_object *root, int pick_kind, const char *what)
+{
+    gs_modal *m = modal_of(root, NULL);
     gs_system *s = vt_system(root);
     assert_int_equal(s->n_coords, m->n);
     /* modal coordinate b -> system coordinate */
@@ -313,12 +324,8 @@ static void modal_closed_forms(void **state)
     json_object *root = vt_scene("pair");
     json_object *m0 = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
     json_object_object_add(m0, "stiffness", json_object_new_double(2e8));
-    const char *txt = json_object_to_json_string(root);
     gs_scene *sc;
-    gs_diag d;
-    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
-    gs_modal *m;
-    assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
+    gs_modal *m = modal_of(root, &sc);
     double r1 = gs_gear_base_radius(&sc->bodies[0].gear), r2 = gs_gear_base_radius(&sc->bodies[1].gear);
     double w2 = 2e8 * (r1 * r1 / sc->bodies[0].inertia + r2 * r2 / sc->bodies[1].inertia);
     assert_int_equal(m->n_modes, 2);
@@ -335,9 +342,7 @@ static void modal_closed_forms(void **state)
     json_object_object_add(j0, "type", json_object_new_string("bearing"));
     json_object_object_add(j0, "stiffness", json_object_new_double(3e7));
     json_object_object_add(j0, "torsional_stiffness", json_object_new_double(5e4));
-    txt = json_object_to_json_string(root);
-    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
-    assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
+    m = modal_of(root, &sc);
     double wt = 3e7 / sc->bodies[0].mass, wr = 5e4 / sc->bodies[0].inertia;
     int found_t = 0, found_r = 0;
     for (int i = 0; i < m->n_modes; i++) {
