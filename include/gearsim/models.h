@@ -84,6 +84,28 @@ typedef struct gs_gmesh_ops {
     double (*after_step)(gs_system *sys, gs_gmesh_rt *m);
 } gs_gmesh_ops;
 
+/* A compliant support (joint) with a potential and a damper on rigid
+ * coordinates (docs/MODAL.md): the `bearing` joint holds a body's centre
+ * displacement (x, y) with an isotropic radial spring and damper and its
+ * rotation with a torsional one. Its force is the discrete gradient of its
+ * potential between q0 and q0 + dq (exact: V(q1) - V(q0) = g . dq) plus the
+ * damper's, whose work it returns in *diss. */
+typedef struct gs_joint_rt gs_joint_rt;
+typedef struct gs_joint_ops {
+    const char *name;
+    void (*force)(const gs_system *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
+                  double *g, double *J, double *diss);
+    double (*energy)(const gs_system *sys, const gs_joint_rt *j, const double *q);
+} gs_joint_ops;
+struct gs_joint_rt {
+    int body;
+    const gs_joint_ops *ops;
+    int coord[3];            /* x, y, rotation coordinates (-1: absent) */
+    double k[3], c[3];       /* stiffness and damping on each */
+    double q_ref[3];         /* where each spring is relaxed */
+};
+const gs_joint_ops *gs_joint_ops_find(const char *name);
+
 /* The FE mesh of a scene gear at its scene mesh density (elastic bodies;
  * the outline of a rigid gear in a contact mesh). d->message says why it
  * failed; the caller names the field. */

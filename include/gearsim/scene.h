@@ -16,7 +16,12 @@
 
 typedef enum { GS_BODY_GEAR = 0, GS_BODY_CARRIER = 1 } gs_body_type;
 typedef enum { GS_MODEL_RIGID = 0, GS_MODEL_ELASTIC = 1 } gs_body_model;
-typedef enum { GS_JOINT_FIXED_AXIS = 0, GS_JOINT_ON_CARRIER = 1, GS_JOINT_HELD = 2 } gs_joint_type;
+typedef enum {
+    GS_JOINT_FIXED_AXIS = 0,
+    GS_JOINT_ON_CARRIER = 1,
+    GS_JOINT_HELD = 2,
+    GS_JOINT_BEARING = 3       /* centre moves in the plane on a radial bearing (docs/MODAL.md) */
+} gs_joint_type;
 typedef enum {
     GS_MESH_KINEMATIC = 0,
     GS_MESH_LUMPED = 1,
@@ -54,6 +59,11 @@ typedef struct gs_scene_body {
     double carrier_angle;      /* rad */
     /* manufacturing errors */
     double pin_error[2];       /* m: radial, tangential error of a planet's pin (on_carrier) */
+    /* compliant supports (docs/MODAL.md): `bearing` joint, and a planet's
+     * bearing on its carrier pin (on_carrier with bearing_stiffness) */
+    double bearing_k, bearing_c; /* N/m, N s/m: isotropic radial bearing (0: floating) */
+    double torsion_k, torsion_c; /* N m/rad, N m s/rad: torsional support (bearing joint; 0: free) */
+    bool pin_bearing;          /* on_carrier: the planet's centre moves on a bearing_k spring */
     int pitch_error_tooth;     /* tooth whose flanks are displaced along the pitch circle, -1 none */
     double pitch_error;        /* m, counter-clockwise */
     gs_gear_mods *mods;        /* profile modifications, pitch errors, run-out (owned; NULL:

@@ -16,6 +16,8 @@
 struct gs_body_rt {
     int index;               /* body index in the scene */
     int coord;               /* rigid coordinate index, -1 when held */
+    int tcoord;              /* bearing joint: x coordinate of the centre's displacement
+                              * (y at tcoord + 1), m; -1 for a centre that does not move */
     int owner;               /* rank that owns the body */
     double inertia_eff;      /* I + sum m d^2 of planets for a carrier */
     const gs_body_ops *ops;
@@ -32,7 +34,19 @@ struct gs_gmesh_rt {
     const gs_gmesh_ops *ops;
     double *a;               /* n_coords: line-of-action displacement s = a . q (m/rad) */
     double *c;               /* n_coords: mesh phase (cycles) phi = c . q */
-    double s_ref;            /* s at the initial state: zero deflection */
+    double s_ref;            /* s at zero deflection: the initial state's, less s_pin */
+    double s_pin;            /* lumped meshes: deflection the planets' pin errors set at the
+                              * initial state, along the line of action (m) */
+    /* Translations along the true line of action (bodies on bearing joints,
+     * docs/MODAL.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
+     * centre displacement of gear k (coordinates tr_coord[k], tr_coord[k]+1),
+     * n_k = R(q[tr_carrier]) tr_n0[k] when a gear rides on a carrier (the
+     * line turns with it), tr_n0[k] otherwise. abar: scratch, n_coords. */
+    int n_tr;
+    int tr_coord[2];
+    double tr_n0[2][2];
+    int tr_carrier;          /* carrier coordinate, -1 none */
+    double *abar;
     double contact_ratio;
     double k_single, k_double, damping, half_backlash;
     double transition;       /* width of the single/double stiffness change, fraction of a cycle */
@@ -84,6 +98,11 @@ struct gs_system {
     gs_body_rt *bodies;
     gs_gmesh_rt *meshes;
     int n_eq;                /* equality rows of all meshes */
+    bool smooth_contact;     /* lumped meshes close and open flanks with the continuous damper
+                              * and the exact Jacobian (bearing joints or pin errors, whose
+                              * coupled flanks need them; src/models/meshes.c) */
+    int n_joints;            /* compliant supports (bearing joints) */
+    gs_joint_rt *joints;
     double *eq_rows;         /* n_eq x n_coords */
     double *q, *w;           /* rigid coordinates and velocities (every rank holds all) */
     double time;

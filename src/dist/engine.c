@@ -7,6 +7,7 @@
 
 #include "gearsim/engine.h"
 #include "gearsim/util.h"
+#include "models/mesh_common.h"
 
 struct gs_engine {
     MPI_Comm comm;
@@ -571,10 +572,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     s->h_sub = s->h / (double)((int64_t)1 << s->level);
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
-        double v = 0;
-        for (int j = 0; j < s->n_coords; j++)
-            v += m->a[j] * s->q[j];
-        m->deflection = v - m->s_ref;
+        m->deflection = gsi_mesh_s(s, m, s->q) - m->s_ref;
         double ct[MESH_SNAP];
         memcpy(ct, (const char *)forces + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
         m->force = ct[0];

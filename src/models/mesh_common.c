@@ -68,10 +68,73 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
 
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
 {
+    const double *a = m->n_tr ? m->abar : m->a; /* the step's discrete gradient of s */
     for (int i = 0; i < n; i++) {
-        if (m->a[i] == 0.0 && m->c[i] == 0.0)
+        if (a[i] == 0.0 && m->c[i] == 0.0)
             continue;
         for (int j = 0; j < n; j++)
-            J[i * n + j] += m->a[i] * (jss * m->a[j] + jsp * m->c[j]) + m->c[i] * (jps * m->a[j] + jpp * m->c[j]);
+            J[i * n + j] += a[i] * (jss * a[j] + jsp * m->c[j]) + m->c[i] * (jps * a[j] + jpp * m->c[j]);
     }
+}
+
+/* Direction of the line of action of translating gear k at q. */
+static void tr_dir(const gs_gmesh_rt *m, int k, const double *q, double n[2])
+{
+    n[0] = m->tr_n0[k][0], n[1] = m->tr_n0[k][1];
+    if (m->tr_carrier >= 0) {
+        double t = q[m->tr_carrier], c = cos(t), s = sin(t);
+        n[0] = c * m->tr_n0[k][0] - s * m->tr_n0[k][1];
+        n[1] = s * m->tr_n0[k][0] + c * m->tr_n0[k][1];
+    }
+}
+
+double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+{
+    double s = 0;
+    for (int i = 0; i < sys->n_coords; i++)
+        s += m->a[i] * q[i];
+    for (int k = 0; k < m->n_tr; k++) {
+        double n[2];
+        tr_dir(m, k, q, n);
+        s += n[0] * q[m->tr_coord[k]] + n[1] * q[m->tr_coord[k] + 1];
+    }
+    return s;
+}
+
+const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq)
+{
+    if (!m->n_tr)
+        return m->a;
+    int n = sys->n_coords;
+    for (int i = 0; i < n; i++)
+        m->abar[i] = m->a[i];
+    for (int k = 0; k < m->n_tr; k++) {
+        int x = m->tr_coord[k];
+        if (m->tr_carrier < 0) { /* fixed line: linear */
+            m->abar[x] += m->tr_n0[k][0];
+            m->abar[x + 1] += m->tr_n0[k][1];
+            continue;
+        }
+        /* t = n(theta) . X: t1 - t0 = nbar . dX + (n1 - n0) . Xbar exactly, with
+         * n1 - n0 = 2 sin(dth / 2) R(th_mid) J n0 (J: quarter turn). */
+        int c = m->tr_carrier;
+        double th0 = q0[c], dth = dq[c], thm = th0 + 0.5 * dth;
+        double n0[2], n1[2], q1[2] = {0, 0};
+        tr_dir(m, k, q0, n0);
+        q1[0] = th0 + dth;
+        { /* n at the step's end */
+            double cc = cos(q1[0]), ss = sin(q1[0]);
+            n1[0] = cc * m->tr_n0[k][0] - ss * m->tr_n0[k][1];
+            n1[1] = ss * m->tr_n0[k][0] + cc * m->tr_n0[k][1];
+        }
+        m->abar[x] += 0.5 * (n0[0] + n1[0]);
+        m->abar[x + 1] += 0.5 * (n0[1] + n1[1]);
+        double jn[2] = {-m->tr_n0[k][1], m->tr_n0[k][0]};
+        double cm = cos(thm), sm = sin(thm);
+        double rj[2] = {cm * jn[0] - sm * jn[1], sm * jn[0] + cm * jn[1]};
+        double xb = q0[x] + 0.5 * dq[x], yb = q0[x + 1] + 0.5 * dq[x + 1];
+        double sinc = fabs(dth) > 1e-6 ? 2.0 * sin(0.5 * dth) / dth : 1.0 - dth * dth / 24.0;
+        m->abar[c] += sinc * (rj[0] * xb + rj[1] * yb);
+    }
+    return m->abar;
 }

@@ -27,4 +27,12 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
  * s-force (jss by s, jsp by p) and of the p-force (jps, jpp). */
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
 
+/* Line-of-action displacement s(q) = a . q plus the translations (step.h,
+ * gs_gmesh_rt.n_tr). */
+double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q);
+/* Its discrete gradient over the step from q0 by dq: a vector abar with
+ * abar . dq = s(q0 + dq) - s(q0) exactly (m->a itself when nothing
+ * translates; else written into m->abar). */
+const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq);
+
 #endif

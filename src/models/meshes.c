@@ -324,7 +324,8 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
                           double h, double *g, double *J, double *diss, double *force)
 {
     int n = sys->n_coords;
-    double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
     double s1 = s0 + ds, p1 = p0 + dp, hb = m->half_backlash;
     double dk0, dk1, dd0, dd1;
@@ -370,7 +371,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     jss += (cd + m->damping * dWs * ds) / h;
     jsp += m->damping * dWp * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
     *diss = fd * ds;
     *force = gs + fd;
@@ -388,7 +389,8 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         return;
     }
     int n = sys->n_coords;
-    double s0 = dot(m->a, q0, n) - m->s_ref, ds = dot(m->a, dq, n);
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
     double s1 = s0 + ds;
     double hb = m->half_backlash;
@@ -410,15 +412,32 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         gp = Q * dk0; /* the limit: 1/2 f^2 k'(phi) */
         jpp = 0.0;
     }
-    /* Damping acts while the teeth are in contact at the midpoint. */
+    /* Damping acts while the teeth are in contact at the midpoint; with
+     * translating gears (bearing joints) over the share of the step in
+     * contact instead (continuous in the step's end, as tangent_force), which
+     * Newton needs when a floating member closes a flank inside a step (in
+     * every mesh of a scene with bearing joints or pin errors: sys->smooth_contact). */
     double smid = s0 + 0.5 * ds;
     bool touching = fabs(smid) > hb;
-    double cd = touching ? m->damping : 0.0;
+    double cd = touching ? m->damping : 0.0, dW = 0.0;
+    bool floating = sys->smooth_contact;
+    if (floating) {
+        double W = 0.0;
+        for (int side = 0; side < 2; side++) {
+            double sg = side ? -1.0 : 1.0, dw1;
+            W += wet(sg * s0 - hb, sg * s1 - hb, &dw1);
+            dW += sg * dw1;
+        }
+        cd = m->damping * W;
+    }
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += m->a[i] * (gs + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
-    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + cd / h;
+    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + (cd + m->damping * dW * ds) / h;
+    if (floating && ds != 0.0) /* the exact slope of dfs across the dead zone's edges: a floating
+                               * member makes the step a coupled problem that needs it */
+        jss = kbar * ((f1 != 0.0 ? f1 : 0.0) - dfs) / ds + (cd + m->damping * dW * ds) / h;
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
@@ -430,7 +449,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
 static double lumped_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
     int n = sys->n_coords;
-    double s = dot(m->a, q, n) - m->s_ref, p = dot(m->c, q, n);
+    double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = dot(m->c, q, n);
     if (m->d0_table) {
         double dv;
         double c = m->half_backlash + table_d(m, m->d0_table, p, &dv);

@@ -29,7 +29,9 @@ static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth"
 static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", NULL};
 static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", "order", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
-                                         "angle_deg", "pin_error_um", NULL};
+                                         "angle_deg", "pin_error_um", "stiffness", "damping",
+                                         "torsional_stiffness", "torsional_damping", "bearing_stiffness",
+                                         "bearing_damping", NULL};
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "restitution", "law", "patches", "bending", "transition",
@@ -51,7 +53,7 @@ void gs_scene_body_centre(const gs_scene *s, int i, double c[2])
         const gs_scene_body *cb = &s->bodies[b->carrier];
         c[0] = cb->centre[0] + b->carrier_radius * cos(b->carrier_angle);
         c[1] = cb->centre[1] + b->carrier_radius * sin(b->carrier_angle);
-    } else if (b->joint == GS_JOINT_FIXED_AXIS) {
+    } else if (b->joint == GS_JOINT_FIXED_AXIS || b->joint == GS_JOINT_BEARING) {
         c[0] = b->centre[0];
         c[1] = b->centre[1];
     } else {
@@ -312,9 +314,46 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     return GS_OK;
 }
 
+/* Compliant supports of a joint (docs/MODAL.md): `bearing` takes stiffness,
+ * damping (radial, N/m, N s/m; stiffness 0 = floating) and
+ * torsional_stiffness, torsional_damping (N m/rad, N m s/rad; 0 = free);
+ * on_carrier takes bearing_stiffness, bearing_damping (the planet's bearing
+ * on its pin; absent = rigid pin). Other joints take none of them. */
+static gs_err parse_supports(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
+{
+    static const char *const brg[] = {"stiffness", "damping", "torsional_stiffness", "torsional_damping", NULL};
+    static const char *const pin[] = {"bearing_stiffness", "bearing_damping", NULL};
+    char p[256];
+    b->bearing_k = b->bearing_c = b->torsion_k = b->torsion_c = 0;
+    b->pin_bearing = false;
+    for (int g = 0; g < 2; g++) {
+        bool allowed = g == 0 ? b->joint == GS_JOINT_BEARING : b->joint == GS_JOINT_ON_CARRIER;
+        for (const char *const *k = g == 0 ? brg : pin; *k && !allowed; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p, "'%s' belongs to %s joint", *k,
+                                   g == 0 ? "a bearing" : "an on_carrier");
+            }
+    }
+    if (b->joint == GS_JOINT_BEARING) {
+        GS_TRY(gsi_json_number(o, "stiffness", path, 0, 1e13, true, 0, &b->bearing_k, d));
+        GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, 0, &b->bearing_c, d));
+        GS_TRY(gsi_json_number(o, "torsional_stiffness", path, 0, 1e13, false, 0, &b->torsion_k, d));
+        GS_TRY(gsi_json_number(o, "torsional_damping", path, 0, 1e9, false, 0, &b->torsion_c, d));
+    } else if (b->joint == GS_JOINT_ON_CARRIER && json_object_object_get_ex(o, "bearing_stiffness", NULL)) {
+        GS_TRY(gsi_json_positive(o, "bearing_stiffness", path, 1e13, true, 0, &b->bearing_k, d));
+        GS_TRY(gsi_json_number(o, "bearing_damping", path, 0, 1e9, false, 0, &b->bearing_c, d));
+        b->pin_bearing = true;
+    } else if (json_object_object_get_ex(o, "bearing_damping", NULL)) {
+        gsi_path(p, sizeof p, path, "bearing_damping");
+        return gs_diag_set(d, GS_ESCHEMA, p, "'bearing_damping' needs 'bearing_stiffness'");
+    }
+    return GS_OK;
+}
+
 static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *seen, gs_diag *d)
 {
-    static const char *const types[] = {"fixed_axis", "on_carrier", "held"};
+    static const char *const types[] = {"fixed_axis", "on_carrier", "held", "bearing"};
     if (json_object_get_type(o) != json_type_object)
         return gs_diag_set(d, GS_ESCHEMA, path, "a joint must be an object");
     GS_TRY(gsi_json_only(o, path, joint_keys, d));
@@ -329,9 +368,10 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
     seen[bi] = true;
     gs_scene_body *b = &s->bodies[bi];
     int t;
-    GS_TRY(enum_field(o, "type", path, NULL, types, 3, &t, d));
+    GS_TRY(enum_field(o, "type", path, NULL, types, 4, &t, d));
     b->joint = (gs_joint_type)t;
-    if (b->joint == GS_JOINT_FIXED_AXIS) {
+    GS_TRY(parse_supports(o, path, b, d));
+    if (b->joint == GS_JOINT_FIXED_AXIS || b->joint == GS_JOINT_BEARING) {
         json_object *c;
         GS_TRY(gsi_json_array(o, "centre_mm", path, false, &c, d));
         b->centre[0] = b->centre[1] = 0;

@@ -10,6 +10,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "gearsim/modal.h"
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
@@ -37,7 +38,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
     json_object *caps = json_object_new_array();
     static const char *const cap[] = {"rigid", "elastic", "kinematic", "lumped", "contact", "fields", "record",
-                                      "checkpoint", "jobs", "fetch", NULL};
+                                      "checkpoint", "jobs", "fetch", "modal", NULL};
     for (int i = 0; cap[i]; i++)
         json_object_array_add(caps, json_object_new_string(cap[i]));
     json_object_object_add(o, "capabilities", caps);
@@ -66,7 +67,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
 
 static json_object *scene_summary(gs_system *sys)
 {
-    static const char *const jt[] = {"fixed_axis", "on_carrier", "held"};
+    static const char *const jt[] = {"fixed_axis", "on_carrier", "held", "bearing"};
     json_object *o = json_object_new_object();
     json_object_object_add(o, "name", json_object_new_string(sys->scene->name));
     json_object *bs = json_object_new_array();
@@ -140,26 +141,37 @@ static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
     return e;
 }
 
-static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+/* The scene text of args.scene (an object) or args.builtin (a name): the
+ * one given (*has_s tells which), or NULL in *text when neither is (an
+ * error when `required`, or when both are). */
+static gs_err scene_text_arg(json_object *args, bool required, const char **text, bool *has_s, gs_diag *d)
 {
-    (void)id;
     json_object *scene = NULL, *builtin = NULL;
-    bool has_s = json_object_object_get_ex(args, "scene", &scene);
+    *has_s = json_object_object_get_ex(args, "scene", &scene);
     bool has_b = json_object_object_get_ex(args, "builtin", &builtin);
-    if (has_s == has_b)
+    *text = NULL;
+    if ((*has_s && has_b) || (required && !*has_s && !has_b))
         return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'scene' (an object) or 'builtin' (a name)");
-    const char *text;
     if (has_b) {
         if (json_object_get_type(builtin) != json_type_string)
             return gs_diag_set(d, GS_ESCHEMA, "args.builtin", "'builtin' must be a string");
-        text = gs_scene_builtin(json_object_get_string(builtin));
-        if (!text)
+        *text = gs_scene_builtin(json_object_get_string(builtin));
+        if (!*text)
             return gs_diag_set(d, GS_ENOTFOUND, "args.builtin", "no builtin scene '%.64s'", json_object_get_string(builtin));
-    } else {
+    } else if (*has_s) {
         if (json_object_get_type(scene) != json_type_object)
             return gs_diag_set(d, GS_ESCHEMA, "args.scene", "'scene' must be an object");
-        text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
+        *text = json_object_to_json_string_ext(scene, JSON_C_TO_STRING_PLAIN);
     }
+    return GS_OK;
+}
+
+static gs_err cmd_load(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    const char *text;
+    bool has_s;
+    GS_TRY(scene_text_arg(args, true, &text, &has_s, d));
     gs_err e = load_scene_text(s, text, d);
     if (e != GS_OK) {
         if (has_s && d->field[0]) {
@@ -990,6 +1002,56 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     return GS_OK;
 }
 
+static const char *const modal_args[] = {"scene", "builtin", "shapes", NULL};
+
+/* Natural frequencies and mode shapes of the linearised rigid/lumped train
+ * (docs/MODAL.md): of the scene in args.scene or the builtin args.builtin,
+ * else of the loaded scene. Rank 0 alone, milliseconds; the run's state is
+ * untouched. */
+static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
+{
+    (void)id;
+    const char *text;
+    bool has_s;
+    GS_TRY(scene_text_arg(args, false, &text, &has_s, d));
+    bool shapes = true;
+    json_object *sh;
+    if (json_object_object_get_ex(args, "shapes", &sh)) {
+        if (json_object_get_type(sh) != json_type_boolean)
+            return gs_diag_set(d, GS_ESCHEMA, "args.shapes", "'shapes' must be true or false");
+        shapes = json_object_get_boolean(sh);
+    }
+    gs_scene *own = NULL;
+    const gs_scene *sc;
+    if (text) {
+        gs_err e = gs_scene_parse(text, strlen(text), &own, d);
+        if (e != GS_OK) {
+            char f[sizeof d->field];
+            snprintf(f, sizeof f, "args.%s.%.140s", has_s ? "scene" : "builtin", d->field);
+            memcpy(d->field, f, sizeof f);
+            return e;
+        }
+        sc = own;
+    } else {
+        GS_TRY(need_loaded(s, d));
+        sc = gs_engine_system(s->eng)->scene;
+    }
+    gs_modal *m = NULL;
+    gs_err e = gs_modal_analyse(sc, &m, d);
+    if (e == GS_OK) {
+        *res = gs_modal_json(m, sc);
+        if (!shapes)
+            json_object_object_del(*res, "modes");
+    } else if (has_s) {
+        char f[sizeof d->field];
+        snprintf(f, sizeof f, "args.scene.%.140s", d->field);
+        memcpy(d->field, f, sizeof f);
+    }
+    gs_modal_free(&m);
+    gs_scene_free(&own);
+    return e;
+}
+
 static const gsi_command commands[] = {
     {"hello", cmd_hello, true, no_args},
     {"load", cmd_load, false, load_args},
@@ -1008,6 +1070,7 @@ static const gsi_command commands[] = {
     {"jobs", cmd_jobs, true, no_args},
     {"fetch", cmd_fetch, true, fetch_args},
     {"stiffness", cmd_stiffness, true, stiffness_args},
+    {"modal", cmd_modal, true, modal_args},
     {"shutdown", cmd_shutdown, true, no_args},
     {NULL, NULL, false, NULL},
 };

@@ -18,6 +18,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "models/mesh_common.h"
 #include "step_internal.h"
 
 /* Records of the bodies this rank owns (every body when `all`); the
@@ -29,6 +30,14 @@ static void records(gs_system *sys, double *rec, bool all)
         gs_body_rt *b = &sys->bodies[i];
         if (!all && b->owner != sys->rank)
             continue;
+        /* Bodies with their own state (elastic) are timed for the balance of
+         * ranks; a rigid body's interface is a few flops, and two clock reads
+         * per rigid body were a sixth of the lumped planetary's step
+         * (tests/bench/bench_lumped.c). */
+        if (!b->ops->state_size) {
+            b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+            continue;
+        }
         double t0 = gs_now();
         b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         b->work_s += gs_now() - t0;
@@ -63,6 +72,11 @@ double gsi_mesh_forces(const gs_system *sys, const double *dq, double *g, double
         diss += dd;
         force[i] = f;
     }
+    for (int i = 0; i < sys->n_joints; i++) {
+        double dd;
+        sys->joints[i].ops->force(sys, &sys->joints[i], sys->q, dq, sys->h_sub, g, J, &dd);
+        diss += dd;
+    }
     return diss;
 }
 
@@ -93,6 +107,50 @@ static double residual(gs_system *sys, const double *C, const double *d0, const 
     return maxabs(F, n);
 }
 
+/* Dense LU with partial pivoting of the small row-major k x k system A x = b
+ * (b overwritten by x): the KKT systems of rigid trains are a few unknowns,
+ * where LAPACKE's layout transposition and checks cost more than the
+ * elimination (tests/bench/bench_lumped.c). Returns nonzero when singular. */
+#define SMALL_SOLVE 24
+static int small_solve(int k, double *A, double *b)
+{
+    for (int c = 0; c < k; c++) {
+        int p = c;
+        double big = fabs(A[c * k + c]);
+        for (int r = c + 1; r < k; r++)
+            if (fabs(A[r * k + c]) > big)
+                big = fabs(A[r * k + c]), p = r;
+        if (!(big > 0.0))
+            return 1;
+        if (p != c) {
+            for (int j = c; j < k; j++) {
+                double t = A[c * k + j];
+                A[c * k + j] = A[p * k + j];
+                A[p * k + j] = t;
+            }
+            double t = b[c];
+            b[c] = b[p];
+            b[p] = t;
+        }
+        double inv = 1.0 / A[c * k + c];
+        for (int r = c + 1; r < k; r++) {
+            double f = A[r * k + c] * inv;
+            if (f == 0.0)
+                continue;
+            for (int j = c + 1; j < k; j++)
+                A[r * k + j] -= f * A[c * k + j];
+            b[r] -= f * b[c];
+        }
+    }
+    for (int r = k - 1; r >= 0; r--) {
+        double v = b[r];
+        for (int j = r + 1; j < k; j++)
+            v -= A[r * k + j] * b[j];
+        b[r] = v / A[r * k + r];
+    }
+    return 0;
+}
+
 static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
 {
     int n = sys->n_coords, m = sys->n_eq, k = n + m;
@@ -121,6 +179,18 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
             return GS_ESINGULAR;
         C[c] = r[0];
         d0[c] = r[1];
+    }
+    /* Translating centres (bearing joints): a free mass, 1/C = 2 m / h^2,
+     * free increment h v; their supports act through the joints' forces. */
+    for (int i = 0; i < sys->n_bodies; i++) {
+        int tc = sys->bodies[i].tcoord;
+        if (tc < 0)
+            continue;
+        double h = sys->h_sub, mass = sys->scene->bodies[i].mass;
+        for (int k = 0; k < 2; k++) {
+            C[tc + k] = h * h / (2.0 * mass);
+            d0[tc + k] = h * sys->w[tc + k];
+        }
     }
     /* Start from the free motion of each body: deterministic, no hidden state. */
     for (int i = 0; i < n; i++)
@@ -153,7 +223,7 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
                 K[(n + a) * k + i] = v;
             }
         }
-        if (LAPACKE_dgesv(LAPACK_ROW_MAJOR, k, 1, K, k, piv, F, 1) != 0)
+        if (k <= SMALL_SOLVE ? small_solve(k, K, F) != 0 : LAPACKE_dgesv(LAPACK_ROW_MAJOR, k, 1, K, k, piv, F, 1) != 0)
             return GS_ESINGULAR;
         /* Backtracking on the residual: the discrete gradient is only
          * piecewise smooth (backlash, stiffness transitions). */
@@ -239,10 +309,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         gs_gmesh_rt *me = &sys->meshes[i];
         if (me->ops->after_step)
             sys->dissipated += me->ops->after_step(sys, me);
-        double s = 0;
-        for (int j = 0; j < n; j++)
-            s += me->a[j] * sys->q[j];
-        me->deflection = s - me->s_ref;
+        me->deflection = gsi_mesh_s(sys, me, sys->q) - me->s_ref;
         me->force = sol[gs_sol_mesh_force(sys, i)];
         const double *ct = sol + gs_sol_mesh_contact(sys, i);
         me->n_active = (int)ct[0];

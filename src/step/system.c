@@ -27,7 +27,9 @@ void gs_system_free(gs_system **ps)
         free(s->meshes[i].c);
         free(s->meshes[i].k_table);
         free(s->meshes[i].d0_table);
+        free(s->meshes[i].abar);
     }
+    free(s->joints);
     gsi_contact_free(s);
     gsi_plan_free(&s->plan, s->n_bodies);
     free(s->buf);
@@ -129,6 +131,72 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
     double alpha_w;
     GS_TRY(gs_pair_contact_ratio(&sc->bodies[sm->gear[0]].gear, &sc->bodies[sm->gear[1]].gear,
                                  hypot(c1[0] - c0[0], c1[1] - c0[1]), &m->contact_ratio, &alpha_w, d));
+    /* Translations along the true line of action (gearsim/modal.h): the
+     * line through the pitch point at the operating pressure angle, on the
+     * flanks that a counter-clockwise moment on an external gear A (or a
+     * clockwise one on the pinion of a ring) loads; s grows with
+     * n . (X_A - X_B) (external) and n . (X_P - X_R) (internal). */
+    m->tr_carrier = -1;
+    {
+        int A = sm->gear[0], B = sm->gear[1];
+        bool internal = sc->bodies[A].gear.kind == GS_GEAR_INTERNAL || sc->bodies[B].gear.kind == GS_GEAR_INTERNAL;
+        int R = A, P = B;
+        if (internal && sc->bodies[B].gear.kind == GS_GEAR_INTERNAL)
+            R = B, P = A;
+        int first = internal ? R : A, second = internal ? P : B;
+        double p0[2], p1[2];
+        gs_scene_body_centre(sc, first, p0);
+        gs_scene_body_centre(sc, second, p1);
+        double u[2] = {p1[0] - p0[0], p1[1] - p0[1]}, dist = hypot(u[0], u[1]);
+        u[0] /= dist, u[1] /= dist;
+        double sa = sin(alpha_w), ca = cos(alpha_w);
+        double nv[2] = {(internal ? -sa : sa) * u[0] - ca * u[1], (internal ? -sa : sa) * u[1] + ca * u[0]};
+        /* external: s += n.(X_A - X_B); internal: s += -n.(X_R - X_P) */
+        int body[2] = {first, second};
+        double sign[2] = {internal ? -1.0 : 1.0, internal ? 1.0 : -1.0};
+        for (int k = 0; k < 2; k++) {
+            /* A planet's pin error in a lumped mesh: its centre stands off the
+             * tight-mesh position by e, a deflection sign n . e at the start
+             * (positive: pressed in, negative: a gap). */
+            const gs_scene_body *pb = &sc->bodies[body[k]];
+            if (sm->model == GS_MESH_LUMPED && pb->joint == GS_JOINT_ON_CARRIER &&
+                (pb->pin_error[0] != 0 || pb->pin_error[1] != 0)) {
+                double r = pb->carrier_radius, a = pb->carrier_angle;
+                double r0 = r - pb->pin_error[0], a0 = a - pb->pin_error[1] / r;
+                double ex = r * cos(a) - r0 * cos(a0), ey = r * sin(a) - r0 * sin(a0);
+                m->s_pin += sign[k] * (nv[0] * ex + nv[1] * ey);
+            }
+            int tc = s->bodies[body[k]].tcoord;
+            if (tc < 0)
+                continue;
+            if (cc < 0) { /* a fixed line: linear in the translations */
+                m->a[tc] += sign[k] * nv[0];
+                m->a[tc + 1] += sign[k] * nv[1];
+                continue;
+            }
+            m->tr_coord[m->n_tr] = tc;
+            m->tr_n0[m->n_tr][0] = sign[k] * nv[0];
+            m->tr_n0[m->n_tr][1] = sign[k] * nv[1];
+            m->n_tr++;
+        }
+        bool translates = false;
+        for (int k = 0; k < 2; k++)
+            translates |= s->bodies[body[k]].tcoord >= 0;
+        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : sm->model != GS_MESH_LUMPED)) {
+            char f[64];
+            snprintf(f, sizeof f, "meshes[%d].model", m->index);
+            return gs_diag_set(d, GS_ERANGE, f,
+                               "mesh '%s': a gear on a bearing joint meshes through lumped meshes, or kinematic "
+                               "ones on a fixed line (not with a planet on a turning carrier), so far",
+                               sm->name);
+        }
+        if (m->n_tr) {
+            m->tr_carrier = cc;
+            m->abar = gs_calloc((size_t)n, sizeof(double));
+            if (!m->abar)
+                return GS_ENOMEM;
+        }
+    }
     bool moves = false;
     for (int i = 0; i < n; i++)
         moves |= m->a[i] != 0.0;
@@ -250,6 +318,29 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         gs_scene_free(&scene);
         return GS_ENOMEM;
     }
+    for (int i = 0; i < scene->n_bodies; i++) {
+        const gs_scene_body *sb = &scene->bodies[i];
+        const char *why = NULL;
+        if (sb->pin_bearing)
+            why = "planet bearings on carrier pins (bearing_stiffness) are in the modal analysis only, "
+                  "not yet in the time integration";
+        else if (sb->joint == GS_JOINT_BEARING && sb->model == GS_MODEL_ELASTIC)
+            why = "a bearing joint takes rigid bodies only";
+        for (int j = 0; !why && sb->joint == GS_JOINT_BEARING && j < scene->n_bodies; j++)
+            if (scene->bodies[j].joint == GS_JOINT_ON_CARRIER && scene->bodies[j].carrier == i)
+                why = "a carrier with planets cannot sit on a bearing joint yet (its translation would "
+                      "carry the planets; modal analysis only)";
+        for (int m = 0; !why && sb->joint == GS_JOINT_BEARING && m < scene->n_meshes; m++)
+            if (scene->meshes[m].model == GS_MESH_CONTACT)
+                why = "a scene with a bearing joint cannot have contact meshes yet (the contact step has no "
+                      "translations)";
+        if (why) {
+            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
+            gs_scene_free(&scene);
+            free(s);
+            return GS_ERANGE;
+        }
+    }
     s->scene = scene;
     s->rank = rank;
     s->nranks = nranks < 1 ? 1 : nranks;
@@ -282,6 +373,39 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             e = gs_diag_set(d, GS_ERANGE, f, "body model '%s' is not available in this build", model);
             b->ops = NULL;
             goto fail;
+        }
+    }
+    /* Centre displacements of bodies on bearing joints: two more coordinates
+     * each, after every rotation; and their supports. */
+    for (int i = 0; i < s->n_bodies; i++) {
+        s->bodies[i].tcoord = -1;
+        if (scene->bodies[i].joint == GS_JOINT_BEARING) {
+            s->bodies[i].tcoord = s->n_coords;
+            s->n_coords += 2;
+            s->n_joints++;
+        }
+    }
+    if (s->n_joints) {
+        s->joints = gs_calloc((size_t)s->n_joints, sizeof *s->joints);
+        if (!s->joints) {
+            e = GS_ENOMEM;
+            goto fail;
+        }
+        for (int i = 0, k = 0; i < s->n_bodies; i++) {
+            const gs_scene_body *sb = &scene->bodies[i];
+            if (sb->joint != GS_JOINT_BEARING)
+                continue;
+            gs_joint_rt *j = &s->joints[k++];
+            j->body = i;
+            j->ops = gs_joint_ops_find("bearing");
+            j->coord[0] = s->bodies[i].tcoord;
+            j->coord[1] = s->bodies[i].tcoord + 1;
+            j->coord[2] = s->bodies[i].coord;
+            j->k[0] = j->k[1] = sb->bearing_k;
+            j->c[0] = j->c[1] = sb->bearing_c;
+            j->k[2] = sb->torsion_k;
+            j->c[2] = sb->torsion_c;
+            j->q_ref[2] = sb->angle0;
         }
     }
     assign_owners(s);
@@ -319,7 +443,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         double sref = 0;
         for (int j = 0; j < n; j++)
             sref += m->a[j] * s->q[j];
-        m->s_ref = sref;
+        m->s_ref = sref - m->s_pin;
+        s->smooth_contact |= s->n_joints > 0 || m->s_pin != 0.0;
         e = m->ops->init(s, m, d);
         if (e != GS_OK)
             goto fail;
@@ -388,8 +513,9 @@ gs_err gs_system_check(const gs_system *s, gs_diag *d)
     double h = s->h;
     long long step = (long long)s->step;
     for (int i = 0; i < s->n_bodies; i++) {
-        int c = s->bodies[i].coord;
-        if (c >= 0 && !(isfinite(s->q[c]) && isfinite(s->w[c])))
+        int c = s->bodies[i].coord, tc = s->bodies[i].tcoord;
+        if ((c >= 0 && !(isfinite(s->q[c]) && isfinite(s->w[c]))) ||
+            (tc >= 0 && !(isfinite(s->q[tc]) && isfinite(s->q[tc + 1]) && isfinite(s->w[tc]) && isfinite(s->w[tc + 1]))))
             return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
                                "the state of '%s' is no longer finite at step %lld (t = %.6g s): "
                                "the step diverged; reduce the time step (now %.3g s) or check the "
@@ -588,6 +714,13 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
     }
     for (int i = 0; i < sys->n_meshes; i++)
         V += sys->meshes[i].ops->energy(sys, &sys->meshes[i], sys->q);
+    for (int i = 0; i < sys->n_bodies; i++) { /* translating centres */
+        int tc = sys->bodies[i].tcoord;
+        if (tc >= 0)
+            T += 0.5 * sys->scene->bodies[i].mass * (sys->w[tc] * sys->w[tc] + sys->w[tc + 1] * sys->w[tc + 1]);
+    }
+    for (int i = 0; i < sys->n_joints; i++)
+        V += sys->joints[i].ops->energy(sys, &sys->joints[i], sys->q);
     e->kinetic = T;
     e->potential = V;
     e->elastic = Ve;
@@ -609,6 +742,11 @@ void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *th
         c[1] = cb->centre[1] + b->carrier_radius * sin(a);
     } else {
         gs_scene_body_centre(sys->scene, body, c);
+        int tc = sys->bodies[body].tcoord;
+        if (tc >= 0) {
+            c[0] += sys->q[tc];
+            c[1] += sys->q[tc + 1];
+        }
     }
     int k = sys->bodies[body].coord;
     *theta = k >= 0 ? sys->q[k] : 0.0;

@@ -175,6 +175,19 @@ class Client:
     def unload(self):
         return self.request("unload")
 
+    def modal(self, scene=None, builtin=None, shapes=True):
+        """Natural frequencies and mode shapes (docs/MODAL.md) of a scene (dict
+        or JSON file path), a builtin, or (neither) the loaded scene."""
+        args = {"shapes": bool(shapes)}
+        if scene is not None:
+            if isinstance(scene, (str, os.PathLike)):
+                with open(scene) as f:
+                    scene = json.load(f)
+            args["scene"] = scene
+        if builtin is not None:
+            args["builtin"] = builtin
+        return self.request("modal", args)
+
     def set_load(self, load=None, remove=None, **fields):
         """set_load(load={...}) or set_load(body="pinion", type="constant", moment=30)
         replaces the load of that name; set_load(remove="name") removes one."""

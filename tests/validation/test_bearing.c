@@ -1,0 +1,390 @@
+/* SPDX-License-Identifier: MIT
+ * Compliant supports in the time integration (docs/MODAL.md):
+ *  - floating sun (soft bearing) and a ring on a bearing, held torsionally,
+ *    in the lumped planetary under load: the balance residual stays at
+ *    round-off (1e-9 of the energy scale) and the sun's centre really moves;
+ *  - a free response started in one mode of the modal analysis of the same
+ *    scene (sun and ring on bearings, carrier and planets turning, no
+ *    damping) stays in that mode (squared modal amplitude outside its group
+ *    below 1e-8 of that inside), and
+ *    its frequency measured from the modal coordinate is the midpoint rule's
+ *    own, 2/h atan(w h / 2), to 1e-7 (the exact w differs by (w h)^2 / 12);
+ *  - refused combinations name the field. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include <cmocka.h>
+
+#include "gearsim/modal.h"
+#include "gearsim/util.h"
+#include "scene_build.h"
+
+/* The builtin lumped planetary with the sun on a bearing of stiffness ks
+ * (N/m, 0: floating), the ring on a bearing (1e8 N/m) held torsionally,
+ * constant mesh stiffness and the given mesh damping. */
+static json_object *bearing_scene(double ks, double sun_damping, double mesh_damping, bool loads)
+{
+    json_object *root = vt_scene("planetary");
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        const char *b = json_object_get_string(json_object_object_get(j, "body"));
+        if (!strcmp(b, "sun")) {
+            json_object_object_add(j, "type", json_object_new_string("bearing"));
+            json_object_object_add(j, "stiffness", json_object_new_double(ks));
+            json_object_object_add(j, "damping", json_object_new_double(sun_damping));
+        } else if (!strcmp(b, "ring")) {
+            json_object_object_add(j, "type", json_object_new_string("bearing"));
+            json_object_object_add(j, "stiffness", json_object_new_double(1e8));
+            json_object_object_add(j, "torsional_stiffness", json_object_new_double(2e6));
+        }
+    }
+    json_object *meshes = json_object_object_get(root, "meshes");
+    for (size_t i = 0; i < json_object_array_length(meshes); i++) {
+        json_object *m = json_object_array_get_idx(meshes, i);
+        json_object_object_add(m, "stiffness", json_object_new_double(2e8));
+        json_object_object_add(m, "damping", json_object_new_double(mesh_damping));
+    }
+    if (!loads)
+        json_object_object_add(root, "loads", json_object_new_array());
+    return root;
+}
+
+static void floating_sun_balance(void **state)
+{
+    (void)state;
+    json_object *root = bearing_scene(1e5, 20.0, 0.0, true);
+    /* planet1's pin 10 um ahead: the floating sun moves to share the load */
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        if (!strcmp(json_object_get_string(json_object_object_get(j, "body")), "planet1")) {
+            json_object *pe = json_object_new_array();
+            json_object_array_add(pe, json_object_new_double(0));
+            json_object_array_add(pe, json_object_new_double(10));
+            json_object_object_add(j, "pin_error_um", pe);
+        }
+    }
+    json_object *meshes = json_object_object_get(root, "meshes");
+    for (size_t i = 0; i < json_object_array_length(meshes); i++)
+        json_object_object_add(json_object_array_get_idx(meshes, i), "backlash_mm", json_object_new_double(0.05));
+    gs_system *s = vt_system(root);
+    gs_energy e;
+    double worst = 0, scale = 0, xmax = 0;
+    int sun = gs_scene_find_body(s->scene, "sun");
+    assert_true(s->bodies[sun].tcoord >= 0);
+    for (int k = 0; k < 20000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        int tc = s->bodies[sun].tcoord;
+        xmax = fmax(xmax, hypot(s->q[tc], s->q[tc + 1]));
+    }
+    print_message("floating sun, 20000 steps: worst |balance| %.3e J of %.3e J (%.2e); sun centre moved up to %.3e m; "
+                  "carrier %.2f rad/s; dissipated %.3e J\n",
+                  worst, scale, worst / scale, xmax, gs_system_omega(s, gs_scene_find_body(s->scene, "carrier")),
+                  e.dissipated);
+    assert_true(worst < 1e-9 * scale);
+    assert_true(xmax > 1e-9); /* the translations are coupled */
+    gs_system_free(&s);
+}
+
+/* Modal coordinate of mode j: phi_j' M q, with the system's state mapped to
+ * the modal analysis' coordinates. */
+static double modal_coord(const gs_modal *m, const gs_system *s, const double *x, int j, const int *map)
+{
+    double v = 0;
+    for (int a = 0; a < m->n; a++) {
+        double mq = 0;
+        for (int b = 0; b < m->n; b++)
+            mq += m->M[(size_t)b * m->n + a] * x[map[b]];
+        v += m->shape[(size_t)j * m->n + a] * mq;
+    }
+    (void)s;
+    return v;
+}
+
+/* The modal analysis of the scene `root` (borrowed); its parsed scene in
+ * *out (freed when out is NULL). */
+static gs_modal *modal_of(json_object *root, gs_scene **out)
+{
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc;
+    gs_diag d;
+    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+    gs_modal *m;
+    assert_int_equal(gs_modal_analyse(sc, &m, &d), GS_OK);
+    if (out)
+        *out = sc;
+    else
+        gs_scene_free(&sc);
+    return m;
+}
+
+static void one_mode(json_object *root, int pick_kind, const char *what)
+{
+    gs_modal *m = modal_of(root, NULL);
+    gs_system *s = vt_system(root);
+    assert_int_equal(s->n_coords, m->n);
+    /* modal coordinate b -> system coordinate */
+    int *map = calloc((size_t)m->n, sizeof(int));
+    for (int b = 0; b < m->n; b++) {
+        const gs_body_rt *br = &s->bodies[m->dof_body[b]];
+        map[b] = m->dof_comp[b] == 2 ? br->coord : br->tcoord + m->dof_comp[b];
+        assert_true(map[b] >= 0);
+    }
+    /* the lowest non-zero group of the kind */
+    int g = -1;
+    for (int k = 0; k < m->n_groups && g < 0; k++)
+        if (m->group_kind[k] == pick_kind && m->freq_hz[m->group_first[k]] > 1.0)
+            g = k;
+    assert_true(g >= 0);
+    int j = m->group_first[g], mult = m->group_mult[g];
+    double w = sqrt(m->omega2[j]);
+    double h = 0.02 * 2 * 3.14159265358979323846 / w; /* 50 steps per period */
+    s->h = s->h_sub = h;
+    /* start: amplitude giving 1 um of the largest displacement */
+    double big = 0;
+    for (int b = 0; b < m->n; b++)
+        big = fmax(big, fabs(m->shape[(size_t)j * m->n + b]) * (m->dof_comp[b] == 2 ? 0.05 : 1.0));
+    double A = 1e-6 / big;
+    double *q0 = calloc((size_t)m->n, sizeof(double));
+    for (int b = 0; b < m->n; b++) {
+        q0[map[b]] = s->q[map[b]];
+        s->q[map[b]] += A * m->shape[(size_t)j * m->n + b];
+    }
+    int nsteps = 1000;
+    double *eta = calloc((size_t)nsteps + 1, sizeof(double));
+    double *dev = calloc((size_t)m->n, sizeof(double));
+    double outside, maxin = 0, maxout = 0;
+    for (int k = 0; k <= nsteps; k++) {
+        if (k > 0)
+            assert_int_equal(gs_step_serial(s), GS_OK);
+        for (int c = 0; c < m->n; c++)
+            dev[c] = s->q[c] - q0[c];
+        eta[k] = modal_coord(m, s, dev, j, map);
+        /* modal amplitudes inside and outside the excited group */
+        double in = 0, out = 0;
+        for (int i = 0; i < m->n_modes; i++) {
+            double e = modal_coord(m, s, dev, i, map);
+            if (i >= j && i < j + mult)
+                in += e * e;
+            else
+                out += e * e;
+        }
+        maxin = fmax(maxin, in);
+        maxout = fmax(maxout, out);
+    }
+    outside = maxout / maxin;
+    double num = 0, den = 0;
+    for (int k = 1; k < nsteps; k++) {
+        num += (eta[k + 1] + eta[k - 1]) * eta[k];
+        den += 2 * eta[k] * eta[k];
+    }
+    double Wh = acos(num / den) / h;
+    double Wmid = 2.0 / h * atan(w * h / 2);
+    print_message("%s mode %.3f Hz (x%d): measured %.6f Hz, midpoint rule %.6f Hz (rel %.2e), exact differs by "
+                  "%.2e; largest squared amplitude outside the mode's group over inside %.2e\n",
+                  what, w / (2 * 3.14159265358979323846), mult, Wh / (2 * 3.14159265358979323846),
+                  Wmid / (2 * 3.14159265358979323846), fabs(Wh - Wmid) / Wmid, fabs(Wmid - w) / w, outside);
+    assert_true(fabs(Wh - Wmid) / Wmid < 1e-7);
+    assert_true(fabs(Wmid - w) / w > 1e-4); /* the check can tell the two apart */
+    assert_true(outside < 1e-8);
+    free(eta), free(dev), free(q0), free(map);
+    gs_modal_free(&m);
+    gs_system_free(&s);
+}
+
+static void rotational_mode_stays(void **state)
+{
+    (void)state;
+    one_mode(bearing_scene(1e8, 0.0, 0.0, false), GS_MODE_ROTATIONAL, "rotational");
+}
+
+static void translational_mode_stays(void **state)
+{
+    (void)state;
+    one_mode(bearing_scene(1e8, 0.0, 0.0, false), GS_MODE_TRANSLATIONAL, "translational");
+}
+
+
+/* Load sharing with a 10 um tangential pin error on planet1
+ * (deploy/scenes/planetary_floating.json): the largest planet share over the
+ * mean, averaged over the last 5000 of 25000 steps (0.25 s; steady carrier
+ * speed), with the floating sun and with the sun on a fixed axis. */
+static double sharing(bool floating, double share_out[3], double *sun_offset)
+{
+    json_object *root = vt_scene("planetary_floating");
+    if (!floating) {
+        json_object *joints = json_object_object_get(root, "joints");
+        for (size_t i = 0; i < json_object_array_length(joints); i++) {
+            json_object *j = json_object_array_get_idx(joints, i);
+            if (!strcmp(json_object_get_string(json_object_object_get(j, "body")), "sun")) {
+                json_object_object_del(j, "stiffness");
+                json_object_object_del(j, "damping");
+                json_object_object_add(j, "type", json_object_new_string("fixed_axis"));
+            }
+        }
+    }
+    gs_system *s = vt_system(root);
+    int sun = gs_scene_find_body(s->scene, "sun");
+    double acc[3] = {0, 0, 0}, off = 0, worst = 0, scale = 0;
+    int n = 0;
+    gs_energy e;
+    for (int k = 0; k < 25000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        if (k >= 20000) {
+            int pl[8];
+            double sh[8];
+            int np = gs_system_planet_shares(s, pl, sh, 8);
+            assert_int_equal(np, 3);
+            for (int i = 0; i < 3; i++)
+                acc[i] += sh[i];
+            n++;
+            int tc = s->bodies[sun].tcoord;
+            if (tc >= 0)
+                off += hypot(s->q[tc], s->q[tc + 1]);
+        }
+    }
+    assert_true(worst < 1e-9 * scale);
+    double mx = 0;
+    for (int i = 0; i < 3; i++) {
+        share_out[i] = acc[i] / n;
+        mx = fmax(mx, share_out[i]);
+    }
+    *sun_offset = off / n;
+    gs_system_free(&s);
+    return mx; /* shares are normalised to mean 1 */
+}
+
+static void floating_sun_shares_load(void **state)
+{
+    (void)state;
+    double fl[3], fx[3], off_fl, off_fx;
+    double lsf_float = sharing(true, fl, &off_fl), lsf_fixed = sharing(false, fx, &off_fx);
+    print_message("pin error 10 um on planet1: floating sun LSF %.4f (shares %.4f %.4f %.4f, sun off centre %.2f um); "
+                  "fixed sun LSF %.4f (shares %.4f %.4f %.4f)\n",
+                  lsf_float, fl[0], fl[1], fl[2], off_fl * 1e6, lsf_fixed, fx[0], fx[1], fx[2]);
+    assert_true(lsf_float < 1.05);
+    assert_true(lsf_fixed > 1.3);
+}
+
+/* The spur pair with both gears on bearings (1e8 N/m) and a kinematic
+ * mesh (an exact ratio on a fixed line of action): constraint rows that
+ * include the translations. */
+static json_object *pair_on_bearings(bool loads)
+{
+    json_object *root = vt_scene("pair");
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        json_object_object_add(j, "type", json_object_new_string("bearing"));
+        json_object_object_add(j, "stiffness", json_object_new_double(1e8));
+    }
+    json_object *m = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+    json_object *k = json_object_new_object();
+    json_object_object_add(k, "name", json_object_get(json_object_object_get(m, "name")));
+    json_object_object_add(k, "gears", json_object_get(json_object_object_get(m, "gears")));
+    json_object_object_add(k, "model", json_object_new_string("kinematic"));
+    json_object_array_put_idx(json_object_object_get(root, "meshes"), 0, k);
+    if (!loads)
+        json_object_object_add(root, "loads", json_object_new_array());
+    return root;
+}
+
+static void kinematic_pair_on_bearings(void **state)
+{
+    (void)state;
+    gs_system *s = vt_system(pair_on_bearings(true));
+    gs_energy e;
+    double worst = 0, scale = 0, drift = 0, xmax = 0;
+    for (int k = 0; k < 20000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        drift = fmax(drift, fabs(s->meshes[0].deflection));
+        int tc = s->bodies[0].tcoord;
+        xmax = fmax(xmax, hypot(s->q[tc], s->q[tc + 1]));
+    }
+    print_message("kinematic pair on bearings, 20000 steps: worst |balance| %.3e J of %.3e J; line-of-action "
+                  "drift %.3e m; pinion centre moved %.3e m\n", worst, scale, drift, xmax);
+    assert_true(worst < 1e-9 * scale);
+    assert_true(drift < 1e-12);
+    assert_true(xmax > 1e-7); /* the bearings carry the mesh force: 20 N m / rb over 1e8 N/m */
+    gs_system_free(&s);
+    one_mode(pair_on_bearings(false), GS_MODE_MIXED, "kinematic pair, mixed");
+}
+
+/* Closed forms: a spur pair on fixed axes with a constant lumped mesh,
+ * w^2 = k (rb1^2 / I1 + rb2^2 / I2) beside the rigid rotation; one gear on
+ * a bearing, w^2 = k_r / m (double) and k_t / I. */
+static void modal_closed_forms(void **state)
+{
+    (void)state;
+    json_object *root = vt_scene("pair");
+    json_object *m0 = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+    json_object_object_add(m0, "stiffness", json_object_new_double(2e8));
+    gs_scene *sc;
+    gs_modal *m = modal_of(root, &sc);
+    double r1 = gs_gear_base_radius(&sc->bodies[0].gear), r2 = gs_gear_base_radius(&sc->bodies[1].gear);
+    double w2 = 2e8 * (r1 * r1 / sc->bodies[0].inertia + r2 * r2 / sc->bodies[1].inertia);
+    assert_int_equal(m->n_modes, 2);
+    assert_true(fabs(m->omega2[0]) < 1e-9 * w2);
+    assert_true(fabs(m->omega2[1] / w2 - 1) < 1e-12);
+    print_message("pair: %.6f Hz, closed form %.6f Hz\n", m->freq_hz[1], sqrt(w2) / (2 * 3.14159265358979323846));
+    gs_modal_free(&m);
+    gs_scene_free(&sc);
+    json_object_put(root);
+
+    root = vt_scene("pair");
+    json_object_object_add(root, "meshes", json_object_new_array());
+    json_object *j0 = json_object_array_get_idx(json_object_object_get(root, "joints"), 0);
+    json_object_object_add(j0, "type", json_object_new_string("bearing"));
+    json_object_object_add(j0, "stiffness", json_object_new_double(3e7));
+    json_object_object_add(j0, "torsional_stiffness", json_object_new_double(5e4));
+    m = modal_of(root, &sc);
+    double wt = 3e7 / sc->bodies[0].mass, wr = 5e4 / sc->bodies[0].inertia;
+    int found_t = 0, found_r = 0;
+    for (int i = 0; i < m->n_modes; i++) {
+        found_t += fabs(m->omega2[i] / wt - 1) < 1e-12;
+        found_r += fabs(m->omega2[i] / wr - 1) < 1e-12;
+    }
+    assert_int_equal(found_t, 2);
+    assert_int_equal(found_r, 1);
+    gs_modal_free(&m);
+    gs_scene_free(&sc);
+    json_object_put(root);
+}
+
+static void refusals(void **state)
+{
+    (void)state;
+    json_object *root = bearing_scene(1e8, 0, 0, true);
+    json_object *meshes = json_object_object_get(root, "meshes");
+    json_object *m0 = json_object_array_get_idx(meshes, 0);
+    json_object_object_del(m0, "stiffness");
+    json_object_object_del(m0, "damping");
+    json_object_object_add(m0, "model", json_object_new_string("kinematic"));
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc;
+    gs_diag d;
+    assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+    gs_system *s;
+    assert_int_equal(gs_system_new(sc, 0, 1, &s, &d), GS_ERANGE);
+    assert_string_equal(d.field, "meshes[0].model"); /* kinematic with a planet on a turning carrier */
+    json_object_put(root);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(floating_sun_balance),
+        cmocka_unit_test(rotational_mode_stays),
+        cmocka_unit_test(translational_mode_stays),
+        cmocka_unit_test(floating_sun_shares_load),
+        cmocka_unit_test(kinematic_pair_on_bearings),
+        cmocka_unit_test(modal_closed_forms),
+        cmocka_unit_test(refusals),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
