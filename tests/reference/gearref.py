@@ -275,7 +275,7 @@ def read_msh(path):
 PHYS = dict(g0=1, g1=2, c0=11, c1=12, hub0=21, hub1=22)
 
 
-def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=0.5,
+def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=1.0,
                    tooth_factor=4.0, zone=0.3,
                    e_mpa=210000.0, nu=0.3, face=10.0, torque=None, penalty=1e8,
                    fine_dist=None, order=2):
@@ -344,13 +344,13 @@ def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=0.
     tmesh = time.time() - t0
     nodes, elems = read_msh(msh)
     write_inp(os.path.join(workdir, "pair.inp"), nodes, elems, e_mpa, nu, face, torque,
-              penalty, order)
+              penalty, order, g1.rb)
     nn = len(nodes)
     ne = sum(1 for e in elems if e[0] in (9, 2))
     return dict(nodes=nn, elements=ne, mesh_s=tmesh, teeth1=t1, teeth2=t2, contact_points=cps)
 
 
-def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order):
+def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     tri_t = 9 if order == 2 else 2
     line_t = 8 if order == 2 else 1
     eltype = "CPE6" if order == 2 else "CPE3"
@@ -431,9 +431,26 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order):
     o.append("HUB1, 1, 2, 0")
     o.append("NREF, 1, 3, 0")
     o.append("NROT, 2, 3, 0")
+    # step 1: the driver turned by a prescribed theta0 (about half the
+    # expected elastic rotation) so that the contact is established (with
+    # only a moment and no contact the first iteration has a free rigid
+    # rotation); step 2: theta released, the moment applied.  Frictionless
+    # contact has no path dependence: step 1 only gives the iterations a
+    # start.
+    theta0 = 0.5 * (torque / rb) / (20.0 * face) * 1e-3 / rb
     o.append("*STEP, INC=200")
     o.append("*STATIC")
     o.append("1., 1.")
+    o.append("*BOUNDARY")
+    o.append("NROT, 1, 1, %.10g" % theta0)
+    o.append("*END STEP")
+    o.append("*STEP, INC=200")
+    o.append("*STATIC")
+    o.append("1., 1.")
+    o.append("*BOUNDARY, OP=NEW")
+    o.append("HUB1, 1, 2, 0")
+    o.append("NREF, 1, 3, 0")
+    o.append("NROT, 2, 3, 0")
     o.append("*CLOAD")
     o.append("%d, 1, %.12g" % (rotn, torque))
     o.append("*NODE PRINT, NSET=NROT")
