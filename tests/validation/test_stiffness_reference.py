@@ -1,0 +1,99 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""gearsim's quasi-static mesh stiffness and static TE against the stored,
+independent CalculiX reference (tests/reference/, README.md there): the steel
+20/30 pair, module 2.5 mm, 20 deg, face 10 mm, plane strain, 200 N/mm.
+
+The reference code is never run here: the test reads
+tests/reference/stiffness_30_20/reference.csv (Richardson limit per roll
+position) and runs gearsim-stiffness on tests/reference/stiffness_30_20/
+scene.json at the same positions, on gearsim's default mesh (the scene's mesh
+density) and at refine 1, through tests/reference/compare.py, and prints the
+per-position errors.
+
+Asserted (bars are named constants; each can fail):
+* the stored reference is sane: at least 10 positions j/N over one mesh
+  cycle, its finest level within REF_EST_BAR of its limit at every position
+  (0.01-0.04 % away from the transitions, ~0.5 % at the two transitions),
+  and the shape of a spur mesh: the stiffest position at least
+  REF_SHAPE_RATIO times the softest (double vs single contact);
+* default mesh: |k error| and |TE error| below BAR_K_DEFAULT / BAR_TE_DEFAULT
+  at every position, and the single-contact mean k too stiff (error > 0:
+  the linear triangles are stiff) and within BAR_SINGLE_DEFAULT;
+* refine 1: the single-contact mean error smaller than on the default mesh
+  (gearsim converges towards the reference), |k error| below BAR_K_REFINE1.
+The quadratic-element work (issue 14) is to tighten these to 2% / 1%.
+"""
+import os
+import sys
+
+SRC = os.environ.get("GEARSIM_SOURCE_ROOT",
+                     os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+BUILD = os.environ.get("GEARSIM_BUILD_ROOT", os.path.join(SRC, "build"))
+sys.path.insert(0, os.path.join(SRC, "tests", "reference"))
+import compare  # noqa: E402
+
+PAIR = os.path.join(SRC, "tests", "reference", "stiffness_30_20")
+
+# Bars: what holds today (linear triangles); measured when written in the comments.
+REF_MIN_POSITIONS = 10
+REF_EST_BAR = 0.01         # finest level within 1% of its limit (max 0.53%, the transitions)
+REF_SHAPE_RATIO = 1.25     # k max / k min of the reference over the cycle (1.52)
+BAR_K_DEFAULT = 0.25       # |k / k_ref - 1| per position, default mesh (20.7%)
+BAR_TE_DEFAULT = 0.25      # |TE / TE_ref - 1| per position, default mesh (17.2%)
+BAR_SINGLE_DEFAULT = 0.25  # single-contact mean k error, default mesh (> 0 asserted; +14.7%)
+BAR_K_REFINE1 = 0.15       # |k error| per position at refine 1 (10.7%)
+
+failures = []
+
+
+def check(cond, what):
+    print("%s: %s" % ("ok" if cond else "FAIL", what))
+    if not cond:
+        failures.append(what)
+
+
+def main():
+    tool = compare.find_tool(BUILD)
+    ref = compare.load_reference(PAIR)
+    n = len(ref)
+    print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
+        n, min(r["k"] for r in ref), max(r["k"] for r in ref)))
+    check(n >= REF_MIN_POSITIONS, "reference has >= %d positions (%d)" % (REF_MIN_POSITIONS, n))
+    check(all(abs(r["roll"] - j / n) < 1e-6 for j, r in enumerate(ref)),
+          "reference rolls are j/%d" % n)
+    est = max(r["est"] for r in ref)
+    check(est < REF_EST_BAR, "reference finest level within %.2f%% of its limit (%.3f%%)"
+          % (100 * REF_EST_BAR, 100 * est))
+    ratio = max(r["k"] for r in ref) / min(r["k"] for r in ref)
+    check(ratio > REF_SHAPE_RATIO, "reference k max/min > %.2f (%.3f)" % (REF_SHAPE_RATIO, ratio))
+
+    res0 = compare.compare(PAIR, tool)          # the scene's (default) mesh density
+    compare.print_result(res0)
+    s0 = res0["summary"]
+    check(s0["max_abs_err_k"] < BAR_K_DEFAULT, "default mesh: max |k error| %.2f%% < %.0f%%"
+          % (100 * s0["max_abs_err_k"], 100 * BAR_K_DEFAULT))
+    check(s0["max_abs_err_te"] < BAR_TE_DEFAULT, "default mesh: max |TE error| %.2f%% < %.0f%%"
+          % (100 * s0["max_abs_err_te"], 100 * BAR_TE_DEFAULT))
+    sm0 = s0["single_mean_err_k"]
+    check(sm0 is not None and 0 < sm0 < BAR_SINGLE_DEFAULT,
+          "default mesh: single-contact mean k too stiff, by less than %.0f%% (%s)"
+          % (100 * BAR_SINGLE_DEFAULT, "n/a" if sm0 is None else "%+.2f%%" % (100 * sm0)))
+
+    res1 = compare.compare(PAIR, tool, refine=1)
+    compare.print_result(res1)
+    s1 = res1["summary"]
+    check(s1["max_abs_err_k"] < BAR_K_REFINE1, "refine 1: max |k error| %.2f%% < %.0f%%"
+          % (100 * s1["max_abs_err_k"], 100 * BAR_K_REFINE1))
+    sm1 = s1["single_mean_err_k"]
+    check(sm0 is not None and sm1 is not None and abs(sm1) < abs(sm0),
+          "refine 1: single-contact mean error smaller than on the default mesh (%s vs %s)"
+          % ("n/a" if sm1 is None else "%+.2f%%" % (100 * sm1),
+             "n/a" if sm0 is None else "%+.2f%%" % (100 * sm0)))
+
+    print("%d failed" % len(failures))
+    return 1 if failures else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
