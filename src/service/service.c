@@ -16,6 +16,7 @@
 #include <zmq.h>
 
 #include "gearsim/util.h"
+#include "scene/jsonstrict.h"
 #include "scene/jsonv.h"
 #include "service/auth.h"
 #include "service/options.h"
@@ -425,10 +426,15 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     json_object *req = NULL, *reply = NULL, *idv = NULL;
     gs_err e = GS_OK;
     if (too_big) {
-        e = gs_diag_set(&d, GS_ETOOBIG, "", "the message exceeds %u bytes", GSI_MAX_MESSAGE);
+        e = gs_diag_set(&d, GS_ETOOBIG, "", "the message has %zu bytes; the limit is %u bytes "
+                        "(hello: limits.max_message_bytes)", len, GSI_MAX_MESSAGE);
         goto answer;
     }
-    json_tokener *tok = json_tokener_new_ex(64);
+    /* RFC 8259 strictly (duplicate keys, NUL, lone surrogates, ... refused)
+     * before json-c's lenient tokener sees the text. */
+    if (valid_utf8((const unsigned char *)data, len) && (e = gsi_json_strict(data, len, "", &d)) != GS_OK)
+        goto answer;
+    json_tokener *tok = json_tokener_new_ex(GSI_JSON_MAX_DEPTH);
     req = json_tokener_parse_ex(tok, data, (int)len);
     enum json_tokener_error je = json_tokener_get_error(tok);
     size_t end = req ? (size_t)json_tokener_get_parse_end(tok) : 0;
@@ -470,7 +476,9 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
         e = gs_diag_set(&d, GS_ESCHEMA, "v", "missing required field 'v' (protocol version)");
         goto answer;
     }
-    if (json_object_get_type(v) != json_type_int || json_object_get_int64(v) != 1) {
+    /* A number equal to 1 (the schema's const: 1 and 1.0 alike). */
+    double vnum;
+    if (!gsi_json_as_double(v, &vnum) || vnum != 1.0) {
         e = gs_diag_set(&d, GS_EVERSION, "v", "protocol version %s is not supported (this daemon speaks 1)",
                         json_object_to_json_string(v));
         goto answer;
@@ -584,9 +592,10 @@ static void receive_one(gs_service *s)
         } else {
             nparts++;
             if (nparts == 1) {
-                if (n > GSI_MAX_MESSAGE)
+                if (n > GSI_MAX_MESSAGE) {
                     too_big = true;
-                else {
+                    len = n; /* named in the reply */
+                } else {
                     data = malloc(n + 1);
                     if (data) {
                         memcpy(data, zmq_msg_data(&part), n);
@@ -607,7 +616,7 @@ static void receive_one(gs_service *s)
         send_reply(s, &ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
         json_object_put(r);
     } else if (nparts == 1) {
-        handle_request(s, &ident, delim, data ? data : "", data ? len : 0, too_big || !data);
+        handle_request(s, &ident, delim, data ? data : "", len, too_big || !data);
     } else {
         gs_diag d;
         gs_diag_set(&d, GS_EPARSE, "", "empty message");
@@ -806,7 +815,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     s->router = zmq_socket(s->zctx, ZMQ_ROUTER);
     s->pub = zmq_socket(s->zctx, ZMQ_PUB);
     int linger = 0, hwm = 10000, mandatory = 0;
-    int64_t maxmsg = 64ll << 20; /* hard cap; above GSI_MAX_MESSAGE the reply says too_large */
+    /* No transport cap: ZMQ_MAXMSGSIZE would drop the connection with no
+     * reply. Every frame is received; above GSI_MAX_MESSAGE it is discarded
+     * at once and answered with too_large naming the limit. */
+    int64_t maxmsg = -1;
     zmq_setsockopt(s->router, ZMQ_LINGER, &linger, sizeof linger);
     zmq_setsockopt(s->pub, ZMQ_LINGER, &linger, sizeof linger);
     zmq_setsockopt(s->pub, ZMQ_SNDHWM, &hwm, sizeof hwm);
