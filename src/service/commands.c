@@ -49,6 +49,12 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(lim, "max_scene_mb", json_object_new_int64(gsi_opt_max_scene_mb()));
     json_object_object_add(lim, "max_record_mb", json_object_new_int64(gsi_opt_max_record_mb()));
     json_object_object_add(lim, "max_clients", json_object_new_int64(gsi_opt_max_clients()));
+    json_object_object_add(lim, "reply_cache_bytes", json_object_new_int64(GSI_CACHE_BYTES));
+    json_object_object_add(lim, "reply_cache_entries", json_object_new_int(GSI_CACHE));
+    json_object_object_add(lim, "reply_cache_client_bytes", json_object_new_int64(GSI_CACHE_CLIENT_BYTES));
+    json_object_object_add(lim, "reply_cache_client_entries", json_object_new_int(GSI_CACHE_CLIENT_ENTRIES));
+    json_object_object_add(lim, "reply_cache_lifetime_s", json_object_new_double(GSI_CACHE_LIFETIME_S));
+    json_object_object_add(lim, "client_idle_s", json_object_new_double(GSI_CLIENT_IDLE_S));
     json_object_object_add(lim, "max_body_unknowns", json_object_new_int64((int64_t)GS_SCENE_MAX_BODY_UNKNOWNS));
     json_object_object_add(o, "limits", lim);
     json_object *cmds = json_object_new_array();

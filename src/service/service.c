@@ -365,21 +365,104 @@ static void cache_key(char *out, size_t cap, const unsigned char *b, size_t n, c
     snprintf(out + k, cap - k, "/%s", id);
 }
 
+static void cache_drop(gs_service *s, svc_cache_entry *c)
+{
+    s->cache_bytes -= c->bytes;
+    free(c->reply);
+    c->reply = NULL;
+    c->bytes = 0;
+}
+
+/* Length of the client part of a key ("<hex>/"), the id after it. */
+static size_t cache_client_len(const char *key)
+{
+    const char *slash = strchr(key, '/');
+    return slash ? (size_t)(slash - key) + 1 : strlen(key);
+}
+
 static const char *cache_get(gs_service *s, const char *key)
 {
-    for (int i = 0; i < GSI_CACHE; i++)
-        if (s->cache[i].reply && strcmp(s->cache[i].key, key) == 0)
-            return s->cache[i].reply;
+    double now = gs_now();
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (!c->reply)
+            continue;
+        if (now - c->t > GSI_CACHE_LIFETIME_S)
+            cache_drop(s, c);
+        else if (strcmp(c->key, key) == 0)
+            return c->reply;
+    }
     return NULL;
+}
+
+/* The oldest entry (of the client whose key part is key[0..plen) when
+ * plen > 0); NULL when there is none. */
+static svc_cache_entry *cache_oldest(gs_service *s, const char *key, size_t plen)
+{
+    svc_cache_entry *o = NULL;
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (c->reply && (!plen || strncmp(c->key, key, plen) == 0) && (!o || c->t < o->t))
+            o = c;
+    }
+    return o;
 }
 
 static void cache_put(gs_service *s, const char *key, const char *reply)
 {
-    svc_cache_entry *c = &s->cache[s->cache_next];
-    s->cache_next = (s->cache_next + 1) % GSI_CACHE;
-    free(c->reply);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    c->reply = gs_strdup(reply);
+    size_t n = strlen(reply) + 1, plen = cache_client_len(key);
+    if (n > GSI_CACHE_CLIENT_BYTES)
+        return; /* beyond a client's budget: a retry runs again */
+    double now = gs_now();
+    int total = 0, mine = 0;
+    size_t my_bytes = 0;
+    svc_cache_entry *free_slot = NULL;
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (c->reply && (now - c->t > GSI_CACHE_LIFETIME_S || strcmp(c->key, key) == 0))
+            cache_drop(s, c);
+        if (!c->reply) {
+            free_slot = free_slot ? free_slot : c;
+            continue;
+        }
+        total++;
+        if (strncmp(c->key, key, plen) == 0)
+            mine++, my_bytes += c->bytes;
+    }
+    while (mine >= GSI_CACHE_CLIENT_ENTRIES || my_bytes + n > GSI_CACHE_CLIENT_BYTES) {
+        svc_cache_entry *o = cache_oldest(s, key, plen);
+        mine--, total--, my_bytes -= o->bytes;
+        cache_drop(s, o);
+        free_slot = o;
+    }
+    while (total >= GSI_CACHE || s->cache_bytes + n > GSI_CACHE_BYTES) {
+        svc_cache_entry *o = cache_oldest(s, key, 0);
+        total--;
+        cache_drop(s, o);
+        free_slot = o;
+    }
+    char *copy = gs_strdup(reply);
+    if (!free_slot || !copy) {
+        free(copy);
+        return;
+    }
+    snprintf(free_slot->key, sizeof free_slot->key, "%s", key);
+    free_slot->reply = copy;
+    free_slot->bytes = n;
+    free_slot->t = now;
+    s->cache_bytes += n;
+}
+
+/* A routing id seen anew (first time, or after its client expired): what
+ * the cache holds under it belongs to an earlier client. */
+static void cache_forget_client(gs_service *s, const unsigned char *who, size_t who_len)
+{
+    char key[GSI_CACHE_KEY];
+    cache_key(key, sizeof key, who, who_len, "");
+    size_t plen = strlen(key);
+    for (int i = 0; i < GSI_CACHE; i++)
+        if (s->cache[i].reply && strncmp(s->cache[i].key, key, plen) == 0)
+            cache_drop(s, &s->cache[i]);
 }
 
 /* Count the client `who` as active now. False when it is new and
@@ -410,6 +493,7 @@ static bool client_admit(gs_service *s, const unsigned char *who, size_t who_len
                 return false;
         }
         found = s->n_clients++;
+        cache_forget_client(s, who, who_len);
         memcpy(s->clients[found].id, who, who_len);
         s->clients[found].len = (uint8_t)who_len;
     }

@@ -13,7 +13,18 @@
 #define GSI_MAX_MESSAGE (4u << 20)
 #define GSI_MAX_STEPS_PER_ADVANCE 1000000000LL
 #define GSI_MAX_JOBS 64
+/* Reply cache (retried ids are answered without running twice): at most
+ * GSI_CACHE entries and GSI_CACHE_BYTES in all, GSI_CACHE_CLIENT_ENTRIES and
+ * GSI_CACHE_CLIENT_BYTES per client (oldest dropped first), each kept
+ * GSI_CACHE_LIFETIME_S seconds; a reply larger than a client's byte budget
+ * is not kept. A client's entries are dropped when its routing id is seen
+ * again after it expired (GSI_CLIENT_IDLE_S), so a reused id never gets
+ * another client's replies. */
 #define GSI_CACHE 4096
+#define GSI_CACHE_BYTES (32u << 20)
+#define GSI_CACHE_CLIENT_ENTRIES 256
+#define GSI_CACHE_CLIENT_BYTES (4u << 20)
+#define GSI_CACHE_LIFETIME_S 60.0
 /* identity (at most 255 bytes, hex) + '/' + id (at most 128) + NUL */
 #define GSI_CACHE_KEY (2 * 255 + 1 + 128 + 1)
 
@@ -42,6 +53,8 @@ typedef struct svc_advance {
 typedef struct svc_cache_entry {
     char key[GSI_CACHE_KEY]; /* identity hex + '/' + id */
     char *reply;
+    size_t bytes;            /* strlen(reply) + 1 */
+    double t;                /* when stored (gs_now) */
 } svc_cache_entry;
 
 /* A client seen on the command socket: its routing id and last request. */
@@ -68,7 +81,7 @@ typedef struct gs_service {
     svc_job jobs[GSI_MAX_JOBS];
     int n_jobs, job_counter;
     svc_cache_entry cache[GSI_CACHE];
-    int cache_next;
+    size_t cache_bytes;      /* sum of the entries' bytes */
     bool shutdown;
     double timing_step, timing_telemetry, timing_record;
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
