@@ -296,6 +296,7 @@ void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *m
     if (job >= 0) {
         svc_job *j = &s->jobs[job];
         snprintf(j->state, sizeof j->state, "%s", err != GS_OK ? "failed" : cancelled ? "cancelled" : "done");
+        j->finished = gs_now();
         if (err != GS_OK)
             snprintf(j->error, sizeof j->error, "%.250s", msg ? msg : gs_strerror(err));
         gs_record_close(&s->record);
@@ -632,14 +633,71 @@ static int cmp_at(const void *a, const void *b)
     return u < v ? -1 : u > v;
 }
 
+static bool job_finished(const svc_job *j) { return j->finished > 0; }
+
+static void job_remove(gs_service *s, int i)
+{
+    free(s->jobs[i].scene_json);
+    json_object_put(s->jobs[i].schedule);
+    memmove(&s->jobs[i], &s->jobs[i + 1], (size_t)(s->n_jobs - i - 1) * sizeof s->jobs[0]);
+    s->n_jobs--;
+    if (s->adv.job > i)
+        s->adv.job--;
+}
+
+/* Drop finished jobs older than GSI_JOBS_KEEP_S and all but the newest
+ * GSI_JOBS_KEEP_FINISHED (the list is in submit order). */
+static void jobs_prune(gs_service *s)
+{
+    double now = gs_now();
+    int finished = 0;
+    for (int i = s->n_jobs - 1; i >= 0; i--) {
+        if (!job_finished(&s->jobs[i]))
+            continue;
+        if (now - s->jobs[i].finished > GSI_JOBS_KEEP_S || finished >= GSI_JOBS_KEEP_FINISHED)
+            job_remove(s, i);
+        else
+            finished++;
+    }
+}
+
+/* Why the queued job i has not started (NULL when it is next and nothing
+ * holds it back). The rule: queued jobs start one at a time, in submit
+ * order, when no scene is loaded. */
+static const char *job_waiting(gs_service *s, int i, char *buf, size_t cap)
+{
+    int ahead = 0;
+    for (int k = 0; k < i; k++)
+        ahead += strcmp(s->jobs[k].state, "queued") == 0;
+    if (s->adv.active && s->adv.job >= 0)
+        snprintf(buf, cap, "behind the running job %s%s", s->jobs[s->adv.job].id,
+                 ahead ? " and earlier queued jobs" : "");
+    else if (gs_engine_system(s->eng))
+        snprintf(buf, cap, "a client's scene is loaded: queued jobs start when it is unloaded ('unload')");
+    else if (ahead)
+        snprintf(buf, cap, "behind %d earlier queued job(s)", ahead);
+    else
+        return NULL;
+    return buf;
+}
+
 static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
-    int queued = 0;
-    for (int i = 0; i < s->n_jobs; i++)
+    jobs_prune(s);
+    int queued = 0, unfinished = 0;
+    for (int i = 0; i < s->n_jobs; i++) {
         queued += strcmp(s->jobs[i].state, "queued") == 0;
-    if (queued >= GSI_MAX_JOBS || s->n_jobs >= GSI_MAX_JOBS)
-        return gs_diag_set(d, GS_ETOOBIG, "cmd", "the job queue is full (%d jobs)", GSI_MAX_JOBS);
+        unfinished += !job_finished(&s->jobs[i]);
+    }
+    if (unfinished >= GSI_MAX_JOBS)
+        return gs_diag_set(d, GS_ETOOBIG, "cmd", "the job queue is full (%d jobs queued or running)", GSI_MAX_JOBS);
+    if (s->n_jobs >= GSI_MAX_JOBS + GSI_JOBS_KEEP_FINISHED) /* only finished ones beyond: drop the oldest */
+        for (int i = 0; i < s->n_jobs; i++)
+            if (job_finished(&s->jobs[i])) {
+                job_remove(s, i);
+                break;
+            }
     json_object *scene, *sched;
     GS_TRY(gsi_json_object(args, "scene", "args", true, &scene, d));
     gs_scene *sc;
@@ -714,6 +772,9 @@ static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_
     *res = json_object_new_object();
     json_object_object_add(*res, "job", json_object_new_string(j->id));
     json_object_object_add(*res, "position", json_object_new_int(queued));
+    char why[200];
+    const char *w = job_waiting(s, s->n_jobs - 1, why, sizeof why);
+    json_object_object_add(*res, "waiting", w ? json_object_new_string(w) : NULL);
     return GS_OK;
 }
 
@@ -733,6 +794,7 @@ void gsi_start_next_job(gs_service *s)
             e = gsi_record_open(s, j->record, &s->record, &d);
         if (e != GS_OK) {
             snprintf(j->state, sizeof j->state, "failed");
+            j->finished = gs_now();
             snprintf(j->error, sizeof j->error, "%.250s", d.message[0] ? d.message : gs_strerror(e));
             gs_engine_run(s->eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
             s->state = SVC_EMPTY;
@@ -773,12 +835,16 @@ void gsi_job_between_chunks(gs_service *s)
 static gs_err cmd_jobs(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)args, (void)id, (void)d;
+    jobs_prune(s);
     json_object *a = json_object_new_array();
     for (int i = 0; i < s->n_jobs; i++) {
         svc_job *j = &s->jobs[i];
         json_object *o = json_object_new_object();
         json_object_object_add(o, "job", json_object_new_string(j->id));
         json_object_object_add(o, "state", json_object_new_string(j->state));
+        char why[200];
+        const char *w = strcmp(j->state, "queued") == 0 ? job_waiting(s, i, why, sizeof why) : NULL;
+        json_object_object_add(o, "waiting", w ? json_object_new_string(w) : NULL);
         const char *rel = j->record[0] ? j->record + strlen(s->data_dir) + 1 : NULL;
         json_object_object_add(o, "record", rel ? json_object_new_string(rel) : NULL);
         json_object_object_add(o, "error", j->error[0] ? json_object_new_string(j->error) : NULL);

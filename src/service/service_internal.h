@@ -12,7 +12,12 @@
 
 #define GSI_MAX_MESSAGE (4u << 20)
 #define GSI_MAX_STEPS_PER_ADVANCE 1000000000LL
+/* Jobs: at most GSI_MAX_JOBS queued or running; finished ones stay listed
+ * (`jobs`) for GSI_JOBS_KEEP_S seconds, the newest GSI_JOBS_KEEP_FINISHED at
+ * most, then are removed, so a daemon takes any number of submits. */
 #define GSI_MAX_JOBS 64
+#define GSI_JOBS_KEEP_FINISHED 32
+#define GSI_JOBS_KEEP_S 3600.0
 /* Reply cache (retried ids are answered without running twice): at most
  * GSI_CACHE entries and GSI_CACHE_BYTES in all, GSI_CACHE_CLIENT_ENTRIES and
  * GSI_CACHE_CLIENT_BYTES per client (oldest dropped first), each kept
@@ -36,8 +41,9 @@ typedef struct svc_job {
     json_object *schedule;  /* array of {at, load}, sorted by at */
     double duration;
     char record[PATH_MAX];
-    char state[16];         /* queued, running, done, failed */
+    char state[16];         /* queued, running, done, failed, cancelled */
     char error[256];
+    double finished;        /* gs_now() when it ended (0 while queued or running) */
 } svc_job;
 
 typedef struct svc_advance {
@@ -78,7 +84,7 @@ typedef struct gs_service {
     int64_t chunk_steps;
     double steps_per_second;
     double last_progress, last_heartbeat;
-    svc_job jobs[GSI_MAX_JOBS];
+    svc_job jobs[GSI_MAX_JOBS + GSI_JOBS_KEEP_FINISHED];
     int n_jobs, job_counter;
     svc_cache_entry cache[GSI_CACHE];
     size_t cache_bytes;      /* sum of the entries' bytes */
