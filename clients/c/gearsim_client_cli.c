@@ -89,6 +89,13 @@ static int load(gsc_client *c, const char *spec, gsc_error *err)
     return r;
 }
 
+static void on_event(json_object *ev, void *user)
+{
+    (void)user;
+    if (strcmp(str(ev, "type"), "telemetry") == 0)
+        print_telemetry(ev);
+}
+
 int main(int argc, char **argv)
 {
     const char *conn = NULL, *scene = NULL;
@@ -133,31 +140,18 @@ int main(int argc, char **argv)
         goto out;
     char parent[64];
     snprintf(parent, sizeof parent, "%s", gsc_last_id(c));
-    for (;;) {
-        json_object *ev;
-        int r = gsc_next_event(c, EVENT_SILENCE_MS, &ev);
-        if (r != 1) {
-            fprintf(stderr, "gearsim-client-c: error: no event for %d ms\n", EVENT_SILENCE_MS);
-            goto out;
-        }
-        const char *type = str(ev, "type");
-        if (strcmp(type, "telemetry") == 0) {
-            print_telemetry(ev);
-        } else if (strcmp(type, "done") == 0 && strcmp(str(ev, "parent_id"), parent) == 0) {
-            json_object *e;
-            if (json_object_object_get_ex(ev, "error", &e)) {
-                fprintf(stderr, "gearsim-client-c: error: run failed: %s [%s]\n", str(e, "message"),
-                        str(e, "code"));
-            } else {
-                fprintf(stderr, "done: %d steps, t=%g s%s\n", (int)num(ev, "steps"), num(ev, "time"),
-                        gsc_event_gaps(c) ? " (some events were dropped)" : "");
-                rc = 0;
-            }
-            json_object_put(ev);
-            break;
-        }
-        json_object_put(ev);
+    json_object *ev = NULL;
+    if (gsc_wait_done(c, parent, -1, on_event, NULL, &ev, &err) != 0)
+        goto out;
+    json_object *e;
+    if (json_object_object_get_ex(ev, "error", &e)) {
+        fprintf(stderr, "gearsim-client-c: error: run failed: %s [%s]\n", str(e, "message"), str(e, "code"));
+    } else {
+        fprintf(stderr, "done: %d steps, t=%g s%s\n", (int)num(ev, "steps"), num(ev, "time"),
+                gsc_event_gaps(c) ? " (some events were dropped)" : "");
+        rc = 0;
     }
+    json_object_put(ev);
 out:
     if (rc != 0 && err.code[0] && err.message[0])
         die(&err);

@@ -292,7 +292,7 @@ void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *m
     }
     s->adv.active = false;
     s->state = sys ? SVC_LOADED : SVC_EMPTY;
-    gsi_publish(s, "done", o);
+    gsi_publish_done(s, job >= 0 ? "job" : "advance", o);
     if (job >= 0) {
         svc_job *j = &s->jobs[job];
         snprintf(j->state, sizeof j->state, "%s", err != GS_OK ? "failed" : cancelled ? "cancelled" : "done");
@@ -331,9 +331,11 @@ static gs_err cmd_resume(gs_service *s, json_object *args, const char *id, json_
 static gs_err cmd_cancel(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)args, (void)id, (void)d;
-    bool was = s->adv.active;
-    if (was)
+    bool was = s->adv.active || s->stiff.run;
+    if (s->adv.active)
         gsi_finish_advance(s, true, GS_OK, NULL);
+    if (s->stiff.run)
+        gsi_stiffness_stop(s, true, NULL);
     *res = json_object_new_object();
     json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
     json_object_object_add(*res, "cancelled", json_object_new_boolean(was));
@@ -360,6 +362,22 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     } else {
         json_object_object_add(o, "advance", NULL);
     }
+    if (s->stiff.run) {
+        json_object *a = json_object_new_object();
+        int n = gs_stiffness_run_positions(s->stiff.run), k = gs_stiffness_run_done(s->stiff.run);
+        json_object_object_add(a, "parent_id", json_object_new_string(s->stiff.parent_id));
+        json_object_object_add(a, "positions", json_object_new_int(n));
+        json_object_object_add(a, "done", json_object_new_int(k));
+        json_object_object_add(a, "fraction", json_object_new_double(n > 0 ? (double)k / n : 1.0));
+        json_object_object_add(o, "stiffness", a);
+    } else {
+        json_object_object_add(o, "stiffness", NULL);
+    }
+    /* The last finished long requests, oldest first: completion without PUB. */
+    json_object *fin = json_object_new_array();
+    for (int i = 0; i < s->n_finished; i++)
+        json_object_array_add(fin, json_object_get(s->finished[i].done));
+    json_object_object_add(o, "finished", fin);
     json_object_object_add(o, "recording", s->record ? json_object_new_string(gs_record_path(s->record)) : NULL);
     int queued = 0;
     for (int i = 0; i < s->n_jobs; i++)
@@ -925,18 +943,44 @@ static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
 static const char *const fetch_args[] = {"path", "offset", "length", NULL};
-static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", NULL};
+static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", "wait", NULL};
+
+/* The result of a finished analysis: written to its HDF5 file when asked,
+ * as JSON (the reply of the synchronous form, the done event's `result`). */
+static gs_err stiffness_result(gs_service *s, gs_stiffness_result *r, const char *full, const char *rel,
+                               json_object **res, gs_diag *d)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    if (full[0]) {
+        gs_err e = gs_stiffness_write_h5(full, sys->scene, r, d);
+        if (e != GS_OK) {
+            gs_stiffness_result_clear(r);
+            snprintf(d->field, sizeof d->field, "args.path");
+            return e;
+        }
+    }
+    *res = gs_stiffness_json(r, sys->scene);
+    if (full[0])
+        json_object_object_add(*res, "path", json_object_new_string(rel));
+    gs_stiffness_result_clear(r);
+    return GS_OK;
+}
 
 /* Quasi-static mesh stiffness and transmission error of one mesh of the
  * loaded scene (docs/STIFFNESS.md): rank 0 alone, no inertia, the run's
- * state untouched. Blocks the service for its duration (seconds), so it is
- * refused while an advance runs. */
+ * state untouched. Runs in chunks like `advance` (one roll position per
+ * poll of the command socket): accepted at once, progress events, a done
+ * event carrying the result, cancel ends it. With wait: true the reply
+ * carries the result and the service blocks for the analysis (seconds).
+ * Refused while an advance runs. */
 static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
-    (void)id;
     GS_TRY(need_loaded(s, d));
     if (s->adv.active)
         return gs_diag_set(d, GS_EBUSY, "cmd", "the stiffness analysis is refused while an advance runs");
+    if (s->stiff.run)
+        return gs_diag_set(d, GS_EBUSY, "cmd", "a stiffness analysis ('%.128s') is running; cancel ends it",
+                           s->stiff.parent_id);
     gs_system *sys = gs_engine_system(s->eng);
     char name[GS_NAME_MAX];
     GS_TRY(gsi_json_string(args, "mesh", "args", true, NULL, name, sizeof name, d));
@@ -954,29 +998,124 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
     o.refine = (int)v;
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
-    char full[PATH_MAX] = "";
-    if (json_object_object_get_ex(args, "path", NULL))
+    bool wait = false;
+    GS_TRY(gsi_json_bool(args, "wait", "args", false, &wait, d));
+    char full[PATH_MAX] = "", rel[600] = "";
+    if (json_object_object_get_ex(args, "path", NULL)) {
         GS_TRY(path_arg(s, args, true, full, sizeof full, d));
-    gs_stiffness_result r;
-    gs_err e = gs_stiffness_analyse(sys->scene, mi, &o, &r, d);
+        snprintf(rel, sizeof rel, "%s", json_object_get_string(json_object_object_get(args, "path")));
+    }
+    gs_stiffness_run *run;
+    gs_err e = gs_stiffness_begin(sys->scene, mi, &o, &run, d);
     if (e != GS_OK) {
         if (!strchr(d->field, '.'))
             snprintf(d->field, sizeof d->field, "args.mesh");
         return e;
     }
-    if (full[0]) {
-        e = gs_stiffness_write_h5(full, sys->scene, &r, d);
+    if (wait) {
+        while (e == GS_OK && gs_stiffness_run_done(run) < gs_stiffness_run_positions(run))
+            e = gs_stiffness_next(run, d);
+        gs_stiffness_result r;
+        if (e == GS_OK)
+            e = gs_stiffness_end(&run, &r, d);
+        gs_stiffness_run_free(&run);
         if (e != GS_OK) {
-            gs_stiffness_result_clear(&r);
-            snprintf(d->field, sizeof d->field, "args.path");
+            if (!strchr(d->field, '.'))
+                snprintf(d->field, sizeof d->field, "args.mesh");
             return e;
         }
+        return stiffness_result(s, &r, full, rel, res, d);
     }
-    *res = gs_stiffness_json(&r, sys->scene);
-    if (full[0])
-        json_object_object_add(*res, "path", json_object_get(json_object_object_get(args, "path")));
-    gs_stiffness_result_clear(&r);
+    svc_stiffness *st = &s->stiff;
+    memset(st, 0, sizeof *st);
+    st->run = run;
+    snprintf(st->parent_id, sizeof st->parent_id, "%s", id);
+    snprintf(st->path, sizeof st->path, "%s", full);
+    snprintf(st->rel, sizeof st->rel, "%s", rel);
+    st->wall_start = st->last_progress = gs_now();
+    *res = json_object_new_object();
+    json_object_object_add(*res, "accepted", json_object_new_boolean(1));
+    json_object_object_add(*res, "mesh", json_object_new_string(name));
+    json_object_object_add(*res, "positions", json_object_new_int(o.positions));
     return GS_OK;
+}
+
+void gsi_stiffness_stop(gs_service *s, bool cancelled, const char *why)
+{
+    svc_stiffness *st = &s->stiff;
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
+    json_object_object_add(o, "cancelled", json_object_new_boolean(cancelled));
+    json_object_object_add(o, "positions_done", json_object_new_int(gs_stiffness_run_done(st->run)));
+    json_object_object_add(o, "wall_seconds", json_object_new_double(gs_now() - st->wall_start));
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_err e = GS_OK;
+    json_object *result = NULL;
+    if (!cancelled) {
+        gs_stiffness_result r;
+        e = gs_stiffness_end(&st->run, &r, &d);
+        if (e == GS_OK)
+            e = stiffness_result(s, &r, st->path, st->rel, &result, &d);
+    }
+    gs_stiffness_run_free(&st->run);
+    if (e != GS_OK || why) {
+        json_object *err = json_object_new_object();
+        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e != GS_OK ? e : GS_ESTATE)));
+        json_object_object_add(err, "message", json_object_new_string(e != GS_OK && d.message[0] ? d.message
+                                                                      : why ? why : gs_strerror(e)));
+        json_object_object_add(err, "field", json_object_new_string(d.field));
+        if (e != GS_OK || !cancelled)
+            json_object_object_add(o, "error", err);
+        else
+            json_object_put(err);
+    }
+    if (result)
+        json_object_object_add(o, "result", result);
+    gsi_publish_done(s, "stiffness", o);
+}
+
+void gsi_stiffness_chunk(gs_service *s)
+{
+    svc_stiffness *st = &s->stiff;
+    double t0 = gs_now();
+    gs_err e = GS_OK;
+    gs_diag d;
+    gs_diag_clear(&d);
+    int n = gs_stiffness_run_positions(st->run);
+    /* At least one roll position, more while under about 20 ms. */
+    do
+        e = gs_stiffness_next(st->run, &d);
+    while (e == GS_OK && gs_stiffness_run_done(st->run) < n && gs_now() - t0 < 0.02);
+    int k = gs_stiffness_run_done(st->run);
+    double now = gs_now();
+    if (e == GS_OK && (now - st->last_progress > 0.1 || k == n)) {
+        st->last_progress = now;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
+        json_object_object_add(o, "kind", json_object_new_string("stiffness"));
+        json_object_object_add(o, "fraction", json_object_new_double(n > 0 ? (double)k / n : 1.0));
+        double el = now - st->wall_start;
+        json_object_object_add(o, "steps_per_second", json_object_new_double(el > 0 ? k / el : 0.0));
+        gsi_publish(s, "progress", o);
+    }
+    if (e != GS_OK) {
+        /* The failure as the done event's error, naming the field. */
+        gs_stiffness_run_free(&st->run);
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
+        json_object_object_add(o, "cancelled", json_object_new_boolean(0));
+        json_object_object_add(o, "positions_done", json_object_new_int(k));
+        json_object_object_add(o, "wall_seconds", json_object_new_double(now - st->wall_start));
+        json_object *err = json_object_new_object();
+        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e)));
+        json_object_object_add(err, "message", json_object_new_string(d.message[0] ? d.message : gs_strerror(e)));
+        json_object_object_add(err, "field", json_object_new_string(strchr(d.field, '.') ? d.field : "args.mesh"));
+        json_object_object_add(o, "error", err);
+        gsi_publish_done(s, "stiffness", o);
+    } else if (k >= n) {
+        gsi_stiffness_stop(s, false, NULL);
+    }
 }
 
 static const gsi_command commands[] = {

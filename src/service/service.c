@@ -15,6 +15,7 @@
 #include <unistd.h>
 #include <zmq.h>
 
+#include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "scene/jsonstrict.h"
 #include "scene/jsonv.h"
@@ -66,6 +67,25 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
     zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
     json_object_put(ev);
+}
+
+void gsi_publish_done(gs_service *s, const char *kind, json_object *o)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object_object_add(o, "kind", json_object_new_string(kind));
+    json_object_object_add(o, "step", json_object_new_int64(sys ? sys->step : 0));
+    json_object_object_add(o, "time", json_object_new_double(sys ? sys->time : 0.0));
+    if (s->n_finished == GSI_FINISHED_KEEP) {
+        json_object_put(s->finished[0].done);
+        memmove(&s->finished[0], &s->finished[1], (GSI_FINISHED_KEEP - 1) * sizeof s->finished[0]);
+        s->n_finished--;
+    }
+    svc_finished *f = &s->finished[s->n_finished++];
+    snprintf(f->kind, sizeof f->kind, "%s", kind);
+    f->done = json_object_get(o);
+    gsi_publish(s, "done", o);
+    /* gsi_publish copied o's members into the event and dropped our
+     * reference; the kept reference holds the body. */
 }
 
 void gsi_record_flush_or_stop(gs_service *s, const char *why)
@@ -611,6 +631,8 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     if ((e = gsi_json_only(args, "args", c->args, &d)) == GS_OK) {
         if (s->adv.active && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
+        else if (s->stiff.run && !c->during_advance)
+            e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
         else {
             json_object *result = NULL;
             e = c->handler(s, args, id, &result, &d);
@@ -879,6 +901,10 @@ void gsi_service_release(gs_service *s)
         json_object_put(s->jobs[i].schedule);
     }
     s->n_jobs = 0;
+    for (int i = 0; i < s->n_finished; i++)
+        json_object_put(s->finished[i].done);
+    s->n_finished = 0;
+    gs_stiffness_run_free(&s->stiff.run);
     free(s->clients);
     s->clients = NULL;
     s->n_clients = 0;
@@ -954,7 +980,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
                 gs_engine_size(eng), s->cmd_endpoint, s->tel_endpoint);
     }
     while (e == GS_OK && !s->shutdown && !stop_signal) {
-        bool running = s->adv.active && s->state == SVC_RUNNING;
+        bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run;
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
         int rc = zmq_poll(items, 1, running ? 0 : 100);
         if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
@@ -968,7 +994,9 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             }
         if (s->shutdown)
             break;
-        if (s->adv.active && s->state == SVC_RUNNING)
+        if (s->stiff.run)
+            gsi_stiffness_chunk(s);
+        else if (s->adv.active && s->state == SVC_RUNNING)
             run_chunk(s);
         else if (!s->adv.active)
             gsi_start_next_job(s);
@@ -982,6 +1010,8 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         s->keep_autosave = true; /* still resumable with --resume */
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");
     }
+    if (s->stiff.run)
+        gsi_stiffness_stop(s, true, "the daemon is shutting down");
     gs_record_close(&s->record);
     gs_diag d;
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);

@@ -56,6 +56,24 @@ typedef struct svc_advance {
     int64_t next_autosave;  /* step at or after which the next autosave is due (0: none) */
 } svc_advance;
 
+/* A chunked `stiffness` analysis under way (one roll position per poll). */
+typedef struct svc_stiffness {
+    struct gs_stiffness_run *run; /* NULL when none */
+    char parent_id[160];
+    char path[PATH_MAX];     /* HDF5 output (absolute) or "" */
+    char rel[600];           /* the request's path argument */
+    double wall_start, last_progress;
+} svc_stiffness;
+
+/* The last finished long requests (advance, job, stiffness), newest last:
+ * `status` lists them so that a client that missed the `done` event
+ * (lossy PUB) still learns the outcome. */
+#define GSI_FINISHED_KEEP 8
+typedef struct svc_finished {
+    char kind[16];           /* advance, job, stiffness */
+    json_object *done;       /* the done event's body */
+} svc_finished;
+
 typedef struct svc_cache_entry {
     char key[GSI_CACHE_KEY]; /* identity hex + '/' + id */
     char *reply;
@@ -80,6 +98,9 @@ typedef struct gs_service {
     uint64_t seq;
     svc_state state;
     svc_advance adv;
+    svc_stiffness stiff;
+    svc_finished finished[GSI_FINISHED_KEEP];
+    int n_finished;
     gs_record *record;
     int64_t chunk_steps;
     double steps_per_second;
@@ -132,6 +153,13 @@ const gsi_command *gsi_commands(void);
 void gsi_start_next_job(gs_service *s);
 void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *msg);
 void gsi_job_between_chunks(gs_service *s);
+/* Publish the `done` event of a long request of `kind` and keep its body
+ * for `status` (takes ownership of o). */
+void gsi_publish_done(gs_service *s, const char *kind, json_object *o);
+/* The next chunk of a chunked stiffness analysis (service loop), and its
+ * end: cancelled (cancel, shutdown) or finished. */
+void gsi_stiffness_chunk(gs_service *s);
+void gsi_stiffness_stop(gs_service *s, bool cancelled, const char *why);
 
 /* Flush the record; on failure (disk full, ...) publish an `error` event and
  * stop recording. The simulation goes on either way. */

@@ -201,6 +201,24 @@ class Client:
             return dict(result, id=rid)
         return self.wait_done(rid, on_telemetry, on_progress, on_event, timeout)
 
+    def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, wait=True,
+                  on_progress=None, timeout=None):
+        """Quasi-static mesh stiffness of `mesh` of the loaded scene, run by
+        the daemon in chunks (status and cancel answered meanwhile).
+        wait=True: the `done` event's result (learned from status when the
+        event is lost); wait=False: the accepted reply with "id" added."""
+        args = {"mesh": mesh}
+        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
+            if v is not None:
+                args[k] = v
+        if wait and self._sub is None:
+            self.subscribe()
+        rid = self.send("stiffness", args)
+        result = self.wait_reply(rid)
+        if not wait:
+            return dict(result, id=rid)
+        return self.wait_done(rid, on_progress=on_progress, timeout=timeout).get("result")
+
     def pause(self):
         return self.request("pause")
 
@@ -384,13 +402,23 @@ class Client:
                     return ev
             if timeout is not None and now - start > timeout:
                 raise GearsimTimeout(f"advance {parent_id} not done after {timeout:g} s")
-            if now - last_check > 5.0:
-                # A done event dropped at a high-water mark must not hang us:
-                # ask the daemon whether the advance still runs.
+            if now - last_check > 2.0:
+                # A done event dropped at a high-water mark (or a subscriber
+                # that is gone) must not hang us: status lists the last
+                # finished requests with their done payload.
                 last_check = now
                 st = self.status()
-                adv = st.get("advance")
-                if not adv or adv.get("parent_id") != parent_id:
+                for f in reversed(st.get("finished") or []):
+                    if f.get("parent_id") == parent_id:
+                        ev = dict(f, v=PROTOCOL, type="done", from_status=True)
+                        err = ev.get("error")
+                        if err and not ev.get("cancelled"):
+                            raise GearsimError(err.get("code", "internal"), err.get("message", ""),
+                                               err.get("field"), ev)
+                        return ev
+                adv, stf = st.get("advance"), st.get("stiffness")
+                running = any(x and x.get("parent_id") == parent_id for x in (adv, stf))
+                if not running:
                     tail, until = [], _time.monotonic() + 1.5
                     while _time.monotonic() < until:
                         e = self.next_event(max(until - _time.monotonic(), 0.0))
