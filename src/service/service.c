@@ -497,8 +497,8 @@ static bool client_admit(gs_service *s, const unsigned char *who, size_t who_len
     for (int i = 0; i < s->n_clients; i++) {
         svc_client *c = &s->clients[i];
         bool me = c->len == who_len && memcmp(c->id, who, who_len) == 0;
-        if (!me && now - c->last > GSI_CLIENT_IDLE_S)
-            continue; /* expired: dropped */
+        if (now - c->last > GSI_CLIENT_IDLE_S)
+            continue; /* expired: dropped (`who` itself too: back after that, it is a new client) */
         if (me)
             found = keep;
         s->clients[keep++] = *c;
