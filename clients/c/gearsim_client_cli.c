@@ -5,6 +5,7 @@
  *   gearsim-client-c [--connection-file PATH] SCENE.json|builtin:NAME --until T
  *
  * Exit status 0 when the run completes, 1 with the error message on stderr. */
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,7 +18,8 @@
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: gearsim-client-c [--connection-file PATH] SCENE.json|builtin:NAME --until T\n");
+    fprintf(stderr, "usage: gearsim-client-c [--connection-file PATH] [--no-events] SCENE.json|builtin:NAME "
+                    "--until T\n  --no-events: no subscriber; completion is learned from status\n");
 }
 
 static int die(const gsc_error *e)
@@ -100,9 +102,12 @@ int main(int argc, char **argv)
 {
     const char *conn = NULL, *scene = NULL;
     double until = -1;
+    bool events = true;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--connection-file") == 0 && i + 1 < argc)
             conn = argv[++i];
+        else if (strcmp(argv[i], "--no-events") == 0)
+            events = false;
         else if (strcmp(argv[i], "--until") == 0 && i + 1 < argc)
             until = strtod(argv[++i], NULL);
         else if (strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0) {
@@ -125,7 +130,7 @@ int main(int argc, char **argv)
         return die(&err);
     int rc = 1;
     json_object *st = NULL, *args = NULL;
-    if (gsc_subscribe(c, "", TIMEOUT_MS, &err) != 0 || load(c, scene, &err) != 0 ||
+    if ((events && gsc_subscribe(c, "", TIMEOUT_MS, &err) != 0) || load(c, scene, &err) != 0 ||
         gsc_request(c, "status", NULL, TIMEOUT_MS, 2, &st, &err) != 0)
         goto out;
     double start = num(st, "time");

@@ -10,6 +10,7 @@ A client whose subscriber never receives anything (its SUB socket replaced
 by one connected nowhere) still learns the completion of an advance and of
 a stiffness analysis, from status's `finished` list."""
 import os
+import subprocess
 import sys
 import time
 
@@ -81,6 +82,17 @@ def run():
         R.check("stiffness with a deaf subscriber: result learned from status",
                 res is not None and len(res.get("points", [])) == 3, res)
         R.note(f"deaf-subscriber completions took {time.monotonic() - t0:.1f} s (status polled every 2 s)")
+
+        # The C client without a subscriber at all: gsc_wait_done polls status.
+        exe = os.path.join(dmod.BUILD_ROOT, "clients", "c", "gearsim-client-c")
+        if os.access(exe, os.X_OK):
+            c.unload()
+            r = subprocess.run([exe, "--connection-file", d.conn_file, "--no-events", "builtin:pair",
+                                "--until", "0.01"], capture_output=True, text=True, timeout=300)
+            R.check("C client with no subscriber: exit 0, done learned (1000 steps)",
+                    r.returncode == 0 and "done: 1000 steps" in r.stderr, (r.returncode, r.stderr[-1000:]))
+        else:
+            R.check("gearsim-client-c is built", False, exe)
 
 
 R.guard("long command run", run)
