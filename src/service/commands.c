@@ -335,7 +335,7 @@ static gs_err cmd_cancel(gs_service *s, json_object *args, const char *id, json_
     if (s->adv.active)
         gsi_finish_advance(s, true, GS_OK, NULL);
     if (s->stiff.run)
-        gsi_stiffness_stop(s, true, NULL);
+        gsi_stiffness_stop(s, true);
     *res = json_object_new_object();
     json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
     json_object_object_add(*res, "cancelled", json_object_new_boolean(was));
@@ -1040,39 +1040,45 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     return GS_OK;
 }
 
-void gsi_stiffness_stop(gs_service *s, bool cancelled, const char *why)
+/* The done event of the analysis (cancelled, failed with e naming a field
+ * of d, or with its result) and the end of the run. */
+static void stiffness_done(gs_service *s, bool cancelled, int positions_done, gs_err e, const gs_diag *d,
+                           json_object *result)
 {
     svc_stiffness *st = &s->stiff;
     json_object *o = json_object_new_object();
     json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
     json_object_object_add(o, "cancelled", json_object_new_boolean(cancelled));
-    json_object_object_add(o, "positions_done", json_object_new_int(gs_stiffness_run_done(st->run)));
+    json_object_object_add(o, "positions_done", json_object_new_int(positions_done));
     json_object_object_add(o, "wall_seconds", json_object_new_double(gs_now() - st->wall_start));
+    if (e != GS_OK) {
+        json_object *err = json_object_new_object();
+        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e)));
+        json_object_object_add(err, "message", json_object_new_string(d->message[0] ? d->message : gs_strerror(e)));
+        json_object_object_add(err, "field", json_object_new_string(strchr(d->field, '.') ? d->field : "args.mesh"));
+        json_object_object_add(o, "error", err);
+    }
+    if (result)
+        json_object_object_add(o, "result", result);
+    gs_stiffness_run_free(&st->run);
+    gsi_publish_done(s, "stiffness", o);
+}
+
+void gsi_stiffness_stop(gs_service *s, bool cancelled)
+{
+    svc_stiffness *st = &s->stiff;
     gs_diag d;
     gs_diag_clear(&d);
     gs_err e = GS_OK;
     json_object *result = NULL;
+    int done = gs_stiffness_run_done(st->run);
     if (!cancelled) {
         gs_stiffness_result r;
-        e = gs_stiffness_end(&st->run, &r, &d);
+        e = gs_stiffness_end(&st->run, &r, &d); /* frees the run */
         if (e == GS_OK)
             e = stiffness_result(s, &r, st->path, st->rel, &result, &d);
     }
-    gs_stiffness_run_free(&st->run);
-    if (e != GS_OK || why) {
-        json_object *err = json_object_new_object();
-        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e != GS_OK ? e : GS_ESTATE)));
-        json_object_object_add(err, "message", json_object_new_string(e != GS_OK && d.message[0] ? d.message
-                                                                      : why ? why : gs_strerror(e)));
-        json_object_object_add(err, "field", json_object_new_string(d.field));
-        if (e != GS_OK || !cancelled)
-            json_object_object_add(o, "error", err);
-        else
-            json_object_put(err);
-    }
-    if (result)
-        json_object_object_add(o, "result", result);
-    gsi_publish_done(s, "stiffness", o);
+    stiffness_done(s, cancelled, done, e, &d, result);
 }
 
 void gsi_stiffness_chunk(gs_service *s)
@@ -1099,23 +1105,10 @@ void gsi_stiffness_chunk(gs_service *s)
         json_object_object_add(o, "steps_per_second", json_object_new_double(el > 0 ? k / el : 0.0));
         gsi_publish(s, "progress", o);
     }
-    if (e != GS_OK) {
-        /* The failure as the done event's error, naming the field. */
-        gs_stiffness_run_free(&st->run);
-        json_object *o = json_object_new_object();
-        json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
-        json_object_object_add(o, "cancelled", json_object_new_boolean(0));
-        json_object_object_add(o, "positions_done", json_object_new_int(k));
-        json_object_object_add(o, "wall_seconds", json_object_new_double(now - st->wall_start));
-        json_object *err = json_object_new_object();
-        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e)));
-        json_object_object_add(err, "message", json_object_new_string(d.message[0] ? d.message : gs_strerror(e)));
-        json_object_object_add(err, "field", json_object_new_string(strchr(d.field, '.') ? d.field : "args.mesh"));
-        json_object_object_add(o, "error", err);
-        gsi_publish_done(s, "stiffness", o);
-    } else if (k >= n) {
-        gsi_stiffness_stop(s, false, NULL);
-    }
+    if (e != GS_OK)
+        stiffness_done(s, false, k, e, &d, NULL);
+    else if (k >= n)
+        gsi_stiffness_stop(s, false);
 }
 
 static const gsi_command commands[] = {

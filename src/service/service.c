@@ -1011,7 +1011,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");
     }
     if (s->stiff.run)
-        gsi_stiffness_stop(s, true, "the daemon is shutting down");
+        gsi_stiffness_stop(s, true);
     gs_record_close(&s->record);
     gs_diag d;
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);

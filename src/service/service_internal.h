@@ -159,7 +159,7 @@ void gsi_publish_done(gs_service *s, const char *kind, json_object *o);
 /* The next chunk of a chunked stiffness analysis (service loop), and its
  * end: cancelled (cancel, shutdown) or finished. */
 void gsi_stiffness_chunk(gs_service *s);
-void gsi_stiffness_stop(gs_service *s, bool cancelled, const char *why);
+void gsi_stiffness_stop(gs_service *s, bool cancelled);
 
 /* Flush the record; on failure (disk full, ...) publish an `error` event and
  * stop recording. The simulation goes on either way. */
