@@ -382,6 +382,26 @@ int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
                 json_object *f = finished_entry(st, parent_id);
                 json_object_put(st);
                 if (f) {
+                    /* Finished: the events before its done (the last
+                     * telemetry) may still be on their way; take them and
+                     * the done event if it comes within 1.5 s. */
+                    double until = now_ms() + 1500;
+                    while (c->sub && now_ms() < until) {
+                        json_object *e2 = NULL, *t, *p;
+                        if (gsc_next_event(c, (int)(until - now_ms()) + 1, &e2) != 1)
+                            continue;
+                        if (json_object_object_get_ex(e2, "type", &t) &&
+                            json_object_object_get_ex(e2, "parent_id", &p) &&
+                            strcmp(json_object_get_string(t), "done") == 0 &&
+                            strcmp(json_object_get_string(p), parent_id) == 0) {
+                            json_object_put(f);
+                            f = e2;
+                            break;
+                        }
+                        if (on_event)
+                            on_event(e2, user);
+                        json_object_put(e2);
+                    }
                     *done = f;
                     return 0;
                 }

@@ -410,7 +410,25 @@ class Client:
                 st = self.status()
                 for f in reversed(st.get("finished") or []):
                     if f.get("parent_id") == parent_id:
-                        ev = dict(f, v=PROTOCOL, type="done", from_status=True)
+                        # Finished: the events before its done (the last
+                        # telemetry) may still be on their way; take them
+                        # and the done event if it comes.
+                        until = _time.monotonic() + 1.5
+                        while _time.monotonic() < until:
+                            e = self.next_event(max(until - _time.monotonic(), 0.0))
+                            if e is None:
+                                continue
+                            if on_event:
+                                on_event(e)
+                            t = e.get("type")
+                            if t == "telemetry" and on_telemetry:
+                                on_telemetry(e)
+                            elif t == "progress" and on_progress and e.get("parent_id") == parent_id:
+                                on_progress(e)
+                            elif t == "done" and e.get("parent_id") == parent_id:
+                                f = e
+                                break
+                        ev = f if f.get("type") == "done" else dict(f, v=PROTOCOL, type="done", from_status=True)
                         err = ev.get("error")
                         if err and not ev.get("cancelled"):
                             raise GearsimError(err.get("code", "internal"), err.get("message", ""),
