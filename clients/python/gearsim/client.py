@@ -379,6 +379,18 @@ class Client:
                 return
             yield ev
 
+    @staticmethod
+    def _dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
+        """Hand an event to the callbacks; True when it is the done event of parent_id."""
+        if on_event:
+            on_event(ev)
+        t = ev.get("type")
+        if t == "telemetry" and on_telemetry:
+            on_telemetry(ev)
+        elif t == "progress" and on_progress and ev.get("parent_id") == parent_id:
+            on_progress(ev)
+        return t == "done" and ev.get("parent_id") == parent_id
+
     def wait_done(self, parent_id, on_telemetry=None, on_progress=None, on_event=None, timeout=None):
         """Wait for the `done` event of advance request `parent_id`; see advance()."""
         start = _time.monotonic()
@@ -386,20 +398,12 @@ class Client:
         while True:
             ev = self.next_event(0.5)
             now = _time.monotonic()
-            if ev is not None:
-                if on_event:
-                    on_event(ev)
-                t = ev.get("type")
-                if t == "telemetry" and on_telemetry:
-                    on_telemetry(ev)
-                elif t == "progress" and on_progress and ev.get("parent_id") == parent_id:
-                    on_progress(ev)
-                elif t == "done" and ev.get("parent_id") == parent_id:
-                    err = ev.get("error")
-                    if err:
-                        raise GearsimError(err.get("code", "internal"), err.get("message", ""),
-                                           err.get("field"), ev)
-                    return ev
+            if ev is not None and self._dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
+                err = ev.get("error")
+                if err:
+                    raise GearsimError(err.get("code", "internal"), err.get("message", ""),
+                                       err.get("field"), ev)
+                return ev
             if timeout is not None and now - start > timeout:
                 raise GearsimTimeout(f"advance {parent_id} not done after {timeout:g} s")
             if now - last_check > 2.0:
@@ -416,16 +420,7 @@ class Client:
                         until = _time.monotonic() + 1.5
                         while _time.monotonic() < until:
                             e = self.next_event(max(until - _time.monotonic(), 0.0))
-                            if e is None:
-                                continue
-                            if on_event:
-                                on_event(e)
-                            t = e.get("type")
-                            if t == "telemetry" and on_telemetry:
-                                on_telemetry(e)
-                            elif t == "progress" and on_progress and e.get("parent_id") == parent_id:
-                                on_progress(e)
-                            elif t == "done" and e.get("parent_id") == parent_id:
+                            if e is not None and self._dispatch(e, parent_id, on_telemetry, on_progress, on_event):
                                 f = e
                                 break
                         ev = f if f.get("type") == "done" else dict(f, v=PROTOCOL, type="done", from_status=True)
