@@ -357,3 +357,89 @@ int gsc_next_event(gsc_client *c, int timeout_ms, json_object **event)
             return 0;
     }
 }
+
+/* The done payload of parent_id in a status result's `finished` list
+ * (a new reference), or NULL. */
+static json_object *finished_entry(json_object *st, const char *parent_id)
+{
+    json_object *fin;
+    if (!json_object_object_get_ex(st, "finished", &fin) || !json_object_is_type(fin, json_type_array))
+        return NULL;
+    for (size_t i = json_object_array_length(fin); i-- > 0;) {
+        json_object *f = json_object_array_get_idx(fin, i), *p;
+        if (json_object_object_get_ex(f, "parent_id", &p) && json_object_is_type(p, json_type_string) &&
+            strcmp(json_object_get_string(p), parent_id) == 0)
+            return json_object_get(f);
+    }
+    return NULL;
+}
+
+int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
+                  void (*on_event)(json_object *ev, void *user), void *user, json_object **done,
+                  gsc_error *err)
+{
+    *done = NULL;
+    double start = now_ms(), last_poll = start;
+    for (;;) {
+        json_object *ev = NULL;
+        if (c->sub) {
+            if (gsc_next_event(c, 500, &ev) == 1) {
+                json_object *t, *p;
+                if (json_object_object_get_ex(ev, "type", &t) && json_object_object_get_ex(ev, "parent_id", &p) &&
+                    strcmp(json_object_get_string(t), "done") == 0 &&
+                    strcmp(json_object_get_string(p), parent_id) == 0) {
+                    *done = ev;
+                    return 0;
+                }
+                if (on_event)
+                    on_event(ev, user);
+                json_object_put(ev);
+            }
+        } else {
+            struct timespec ts = {0, 200 * 1000000L};
+            nanosleep(&ts, NULL);
+        }
+        double now = now_ms();
+        if (now - last_poll >= GSC_DONE_POLL_MS) {
+            /* The done event may be lost (PUB drops, a subscriber gone):
+             * status lists the last finished requests. */
+            last_poll = now;
+            json_object *st = NULL;
+            if (gsc_request(c, "status", NULL, 10000, 2, &st, err) == 0) {
+                json_object *f = finished_entry(st, parent_id);
+                json_object_put(st);
+                if (f) {
+                    /* Finished: the events before its done (the last
+                     * telemetry) may still be on their way; take them and
+                     * the done event if it comes within 1.5 s. */
+                    double until = now_ms() + 1500;
+                    while (c->sub && now_ms() < until) {
+                        json_object *e2 = NULL, *t, *p;
+                        if (gsc_next_event(c, (int)(until - now_ms()) + 1, &e2) != 1)
+                            continue;
+                        if (json_object_object_get_ex(e2, "type", &t) &&
+                            json_object_object_get_ex(e2, "parent_id", &p) &&
+                            strcmp(json_object_get_string(t), "done") == 0 &&
+                            strcmp(json_object_get_string(p), parent_id) == 0) {
+                            json_object_put(f);
+                            f = e2;
+                            break;
+                        }
+                        if (on_event)
+                            on_event(e2, user);
+                        json_object_put(e2);
+                    }
+                    *done = f;
+                    return 0;
+                }
+            }
+        }
+        if (timeout_ms >= 0 && now - start > timeout_ms) {
+            if (err) {
+                snprintf(err->code, sizeof err->code, "timeout");
+                snprintf(err->message, sizeof err->message, "'%s' not done after %d ms", parent_id, timeout_ms);
+            }
+            return -1;
+        }
+    }
+}

@@ -61,6 +61,17 @@ int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *e
  * Malformed messages are skipped. */
 int gsc_next_event(gsc_client *c, int timeout_ms, json_object **event);
 
+/* Wait for the end of the long request parent_id (advance, stiffness): its
+ * `done` event when subscribed, and in any case every GSC_DONE_POLL_MS the
+ * `finished` list of `status`, so a lost event (or no subscriber) never
+ * hangs. Other events go to on_event (may be NULL; borrowed). Returns 0 and
+ * a new reference to the done payload in *done (caller json_object_put),
+ * -1 after timeout_ms (< 0: no limit) with err filled. */
+#define GSC_DONE_POLL_MS 2000
+int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
+                  void (*on_event)(json_object *ev, void *user), void *user, json_object **done,
+                  gsc_error *err);
+
 /* Events missed so far (gaps in seq), counted when subscribed to "". */
 long gsc_event_gaps(const gsc_client *c);
 

@@ -5,6 +5,7 @@
  *   gearsim-client-c [--connection-file PATH] SCENE.json|builtin:NAME --until T
  *
  * Exit status 0 when the run completes, 1 with the error message on stderr. */
+#include <stdbool.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -17,7 +18,8 @@
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: gearsim-client-c [--connection-file PATH] SCENE.json|builtin:NAME --until T\n");
+    fprintf(stderr, "usage: gearsim-client-c [--connection-file PATH] [--no-events] SCENE.json|builtin:NAME "
+                    "--until T\n  --no-events: no subscriber; completion is learned from status\n");
 }
 
 static int die(const gsc_error *e)
@@ -89,13 +91,23 @@ static int load(gsc_client *c, const char *spec, gsc_error *err)
     return r;
 }
 
+static void on_event(json_object *ev, void *user)
+{
+    (void)user;
+    if (strcmp(str(ev, "type"), "telemetry") == 0)
+        print_telemetry(ev);
+}
+
 int main(int argc, char **argv)
 {
     const char *conn = NULL, *scene = NULL;
     double until = -1;
+    bool events = true;
     for (int i = 1; i < argc; i++) {
         if (strcmp(argv[i], "--connection-file") == 0 && i + 1 < argc)
             conn = argv[++i];
+        else if (strcmp(argv[i], "--no-events") == 0)
+            events = false;
         else if (strcmp(argv[i], "--until") == 0 && i + 1 < argc)
             until = strtod(argv[++i], NULL);
         else if (strcmp(argv[i], "-h") == 0 || strcmp(argv[i], "--help") == 0) {
@@ -118,7 +130,7 @@ int main(int argc, char **argv)
         return die(&err);
     int rc = 1;
     json_object *st = NULL, *args = NULL;
-    if (gsc_subscribe(c, "", TIMEOUT_MS, &err) != 0 || load(c, scene, &err) != 0 ||
+    if ((events && gsc_subscribe(c, "", TIMEOUT_MS, &err) != 0) || load(c, scene, &err) != 0 ||
         gsc_request(c, "status", NULL, TIMEOUT_MS, 2, &st, &err) != 0)
         goto out;
     double start = num(st, "time");
@@ -133,31 +145,18 @@ int main(int argc, char **argv)
         goto out;
     char parent[64];
     snprintf(parent, sizeof parent, "%s", gsc_last_id(c));
-    for (;;) {
-        json_object *ev;
-        int r = gsc_next_event(c, EVENT_SILENCE_MS, &ev);
-        if (r != 1) {
-            fprintf(stderr, "gearsim-client-c: error: no event for %d ms\n", EVENT_SILENCE_MS);
-            goto out;
-        }
-        const char *type = str(ev, "type");
-        if (strcmp(type, "telemetry") == 0) {
-            print_telemetry(ev);
-        } else if (strcmp(type, "done") == 0 && strcmp(str(ev, "parent_id"), parent) == 0) {
-            json_object *e;
-            if (json_object_object_get_ex(ev, "error", &e)) {
-                fprintf(stderr, "gearsim-client-c: error: run failed: %s [%s]\n", str(e, "message"),
-                        str(e, "code"));
-            } else {
-                fprintf(stderr, "done: %d steps, t=%g s%s\n", (int)num(ev, "steps"), num(ev, "time"),
-                        gsc_event_gaps(c) ? " (some events were dropped)" : "");
-                rc = 0;
-            }
-            json_object_put(ev);
-            break;
-        }
-        json_object_put(ev);
+    json_object *ev = NULL;
+    if (gsc_wait_done(c, parent, -1, on_event, NULL, &ev, &err) != 0)
+        goto out;
+    json_object *e;
+    if (json_object_object_get_ex(ev, "error", &e)) {
+        fprintf(stderr, "gearsim-client-c: error: run failed: %s [%s]\n", str(e, "message"), str(e, "code"));
+    } else {
+        fprintf(stderr, "done: %d steps, t=%g s%s\n", (int)num(ev, "steps"), num(ev, "time"),
+                gsc_event_gaps(c) ? " (some events were dropped)" : "");
+        rc = 0;
     }
+    json_object_put(ev);
 out:
     if (rc != 0 && err.code[0] && err.message[0])
         die(&err);

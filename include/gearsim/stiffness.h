@@ -136,6 +136,21 @@ typedef struct gs_stiffness_result {
 gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *o,
                             gs_stiffness_result *out, gs_diag *d);
 
+/* The same analysis one roll position at a time, for callers that must stay
+ * responsive (the service's chunked `stiffness`): begin validates, meshes
+ * and factorises (errors as gs_stiffness_analyse) and keeps pointers into
+ * sc, which must stay unchanged until end or free; next solves the next
+ * position; end (once done == positions) fills out and frees the run; free
+ * abandons it. gs_stiffness_analyse is begin, next until done, end. */
+typedef struct gs_stiffness_run gs_stiffness_run;
+gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *o,
+                          gs_stiffness_run **run, gs_diag *d);
+gs_err gs_stiffness_next(gs_stiffness_run *run, gs_diag *d);
+int gs_stiffness_run_done(const gs_stiffness_run *run);
+int gs_stiffness_run_positions(const gs_stiffness_run *run);
+gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_diag *d);
+void gs_stiffness_run_free(gs_stiffness_run **run);
+
 /* Free the arrays of a result and zero it; safe on a zeroed result. */
 void gs_stiffness_result_clear(gs_stiffness_result *r);
 

@@ -555,38 +555,45 @@ static double default_torque(const gs_scene *sc, int body, double rb, double b_m
     return 200.0 * (b_m * 1e3) * rb; /* 200 N/mm line load */
 }
 
-/* No-load closing rotation: rigid bodies (u = 0) turned until the first row
- * closes, the rows re-evaluated at each new angle (with backlash the
- * linearisation at the kinematic angle alone is too crude). */
-static gs_err close_rigid(work *w, double *delta0, double roll, const char *name, gs_diag *d)
+/* An analysis under way: the roll positions are solved one at a time
+ * (gs_stiffness_next) so that a caller can do other work in between. */
+struct gs_stiffness_run {
+    const gs_scene *sc;
+    const gs_scene_mesh *sm;
+    gs_stiffness_opts o;
+    work w;
+    double *uT[2];          /* displacements at T (central tangent) */
+    double T, F, bmm, pitch, thB_first, ratio, t_start;
+    int next;               /* next roll position */
+    gs_stiffness_result out;
+};
+
+static void run_free(gs_stiffness_run *r)
 {
-    int nr;
-    double gmin;
-    for (int it = 0; it < 30; it++) {
-        GS_TRY(collect(w, *delta0, &nr, &gmin));
-        double close = INFINITY;
-        for (int i = 0; i < nr; i++) {
-            double a = w->row[i].dg_dtheta[w->si[0]];
-            if (a * w->sgn < -1e-6 * w->rb)
-                close = fmin(close, w->row[i].gap.g / fabs(a));
-        }
-        if (!isfinite(close))
-            return gs_diag_set(d, GS_EINFEASIBLE, "meshes",
-                               "'%s' at roll %.3f: no flank closes in the torque direction", name,
-                               roll);
-        *delta0 += w->sgn * close;
-        if (fabs(close) * w->rb < 1e-12)
-            break;
-    }
-    return GS_OK;
+    work_free(&r->w);
+    free(r->uT[0]);
+    free(r->uT[1]);
+    gs_stiffness_result_clear(&r->out);
+    free(r);
 }
 
-gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
-                            gs_stiffness_result *out, gs_diag *d)
+void gs_stiffness_run_free(gs_stiffness_run **run)
 {
-    if (!sc || !out)
-        return gs_diag_set(d, GS_EINVAL, "", "NULL scene or result");
-    memset(out, 0, sizeof *out);
+    if (run && *run) {
+        run_free(*run);
+        *run = NULL;
+    }
+}
+
+int gs_stiffness_run_done(const gs_stiffness_run *run) { return run ? run->next : 0; }
+int gs_stiffness_run_positions(const gs_stiffness_run *run) { return run ? run->o.positions : 0; }
+
+gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
+                          gs_stiffness_run **run, gs_diag *d)
+{
+    if (!sc || !run)
+        return gs_diag_set(d, GS_EINVAL, "", "NULL scene or run");
+    *run = NULL;
     gs_stiffness_opts o;
     if (opt)
         o = *opt;
@@ -612,12 +619,18 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
         o.max_iter = 12;
     if (o.cycles < 1 || o.cycles > 10000)
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
-    double t_start = gs_now();
-    const gs_scene_mesh *sm = &sc->meshes[mesh_index];
-    work w;
-    memset(&w, 0, sizeof w);
+    gs_stiffness_run *r = gs_calloc(1, sizeof *r);
+    if (!r)
+        return GS_ENOMEM;
+    r->t_start = gs_now();
+    r->sc = sc;
+    r->o = o;
+    const gs_scene_mesh *sm = r->sm = &sc->meshes[mesh_index];
+    work *wp = &r->w;
+#define w (*wp)
+    gs_stiffness_result *out = &r->out;
+    double **uT = r->uT;
     gs_err e = GS_OK;
-    double *uT[2] = {NULL, NULL}; /* displacements at T (central tangent) */
     int bidx[2] = {sm->gear[o.driver], sm->gear[1 - o.driver]};
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
@@ -644,9 +657,9 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     }
     w.rb = gs_gear_base_radius(gA);
     double bw = fmin(gA->face_width_m, gB->face_width_m);
-    double T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
+    double T = r->T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
     w.sgn = T > 0 ? 1.0 : -1.0;
-    double F = fabs(T) / w.rb, bmm = bw * 1e3;
+    double F = r->F = fabs(T) / w.rb, bmm = r->bmm = bw * 1e3;
     snprintf(out->mesh_name, sizeof out->mesh_name, "%s", sm->name);
     out->mesh_index = mesh_index;
     out->driver = o.driver;
@@ -681,23 +694,77 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
             goto done;
         }
     }
-    double pitch = 2.0 * GS_PI / gA->teeth;
+    r->pitch = 2.0 * GS_PI / gA->teeth;
     /* The driven gear's kinematic angle: the mesh phase nearest to its
      * expected rotation (ratio z_A / z_B; opposite sense for an external
      * pair, same sense for an internal one), so the same tooth pairs follow
      * each other whatever the number of positions. */
-    double thB_first = gs_pair_mesh_phase(gA, w.b[0].c, w.b[0].sb->angle0 + w.sgn * o.phase * pitch,
-                                          gB, w.b[1].c, w.b[1].sb->angle0);
-    double ratio = (double)gA->teeth / gB->teeth *
-                   (gA->kind == GS_GEAR_INTERNAL || gB->kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
-    for (int j = 0; j < o.positions; j++) {
+    r->thB_first = gs_pair_mesh_phase(gA, w.b[0].c, w.b[0].sb->angle0 + w.sgn * o.phase * r->pitch,
+                                      gB, w.b[1].c, w.b[1].sb->angle0);
+    r->ratio = (double)gA->teeth / gB->teeth *
+               (gA->kind == GS_GEAR_INTERNAL || gB->kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
+done:
+#undef w
+    if (e != GS_OK) {
+        if (d && !d->message[0])
+            gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));
+        run_free(r);
+        return e;
+    }
+    *run = r;
+    return GS_OK;
+}
+
+/* No-load closing rotation: rigid bodies (u = 0) turned until the first row
+ * closes, the rows re-evaluated at each new angle (with backlash the
+ * linearisation at the kinematic angle alone is too crude). */
+static gs_err close_rigid(work *w, double *delta0, double roll, const char *name, gs_diag *d)
+{
+    int nr;
+    double gmin;
+    for (int it = 0; it < 30; it++) {
+        GS_TRY(collect(w, *delta0, &nr, &gmin));
+        double close = INFINITY;
+        for (int i = 0; i < nr; i++) {
+            double a = w->row[i].dg_dtheta[w->si[0]];
+            if (a * w->sgn < -1e-6 * w->rb)
+                close = fmin(close, w->row[i].gap.g / fabs(a));
+        }
+        if (!isfinite(close))
+            return gs_diag_set(d, GS_EINFEASIBLE, "meshes",
+                               "'%s' at roll %.3f: no flank closes in the torque direction", name,
+                               roll);
+        *delta0 += w->sgn * close;
+        if (fabs(close) * w->rb < 1e-12)
+            break;
+    }
+    return GS_OK;
+}
+
+/* Roll position r->next: its no-load closing rotation, the loaded solve
+ * and the tangent. */
+gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
+{
+    if (!r || r->next >= r->o.positions)
+        return gs_diag_set(d, GS_EINVAL, "", "no roll position left to solve");
+    work *wp = &r->w;
+#define w (*wp)
+    const gs_stiffness_opts o = r->o;
+    const gs_scene_mesh *sm = r->sm;
+    gs_stiffness_result *out = &r->out;
+    double **uT = r->uT;
+    const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;
+    double T = r->T, F = r->F, bmm = r->bmm, pitch = r->pitch;
+    gs_err e = GS_OK;
+    {
+        int j = r->next;
         gs_stiffness_point *pt = &out->pt[j];
         double roll = (double)j / o.positions * o.cycles;
         pt->roll = roll;
         pt->angle_rad = roll * pitch;
         w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
         w.theta0[1] = gs_pair_mesh_phase(gA, w.b[0].c, w.theta0[0], gB, w.b[1].c,
-                                         thB_first + ratio * w.sgn * roll * pitch);
+                                         r->thB_first + r->ratio * w.sgn * roll * pitch);
         for (int k = 0; k < 2; k++)
             memset(w.b[k].u, 0, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
         /* No-load closing rotation: rigid bodies turned until the first row
@@ -779,6 +846,24 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
             pt->converged = pt->converged && ch;
         }
     }
+    r->next++;
+done:
+#undef w
+    if (e != GS_OK && d && !d->message[0])
+        gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));
+    return e;
+}
+
+gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_diag *d)
+{
+    gs_stiffness_run *r = run ? *run : NULL;
+    if (!r || !out || r->next < r->o.positions)
+        return gs_diag_set(d, GS_EINVAL, "", "the analysis has roll positions left");
+    work *wp = &r->w;
+#define w (*wp)
+    const gs_stiffness_opts o = r->o;
+    *out = r->out;
+    memset(&r->out, 0, sizeof r->out);
     /* Summary. */
     out->k_min = out->te_min = out->te_loaded_min = INFINITY;
     out->k_max = out->te_max = out->te_loaded_max = -INFINITY;
@@ -805,16 +890,26 @@ gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffne
     out->k_tan_mean = o.tangent ? kt / o.positions : NAN;
     out->frac_multi = (double)multi / o.positions;
     out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
-    out->seconds = gs_now() - t_start;
-done:
-    work_free(&w);
-    free(uT[0]);
-    free(uT[1]);
-    if (e != GS_OK) {
-        if (d && !d->message[0])
-            gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));
-        gs_stiffness_result_clear(out);
-    }
+    out->seconds = gs_now() - r->t_start;
+#undef w
+    gs_stiffness_run_free(run);
+    return GS_OK;
+}
+
+gs_err gs_stiffness_analyse(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
+                            gs_stiffness_result *out, gs_diag *d)
+{
+    if (!sc || !out)
+        return gs_diag_set(d, GS_EINVAL, "", "NULL scene or result");
+    memset(out, 0, sizeof *out);
+    gs_stiffness_run *r;
+    GS_TRY(gs_stiffness_begin(sc, mesh_index, opt, &r, d));
+    gs_err e = GS_OK;
+    while (e == GS_OK && gs_stiffness_run_done(r) < gs_stiffness_run_positions(r))
+        e = gs_stiffness_next(r, d);
+    if (e == GS_OK)
+        return gs_stiffness_end(&r, out, d);
+    gs_stiffness_run_free(&r);
     return e;
 }
 

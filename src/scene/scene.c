@@ -10,6 +10,7 @@
 
 #include "gearsim/scene.h"
 #include "gearsim/util.h"
+#include "scene/jsonstrict.h"
 #include "scene/jsonv.h"
 #include "scene/scene_mods.h"
 
@@ -639,8 +640,13 @@ gs_err gs_scene_parse_load(const gs_scene *s, json_object *o, const char *path,
     int t;
     GS_TRY(enum_field(o, "type", path, NULL, types, 4, &t, d));
     l->type = (gs_load_type)t;
+    /* Default name body:type; a body name too long for that keeps its first
+     * 40 bytes and gets its index, so that two bodies never share it. */
     char defname[GS_NAME_MAX];
-    snprintf(defname, sizeof defname, "%.30s:%s", name, types[t]);
+    if (strlen(name) + 1 + strlen(types[t]) < sizeof defname)
+        snprintf(defname, sizeof defname, "%.54s:%.8s", name, types[t]);
+    else
+        snprintf(defname, sizeof defname, "%.40s#%d:%.8s", name, l->body, types[t]);
     GS_TRY(gsi_json_string(o, "name", path, false, defname, l->name, sizeof l->name, d));
     const char *need[4][3] = {{"moment", NULL, NULL}, {"moment", "ramp_time", NULL},
                               {"coefficient", NULL, NULL}, {"times", "moments", NULL}};
@@ -804,7 +810,10 @@ gs_err gs_scene_parse(const char *text, size_t len, gs_scene **out, gs_diag *d)
 {
     *out = NULL;
     gs_diag_clear(d);
-    json_tokener *tok = json_tokener_new_ex(64);
+    gs_err se = gsi_json_strict(text, len, "", d);
+    if (se != GS_OK)
+        return se;
+    json_tokener *tok = json_tokener_new_ex(GSI_JSON_MAX_DEPTH);
     if (!tok)
         return GS_ENOMEM;
     json_object *root = json_tokener_parse_ex(tok, text, (int)len);

@@ -51,6 +51,12 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(lim, "max_scene_mb", json_object_new_int64(gsi_opt_max_scene_mb()));
     json_object_object_add(lim, "max_record_mb", json_object_new_int64(gsi_opt_max_record_mb()));
     json_object_object_add(lim, "max_clients", json_object_new_int64(gsi_opt_max_clients()));
+    json_object_object_add(lim, "reply_cache_bytes", json_object_new_int64(GSI_CACHE_BYTES));
+    json_object_object_add(lim, "reply_cache_entries", json_object_new_int(GSI_CACHE));
+    json_object_object_add(lim, "reply_cache_client_bytes", json_object_new_int64(GSI_CACHE_CLIENT_BYTES));
+    json_object_object_add(lim, "reply_cache_client_entries", json_object_new_int(GSI_CACHE_CLIENT_ENTRIES));
+    json_object_object_add(lim, "reply_cache_lifetime_s", json_object_new_double(GSI_CACHE_LIFETIME_S));
+    json_object_object_add(lim, "client_idle_s", json_object_new_double(GSI_CLIENT_IDLE_S));
     json_object_object_add(lim, "max_body_unknowns", json_object_new_int64((int64_t)GS_SCENE_MAX_BODY_UNKNOWNS));
     json_object_object_add(o, "limits", lim);
     json_object *cmds = json_object_new_array();
@@ -299,10 +305,11 @@ void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *m
     }
     s->adv.active = false;
     s->state = sys ? SVC_LOADED : SVC_EMPTY;
-    gsi_publish(s, "done", o);
+    gsi_publish_done(s, job >= 0 ? "job" : "advance", o);
     if (job >= 0) {
         svc_job *j = &s->jobs[job];
         snprintf(j->state, sizeof j->state, "%s", err != GS_OK ? "failed" : cancelled ? "cancelled" : "done");
+        j->finished = gs_now();
         if (err != GS_OK)
             snprintf(j->error, sizeof j->error, "%.250s", msg ? msg : gs_strerror(err));
         gs_record_close(&s->record);
@@ -337,9 +344,11 @@ static gs_err cmd_resume(gs_service *s, json_object *args, const char *id, json_
 static gs_err cmd_cancel(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)args, (void)id, (void)d;
-    bool was = s->adv.active;
-    if (was)
+    bool was = s->adv.active || s->stiff.run;
+    if (s->adv.active)
         gsi_finish_advance(s, true, GS_OK, NULL);
+    if (s->stiff.run)
+        gsi_stiffness_stop(s, true);
     *res = json_object_new_object();
     json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
     json_object_object_add(*res, "cancelled", json_object_new_boolean(was));
@@ -366,6 +375,22 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     } else {
         json_object_object_add(o, "advance", NULL);
     }
+    if (s->stiff.run) {
+        json_object *a = json_object_new_object();
+        int n = gs_stiffness_run_positions(s->stiff.run), k = gs_stiffness_run_done(s->stiff.run);
+        json_object_object_add(a, "parent_id", json_object_new_string(s->stiff.parent_id));
+        json_object_object_add(a, "positions", json_object_new_int(n));
+        json_object_object_add(a, "done", json_object_new_int(k));
+        json_object_object_add(a, "fraction", json_object_new_double(n > 0 ? (double)k / n : 1.0));
+        json_object_object_add(o, "stiffness", a);
+    } else {
+        json_object_object_add(o, "stiffness", NULL);
+    }
+    /* The last finished long requests, oldest first: completion without PUB. */
+    json_object *fin = json_object_new_array();
+    for (int i = 0; i < s->n_finished; i++)
+        json_object_array_add(fin, json_object_get(s->finished[i].done));
+    json_object_object_add(o, "finished", fin);
     json_object_object_add(o, "recording", s->record ? json_object_new_string(gsi_data_relative(s, gs_record_path(s->record))) : NULL);
     int queued = 0;
     for (int i = 0; i < s->n_jobs; i++)
@@ -713,14 +738,71 @@ static int cmp_at(const void *a, const void *b)
     return u < v ? -1 : u > v;
 }
 
+static bool job_finished(const svc_job *j) { return j->finished > 0; }
+
+static void job_remove(gs_service *s, int i)
+{
+    free(s->jobs[i].scene_json);
+    json_object_put(s->jobs[i].schedule);
+    memmove(&s->jobs[i], &s->jobs[i + 1], (size_t)(s->n_jobs - i - 1) * sizeof s->jobs[0]);
+    s->n_jobs--;
+    if (s->adv.job > i)
+        s->adv.job--;
+}
+
+/* Drop finished jobs older than GSI_JOBS_KEEP_S and all but the newest
+ * GSI_JOBS_KEEP_FINISHED (the list is in submit order). */
+static void jobs_prune(gs_service *s)
+{
+    double now = gs_now();
+    int finished = 0;
+    for (int i = s->n_jobs - 1; i >= 0; i--) {
+        if (!job_finished(&s->jobs[i]))
+            continue;
+        if (now - s->jobs[i].finished > GSI_JOBS_KEEP_S || finished >= GSI_JOBS_KEEP_FINISHED)
+            job_remove(s, i);
+        else
+            finished++;
+    }
+}
+
+/* Why the queued job i has not started (NULL when it is next and nothing
+ * holds it back). The rule: queued jobs start one at a time, in submit
+ * order, when no scene is loaded. */
+static const char *job_waiting(gs_service *s, int i, char *buf, size_t cap)
+{
+    int ahead = 0;
+    for (int k = 0; k < i; k++)
+        ahead += strcmp(s->jobs[k].state, "queued") == 0;
+    if (s->adv.active && s->adv.job >= 0)
+        snprintf(buf, cap, "behind the running job %s%s", s->jobs[s->adv.job].id,
+                 ahead ? " and earlier queued jobs" : "");
+    else if (gs_engine_system(s->eng))
+        snprintf(buf, cap, "a client's scene is loaded: queued jobs start when it is unloaded ('unload')");
+    else if (ahead)
+        snprintf(buf, cap, "behind %d earlier queued job(s)", ahead);
+    else
+        return NULL;
+    return buf;
+}
+
 static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
-    int queued = 0;
-    for (int i = 0; i < s->n_jobs; i++)
+    jobs_prune(s);
+    int queued = 0, unfinished = 0;
+    for (int i = 0; i < s->n_jobs; i++) {
         queued += strcmp(s->jobs[i].state, "queued") == 0;
-    if (queued >= GSI_MAX_JOBS || s->n_jobs >= GSI_MAX_JOBS)
-        return gs_diag_set(d, GS_ETOOBIG, "cmd", "the job queue is full (%d jobs)", GSI_MAX_JOBS);
+        unfinished += !job_finished(&s->jobs[i]);
+    }
+    if (unfinished >= GSI_MAX_JOBS)
+        return gs_diag_set(d, GS_ETOOBIG, "cmd", "the job queue is full (%d jobs queued or running)", GSI_MAX_JOBS);
+    if (s->n_jobs >= GSI_MAX_JOBS + GSI_JOBS_KEEP_FINISHED) /* only finished ones beyond: drop the oldest */
+        for (int i = 0; i < s->n_jobs; i++)
+            if (job_finished(&s->jobs[i])) {
+                job_remove(s, i);
+                break;
+            }
     json_object *scene, *sched;
     GS_TRY(gsi_json_object(args, "scene", "args", true, &scene, d));
     gs_scene *sc;
@@ -798,6 +880,9 @@ static gs_err cmd_submit(gs_service *s, json_object *args, const char *id, json_
     *res = json_object_new_object();
     json_object_object_add(*res, "job", json_object_new_string(j->id));
     json_object_object_add(*res, "position", json_object_new_int(queued));
+    char why[200];
+    const char *w = job_waiting(s, s->n_jobs - 1, why, sizeof why);
+    json_object_object_add(*res, "waiting", w ? json_object_new_string(w) : NULL);
     return GS_OK;
 }
 
@@ -817,6 +902,7 @@ void gsi_start_next_job(gs_service *s)
             e = open_record_safely(s, j->record, &s->record, "args.record", &d);
         if (e != GS_OK) {
             snprintf(j->state, sizeof j->state, "failed");
+            j->finished = gs_now();
             snprintf(j->error, sizeof j->error, "%.250s", d.message[0] ? d.message : gs_strerror(e));
             gs_engine_run(s->eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
             s->state = SVC_EMPTY;
@@ -857,12 +943,16 @@ void gsi_job_between_chunks(gs_service *s)
 static gs_err cmd_jobs(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)args, (void)id, (void)d;
+    jobs_prune(s);
     json_object *a = json_object_new_array();
     for (int i = 0; i < s->n_jobs; i++) {
         svc_job *j = &s->jobs[i];
         json_object *o = json_object_new_object();
         json_object_object_add(o, "job", json_object_new_string(j->id));
         json_object_object_add(o, "state", json_object_new_string(j->state));
+        char why[200];
+        const char *w = strcmp(j->state, "queued") == 0 ? job_waiting(s, i, why, sizeof why) : NULL;
+        json_object_object_add(o, "waiting", w ? json_object_new_string(w) : NULL);
         const char *rel = j->record[0] ? j->record + strlen(s->data_dir) + 1 : NULL;
         json_object_object_add(o, "record", rel ? json_object_new_string(rel) : NULL);
         json_object_object_add(o, "error", j->error[0] ? json_object_new_string(j->error) : NULL);
@@ -948,18 +1038,44 @@ static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
 static const char *const fetch_args[] = {"path", "offset", "length", NULL};
-static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", NULL};
+static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", "wait", NULL};
+
+/* The result of a finished analysis: written to its HDF5 file when asked,
+ * as JSON (the reply of the synchronous form, the done event's `result`). */
+static gs_err stiffness_result(gs_service *s, gs_stiffness_result *r, const char *full, const char *rel,
+                               json_object **res, gs_diag *d)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    if (full[0]) {
+        gs_err e = write_stiffness_safely(s, full, sys->scene, r, d);
+        if (e != GS_OK) {
+            gs_stiffness_result_clear(r);
+            snprintf(d->field, sizeof d->field, "args.path");
+            return e;
+        }
+    }
+    *res = gs_stiffness_json(r, sys->scene);
+    if (full[0])
+        json_object_object_add(*res, "path", json_object_new_string(rel));
+    gs_stiffness_result_clear(r);
+    return GS_OK;
+}
 
 /* Quasi-static mesh stiffness and transmission error of one mesh of the
  * loaded scene (docs/STIFFNESS.md): rank 0 alone, no inertia, the run's
- * state untouched. Blocks the service for its duration (seconds), so it is
- * refused while an advance runs. */
+ * state untouched. Runs in chunks like `advance` (one roll position per
+ * poll of the command socket): accepted at once, progress events, a done
+ * event carrying the result, cancel ends it. With wait: true the reply
+ * carries the result and the service blocks for the analysis (seconds).
+ * Refused while an advance runs. */
 static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
-    (void)id;
     GS_TRY(need_loaded(s, d));
     if (s->adv.active)
         return gs_diag_set(d, GS_EBUSY, "cmd", "the stiffness analysis is refused while an advance runs");
+    if (s->stiff.run)
+        return gs_diag_set(d, GS_EBUSY, "cmd", "a stiffness analysis ('%.128s') is running; cancel ends it",
+                           s->stiff.parent_id);
     gs_system *sys = gs_engine_system(s->eng);
     char name[GS_NAME_MAX];
     GS_TRY(gsi_json_string(args, "mesh", "args", true, NULL, name, sizeof name, d));
@@ -977,28 +1093,45 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
     o.refine = (int)v;
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
-    char full[PATH_MAX] = "";
-    if (json_object_object_get_ex(args, "path", NULL))
+    bool wait = false;
+    GS_TRY(gsi_json_bool(args, "wait", "args", false, &wait, d));
+    char full[PATH_MAX] = "", rel[600] = "";
+    if (json_object_object_get_ex(args, "path", NULL)) {
         GS_TRY(path_arg(s, args, true, full, sizeof full, d));
-    gs_stiffness_result r;
-    gs_err e = gs_stiffness_analyse(sys->scene, mi, &o, &r, d);
+        snprintf(rel, sizeof rel, "%s", json_object_get_string(json_object_object_get(args, "path")));
+    }
+    gs_stiffness_run *run;
+    gs_err e = gs_stiffness_begin(sys->scene, mi, &o, &run, d);
     if (e != GS_OK) {
         if (!strchr(d->field, '.'))
             snprintf(d->field, sizeof d->field, "args.mesh");
         return e;
     }
-    if (full[0]) {
-        e = write_stiffness_safely(s, full, sys->scene, &r, d);
+    if (wait) {
+        while (e == GS_OK && gs_stiffness_run_done(run) < gs_stiffness_run_positions(run))
+            e = gs_stiffness_next(run, d);
+        gs_stiffness_result r;
+        if (e == GS_OK)
+            e = gs_stiffness_end(&run, &r, d);
+        gs_stiffness_run_free(&run);
         if (e != GS_OK) {
-            gs_stiffness_result_clear(&r);
-            snprintf(d->field, sizeof d->field, "args.path");
+            if (!strchr(d->field, '.'))
+                snprintf(d->field, sizeof d->field, "args.mesh");
             return e;
         }
+        return stiffness_result(s, &r, full, rel, res, d);
     }
-    *res = gs_stiffness_json(&r, sys->scene);
-    if (full[0])
-        json_object_object_add(*res, "path", json_object_get(json_object_object_get(args, "path")));
-    gs_stiffness_result_clear(&r);
+    svc_stiffness *st = &s->stiff;
+    memset(st, 0, sizeof *st);
+    st->run = run;
+    snprintf(st->parent_id, sizeof st->parent_id, "%s", id);
+    snprintf(st->path, sizeof st->path, "%s", full);
+    snprintf(st->rel, sizeof st->rel, "%s", rel);
+    st->wall_start = st->last_progress = gs_now();
+    *res = json_object_new_object();
+    json_object_object_add(*res, "accepted", json_object_new_boolean(1));
+    json_object_object_add(*res, "mesh", json_object_new_string(name));
+    json_object_object_add(*res, "positions", json_object_new_int(o.positions));
     return GS_OK;
 }
 
@@ -1050,6 +1183,77 @@ static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_o
     gs_modal_free(&m);
     gs_scene_free(&own);
     return e;
+}
+
+/* The done event of the analysis (cancelled, failed with e naming a field
+ * of d, or with its result) and the end of the run. */
+static void stiffness_done(gs_service *s, bool cancelled, int positions_done, gs_err e, const gs_diag *d,
+                           json_object *result)
+{
+    svc_stiffness *st = &s->stiff;
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
+    json_object_object_add(o, "cancelled", json_object_new_boolean(cancelled));
+    json_object_object_add(o, "positions_done", json_object_new_int(positions_done));
+    json_object_object_add(o, "wall_seconds", json_object_new_double(gs_now() - st->wall_start));
+    if (e != GS_OK) {
+        json_object *err = json_object_new_object();
+        json_object_object_add(err, "code", json_object_new_string(gs_errcode(e)));
+        json_object_object_add(err, "message", json_object_new_string(d->message[0] ? d->message : gs_strerror(e)));
+        json_object_object_add(err, "field", json_object_new_string(strchr(d->field, '.') ? d->field : "args.mesh"));
+        json_object_object_add(o, "error", err);
+    }
+    if (result)
+        json_object_object_add(o, "result", result);
+    gs_stiffness_run_free(&st->run);
+    gsi_publish_done(s, "stiffness", o);
+}
+
+void gsi_stiffness_stop(gs_service *s, bool cancelled)
+{
+    svc_stiffness *st = &s->stiff;
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_err e = GS_OK;
+    json_object *result = NULL;
+    int done = gs_stiffness_run_done(st->run);
+    if (!cancelled) {
+        gs_stiffness_result r;
+        e = gs_stiffness_end(&st->run, &r, &d); /* frees the run */
+        if (e == GS_OK)
+            e = stiffness_result(s, &r, st->path, st->rel, &result, &d);
+    }
+    stiffness_done(s, cancelled, done, e, &d, result);
+}
+
+void gsi_stiffness_chunk(gs_service *s)
+{
+    svc_stiffness *st = &s->stiff;
+    double t0 = gs_now();
+    gs_err e = GS_OK;
+    gs_diag d;
+    gs_diag_clear(&d);
+    int n = gs_stiffness_run_positions(st->run);
+    /* At least one roll position, more while under about 20 ms. */
+    do
+        e = gs_stiffness_next(st->run, &d);
+    while (e == GS_OK && gs_stiffness_run_done(st->run) < n && gs_now() - t0 < 0.02);
+    int k = gs_stiffness_run_done(st->run);
+    double now = gs_now();
+    if (e == GS_OK && (now - st->last_progress > 0.1 || k == n)) {
+        st->last_progress = now;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "parent_id", json_object_new_string(st->parent_id));
+        json_object_object_add(o, "kind", json_object_new_string("stiffness"));
+        json_object_object_add(o, "fraction", json_object_new_double(n > 0 ? (double)k / n : 1.0));
+        double el = now - st->wall_start;
+        json_object_object_add(o, "steps_per_second", json_object_new_double(el > 0 ? k / el : 0.0));
+        gsi_publish(s, "progress", o);
+    }
+    if (e != GS_OK)
+        stiffness_done(s, false, k, e, &d, NULL);
+    else if (k >= n)
+        gsi_stiffness_stop(s, false);
 }
 
 static const gsi_command commands[] = {

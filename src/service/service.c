@@ -15,7 +15,9 @@
 #include <unistd.h>
 #include <zmq.h>
 
+#include "gearsim/stiffness.h"
 #include "gearsim/util.h"
+#include "scene/jsonstrict.h"
 #include "scene/jsonv.h"
 #include "service/auth.h"
 #include "service/files.h"
@@ -75,6 +77,25 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
     zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
     json_object_put(ev);
+}
+
+void gsi_publish_done(gs_service *s, const char *kind, json_object *o)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    json_object_object_add(o, "kind", json_object_new_string(kind));
+    json_object_object_add(o, "step", json_object_new_int64(sys ? sys->step : 0));
+    json_object_object_add(o, "time", json_object_new_double(sys ? sys->time : 0.0));
+    if (s->n_finished == GSI_FINISHED_KEEP) {
+        json_object_put(s->finished[0].done);
+        memmove(&s->finished[0], &s->finished[1], (GSI_FINISHED_KEEP - 1) * sizeof s->finished[0]);
+        s->n_finished--;
+    }
+    svc_finished *f = &s->finished[s->n_finished++];
+    snprintf(f->kind, sizeof f->kind, "%s", kind);
+    f->done = json_object_get(o);
+    gsi_publish(s, "done", o);
+    /* gsi_publish copied o's members into the event and dropped our
+     * reference; the kept reference holds the body. */
 }
 
 void gsi_record_flush_or_stop(gs_service *s, const char *why)
@@ -387,21 +408,104 @@ static void cache_key(char *out, size_t cap, const unsigned char *b, size_t n, c
     snprintf(out + k, cap - k, "/%s", id);
 }
 
+static void cache_drop(gs_service *s, svc_cache_entry *c)
+{
+    s->cache_bytes -= c->bytes;
+    free(c->reply);
+    c->reply = NULL;
+    c->bytes = 0;
+}
+
+/* Length of the client part of a key ("<hex>/"), the id after it. */
+static size_t cache_client_len(const char *key)
+{
+    const char *slash = strchr(key, '/');
+    return slash ? (size_t)(slash - key) + 1 : strlen(key);
+}
+
 static const char *cache_get(gs_service *s, const char *key)
 {
-    for (int i = 0; i < GSI_CACHE; i++)
-        if (s->cache[i].reply && strcmp(s->cache[i].key, key) == 0)
-            return s->cache[i].reply;
+    double now = gs_now();
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (!c->reply)
+            continue;
+        if (now - c->t > GSI_CACHE_LIFETIME_S)
+            cache_drop(s, c);
+        else if (strcmp(c->key, key) == 0)
+            return c->reply;
+    }
     return NULL;
+}
+
+/* The oldest entry (of the client whose key part is key[0..plen) when
+ * plen > 0); NULL when there is none. */
+static svc_cache_entry *cache_oldest(gs_service *s, const char *key, size_t plen)
+{
+    svc_cache_entry *o = NULL;
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (c->reply && (!plen || strncmp(c->key, key, plen) == 0) && (!o || c->t < o->t))
+            o = c;
+    }
+    return o;
 }
 
 static void cache_put(gs_service *s, const char *key, const char *reply)
 {
-    svc_cache_entry *c = &s->cache[s->cache_next];
-    s->cache_next = (s->cache_next + 1) % GSI_CACHE;
-    free(c->reply);
-    snprintf(c->key, sizeof c->key, "%s", key);
-    c->reply = gs_strdup(reply);
+    size_t n = strlen(reply) + 1, plen = cache_client_len(key);
+    if (n > GSI_CACHE_CLIENT_BYTES)
+        return; /* beyond a client's budget: a retry runs again */
+    double now = gs_now();
+    int total = 0, mine = 0;
+    size_t my_bytes = 0;
+    svc_cache_entry *free_slot = NULL;
+    for (int i = 0; i < GSI_CACHE; i++) {
+        svc_cache_entry *c = &s->cache[i];
+        if (c->reply && (now - c->t > GSI_CACHE_LIFETIME_S || strcmp(c->key, key) == 0))
+            cache_drop(s, c);
+        if (!c->reply) {
+            free_slot = free_slot ? free_slot : c;
+            continue;
+        }
+        total++;
+        if (strncmp(c->key, key, plen) == 0)
+            mine++, my_bytes += c->bytes;
+    }
+    while (mine >= GSI_CACHE_CLIENT_ENTRIES || my_bytes + n > GSI_CACHE_CLIENT_BYTES) {
+        svc_cache_entry *o = cache_oldest(s, key, plen);
+        mine--, total--, my_bytes -= o->bytes;
+        cache_drop(s, o);
+        free_slot = o;
+    }
+    while (total >= GSI_CACHE || s->cache_bytes + n > GSI_CACHE_BYTES) {
+        svc_cache_entry *o = cache_oldest(s, key, 0);
+        total--;
+        cache_drop(s, o);
+        free_slot = o;
+    }
+    char *copy = gs_strdup(reply);
+    if (!free_slot || !copy) {
+        free(copy);
+        return;
+    }
+    snprintf(free_slot->key, sizeof free_slot->key, "%s", key);
+    free_slot->reply = copy;
+    free_slot->bytes = n;
+    free_slot->t = now;
+    s->cache_bytes += n;
+}
+
+/* A routing id seen anew (first time, or after its client expired): what
+ * the cache holds under it belongs to an earlier client. */
+static void cache_forget_client(gs_service *s, const unsigned char *who, size_t who_len)
+{
+    char key[GSI_CACHE_KEY];
+    cache_key(key, sizeof key, who, who_len, "");
+    size_t plen = strlen(key);
+    for (int i = 0; i < GSI_CACHE; i++)
+        if (s->cache[i].reply && strncmp(s->cache[i].key, key, plen) == 0)
+            cache_drop(s, &s->cache[i]);
 }
 
 /* Count the client `who` as active now. False when it is new and
@@ -416,8 +520,8 @@ static bool client_admit(gs_service *s, const unsigned char *who, size_t who_len
     for (int i = 0; i < s->n_clients; i++) {
         svc_client *c = &s->clients[i];
         bool me = c->len == who_len && memcmp(c->id, who, who_len) == 0;
-        if (!me && now - c->last > GSI_CLIENT_IDLE_S)
-            continue; /* expired: dropped */
+        if (now - c->last > GSI_CLIENT_IDLE_S)
+            continue; /* expired: dropped (`who` itself too: back after that, it is a new client) */
         if (me)
             found = keep;
         s->clients[keep++] = *c;
@@ -432,6 +536,7 @@ static bool client_admit(gs_service *s, const unsigned char *who, size_t who_len
                 return false;
         }
         found = s->n_clients++;
+        cache_forget_client(s, who, who_len);
         memcpy(s->clients[found].id, who, who_len);
         s->clients[found].len = (uint8_t)who_len;
     }
@@ -448,10 +553,15 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     json_object *req = NULL, *reply = NULL, *idv = NULL;
     gs_err e = GS_OK;
     if (too_big) {
-        e = gs_diag_set(&d, GS_ETOOBIG, "", "the message exceeds %u bytes", GSI_MAX_MESSAGE);
+        e = gs_diag_set(&d, GS_ETOOBIG, "", "the message has %zu bytes; the limit is %u bytes "
+                        "(hello: limits.max_message_bytes)", len, GSI_MAX_MESSAGE);
         goto answer;
     }
-    json_tokener *tok = json_tokener_new_ex(64);
+    /* RFC 8259 strictly (duplicate keys, NUL, lone surrogates, ... refused)
+     * before json-c's lenient tokener sees the text. */
+    if (valid_utf8((const unsigned char *)data, len) && (e = gsi_json_strict(data, len, "", &d)) != GS_OK)
+        goto answer;
+    json_tokener *tok = json_tokener_new_ex(GSI_JSON_MAX_DEPTH);
     req = json_tokener_parse_ex(tok, data, (int)len);
     enum json_tokener_error je = json_tokener_get_error(tok);
     size_t end = req ? (size_t)json_tokener_get_parse_end(tok) : 0;
@@ -493,7 +603,9 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
         e = gs_diag_set(&d, GS_ESCHEMA, "v", "missing required field 'v' (protocol version)");
         goto answer;
     }
-    if (json_object_get_type(v) != json_type_int || json_object_get_int64(v) != 1) {
+    /* A number equal to 1 (the schema's const: 1 and 1.0 alike). */
+    double vnum;
+    if (!gsi_json_as_double(v, &vnum) || vnum != 1.0) {
         e = gs_diag_set(&d, GS_EVERSION, "v", "protocol version %s is not supported (this daemon speaks 1)",
                         json_object_to_json_string(v));
         goto answer;
@@ -542,6 +654,8 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     if ((e = gsi_json_only(args, "args", c->args, &d)) == GS_OK) {
         if (s->adv.active && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
+        else if (s->stiff.run && !c->during_advance)
+            e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
         else {
             json_object *result = NULL;
             e = c->handler(s, args, id, &result, &d);
@@ -607,9 +721,10 @@ static void receive_one(gs_service *s)
         } else {
             nparts++;
             if (nparts == 1) {
-                if (n > GSI_MAX_MESSAGE)
+                if (n > GSI_MAX_MESSAGE) {
                     too_big = true;
-                else {
+                    len = n; /* named in the reply */
+                } else {
                     data = malloc(n + 1);
                     if (data) {
                         memcpy(data, zmq_msg_data(&part), n);
@@ -630,7 +745,7 @@ static void receive_one(gs_service *s)
         send_reply(s, &ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
         json_object_put(r);
     } else if (nparts == 1) {
-        handle_request(s, &ident, delim, data ? data : "", data ? len : 0, too_big || !data);
+        handle_request(s, &ident, delim, data ? data : "", len, too_big || !data);
     } else {
         gs_diag d;
         gs_diag_set(&d, GS_EPARSE, "", "empty message");
@@ -822,6 +937,10 @@ void gsi_service_release(gs_service *s)
         json_object_put(s->jobs[i].schedule);
     }
     s->n_jobs = 0;
+    for (int i = 0; i < s->n_finished; i++)
+        json_object_put(s->finished[i].done);
+    s->n_finished = 0;
+    gs_stiffness_run_free(&s->stiff.run);
     free(s->clients);
     s->clients = NULL;
     s->n_clients = 0;
@@ -844,7 +963,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     s->router = zmq_socket(s->zctx, ZMQ_ROUTER);
     s->pub = zmq_socket(s->zctx, ZMQ_PUB);
     int linger = 0, hwm = 10000, mandatory = 0;
-    int64_t maxmsg = 64ll << 20; /* hard cap; above GSI_MAX_MESSAGE the reply says too_large */
+    /* No transport cap: ZMQ_MAXMSGSIZE would drop the connection with no
+     * reply. Every frame is received; above GSI_MAX_MESSAGE it is discarded
+     * at once and answered with too_large naming the limit. */
+    int64_t maxmsg = -1;
     zmq_setsockopt(s->router, ZMQ_LINGER, &linger, sizeof linger);
     zmq_setsockopt(s->pub, ZMQ_LINGER, &linger, sizeof linger);
     zmq_setsockopt(s->pub, ZMQ_SNDHWM, &hwm, sizeof hwm);
@@ -896,7 +1018,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
                 gs_engine_size(eng), s->cmd_endpoint, s->tel_endpoint);
     }
     while (e == GS_OK && !s->shutdown && !stop_signal) {
-        bool running = s->adv.active && s->state == SVC_RUNNING;
+        bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run;
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
         int rc = zmq_poll(items, 1, running ? 0 : 100);
         if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
@@ -910,7 +1032,9 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             }
         if (s->shutdown)
             break;
-        if (s->adv.active && s->state == SVC_RUNNING)
+        if (s->stiff.run)
+            gsi_stiffness_chunk(s);
+        else if (s->adv.active && s->state == SVC_RUNNING)
             run_chunk(s);
         else if (!s->adv.active)
             gsi_start_next_job(s);
@@ -924,6 +1048,8 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         s->keep_autosave = true; /* still resumable with --resume */
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");
     }
+    if (s->stiff.run)
+        gsi_stiffness_stop(s, true);
     gs_record_close(&s->record);
     gs_diag d;
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);

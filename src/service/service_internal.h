@@ -12,8 +12,24 @@
 
 #define GSI_MAX_MESSAGE (4u << 20)
 #define GSI_MAX_STEPS_PER_ADVANCE 1000000000LL
+/* Jobs: at most GSI_MAX_JOBS queued or running; finished ones stay listed
+ * (`jobs`) for GSI_JOBS_KEEP_S seconds, the newest GSI_JOBS_KEEP_FINISHED at
+ * most, then are removed, so a daemon takes any number of submits. */
 #define GSI_MAX_JOBS 64
+#define GSI_JOBS_KEEP_FINISHED 32
+#define GSI_JOBS_KEEP_S 3600.0
+/* Reply cache (retried ids are answered without running twice): at most
+ * GSI_CACHE entries and GSI_CACHE_BYTES in all, GSI_CACHE_CLIENT_ENTRIES and
+ * GSI_CACHE_CLIENT_BYTES per client (oldest dropped first), each kept
+ * GSI_CACHE_LIFETIME_S seconds; a reply larger than a client's byte budget
+ * is not kept. A client's entries are dropped when its routing id is seen
+ * again after it expired (GSI_CLIENT_IDLE_S), so a reused id never gets
+ * another client's replies. */
 #define GSI_CACHE 4096
+#define GSI_CACHE_BYTES (32u << 20)
+#define GSI_CACHE_CLIENT_ENTRIES 256
+#define GSI_CACHE_CLIENT_BYTES (4u << 20)
+#define GSI_CACHE_LIFETIME_S 60.0
 /* identity (at most 255 bytes, hex) + '/' + id (at most 128) + NUL */
 #define GSI_CACHE_KEY (2 * 255 + 1 + 128 + 1)
 
@@ -25,8 +41,9 @@ typedef struct svc_job {
     json_object *schedule;  /* array of {at, load}, sorted by at */
     double duration;
     char record[PATH_MAX];
-    char state[16];         /* queued, running, done, failed */
+    char state[16];         /* queued, running, done, failed, cancelled */
     char error[256];
+    double finished;        /* gs_now() when it ended (0 while queued or running) */
 } svc_job;
 
 typedef struct svc_advance {
@@ -39,9 +56,29 @@ typedef struct svc_advance {
     int64_t next_autosave;  /* step at or after which the next autosave is due (0: none) */
 } svc_advance;
 
+/* A chunked `stiffness` analysis under way (one roll position per poll). */
+typedef struct svc_stiffness {
+    struct gs_stiffness_run *run; /* NULL when none */
+    char parent_id[160];
+    char path[PATH_MAX];     /* HDF5 output (absolute) or "" */
+    char rel[600];           /* the request's path argument */
+    double wall_start, last_progress;
+} svc_stiffness;
+
+/* The last finished long requests (advance, job, stiffness), newest last:
+ * `status` lists them so that a client that missed the `done` event
+ * (lossy PUB) still learns the outcome. */
+#define GSI_FINISHED_KEEP 8
+typedef struct svc_finished {
+    char kind[16];           /* advance, job, stiffness */
+    json_object *done;       /* the done event's body */
+} svc_finished;
+
 typedef struct svc_cache_entry {
     char key[GSI_CACHE_KEY]; /* identity hex + '/' + id */
     char *reply;
+    size_t bytes;            /* strlen(reply) + 1 */
+    double t;                /* when stored (gs_now) */
 } svc_cache_entry;
 
 /* A client seen on the command socket: its routing id and last request. */
@@ -61,14 +98,17 @@ typedef struct gs_service {
     uint64_t seq;
     svc_state state;
     svc_advance adv;
+    svc_stiffness stiff;
+    svc_finished finished[GSI_FINISHED_KEEP];
+    int n_finished;
     gs_record *record;
     int64_t chunk_steps;
     double steps_per_second;
     double last_progress, last_heartbeat;
-    svc_job jobs[GSI_MAX_JOBS];
+    svc_job jobs[GSI_MAX_JOBS + GSI_JOBS_KEEP_FINISHED];
     int n_jobs, job_counter;
     svc_cache_entry cache[GSI_CACHE];
-    int cache_next;
+    size_t cache_bytes;      /* sum of the entries' bytes */
     bool shutdown;
     double timing_step, timing_telemetry, timing_record;
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
@@ -118,6 +158,13 @@ const gsi_command *gsi_commands(void);
 void gsi_start_next_job(gs_service *s);
 void gsi_finish_advance(gs_service *s, bool cancelled, gs_err err, const char *msg);
 void gsi_job_between_chunks(gs_service *s);
+/* Publish the `done` event of a long request of `kind` and keep its body
+ * for `status` (takes ownership of o). */
+void gsi_publish_done(gs_service *s, const char *kind, json_object *o);
+/* The next chunk of a chunked stiffness analysis (service loop), and its
+ * end: cancelled (cancel, shutdown) or finished. */
+void gsi_stiffness_chunk(gs_service *s);
+void gsi_stiffness_stop(gs_service *s, bool cancelled);
 
 /* Flush the record; on failure (disk full, ...) publish an `error` event and
  * stop recording. The simulation goes on either way. */

@@ -34,9 +34,22 @@ static void put(json_object *o, const char *k, double v)
     json_object_object_add(o, k, json_object_new_double(v));
 }
 
-/* A required-or-defaulted [x, y] of finite numbers. */
+/* Input ranges (SI units): wide enough for any gear or machine part, narrow
+ * enough that every product the solvers form (W, energies, impulses) stays
+ * a finite double, so no result prints Infinity or NaN. */
+#define IMP_MASS_MIN 1e-9
+#define IMP_MASS_MAX 1e9
+#define IMP_INERTIA_MIN 1e-15
+#define IMP_INERTIA_MAX 1e9
+#define IMP_LENGTH_MAX 1e3    /* centres, contact points (m) */
+#define IMP_SPEED_MAX 1e4     /* velocities (m/s), gravity (m/s^2) */
+#define IMP_OMEGA_MAX 1e6     /* rad/s */
+#define IMP_MU_MAX 1e3
+#define IMP_STEP_MAX 1e3      /* s */
+
+/* A required-or-defaulted [x, y] of finite numbers of magnitude <= max. */
 static gs_err get_vec2(json_object *o, const char *key, const char *path, bool required,
-                       double out[2], gs_diag *d)
+                       double max, double out[2], gs_diag *d)
 {
     char p[256];
     gsi_path(p, sizeof p, path, key);
@@ -49,6 +62,10 @@ static gs_err get_vec2(json_object *o, const char *key, const char *path, bool r
     for (int i = 0; i < 2; i++)
         if (!gsi_json_as_double(json_object_array_get_idx(a, i), &out[i]))
             return gs_diag_set(d, GS_ESCHEMA, p, "'%s' must be an array of two finite numbers", key);
+    for (int i = 0; i < 2; i++)
+        if (fabs(out[i]) > max)
+            return gs_diag_set(d, GS_ERANGE, p, "'%s' = [%g, %g]: each component must be within +-%g "
+                               "(SI units; scale the case)", key, out[0], out[1], max);
     return GS_OK;
 }
 
@@ -61,11 +78,21 @@ static gs_err get_body(json_object *o, const char *path, gs_impact_body *b, gs_d
     GS_TRY(gsi_json_only(o, path, keys, d));
     memset(b, 0, sizeof *b);
     GS_TRY(gsi_json_bool(o, "fixed", path, false, &b->fixed, d));
-    GS_TRY(gsi_json_positive(o, "mass", path, INFINITY, !b->fixed, 0.0, &b->mass, d));
-    GS_TRY(gsi_json_positive(o, "inertia", path, INFINITY, !b->fixed, 0.0, &b->inertia, d));
-    GS_TRY(get_vec2(o, "centre", path, !b->fixed, b->centre, d));
-    GS_TRY(get_vec2(o, "velocity", path, false, b->velocity, d));
-    GS_TRY(gsi_json_number(o, "omega", path, -INFINITY, INFINITY, false, 0.0, &b->omega, d));
+    GS_TRY(gsi_json_positive(o, "mass", path, IMP_MASS_MAX, !b->fixed, 0.0, &b->mass, d));
+    GS_TRY(gsi_json_positive(o, "inertia", path, IMP_INERTIA_MAX, !b->fixed, 0.0, &b->inertia, d));
+    char p[256];
+    if (!b->fixed && b->mass < IMP_MASS_MIN) {
+        gsi_path(p, sizeof p, path, "mass");
+        return gs_diag_set(d, GS_ERANGE, p, "'mass' = %g is below %g kg (scale the case)", b->mass, IMP_MASS_MIN);
+    }
+    if (!b->fixed && b->inertia < IMP_INERTIA_MIN) {
+        gsi_path(p, sizeof p, path, "inertia");
+        return gs_diag_set(d, GS_ERANGE, p, "'inertia' = %g is below %g kg m^2 (scale the case)", b->inertia,
+                           IMP_INERTIA_MIN);
+    }
+    GS_TRY(get_vec2(o, "centre", path, !b->fixed, IMP_LENGTH_MAX, b->centre, d));
+    GS_TRY(get_vec2(o, "velocity", path, false, IMP_SPEED_MAX, b->velocity, d));
+    GS_TRY(gsi_json_number(o, "omega", path, -IMP_OMEGA_MAX, IMP_OMEGA_MAX, false, 0.0, &b->omega, d));
     return GS_OK;
 }
 
@@ -138,10 +165,10 @@ static gs_err run_single(json_object *root, gs_impact_body *bodies, int nb, json
     static const char *const ckeys[] = {"point", "normal", NULL};
     GS_TRY(gsi_json_object(root, "contact", "", true, &ct, d));
     GS_TRY(gsi_json_only(ct, "contact", ckeys, d));
-    GS_TRY(get_vec2(ct, "point", "contact", true, c.point, d));
-    GS_TRY(get_vec2(ct, "normal", "contact", true, c.normal, d));
+    GS_TRY(get_vec2(ct, "point", "contact", true, IMP_LENGTH_MAX, c.point, d));
+    GS_TRY(get_vec2(ct, "normal", "contact", true, IMP_LENGTH_MAX, c.normal, d));
     GS_TRY(gsi_json_number(root, "e", "", 0.0, 1.0, true, 0.0, &c.e, d));
-    GS_TRY(gsi_json_number(root, "mu", "", 0.0, INFINITY, false, 0.0, &c.mu, d));
+    GS_TRY(gsi_json_number(root, "mu", "", 0.0, IMP_MU_MAX, false, 0.0, &c.mu, d));
     char hyp[32];
     GS_TRY(gsi_json_string(root, "hypothesis", "", false, "stronge", hyp, sizeof hyp, d));
     bool all = strcmp(hyp, "all") == 0;
@@ -178,9 +205,9 @@ static gs_err run_multi(json_object *root, gs_impact_body *bodies, int nb, json_
     gs_impact_multi m = {nb, bodies, 0, NULL, 0.0, {0.0, 0.0}};
     double e_def, mu_def;
     GS_TRY(gsi_json_number(root, "e", "", 0.0, 1.0, false, 0.0, &e_def, d));
-    GS_TRY(gsi_json_number(root, "mu", "", 0.0, INFINITY, false, 0.0, &mu_def, d));
-    GS_TRY(gsi_json_number(root, "time_step", "", 0.0, INFINITY, false, 0.0, &m.h, d));
-    GS_TRY(get_vec2(root, "gravity", "", false, m.gravity, d));
+    GS_TRY(gsi_json_number(root, "mu", "", 0.0, IMP_MU_MAX, false, 0.0, &mu_def, d));
+    GS_TRY(gsi_json_number(root, "time_step", "", 0.0, IMP_STEP_MAX, false, 0.0, &m.h, d));
+    GS_TRY(get_vec2(root, "gravity", "", false, IMP_SPEED_MAX, m.gravity, d));
     int nc = (int)json_object_array_length(cts);
     if (nc < 1 || nc > 200)
         return gs_diag_set(d, GS_ERANGE, "contacts", "between 1 and 200 contacts are allowed");
@@ -198,10 +225,10 @@ static gs_err run_multi(json_object *root, gs_impact_body *bodies, int nb, json_
         }
         if ((err = gsi_json_only(c, p, keys, d)) != GS_OK ||
             (err = gsi_json_array(c, "bodies", p, true, &bi, d)) != GS_OK ||
-            (err = get_vec2(c, "point", p, true, pts[k].point, d)) != GS_OK ||
-            (err = get_vec2(c, "normal", p, true, pts[k].normal, d)) != GS_OK ||
+            (err = get_vec2(c, "point", p, true, IMP_LENGTH_MAX, pts[k].point, d)) != GS_OK ||
+            (err = get_vec2(c, "normal", p, true, IMP_LENGTH_MAX, pts[k].normal, d)) != GS_OK ||
             (err = gsi_json_number(c, "e", p, 0.0, 1.0, false, e_def, &pts[k].e, d)) != GS_OK ||
-            (err = gsi_json_number(c, "mu", p, 0.0, INFINITY, false, mu_def, &pts[k].mu, d)) != GS_OK)
+            (err = gsi_json_number(c, "mu", p, 0.0, IMP_MU_MAX, false, mu_def, &pts[k].mu, d)) != GS_OK)
             break;
         char pb[96];
         snprintf(pb, sizeof pb, "%s.bodies", p);
@@ -273,6 +300,33 @@ static gs_err run_multi(json_object *root, gs_impact_body *bodies, int nb, json_
     return err;
 }
 
+/* The first non-finite number in a result (a path into it), or false. */
+static bool non_finite(json_object *o, char *where, size_t cap)
+{
+    switch (json_object_get_type(o)) {
+    case json_type_double:
+        return !isfinite(json_object_get_double(o)) && (snprintf(where, cap, "%s", ""), true);
+    case json_type_array:
+        for (size_t i = 0; i < json_object_array_length(o); i++)
+            if (non_finite(json_object_array_get_idx(o, i), where, cap))
+                return true;
+        return false;
+    case json_type_object: {
+        json_object_object_foreach(o, k, v) if (non_finite(v, where, cap)) {
+            char tail[160];
+            snprintf(tail, sizeof tail, "%s", where);
+            int n = snprintf(where, cap, "%.60s", k);
+            if (tail[0] && n > 0 && (size_t)n + 1 < cap)
+                snprintf(where + n, cap - (size_t)n, ".%.90s", tail);
+            return true;
+        }
+        return false;
+    }
+    default:
+        return false;
+    }
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 2 || argv[1][0] == '-') {
@@ -318,6 +372,19 @@ int main(int argc, char **argv)
         err = gs_diag_set(&d, GS_ESCHEMA, "contact", "give exactly one of 'contact' and 'contacts'");
     if (err == GS_OK)
         err = cts ? run_multi(root, bodies, nb, cts, &out, &d) : run_single(root, bodies, nb, &out, &d);
+    char where[160];
+    if (err == GS_OK && non_finite(out, where, sizeof where))
+        err = gs_diag_set(&d, GS_ERANGE, "bodies", "the result ('%s') is not finite for these inputs: "
+                          "masses, inertias, lengths and speeds too far apart; scale the case", where);
+    /* The solvers name their own quantities (W, the contact mass matrix;
+     * the relative velocity); the user gave bodies. */
+    if (err != GS_OK && (!strcmp(d.field, "W") || !strcmp(d.field, "velocity"))) {
+        char m[sizeof d.message];
+        snprintf(m, sizeof m, "%s", d.message);
+        snprintf(d.message, sizeof d.message, "the bodies' masses, inertias, centres and velocities with this "
+                 "contact give no usable impact (%.200s)", m);
+        snprintf(d.field, sizeof d.field, "bodies");
+    }
     if (err == GS_OK) {
         printf("%s\n", json_object_to_json_string_ext(out, JSON_C_TO_STRING_PRETTY));
     } else {

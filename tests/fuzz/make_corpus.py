@@ -63,12 +63,33 @@ def main():
         [{"v": 1, "id": "j1", "cmd": "submit", "args": {"scene": pair, "duration": 0.001, "record": "j.h5",
                                                         "schedule": [{"at": 0.0005, "load": {"body": "pinion", "type": "constant", "moment": 1}}]}},
          {"v": 1, "id": "j2", "cmd": "jobs"}, {"v": 1, "id": "j1", "cmd": "hello"}],
+        # a job waiting for a client's scene, then unload; status with its finished list
+        [{"v": 1, "id": "w1", "cmd": "load", "args": {"builtin": "pair"}},
+         {"v": 1, "id": "w2", "cmd": "submit", "args": {"scene": pair, "duration": 0.0002}},
+         {"v": 1, "id": "w3", "cmd": "jobs"}, {"v": 1, "id": "w4", "cmd": "unload"},
+         {"v": 1, "id": "w5", "cmd": "advance", "args": {"steps": 3}}, {"v": 1, "id": "w6", "cmd": "status"}],
+        # the same id again (reply cache), v as 1.0
+        [{"v": 1, "id": "r1", "cmd": "status"}, {"v": 1, "id": "r1", "cmd": "status"},
+         {"v": 1.0, "id": "r2", "cmd": "hello"}],
     ]
     for seq in seqs:
         write(req_dir, "\n".join(compact(r) for r in seq))
     for raw in ['{"v":1,"id":"x","cmd":"nope"}', '{"v":2,"id":"x","cmd":"hello"}', "[]", "{",
                 '{"v":1,"id":"x","cmd":"advance","args":{"time":1e308}}',
-                '{"v":1,"id":"x","cmd":"fetch","args":{"path":"../etc/passwd"}}']:
+                '{"v":1,"id":"x","cmd":"fetch","args":{"path":"../etc/passwd"}}',
+                # strict JSON (RFC 8259): each of these is refused with bad_json
+                '{"v":1,"id":"x","cmd":"status","cmd":"shutdown"}',
+                '{"v":1,"id":"x","cmd":"status","c\\u006dd":"shutdown"}',
+                '{"v":1,"id":"x\\u0000y","cmd":"status"}',
+                '{"v":1,"id":"\\ud800","cmd":"status"}', '{"v":1,"id":"\\udc00\\ud800","cmd":"status"}',
+                '{"v":1,"id":"\\ud83d\\ude00","cmd":"status"}',
+                '{"v":1,/*c*/"id":"x","cmd":"status"}', "{'v':1,'id':'x','cmd':'status'}",
+                '{"v":1,"id":"x","cmd":"status",}', '{"v":01,"id":"x","cmd":"status"}',
+                '{"v":1,"id":"x","cmd":"advance","args":{"time":NaN}}',
+                '{"v":1,"id":"x","cmd":"advance","args":{"time":-Infinity}}',
+                '{"v":1,"id":"x","cmd":"status"}garbage', '{"v":1.0,"id":"x","cmd":"status"}',
+                '{"v":1,"id":"x","cmd":"advance","args":{"steps":1e999}}',
+                '{"v":1,"id":"x","cmd":"stiffness","args":{"mesh":"m","wait":true}}']:
         write(req_dir, raw)
     with open(os.path.join(ROOT, "proto", "v1", "scene.json")) as f:
         for ex in json.load(f).get("examples", []):

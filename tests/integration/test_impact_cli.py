@@ -98,6 +98,39 @@ def main():
         bad = rod_case(th, vx, vy, e, mu, "hooke")
         r = gearctl_impact(bad, tmp)
         R.check("bad hypothesis: field named", r.returncode == 1 and "hypothesis" in r.stderr, r.stderr)
+
+        # Large finite inputs: refused naming the input field, never Infinity/NaN with exit 0.
+        def huge(path_set, value, multi_case=False):
+            c = json.loads(json.dumps(multi if multi_case else rod_case(th, vx, vy, e, mu, "all")))
+            obj = c
+            for k in path_set[:-1]:
+                obj = obj[k]
+            obj[path_set[-1]] = value
+            return gearctl_impact(c, tmp)
+
+        for label, path, value, multi_case, field in (
+                ("velocity 1e160", ["bodies", 0, "velocity"], [1e160, -1e160], False, "bodies[0].velocity"),
+                ("mass 1e300", ["bodies", 0, "mass"], 1e300, False, "bodies[0].mass"),
+                ("inertia 1e-300", ["bodies", 0, "inertia"], 1e-300, False, "bodies[0].inertia"),
+                ("centre 1e200", ["bodies", 0, "centre"], [1e200, 1e200], False, "bodies[0].centre"),
+                ("omega 1e200", ["bodies", 0, "omega"], 1e200, False, "bodies[0].omega"),
+                ("mu 1e300", ["mu"], 1e300, False, "mu"),
+                ("multi: velocity 1e160", ["bodies", 1, "velocity"], [0.2, -1e160], True, "bodies[1].velocity"),
+                ("multi: time_step 1e300", ["time_step"], 1e300, True, "time_step"),
+                ("multi: gravity 1e300", ["gravity"], [0, -1e300], True, "gravity")):
+            r = huge(path, value, multi_case)
+            R.check(f"{label}: refused (non-zero exit, no Infinity/NaN printed), naming {field}",
+                    r.returncode != 0 and "Infinity" not in r.stdout and "NaN" not in r.stdout
+                    and f"{field}:" in r.stderr, (r.returncode, r.stdout[-300:], r.stderr))
+        # The extremes of the accepted ranges: finite output, or an error naming an input.
+        ext = {"bodies": [{"mass": 1e9, "inertia": 1e-15, "centre": [1e3, -1e3], "velocity": [1e4, -1e4],
+                           "omega": 1e6}, {"fixed": True}],
+               "contact": {"point": [-1e3, 1e3], "normal": [1e-300, 1]}, "e": 1, "mu": 1e3, "hypothesis": "all"}
+        r = gearctl_impact(ext, tmp)
+        R.check("range extremes: finite result or an error naming an input field (not the internal W)",
+                (r.returncode == 0 and "Infinity" not in r.stdout and "NaN" not in r.stdout) or
+                (r.returncode != 0 and "error: bodies" in r.stderr and " W:" not in r.stderr),
+                (r.returncode, r.stderr))
     R.finish()
 
 

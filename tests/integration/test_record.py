@@ -225,7 +225,7 @@ def elastic():
             R.check("fields: XDMF side file written", os.path.exists(xmf))
 
             # the quasi-static stiffness command on the loaded scene
-            k = c.request("stiffness", {"mesh": "wheel-pinion", "positions": 6, "path": "k.h5"}, timeout=300)
+            k = c.request("stiffness", {"mesh": "wheel-pinion", "positions": 6, "path": "k.h5", "wait": True}, timeout=300)
             km = k.get("k", {}).get("mean")
             R.note(f"stiffness: k min/mean/max {k.get('k')} N/(mm um), te {k.get('te_um')} um")
             R.check("stiffness: 6 points, mean mesh stiffness in the steel spur range 8-30 N/(mm um)",

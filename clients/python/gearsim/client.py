@@ -216,6 +216,24 @@ class Client:
             return dict(result, id=rid)
         return self.wait_done(rid, on_telemetry, on_progress, on_event, timeout)
 
+    def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, wait=True,
+                  on_progress=None, timeout=None):
+        """Quasi-static mesh stiffness of `mesh` of the loaded scene, run by
+        the daemon in chunks (status and cancel answered meanwhile).
+        wait=True: the `done` event's result (learned from status when the
+        event is lost); wait=False: the accepted reply with "id" added."""
+        args = {"mesh": mesh}
+        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
+            if v is not None:
+                args[k] = str(v) if k == "path" else v
+        if wait and self._sub is None:
+            self.subscribe()
+        rid = self.send("stiffness", args)
+        result = self.wait_reply(rid)
+        if not wait:
+            return dict(result, id=rid)
+        return self.wait_done(rid, on_progress=on_progress, timeout=timeout).get("result")
+
     def pause(self):
         return self.request("pause")
 
@@ -260,16 +278,6 @@ class Client:
 
     def jobs(self):
         return self.request("jobs")
-
-    def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, timeout=None):
-        """Quasi-static mesh stiffness and transmission error of one mesh of
-        the loaded scene (docs/STIFFNESS.md); blocks the daemon for its
-        duration (seconds), so the reply timeout defaults to 600 s."""
-        args = {"mesh": mesh}
-        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
-            if v is not None:
-                args[k] = str(v) if k == "path" else v
-        return self.request("stiffness", args, timeout=600.0 if timeout is None else timeout)
 
     def fetch(self, path, out_path=None, chunk=FETCH_CHUNK):
         """Download a file of the daemon's data directory in chunks (base64).
@@ -387,6 +395,18 @@ class Client:
                 return
             yield ev
 
+    @staticmethod
+    def _dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
+        """Hand an event to the callbacks; True when it is the done event of parent_id."""
+        if on_event:
+            on_event(ev)
+        t = ev.get("type")
+        if t == "telemetry" and on_telemetry:
+            on_telemetry(ev)
+        elif t == "progress" and on_progress and ev.get("parent_id") == parent_id:
+            on_progress(ev)
+        return t == "done" and ev.get("parent_id") == parent_id
+
     def wait_done(self, parent_id, on_telemetry=None, on_progress=None, on_event=None, timeout=None):
         """Wait for the `done` event of advance request `parent_id`; see advance()."""
         start = _time.monotonic()
@@ -394,29 +414,40 @@ class Client:
         while True:
             ev = self.next_event(0.5)
             now = _time.monotonic()
-            if ev is not None:
-                if on_event:
-                    on_event(ev)
-                t = ev.get("type")
-                if t == "telemetry" and on_telemetry:
-                    on_telemetry(ev)
-                elif t == "progress" and on_progress and ev.get("parent_id") == parent_id:
-                    on_progress(ev)
-                elif t == "done" and ev.get("parent_id") == parent_id:
-                    err = ev.get("error")
-                    if err:
-                        raise GearsimError(err.get("code", "internal"), err.get("message", ""),
-                                           err.get("field"), ev)
-                    return ev
+            if ev is not None and self._dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
+                err = ev.get("error")
+                if err:
+                    raise GearsimError(err.get("code", "internal"), err.get("message", ""),
+                                       err.get("field"), ev)
+                return ev
             if timeout is not None and now - start > timeout:
                 raise GearsimTimeout(f"advance {parent_id} not done after {timeout:g} s")
-            if now - last_check > 5.0:
-                # A done event dropped at a high-water mark must not hang us:
-                # ask the daemon whether the advance still runs.
+            if now - last_check > 2.0:
+                # A done event dropped at a high-water mark (or a subscriber
+                # that is gone) must not hang us: status lists the last
+                # finished requests with their done payload.
                 last_check = now
                 st = self.status()
-                adv = st.get("advance")
-                if not adv or adv.get("parent_id") != parent_id:
+                for f in reversed(st.get("finished") or []):
+                    if f.get("parent_id") == parent_id:
+                        # Finished: the events before its done (the last
+                        # telemetry) may still be on their way; take them
+                        # and the done event if it comes.
+                        until = _time.monotonic() + 1.5
+                        while _time.monotonic() < until:
+                            e = self.next_event(max(until - _time.monotonic(), 0.0))
+                            if e is not None and self._dispatch(e, parent_id, on_telemetry, on_progress, on_event):
+                                f = e
+                                break
+                        ev = f if f.get("type") == "done" else dict(f, v=PROTOCOL, type="done", from_status=True)
+                        err = ev.get("error")
+                        if err and not ev.get("cancelled"):
+                            raise GearsimError(err.get("code", "internal"), err.get("message", ""),
+                                               err.get("field"), ev)
+                        return ev
+                adv, stf = st.get("advance"), st.get("stiffness")
+                running = any(x and x.get("parent_id") == parent_id for x in (adv, stf))
+                if not running:
                     tail, until = [], _time.monotonic() + 1.5
                     while _time.monotonic() < until:
                         e = self.next_event(max(until - _time.monotonic(), 0.0))
