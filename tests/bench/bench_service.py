@@ -29,7 +29,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "integration"))
 import zmq  # noqa: E402
 
 import daemon as dmod  # noqa: E402
-from gearsim.connection import apply_curve  # noqa: E402
+from harness import stalled_sub  # noqa: E402
 
 N_STATUS = int(os.environ.get("GEARSIM_BENCH_STATUS", "200"))
 BLOCKS = int(os.environ.get("GEARSIM_BENCH_BLOCKS", "4"))
@@ -62,17 +62,6 @@ def status_latency(ranks):
             running = c.status().get("state") == "running"
             c.cancel()
     return idle, busy, running
-
-
-def stalled_sub(ctx, info):
-    s = ctx.socket(zmq.SUB)
-    s.setsockopt(zmq.LINGER, 0)
-    s.setsockopt(zmq.RCVHWM, 1)
-    s.setsockopt(zmq.RCVBUF, 4096)
-    s.setsockopt(zmq.SUBSCRIBE, b"")
-    apply_curve(s, info)
-    s.connect(info["telemetry"])
-    return s
 
 
 def timed_run(c, steps):

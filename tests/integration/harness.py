@@ -70,6 +70,19 @@ class Results:
 
 
 @contextlib.contextmanager
+def stalled_sub(ctx, info):
+    """A telemetry subscriber that connects, subscribes to everything and
+    never reads, with tiny buffers (RCVHWM 1, 4 KiB)."""
+    s = ctx.socket(zmq.SUB)
+    s.setsockopt(zmq.LINGER, 0)
+    s.setsockopt(zmq.RCVHWM, 1)
+    s.setsockopt(zmq.RCVBUF, 4096)
+    s.setsockopt(zmq.SUBSCRIBE, b"")
+    apply_curve(s, info)
+    s.connect(info["telemetry"])
+    return s
+
+
 def scratch_dir(prefix):
     """A temporary directory for one test, removed at the end unless
     GEARSIM_KEEP_TMP=1 (then its path is printed)."""

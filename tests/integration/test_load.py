@@ -31,7 +31,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import zmq  # noqa: E402
 
 import daemon as dmod  # noqa: E402
-from harness import Results, apply_curve  # noqa: E402
+from harness import Results, apply_curve, stalled_sub  # noqa: E402
 
 N_CLIENTS = 50
 PER_CLIENT = 20          # requests per client (2 in flight at a time)
@@ -71,18 +71,6 @@ def reader(info, ready, stop, out):
     out.put((n, gaps))
     s.close(0)
     ctx.term()
-
-
-def stalled_sub(ctx, info):
-    """Connects, subscribes to everything, never reads; tiny buffers."""
-    s = ctx.socket(zmq.SUB)
-    s.setsockopt(zmq.LINGER, 0)
-    s.setsockopt(zmq.RCVHWM, 1)
-    s.setsockopt(zmq.RCVBUF, 4096)
-    s.setsockopt(zmq.SUBSCRIBE, b"")
-    apply_curve(s, info)
-    s.connect(info["telemetry"])
-    return s
 
 
 def pct(xs, p):
