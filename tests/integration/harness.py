@@ -69,7 +69,6 @@ class Results:
         sys.exit(1 if self.failed else 0)
 
 
-@contextlib.contextmanager
 def stalled_sub(ctx, info):
     """A telemetry subscriber that connects, subscribes to everything and
     never reads, with tiny buffers (RCVHWM 1, 4 KiB)."""
@@ -83,6 +82,7 @@ def stalled_sub(ctx, info):
     return s
 
 
+@contextlib.contextmanager
 def scratch_dir(prefix):
     """A temporary directory for one test, removed at the end unless
     GEARSIM_KEEP_TMP=1 (then its path is printed)."""
