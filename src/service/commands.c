@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <fcntl.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -1099,6 +1100,17 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     if (json_object_object_get_ex(args, "path", NULL)) {
         GS_TRY(path_arg(s, args, true, full, sizeof full, d));
         snprintf(rel, sizeof rel, "%s", json_object_get_string(json_object_object_get(args, "path")));
+        /* The target's checks now, so a bad path is refused in the reply
+         * rather than in the done event; the file is written (and checked
+         * again) when the analysis ends. */
+        gsi_beneath b;
+        GS_TRY(gsi_check_write(s, rel_of(s, full), "args.path", false, &b, d));
+        struct stat st;
+        bool linked = fstatat(b.dirfd, b.leaf, &st, AT_SYMLINK_NOFOLLOW) == 0 && st.st_nlink > 1;
+        gsi_beneath_close(&b);
+        if (linked)
+            return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' has %lu hard links; writing it would change another name",
+                               rel, (unsigned long)st.st_nlink);
     }
     gs_stiffness_run *run;
     gs_err e = gs_stiffness_begin(sys->scene, mi, &o, &run, d);

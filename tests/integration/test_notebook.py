@@ -48,7 +48,7 @@ def main():
             r = subprocess.run([nbconvert, "--to", "notebook", "--execute", "--output", out,
                                 "--ExecutePreprocessor.timeout=600", os.path.basename(NB)],
                                cwd=ex, env=env, capture_output=True, text=True, timeout=900)
-        R.check("jupyter-nbconvert --execute succeeds", r.returncode == 0, r.stderr[-4000:])
+        R.check("jupyter-nbconvert --execute succeeds", r.returncode == 0, r.stderr[-1200:])
         if r.returncode != 0:
             R.finish()
         with open(out) as f:
