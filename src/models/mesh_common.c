@@ -190,6 +190,37 @@ static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq,
     }
 }
 
+void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J)
+{
+    for (int e = 0; e < m->n_err; e++) {
+        int ck = m->err[e].coord, cc = m->err[e].carrier;
+        double v0 = err_angle(m, e, q0);
+        double dvv = (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
+        double d0, d1, dg = 0.0;
+        if (dvv != 0.0) { /* d/d dv of (P(v0 + dv) - P(v0)) / dv */
+            double p0 = pitch_part(m, e, v0, &d0), p1 = pitch_part(m, e, v0 + dvv, &d1);
+            dg = (d1 - (p1 - p0) / dvv) / dvv;
+        }
+        double am = v0 + 0.5 * dvv + m->err[e].phase, sinc, dsinc;
+        if (fabs(dvv) > 1e-4) {
+            sinc = 2.0 * sin(0.5 * dvv) / dvv;
+            dsinc = (cos(0.5 * dvv) - sinc) / dvv;
+        } else {
+            sinc = 1.0 - dvv * dvv / 24.0;
+            dsinc = -dvv / 12.0;
+        }
+        double T = -m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am);
+        double Tp = -m->err[e].n[0] * cos(am) - m->err[e].n[1] * sin(am);
+        dg += m->err[e].runout * (dsinc * T + 0.5 * sinc * Tp);
+        int idx[2] = {ck, cc};
+        double sg[2] = {1.0, -1.0};
+        for (int a = 0; a < 2; a++)
+            for (int b = 0; b < 2; b++)
+                if (idx[a] >= 0 && idx[b] >= 0)
+                    J[idx[a] * n + idx[b]] += f * sg[a] * sg[b] * dg;
+    }
+}
+
 double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
     double s = gsi_mesh_error(m, q);

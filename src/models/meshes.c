@@ -411,6 +411,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     for (int i = 0; i < n; i++)
         g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
     *diss = fd * ds;
     *force = gs + fd;
 }
@@ -480,6 +481,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
     *diss = fd * ds;
     *force = gs + fd;
 }
