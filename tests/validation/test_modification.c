@@ -40,9 +40,14 @@
  *    once-per-revolution order within 10 % of e (printed with orders
  *    19-21);
  *  - mesh models refuse what they cannot represent, naming the field:
- *    relief on a plain lumped mesh, run-out on a calibrated one, pitch
- *    errors, a one-flank modification or added material on a compliant
- *    one. */
+ *    relief on a plain lumped mesh, pitch errors, a one-flank modification
+ *    or added material on a compliant one;
+ *  - pitch errors and run-out in the lumped (rectangular) and calibrated
+ *    lumped meshes (rigid 20/30 pair, 150 N m, 10 rad/s, one pinion
+ *    revolution): the mean TE shift of one pinion tooth +10 um and the
+ *    once-per-revolution TE of a 20 um run-out within 5 % of the
+ *    quasi-static FE contact analysis over one revolution, the energy
+ *    balance within 1e-10 of the energy through the pair. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
