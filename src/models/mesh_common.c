@@ -46,7 +46,7 @@ gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const
                      md && md->runout_m != 0.0 ? "runout" : "pitch_errors_um");
             return gs_diag_set(d, GS_ERANGE, field,
                                "a %s mesh ('%s') cannot represent the pitch errors or run-out of '%s': use a "
-                               "contact mesh", kind, sm->name, b->name);
+                               "contact or lumped mesh", kind, sm->name, b->name);
         }
     }
     return GS_OK;

@@ -28,7 +28,7 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
 
 /* Line-of-action displacement s(q) = a . q plus the translations (step.h,
- * gs_gmesh_rt.n_tr). */
+ * gs_gmesh_rt.n_tr) and the tooth errors (gs_gmesh_rt.n_err). */
 double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q);
 /* The tooth errors' part of s (lumped meshes, gs_gmesh_rt.n_err): the
  * pitch errors of the teeth in contact, weighted by their load share, times
