@@ -47,6 +47,18 @@ struct gs_gmesh_rt {
     double tr_n0[2][2];
     int tr_carrier;          /* carrier coordinate, -1 none */
     double *abar;
+    /* Tooth errors of lumped meshes (docs/GEOMETRY.md): s gains
+     * E(q) = sum_k E_k(v_k), v_k = theta_k - theta_C the angle of gear k in
+     * the carrier's frame (housing: theta_C = 0). err[k]: coord / carrier
+     * coordinates (-1 none), teeth z, beta the direction to the other gear,
+     * kp = sigma r_b / r the pitch-error gain, pitch the tooth table (NULL
+     * none), runout (e, phase) and n the signed line-of-action direction. */
+    int n_err;
+    struct {
+        int coord, carrier, z;
+        double beta, kp, runout, phase, n[2];
+        const double *pitch;
+    } err[2];
     double contact_ratio;
     double k_single, k_double, damping, half_backlash;
     double transition;       /* width of the single/double stiffness change, fraction of a cycle */

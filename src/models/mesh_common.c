@@ -46,7 +46,7 @@ gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const
                      md && md->runout_m != 0.0 ? "runout" : "pitch_errors_um");
             return gs_diag_set(d, GS_ERANGE, field,
                                "a %s mesh ('%s') cannot represent the pitch errors or run-out of '%s': use a "
-                               "contact mesh", kind, sm->name, b->name);
+                               "contact or lumped mesh", kind, sm->name, b->name);
         }
     }
     return GS_OK;
@@ -68,7 +68,7 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
 
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
 {
-    const double *a = m->n_tr ? m->abar : m->a; /* the step's discrete gradient of s */
+    const double *a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */
     for (int i = 0; i < n; i++) {
         if (a[i] == 0.0 && m->c[i] == 0.0)
             continue;
@@ -88,9 +88,142 @@ static void tr_dir(const gs_gmesh_rt *m, int k, const double *q, double n[2])
     }
 }
 
+/* Ramp step of width w centred on 0, and its slope. */
+static double ramp(double t, double w, double *dr)
+{
+    *dr = 0.0;
+    if (t <= -0.5 * w)
+        return 0.0;
+    if (t >= 0.5 * w)
+        return 1.0;
+    *dr = 1.0 / w;
+    return t / w + 0.5;
+}
+
+/* Load share of a tooth over its contact, y in [0, eps) mesh cycles from
+ * its entry: 1/2 in double contact (entry and exit), 1 in single contact,
+ * with the stiffness wave's transitions (width w). Summed over the teeth it
+ * is 1 at every roll. */
+static double share(double y, double eps, double w, double *dy)
+{
+    double d0, d1, d2, d3;
+    double v = 0.5 * (ramp(y, w, &d0) + ramp(y - (eps - 1.0), w, &d1) - ramp(y - 1.0, w, &d2) -
+                      ramp(y - eps, w, &d3));
+    *dy = 0.5 * (d0 + d1 - d2 - d3);
+    return v;
+}
+
+/* Pitch-error part of gear error e at its carrier-frame angle v, and its
+ * derivative in v: kp times the share-weighted pitch errors of the teeth in
+ * contact. Tooth j stands on the line of centres at x = j, x = (beta - v) z / 2 pi,
+ * and is in contact for |x - j| < eps / 2. */
+static double pitch_part(const gs_gmesh_rt *m, int e, double v, double *dv)
+{
+    const double *tab = m->err[e].pitch;
+    *dv = 0.0;
+    if (!tab)
+        return 0.0;
+    int z = m->err[e].z;
+    double eps = m->contact_ratio, w = m->transition > 0 ? m->transition : 1e-3;
+    double x = (m->err[e].beta - v) * z / (2.0 * GS_PI), val = 0.0, dx = 0.0;
+    long j0 = (long)floor(x - 0.5 * eps - w) , j1 = (long)ceil(x + 0.5 * eps + w);
+    for (long j = j0; j <= j1; j++) {
+        double ej = tab[((j % z) + z) % z];
+        if (ej == 0.0)
+            continue;
+        double ds;
+        val += ej * share(x - (double)j + 0.5 * eps, eps, w, &ds);
+        dx += ej * ds;
+    }
+    *dv = -m->err[e].kp * dx * z / (2.0 * GS_PI);
+    return m->err[e].kp * val;
+}
+
+static double err_angle(const gs_gmesh_rt *m, int e, const double *q)
+{
+    double v = m->err[e].coord >= 0 ? q[m->err[e].coord] : 0.0;
+    return m->err[e].carrier >= 0 ? v - q[m->err[e].carrier] : v;
+}
+
+/* Run-out part: the centre offset e (cos(v + phase), sin(v + phase)) along n. */
+static double runout_part(const gs_gmesh_rt *m, int e, double v)
+{
+    double a = v + m->err[e].phase;
+    return m->err[e].runout * (m->err[e].n[0] * cos(a) + m->err[e].n[1] * sin(a));
+}
+
+double gsi_mesh_error(const gs_gmesh_rt *m, const double *q)
+{
+    double E = 0.0, dv;
+    for (int e = 0; e < m->n_err; e++) {
+        double v = err_angle(m, e, q);
+        E += pitch_part(m, e, v, &dv) + runout_part(m, e, v);
+    }
+    return E;
+}
+
+/* Add to abar the exact discrete gradient of the tooth errors over the step:
+ * per gear, (E(v1) - E(v0)) / (v1 - v0) on its angle (and minus it on the
+ * carrier's), the derivative when the angle does not move; the run-out part
+ * in closed form without cancellation. */
+static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq, double *abar)
+{
+    for (int e = 0; e < m->n_err; e++) {
+        int ck = m->err[e].coord, cc = m->err[e].carrier;
+        double v0 = err_angle(m, e, q0);
+        double dvv = (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
+        double d0, d1;
+        double p0 = pitch_part(m, e, v0, &d0), gq;
+        if (dvv != 0.0) {
+            double p1 = pitch_part(m, e, v0 + dvv, &d1);
+            gq = (p1 - p0) / dvv;
+        } else {
+            gq = d0;
+        }
+        double am = v0 + 0.5 * dvv + m->err[e].phase;
+        double sinc = fabs(dvv) > 1e-6 ? 2.0 * sin(0.5 * dvv) / dvv : 1.0 - dvv * dvv / 24.0;
+        gq += m->err[e].runout * sinc * (-m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am));
+        if (ck >= 0)
+            abar[ck] += gq;
+        if (cc >= 0)
+            abar[cc] -= gq;
+    }
+}
+
+void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J)
+{
+    for (int e = 0; e < m->n_err; e++) {
+        int ck = m->err[e].coord, cc = m->err[e].carrier;
+        double v0 = err_angle(m, e, q0);
+        double dvv = (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
+        double d0, d1, dg = 0.0;
+        if (dvv != 0.0) { /* d/d dv of (P(v0 + dv) - P(v0)) / dv */
+            double p0 = pitch_part(m, e, v0, &d0), p1 = pitch_part(m, e, v0 + dvv, &d1);
+            dg = (d1 - (p1 - p0) / dvv) / dvv;
+        }
+        double am = v0 + 0.5 * dvv + m->err[e].phase, sinc, dsinc;
+        if (fabs(dvv) > 1e-4) {
+            sinc = 2.0 * sin(0.5 * dvv) / dvv;
+            dsinc = (cos(0.5 * dvv) - sinc) / dvv;
+        } else {
+            sinc = 1.0 - dvv * dvv / 24.0;
+            dsinc = -dvv / 12.0;
+        }
+        double T = -m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am);
+        double Tp = -m->err[e].n[0] * cos(am) - m->err[e].n[1] * sin(am);
+        dg += m->err[e].runout * (dsinc * T + 0.5 * sinc * Tp);
+        int idx[2] = {ck, cc};
+        double sg[2] = {1.0, -1.0};
+        for (int a = 0; a < 2; a++)
+            for (int b = 0; b < 2; b++)
+                if (idx[a] >= 0 && idx[b] >= 0)
+                    J[idx[a] * n + idx[b]] += f * sg[a] * sg[b] * dg;
+    }
+}
+
 double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
-    double s = 0;
+    double s = gsi_mesh_error(m, q);
     for (int i = 0; i < sys->n_coords; i++)
         s += m->a[i] * q[i];
     for (int k = 0; k < m->n_tr; k++) {
@@ -103,7 +236,7 @@ double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 
 const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq)
 {
-    if (!m->n_tr)
+    if (!m->n_tr && !m->n_err)
         return m->a;
     int n = sys->n_coords;
     for (int i = 0; i < n; i++)
@@ -136,5 +269,6 @@ const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const do
         double sinc = fabs(dth) > 1e-6 ? 2.0 * sin(0.5 * dth) / dth : 1.0 - dth * dth / 24.0;
         m->abar[c] += sinc * (rj[0] * xb + rj[1] * yb);
     }
+    error_grad(m, q0, dq, m->abar);
     return m->abar;
 }

@@ -28,8 +28,15 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
 
 /* Line-of-action displacement s(q) = a . q plus the translations (step.h,
- * gs_gmesh_rt.n_tr). */
+ * gs_gmesh_rt.n_tr) and the tooth errors (gs_gmesh_rt.n_err). */
 double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q);
+/* The tooth errors' part of s (lumped meshes, gs_gmesh_rt.n_err): the
+ * pitch errors of the teeth in contact, weighted by their load share, times
+ * sigma r_b / r, plus each run-out offset along the line of action. */
+double gsi_mesh_error(const gs_gmesh_rt *m, const double *q);
+/* Add to J the part of a force f along the line of action that comes from
+ * the step's discrete gradient of the tooth errors moving with dq. */
+void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J);
 /* Its discrete gradient over the step from q0 by dq: a vector abar with
  * abar . dq = s(q0 + dq) - s(q0) exactly (m->a itself when nothing
  * translates; else written into m->abar). */

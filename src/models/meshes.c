@@ -16,7 +16,10 @@
  *             reduces to the split above when delta_0 = 0. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
+#include "gearsim/modification.h"
 #include "gearsim/stiffness.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
@@ -189,7 +192,34 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     char field[64];
     snprintf(field, sizeof field, "meshes[%d].stiffness", m->index);
     gs_diag sd;
-    gs_err e = gs_stiffness_analyse(sys->scene, m->index, &o, &r, &sd);
+    /* The calibration is of the gears without their tooth errors (pitch
+     * table, run-out): the mesh adds those itself along the line of action
+     * (gsi_mesh_error), one cycle of FE would only see a few teeth's. */
+    const gs_scene *sc = sys->scene;
+    gs_scene clean = *sc;
+    gs_gear_mods mods[2];
+    gs_scene_body *bodies = NULL;
+    if (m->n_err) {
+        bodies = gs_calloc((size_t)sc->n_bodies, sizeof *bodies);
+        if (!bodies)
+            return GS_ENOMEM;
+        memcpy(bodies, sc->bodies, (size_t)sc->n_bodies * sizeof *bodies);
+        for (int k = 0; k < 2; k++) {
+            gs_scene_body *b = &bodies[sm->gear[k]];
+            if (!b->mods)
+                continue;
+            mods[k] = *b->mods;
+            mods[k].n_pitch = 0;
+            mods[k].pitch_m = NULL;
+            mods[k].runout_m = 0.0;
+            b->mods = &mods[k];
+            b->pitch_error_tooth = -1;
+        }
+        clean.bodies = bodies;
+        sc = &clean;
+    }
+    gs_err e = gs_stiffness_analyse(sc, m->index, &o, &r, &sd);
+    free(bodies);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "calibration by the quasi-static FE analysis failed: %s (%s)",
                            sd.message, sd.field);
@@ -247,7 +277,15 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     GS_TRY(gsi_mesh_mods_supported(sys, m, sm->stiffness_type == GS_STIFF_CALIBRATED ? "calibrated lumped" : "lumped",
-                                   sm->stiffness_type == GS_STIFF_CALIBRATED, 0, d));
+                                   sm->stiffness_type == GS_STIFF_CALIBRATED, 1, d));
+    for (int k = 0; k < 2; k++) { /* a hand-filled body's single pitch error without a table */
+        const gs_scene_body *b = &sys->scene->bodies[sm->gear[k]];
+        if (b->pitch_error_tooth >= 0 && b->pitch_error != 0.0 && (!b->mods || b->mods->n_pitch == 0)) {
+            char field[64];
+            snprintf(field, sizeof field, "bodies[%d].pitch_error", sm->gear[k]);
+            return gs_diag_set(d, GS_ERANGE, field, "a lumped mesh takes pitch errors as the pitch_errors_um table");
+        }
+    }
     m->k_single = sm->k_single;
     m->k_double = sm->stiffness_type == GS_STIFF_CONSTANT ? sm->k_single : sm->k_double;
     if (sm->stiffness_type == GS_STIFF_CALIBRATED)
@@ -373,6 +411,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     for (int i = 0; i < n; i++)
         g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
     *diss = fd * ds;
     *force = gs + fd;
 }
@@ -442,6 +481,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
     gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
     *diss = fd * ds;
     *force = gs + fd;
 }

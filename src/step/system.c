@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "gearsim/step.h"
+#include "gearsim/modification.h"
 #include "gearsim/util.h"
 #include "step_internal.h"
 
@@ -179,6 +180,30 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
             m->tr_n0[m->n_tr][1] = sign[k] * nv[1];
             m->n_tr++;
         }
+        /* Tooth errors of a lumped mesh (pitch table, run-out): a known
+         * displacement along the line of action, a function of each gear's
+         * angle in the carrier frame (mesh_common.c, gsi_mesh_s). */
+        for (int k = 0; sm->model == GS_MESH_LUMPED && k < 2; k++) {
+            const gs_scene_body *gb = &sc->bodies[body[k]];
+            const gs_gear_mods *md = gb->mods;
+            if (!md || (md->n_pitch != gb->gear.teeth && md->runout_m == 0.0))
+                continue;
+            double pk[2], po[2];
+            gs_scene_body_centre(sc, body[k], pk);
+            gs_scene_body_centre(sc, body[1 - k], po);
+            int e = m->n_err++;
+            m->err[e].coord = s->bodies[body[k]].coord;
+            m->err[e].carrier = cc;
+            m->err[e].z = gb->gear.teeth;
+            m->err[e].beta = atan2(po[1] - pk[1], po[0] - pk[0]);
+            m->err[e].kp = (gb->gear.kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) * gs_gear_base_radius(&gb->gear) /
+                           gs_gear_pitch_radius(&gb->gear);
+            m->err[e].pitch = md->n_pitch == gb->gear.teeth ? md->pitch_m : NULL;
+            m->err[e].runout = md->runout_m;
+            m->err[e].phase = md->runout_phase;
+            m->err[e].n[0] = sign[k] * nv[0];
+            m->err[e].n[1] = sign[k] * nv[1];
+        }
         bool translates = false;
         for (int k = 0; k < 2; k++)
             translates |= s->bodies[body[k]].tcoord >= 0;
@@ -190,8 +215,9 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
                                "ones on a fixed line (not with a planet on a turning carrier), so far",
                                sm->name);
         }
-        if (m->n_tr) {
-            m->tr_carrier = cc;
+        if (m->n_tr || m->n_err) {
+            if (m->n_tr)
+                m->tr_carrier = cc;
             m->abar = gs_calloc((size_t)n, sizeof(double));
             if (!m->abar)
                 return GS_ENOMEM;
