@@ -48,7 +48,7 @@ static void build_path(parser *p, char *out, size_t cap)
         else if (f->key_len > 0 || f->key_off != (size_t)-1)
             k += (size_t)snprintf(out + k, cap - k, "%s%.*s", k ? "." : "",
                                   (int)(f->key_len > 64 ? 64 : f->key_len),
-                                  f->key_off == (size_t)-1 ? "" : p->arena + f->key_off);
+                                  f->key_off == (size_t)-1 || !p->arena ? "" : p->arena + f->key_off);
         if (k >= cap)
             k = cap - 1;
     }

@@ -95,6 +95,20 @@ static void prefix_names_the_path(void **state)
     assert_string_equal(d.field, "args.scene.bodies[0].name");
 }
 
+/* An error under an empty key that comes before any other key: the path
+ * is built before the key store exists (found by the fuzzers: pointer
+ * arithmetic on the empty store). */
+static void empty_first_key(void **state)
+{
+    (void)state;
+    gs_diag d;
+    const char *t[] = {"{\"\":\"lo:\"x", "{\"\":{\"a\":tru}}", "{\n \"\"e:1}"};
+    for (size_t i = 0; i < sizeof t / sizeof t[0]; i++) {
+        assert_int_equal(gsi_json_strict(t[i], strlen(t[i]), "args", &d), GS_EPARSE);
+        assert_true(strncmp(d.field, "args", 4) == 0);
+    }
+}
+
 static void depth_limit(void **state)
 {
     (void)state;
@@ -154,6 +168,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(refuses_each_violation),
         cmocka_unit_test(prefix_names_the_path),
+        cmocka_unit_test(empty_first_key),
         cmocka_unit_test(depth_limit),
         cmocka_unit_test(accepts_valid_and_round_trips),
     };
