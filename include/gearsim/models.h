@@ -103,6 +103,13 @@ struct gs_joint_rt {
     int coord[3];            /* x, y, rotation coordinates (-1: absent) */
     double k[3], c[3];       /* stiffness and damping on each */
     double q_ref[3];         /* where each spring is relaxed */
+    /* `pin_bearing` (a planet on its carrier pin): coord[0..1] the planet's
+     * centre displacement X_p (inertial), carrier its rotation coordinate,
+     * carrier_t its centre displacement X_C (-1: none), pin0 the pin's offset
+     * from the carrier centre at carrier angle 0 and d0 = R(theta_C0) pin0;
+     * the spring stretch is e = X_p - X_C + d0 - R(theta_C) pin0. */
+    int carrier, carrier_t;
+    double pin0[2], d0[2];
 };
 const gs_joint_ops *gs_joint_ops_find(const char *name);
 

@@ -45,6 +45,11 @@ struct gs_gmesh_rt {
     int n_tr;
     int tr_coord[2];
     double tr_n0[2][2];
+    /* A planet on a pin bearing: its term is n . (X + tr_off) - tr_c, the
+     * centre's offset from the point R(theta_C) pin0 that turns with the
+     * carrier about its nominal centre (tr_off = R(theta_C0) pin0,
+     * tr_c = tr_n0 . pin0; both 0 for a gear on a bearing joint). */
+    double tr_off[2][2], tr_c[2];
     int tr_carrier;          /* carrier coordinate, -1 none */
     double *abar;
     /* Tooth errors of lumped meshes (docs/GEOMETRY.md): s gains

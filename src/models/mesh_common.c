@@ -229,7 +229,8 @@ double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
     for (int k = 0; k < m->n_tr; k++) {
         double n[2];
         tr_dir(m, k, q, n);
-        s += n[0] * q[m->tr_coord[k]] + n[1] * q[m->tr_coord[k] + 1];
+        s += n[0] * (q[m->tr_coord[k]] + m->tr_off[k][0]) + n[1] * (q[m->tr_coord[k] + 1] + m->tr_off[k][1]) -
+             m->tr_c[k];
     }
     return s;
 }
@@ -265,7 +266,7 @@ const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const do
         double jn[2] = {-m->tr_n0[k][1], m->tr_n0[k][0]};
         double cm = cos(thm), sm = sin(thm);
         double rj[2] = {cm * jn[0] - sm * jn[1], sm * jn[0] + cm * jn[1]};
-        double xb = q0[x] + 0.5 * dq[x], yb = q0[x + 1] + 0.5 * dq[x + 1];
+        double xb = q0[x] + 0.5 * dq[x] + m->tr_off[k][0], yb = q0[x + 1] + 0.5 * dq[x + 1] + m->tr_off[k][1];
         double sinc = fabs(dth) > 1e-6 ? 2.0 * sin(0.5 * dth) / dth : 1.0 - dth * dth / 24.0;
         m->abar[c] += sinc * (rj[0] * xb + rj[1] * yb);
     }

@@ -18,8 +18,8 @@ static const gs_body_ops *const body_models[] = {&gsi_body_rigid, &gsi_body_elas
 static const gs_gmesh_ops *const mesh_models[] = {&gsi_gmesh_kinematic, &gsi_gmesh_lumped, &gsi_gmesh_contact,
                                                    &gsi_gmesh_impact, &gsi_gmesh_compliant, NULL};
 
-extern const gs_joint_ops gsi_joint_bearing;
-static const gs_joint_ops *const joint_models[] = {&gsi_joint_bearing, NULL};
+extern const gs_joint_ops gsi_joint_bearing, gsi_joint_pin_bearing;
+static const gs_joint_ops *const joint_models[] = {&gsi_joint_bearing, &gsi_joint_pin_bearing, NULL};
 
 const gs_joint_ops *gs_joint_ops_find(const char *name)
 {

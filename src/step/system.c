@@ -11,6 +11,7 @@
 #include "gearsim/step.h"
 #include "gearsim/modification.h"
 #include "gearsim/util.h"
+#include "models/mesh_common.h"
 #include "step_internal.h"
 
 void gs_system_free(gs_system **ps)
@@ -86,6 +87,20 @@ static void assign_owners(gs_system *s)
         s->bodies[i].owner = best;
         load[best] += body_weight(&s->scene->bodies[i]);
     }
+}
+
+/* A planet on a pin bearing: its pin's offset from the carrier's nominal
+ * centre at carrier angle 0 (pin0) and at the carrier's initial angle (off),
+ * where the planet's centre starts. */
+static void pin_offsets(const gs_system *s, int planet, double pin0[2], double off[2])
+{
+    const gs_scene_body *b = &s->scene->bodies[planet];
+    pin0[0] = b->carrier_radius * cos(b->carrier_angle);
+    pin0[1] = b->carrier_radius * sin(b->carrier_angle);
+    int kc = s->bodies[b->carrier].coord;
+    double t = kc >= 0 ? s->scene->bodies[b->carrier].angle0 : 0.0, c = cos(t), sn = sin(t);
+    off[0] = c * pin0[0] - sn * pin0[1];
+    off[1] = sn * pin0[0] + c * pin0[1];
 }
 
 /* Line-of-action displacement of a mesh, measured in the frame of the carrier
@@ -178,6 +193,13 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
             m->tr_coord[m->n_tr] = tc;
             m->tr_n0[m->n_tr][0] = sign[k] * nv[0];
             m->tr_n0[m->n_tr][1] = sign[k] * nv[1];
+            if (pb->joint == GS_JOINT_ON_CARRIER) { /* a planet on its pin bearing (gearsim/step.h) */
+                double pin0[2], off[2];
+                pin_offsets(s, body[k], pin0, off);
+                m->tr_off[m->n_tr][0] = off[0];
+                m->tr_off[m->n_tr][1] = off[1];
+                m->tr_c[m->n_tr] = m->tr_n0[m->n_tr][0] * pin0[0] + m->tr_n0[m->n_tr][1] * pin0[1];
+            }
             m->n_tr++;
         }
         /* Tooth errors of a lumped mesh (pitch table, run-out): a known
@@ -347,16 +369,17 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < scene->n_bodies; i++) {
         const gs_scene_body *sb = &scene->bodies[i];
         const char *why = NULL;
-        if (sb->pin_bearing)
-            why = "planet bearings on carrier pins (bearing_stiffness) are in the modal analysis only, "
-                  "not yet in the time integration";
-        else if (sb->joint == GS_JOINT_BEARING && sb->model == GS_MODEL_ELASTIC)
-            why = "a bearing joint takes rigid bodies only";
+        bool translates = sb->joint == GS_JOINT_BEARING || (sb->joint == GS_JOINT_ON_CARRIER && sb->pin_bearing);
+        if (translates && sb->model == GS_MODEL_ELASTIC)
+            why = sb->pin_bearing ? "a planet on a pin bearing (bearing_stiffness) must be rigid"
+                                  : "a bearing joint takes rigid bodies only";
         for (int j = 0; !why && sb->joint == GS_JOINT_BEARING && j < scene->n_bodies; j++)
-            if (scene->bodies[j].joint == GS_JOINT_ON_CARRIER && scene->bodies[j].carrier == i)
-                why = "a carrier with planets cannot sit on a bearing joint yet (its translation would "
-                      "carry the planets; modal analysis only)";
-        for (int m = 0; !why && sb->joint == GS_JOINT_BEARING && m < scene->n_meshes; m++)
+            if (scene->bodies[j].joint == GS_JOINT_ON_CARRIER && scene->bodies[j].carrier == i &&
+                !scene->bodies[j].pin_bearing)
+                why = "a carrier on a bearing joint needs its planets on pin bearings (bearing_stiffness "
+                      "on each planet's on_carrier joint; rigid pins would carry the carrier's translation: "
+                      "modal analysis only)";
+        for (int m = 0; !why && translates && m < scene->n_meshes; m++)
             if (scene->meshes[m].model == GS_MESH_CONTACT)
                 why = "a scene with a bearing joint cannot have contact meshes yet (the contact step has no "
                       "translations)";
@@ -388,7 +411,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         if (sb->type == GS_BODY_CARRIER)
             for (int j = 0; j < s->n_bodies; j++) {
                 const gs_scene_body *p = &scene->bodies[j];
-                if (p->joint == GS_JOINT_ON_CARRIER && p->carrier == i)
+                if (p->joint == GS_JOINT_ON_CARRIER && p->carrier == i && !p->pin_bearing)
                     b->inertia_eff += p->mass * p->carrier_radius * p->carrier_radius;
             }
         const char *model = sb->model == GS_MODEL_ELASTIC ? "elastic" : "rigid";
@@ -401,11 +424,12 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             goto fail;
         }
     }
-    /* Centre displacements of bodies on bearing joints: two more coordinates
+    /* Centre displacements of bodies on bearing joints and of planets on pin
+     * bearings (inertial, from the initial centre): two more coordinates
      * each, after every rotation; and their supports. */
     for (int i = 0; i < s->n_bodies; i++) {
         s->bodies[i].tcoord = -1;
-        if (scene->bodies[i].joint == GS_JOINT_BEARING) {
+        if (scene->bodies[i].joint == GS_JOINT_BEARING || scene->bodies[i].pin_bearing) {
             s->bodies[i].tcoord = s->n_coords;
             s->n_coords += 2;
             s->n_joints++;
@@ -419,13 +443,24 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         }
         for (int i = 0, k = 0; i < s->n_bodies; i++) {
             const gs_scene_body *sb = &scene->bodies[i];
-            if (sb->joint != GS_JOINT_BEARING)
+            if (s->bodies[i].tcoord < 0)
                 continue;
             gs_joint_rt *j = &s->joints[k++];
             j->body = i;
-            j->ops = gs_joint_ops_find("bearing");
             j->coord[0] = s->bodies[i].tcoord;
             j->coord[1] = s->bodies[i].tcoord + 1;
+            j->carrier = j->carrier_t = -1;
+            if (sb->pin_bearing) { /* the planet's radial bearing on its carrier pin */
+                j->ops = gs_joint_ops_find("pin_bearing");
+                j->coord[2] = -1;
+                j->carrier = s->bodies[sb->carrier].coord;
+                j->carrier_t = s->bodies[sb->carrier].tcoord;
+                pin_offsets(s, i, j->pin0, j->d0);
+                j->k[0] = j->k[1] = sb->bearing_k;
+                j->c[0] = j->c[1] = sb->bearing_c;
+                continue;
+            }
+            j->ops = gs_joint_ops_find("bearing");
             j->coord[2] = s->bodies[i].coord;
             j->k[0] = j->k[1] = sb->bearing_k;
             j->c[0] = j->c[1] = sb->bearing_c;
@@ -466,9 +501,9 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         e = mesh_kinematics(s, m, d);
         if (e != GS_OK)
             goto fail;
-        double sref = 0;
-        for (int j = 0; j < n; j++)
-            sref += m->a[j] * s->q[j];
+        /* the translations' terms too (zero at the start but for round-off
+         * with planets on pin bearings); tooth errors stay out of s_ref */
+        double sref = gsi_mesh_s(s, m, s->q) - gsi_mesh_error(m, s->q);
         m->s_ref = sref - m->s_pin;
         s->smooth_contact |= s->n_joints > 0 || m->s_pin != 0.0;
         e = m->ops->init(s, m, d);
@@ -759,7 +794,15 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
 void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta)
 {
     const gs_scene_body *b = &sys->scene->bodies[body];
-    if (b->joint == GS_JOINT_ON_CARRIER) {
+    if (b->joint == GS_JOINT_ON_CARRIER && sys->bodies[body].tcoord >= 0) {
+        /* on a pin bearing: where it started plus its own displacement */
+        double pin0[2], off[2];
+        int tc = sys->bodies[body].tcoord;
+        pin_offsets(sys, body, pin0, off);
+        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
+        c[0] = cb->centre[0] + off[0] + sys->q[tc];
+        c[1] = cb->centre[1] + off[1] + sys->q[tc + 1];
+    } else if (b->joint == GS_JOINT_ON_CARRIER) {
         /* The planet's polar position turns with the carrier. */
         const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
         int kc = sys->bodies[b->carrier].coord;

@@ -209,6 +209,94 @@ static void translational_mode_stays(void **state)
     one_mode(bearing_scene(1e8, 0.0, 0.0, false), GS_MODE_TRANSLATIONAL, "translational");
 }
 
+/* The Lin-Parker example train (deploy/scenes/lin_parker_N.json): sun, ring,
+ * carrier and every planet on radial bearings (planets on their carrier
+ * pins), lumped meshes of constant stiffness. With `loads`: a ramp moment on
+ * the sun and a brake on the carrier, pin bearings damped (c N s/m);
+ * without, no damping anywhere (free vibration). */
+static json_object *lin_parker(int N, bool loads, double pin_damping)
+{
+    char name[32];
+    snprintf(name, sizeof name, "lin_parker_%d", N);
+    json_object *root = vt_scene(name);
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; pin_damping > 0 && i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        if (json_object_object_get_ex(j, "bearing_stiffness", NULL))
+            json_object_object_add(j, "bearing_damping", json_object_new_double(pin_damping));
+    }
+    json_object *meshes = json_object_object_get(root, "meshes");
+    for (size_t i = 0; !loads && i < json_object_array_length(meshes); i++) /* undamped: free vibration */
+        json_object_object_add(json_object_array_get_idx(meshes, i), "damping", json_object_new_double(0.0));
+    json_object *l = json_object_new_array();
+    if (loads) {
+        json_object *a = json_object_new_object(), *b = json_object_new_object();
+        json_object_object_add(a, "body", json_object_new_string("sun"));
+        json_object_object_add(a, "type", json_object_new_string("ramp"));
+        json_object_object_add(a, "moment", json_object_new_double(50.0));
+        json_object_object_add(a, "ramp_time", json_object_new_double(0.01));
+        json_object_object_add(b, "body", json_object_new_string("carrier"));
+        json_object_object_add(b, "type", json_object_new_string("brake"));
+        json_object_object_add(b, "coefficient", json_object_new_double(2.0));
+        json_object_array_add(l, a);
+        json_object_array_add(l, b);
+    }
+    json_object_object_add(root, "loads", l);
+    json_object *num = json_object_new_object();
+    json_object_object_add(num, "time_step", json_object_new_double(1e-5));
+    json_object_object_add(root, "numerics", num);
+    return root;
+}
+
+/* Planets on pin bearings in the time integration: the balance under load
+ * (ramp, brake, damped pin bearings, the carrier turning through a large
+ * angle) at round-off, and the planets really move off their pins. */
+static void pin_bearings_balance(void **state)
+{
+    (void)state;
+    gs_system *s = vt_system(lin_parker(4, true, 200.0));
+    int p1 = gs_scene_find_body(s->scene, "planet1"), C = gs_scene_find_body(s->scene, "carrier");
+    assert_true(s->bodies[p1].tcoord >= 0 && s->bodies[C].tcoord >= 0);
+    gs_energy e;
+    double worst = 0, scale = 0, off = 0;
+    for (int k = 0; k < 20000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        /* the planet's centre against its pin: (pose) minus carrier centre plus R(theta_C) pin */
+        const gs_scene_body *pb = &s->scene->bodies[p1];
+        double c[2], cc[2], th;
+        gs_system_body_pose(s, p1, c, &th);
+        gs_system_body_pose(s, C, cc, &th);
+        double a = pb->carrier_angle + gs_system_angle(s, C);
+        off = fmax(off, hypot(c[0] - cc[0] - pb->carrier_radius * cos(a), c[1] - cc[1] - pb->carrier_radius * sin(a)));
+    }
+    double turned = gs_system_angle(s, C);
+    print_message("lin_parker_4, planets on pin bearings, 20000 steps under load: worst |balance| %.3e J of %.3e J "
+                  "(%.2e); carrier turned %.2f rad (%.1f rad/s); planet1 off its pin up to %.3e m; dissipated %.3e J\n",
+                  worst, scale, worst / scale, turned, gs_system_omega(s, C), off, e.dissipated);
+    assert_true(worst < 1e-9 * scale);
+    assert_true(turned > 1.0);  /* large rotation: the pin term is nonlinear */
+    assert_true(off > 1e-7);    /* 50 N m over four planets and 1e8 N/m: micrometres */
+    assert_true(off < 1e-4);
+    gs_system_free(&s);
+}
+
+static void pin_bearings_planet_mode(void **state)
+{
+    (void)state;
+    one_mode(lin_parker(4, false, 0.0), GS_MODE_PLANET, "lin_parker_4 planet");
+}
+
+static void pin_bearings_rotational_mode(void **state)
+{
+    (void)state;
+    one_mode(lin_parker(4, false, 0.0), GS_MODE_ROTATIONAL, "lin_parker_4 rotational");
+}
+
+static void pin_bearings_translational_mode(void **state)
+{
+    (void)state;
+    one_mode(lin_parker(4, false, 0.0), GS_MODE_TRANSLATIONAL, "lin_parker_4 translational");
+}
 
 /* Load sharing with a 10 um tangential pin error on planet1
  * (deploy/scenes/planetary_floating.json): the largest planet share over the
@@ -381,6 +469,10 @@ int main(void)
         cmocka_unit_test(floating_sun_balance),
         cmocka_unit_test(rotational_mode_stays),
         cmocka_unit_test(translational_mode_stays),
+        cmocka_unit_test(pin_bearings_balance),
+        cmocka_unit_test(pin_bearings_planet_mode),
+        cmocka_unit_test(pin_bearings_rotational_mode),
+        cmocka_unit_test(pin_bearings_translational_mode),
         cmocka_unit_test(floating_sun_shares_load),
         cmocka_unit_test(kinematic_pair_on_bearings),
         cmocka_unit_test(modal_closed_forms),
