@@ -403,6 +403,67 @@ static void kinematic_pair_on_bearings(void **state)
     one_mode(pair_on_bearings(false), GS_MODE_MIXED, "kinematic pair, mixed");
 }
 
+/* The calibrated lumped mesh (its stiffness over the mesh cycle from the
+ * FE analysis of the pair, docs/STIFFNESS.md) with both gears on radial
+ * bearings (k_b N/m, damped): the rigid contact_drive pair. */
+static json_object *calibrated_on_bearings(double kb)
+{
+    json_object *root = vt_scene("contact_drive");
+    json_object *bs = json_object_object_get(root, "bodies");
+    for (size_t i = 0; i < json_object_array_length(bs); i++)
+        json_object_object_add(json_object_array_get_idx(bs, i), "model", json_object_new_string("rigid"));
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        json_object_object_add(j, "type", json_object_new_string("bearing"));
+        json_object_object_add(j, "stiffness", json_object_new_double(kb));
+        json_object_object_add(j, "damping", json_object_new_double(200.0));
+    }
+    json_object *m = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+    json_object_object_add(m, "model", json_object_new_string("lumped"));
+    json_object *st = json_object_new_object();
+    json_object_object_add(st, "type", json_object_new_string("calibrated"));
+    json_object_object_add(st, "positions", json_object_new_int(24));
+    json_object_object_add(m, "stiffness", st);
+    return root;
+}
+
+/* Its balance under load (ramp 20 N m, brake) at round-off through the
+ * tabulated stiffness and the translations, and the bearings carry the mesh
+ * force: the wheel's mean centre displacement over the last 5000 of 20000
+ * steps is the mean mesh force over k_b (quasi-static: the bearing mode,
+ * above 1 kHz, is far above the load's time scale) within 1%. */
+static void calibrated_mesh_on_bearings(void **state)
+{
+    (void)state;
+    const double kb = 5e7;
+    gs_system *s = vt_system(calibrated_on_bearings(kb));
+    assert_non_null(s->meshes[0].k_table); /* calibrated */
+    int w = gs_scene_find_body(s->scene, "wheel");
+    int tc = s->bodies[w].tcoord;
+    assert_true(tc >= 0);
+    gs_energy e;
+    double worst = 0, scale = 0, fm = 0, xm[2] = {0, 0};
+    int n = 0;
+    for (int k = 0; k < 20000; k++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        if (k >= 15000) {
+            fm += s->meshes[0].force;
+            xm[0] += s->q[tc], xm[1] += s->q[tc + 1];
+            n++;
+        }
+    }
+    fm /= n, xm[0] /= n, xm[1] /= n;
+    double xmag = hypot(xm[0], xm[1]), xcf = fabs(fm) / kb;
+    print_message("calibrated mesh on bearings (k_b %.0e N/m), 20000 steps: worst |balance| %.3e J of %.3e J (%.2e); "
+                  "mean mesh force %.3f N; wheel centre displaced %.4e m, F / k_b %.4e m (rel %.2e)\n",
+                  kb, worst, scale, worst / scale, fm, xmag, xcf, fabs(xmag - xcf) / xcf);
+    assert_true(worst < 1e-9 * scale);
+    assert_true(fabs(fm) > 100.0);
+    assert_true(fabs(xmag - xcf) < 0.01 * xcf);
+    gs_system_free(&s);
+}
+
 /* Closed forms: a spur pair on fixed axes with a constant lumped mesh,
  * w^2 = k (rb1^2 / I1 + rb2^2 / I2) beside the rigid rotation; one gear on
  * a bearing, w^2 = k_r / m (double) and k_t / I. */
@@ -473,6 +534,7 @@ int main(void)
         cmocka_unit_test(pin_bearings_planet_mode),
         cmocka_unit_test(pin_bearings_rotational_mode),
         cmocka_unit_test(pin_bearings_translational_mode),
+        cmocka_unit_test(calibrated_mesh_on_bearings),
         cmocka_unit_test(floating_sun_shares_load),
         cmocka_unit_test(kinematic_pair_on_bearings),
         cmocka_unit_test(modal_closed_forms),
