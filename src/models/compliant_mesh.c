@@ -3,8 +3,8 @@
  * the compliant contact patch model (METHOD.md sections 2, 6 and 7;
  * docs/IMPACT.md "The compliant mesh").
  *
- * Along the line of action the pair deflects by x = s - s_ref (s = a . q,
- * as the lumped model), beyond the backlash dead zone the approach is
+ * Along the line of action the pair deflects by x = s - s_ref (s = a . q
+ * and the translations of gears on bearings, as the lumped model), beyond the backlash dead zone the approach is
  * delta = |x| - b/2, the same for every engaged tooth pair (rigid involute
  * gears). A pair at distance v along the path of contact carries
  * F(delta; v): its line contact (relative radius from the two flanks' radii
@@ -665,7 +665,10 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
                      double *g, double *J, double *diss, double *force)
 {
     int n = sys->n_coords;
-    double x0 = dot(m->a, q0, n) - m->s_ref, dx = dot(m->a, dq, n);
+    /* s along the true line of action, translations (bearings) included,
+     * with its exact discrete gradient ab over the step (mesh_common.c) */
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double x0 = gsi_mesh_s(sys, m, q0) - m->s_ref, dx = dot(ab, dq, n);
     double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
     double x1 = x0 + dx, p1 = p0 + dp, hb = m->half_backlash;
     double gx = 0.5 * (grad_x(m, x0, x1, p0) + grad_x(m, x0, x1, p1));
@@ -673,12 +676,25 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
     /* An approximate Jacobian (Newton backtracks; the residual is exact). */
     vals v10 = eval(m, x1, p0), v11 = eval(m, x1, p1);
     double jxx = 0.25 * (v10.Vxx + v11.Vxx), jxp = 0.25 * v11.Vxp, jpx = 0.25 * (v10.Vxp + v11.Vxp), jpp = 0.0;
-    /* Damping while the teeth are in contact at the midpoint. */
+    /* Damping while the teeth are in contact at the midpoint; in scenes with
+     * bearings or pin errors (sys->smooth_contact, as the lumped mesh) over
+     * the share of the step in contact, continuous in the step's end, which
+     * Newton needs when a floating member closes a flank inside a step. */
     bool touching = fabs(x0 + 0.5 * dx) > hb;
-    double cd = touching ? m->damping : 0.0, fd = cd * dx / h;
-    jxx += cd / h;
+    double cd = touching ? m->damping : 0.0, dW = 0.0;
+    if (sys->smooth_contact) {
+        double W = 0.0;
+        for (int side = 0; side < 2; side++) {
+            double sg = side ? -1.0 : 1.0, dw1;
+            W += gsi_mesh_wet(sg * x0 - hb, sg * x1 - hb, &dw1);
+            dW += sg * dw1;
+        }
+        cd = m->damping * W;
+    }
+    double fd = cd * dx / h;
+    jxx += (cd + m->damping * dW * dx) / h;
     for (int i = 0; i < n; i++)
-        g[i] += m->a[i] * (gx + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gx + fd) + m->c[i] * gp;
     gsi_mesh_add_jacobian(m, n, J, jxx, jxp, jpx, jpp);
     *diss = fd * dx;
     *force = gx + fd;
@@ -687,7 +703,7 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
 static double cm_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
     int n = sys->n_coords;
-    return eval(m, dot(m->a, q, n) - m->s_ref, dot(m->c, q, n)).V;
+    return eval(m, gsi_mesh_s(sys, m, q) - m->s_ref, dot(m->c, q, n)).V;
 }
 
 const gs_gmesh_ops gsi_gmesh_compliant = {

@@ -66,6 +66,20 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
     return inv > 0 ? 2 * sm->damping_ratio * sqrt(k_mean / inv) : 0;
 }
 
+/* Fraction of the segment [x0, x1] on which x > 0, and its derivative in x1:
+ * the share of a step spent in contact, continuous in the step's end. */
+double gsi_mesh_wet(double x0, double x1, double *dw1)
+{
+    *dw1 = 0.0;
+    if (x0 > 0.0 && x1 > 0.0)
+        return 1.0;
+    if (x0 <= 0.0 && x1 <= 0.0)
+        return 0.0;
+    double L = x1 - x0;
+    *dw1 = (x1 > 0.0 ? -x0 : x0) / (L * L);
+    return x1 > 0.0 ? x1 / L : x0 / -L;
+}
+
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
 {
     const double *a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */

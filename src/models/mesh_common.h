@@ -21,6 +21,10 @@ gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const
  * c = 2 zeta sqrt(k_mean m_eq), m_eq = 1 / sum a_i^2 / I_i over the
  * coordinates the mesh moves. */
 double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mean);
+/* Fraction of the step segment [x0, x1] on which x > 0 (the share of a step
+ * a flank spends in contact, continuous in the step's end) and its
+ * derivative in x1. */
+double gsi_mesh_wet(double x0, double x1, double *dw1);
 
 /* Add to J (n x n, row-major) the Jacobian of a force law in the line-of-
  * action coordinate s = a.q and the phase p = c.q: the derivatives of the

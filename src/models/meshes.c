@@ -331,20 +331,6 @@ static double Hq(double x0, double x1, double *d0, double *d1)
     return q;
 }
 
-/* Fraction of the segment [x0, x1] on which x > 0, and its derivative in x1:
- * the share of a step spent in contact, continuous in the step's end. */
-static double wet(double x0, double x1, double *dw1)
-{
-    *dw1 = 0.0;
-    if (x0 > 0.0 && x1 > 0.0)
-        return 1.0;
-    if (x0 <= 0.0 && x1 <= 0.0)
-        return 0.0;
-    double L = x1 - x0;
-    *dw1 = (x1 > 0.0 ? -x0 : x0) / (L * L);
-    return x1 > 0.0 ? x1 / L : x0 / -L;
-}
-
 /* The tangent-calibrated law, V(s, phi) = k(phi) sum_sig H(sig f - c(phi)),
  * f = s - s_ref, c = half backlash + delta_0(phi), on either flank (sig = +-1;
  * the calibration's table serves both, as the secant table does). Its
@@ -400,7 +386,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     double W = 0.0, dWs = 0.0, dWp = 0.0;
     for (int side = 0; side < 2; side++) {
         double sg = side ? -1.0 : 1.0, dw1;
-        W += wet(sg * s0 - c0, sg * s1 - c1, &dw1);
+        W += gsi_mesh_wet(sg * s0 - c0, sg * s1 - c1, &dw1);
         dWs += sg * dw1;
         dWp -= dw1 * dd1;
     }
@@ -464,7 +450,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         double W = 0.0;
         for (int side = 0; side < 2; side++) {
             double sg = side ? -1.0 : 1.0, dw1;
-            W += wet(sg * s0 - hb, sg * s1 - hb, &dw1);
+            W += gsi_mesh_wet(sg * s0 - hb, sg * s1 - hb, &dw1);
             dW += sg * dw1;
         }
         cd = m->damping * W;

@@ -171,11 +171,11 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         int body[2] = {first, second};
         double sign[2] = {internal ? -1.0 : 1.0, internal ? 1.0 : -1.0};
         for (int k = 0; k < 2; k++) {
-            /* A planet's pin error in a lumped mesh: its centre stands off the
+            /* A planet's pin error in a lumped or compliant mesh: its centre stands off the
              * tight-mesh position by e, a deflection sign n . e at the start
              * (positive: pressed in, negative: a gap). */
             const gs_scene_body *pb = &sc->bodies[body[k]];
-            if (sm->model == GS_MESH_LUMPED && pb->joint == GS_JOINT_ON_CARRIER &&
+            if ((sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT) && pb->joint == GS_JOINT_ON_CARRIER &&
                 (pb->pin_error[0] != 0 || pb->pin_error[1] != 0)) {
                 double r = pb->carrier_radius, a = pb->carrier_angle;
                 double r0 = r - pb->pin_error[0], a0 = a - pb->pin_error[1] / r;
@@ -229,13 +229,17 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         bool translates = false;
         for (int k = 0; k < 2; k++)
             translates |= s->bodies[body[k]].tcoord >= 0;
-        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : sm->model != GS_MESH_LUMPED)) {
+        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0
+                                                          : sm->model != GS_MESH_LUMPED && sm->model != GS_MESH_COMPLIANT)) {
             char f[64];
             snprintf(f, sizeof f, "meshes[%d].model", m->index);
             return gs_diag_set(d, GS_ERANGE, f,
-                               "mesh '%s': a gear on a bearing joint meshes through lumped meshes, or kinematic "
-                               "ones on a fixed line (not with a planet on a turning carrier), so far",
-                               sm->name);
+                               "mesh '%s': a gear on a bearing (joint or planet pin) meshes through lumped "
+                               "(constant, rectangular or calibrated) or compliant meshes, or kinematic ones on a "
+                               "fixed line (not with a planet on a turning carrier)%s", sm->name,
+                               sm->model == GS_MESH_KINEMATIC ? ""
+                               : sm->model == GS_MESH_IMPACT  ? "; impact meshes have no translations yet"
+                                                              : "; contact meshes have no translations yet");
         }
         if (m->n_tr || m->n_err) {
             if (m->n_tr)

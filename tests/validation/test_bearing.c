@@ -251,10 +251,16 @@ static json_object *lin_parker(int N, bool loads, double pin_damping)
 /* Planets on pin bearings in the time integration: the balance under load
  * (ramp, brake, damped pin bearings, the carrier turning through a large
  * angle) at round-off, and the planets really move off their pins. */
-static void pin_bearings_balance(void **state)
+static void pin_bearings_run(bool compliant)
 {
-    (void)state;
-    gs_system *s = vt_system(lin_parker(4, true, 200.0));
+    json_object *root = lin_parker(4, true, 200.0);
+    json_object *meshes = json_object_object_get(root, "meshes");
+    for (size_t i = 0; compliant && i < json_object_array_length(meshes); i++) {
+        json_object *m = json_object_array_get_idx(meshes, i);
+        json_object_object_del(m, "stiffness");
+        json_object_object_add(m, "model", json_object_new_string("compliant"));
+    }
+    gs_system *s = vt_system(root);
     int p1 = gs_scene_find_body(s->scene, "planet1"), C = gs_scene_find_body(s->scene, "carrier");
     assert_true(s->bodies[p1].tcoord >= 0 && s->bodies[C].tcoord >= 0);
     gs_energy e;
@@ -270,14 +276,29 @@ static void pin_bearings_balance(void **state)
         off = fmax(off, hypot(c[0] - cc[0] - pb->carrier_radius * cos(a), c[1] - cc[1] - pb->carrier_radius * sin(a)));
     }
     double turned = gs_system_angle(s, C);
-    print_message("lin_parker_4, planets on pin bearings, 20000 steps under load: worst |balance| %.3e J of %.3e J "
-                  "(%.2e); carrier turned %.2f rad (%.1f rad/s); planet1 off its pin up to %.3e m; dissipated %.3e J\n",
-                  worst, scale, worst / scale, turned, gs_system_omega(s, C), off, e.dissipated);
+    int pl[8];
+    double sh[8], lsf = 0;
+    int np = gs_system_planet_shares(s, pl, sh, 8);
+    for (int i = 0; i < np; i++)
+        lsf = fmax(lsf, sh[i]);
+    print_message("lin_parker_4, %s meshes, planets on pin bearings, 20000 steps under load: worst |balance| %.3e J "
+                  "of %.3e J (%.2e); carrier turned %.2f rad (%.1f rad/s); planet1 off its pin up to %.3e m; "
+                  "dissipated %.3e J; LSF %.6f\n", compliant ? "compliant" : "lumped",
+                  worst, scale, worst / scale, turned, gs_system_omega(s, C), off, e.dissipated, lsf);
+    assert_int_equal(np, 4);
+    assert_true(lsf < 1.01); /* a perfect train shares equally */
     assert_true(worst < 1e-9 * scale);
     assert_true(turned > 1.0);  /* large rotation: the pin term is nonlinear */
     assert_true(off > 1e-7);    /* 50 N m over four planets and 1e8 N/m: micrometres */
     assert_true(off < 1e-4);
     gs_system_free(&s);
+}
+
+static void pin_bearings_balance(void **state)
+{
+    (void)state;
+    pin_bearings_run(false);
+    pin_bearings_run(true);
 }
 
 static void pin_bearings_planet_mode(void **state)
@@ -302,9 +323,15 @@ static void pin_bearings_translational_mode(void **state)
  * (deploy/scenes/planetary_floating.json): the largest planet share over the
  * mean, averaged over the last 5000 of 25000 steps (0.25 s; steady carrier
  * speed), with the floating sun and with the sun on a fixed axis. */
-static double sharing(bool floating, double share_out[3], double *sun_offset)
+static double sharing(bool floating, bool compliant, double share_out[3], double *sun_offset)
 {
     json_object *root = vt_scene("planetary_floating");
+    json_object *meshes = json_object_object_get(root, "meshes");
+    for (size_t i = 0; compliant && i < json_object_array_length(meshes); i++) {
+        json_object *m = json_object_array_get_idx(meshes, i);
+        json_object_object_del(m, "stiffness");
+        json_object_object_add(m, "model", json_object_new_string("compliant"));
+    }
     if (!floating) {
         json_object *joints = json_object_object_get(root, "joints");
         for (size_t i = 0; i < json_object_array_length(joints); i++) {
@@ -351,12 +378,15 @@ static void floating_sun_shares_load(void **state)
 {
     (void)state;
     double fl[3], fx[3], off_fl, off_fx;
-    double lsf_float = sharing(true, fl, &off_fl), lsf_fixed = sharing(false, fx, &off_fx);
-    print_message("pin error 10 um on planet1: floating sun LSF %.4f (shares %.4f %.4f %.4f, sun off centre %.2f um); "
-                  "fixed sun LSF %.4f (shares %.4f %.4f %.4f)\n",
-                  lsf_float, fl[0], fl[1], fl[2], off_fl * 1e6, lsf_fixed, fx[0], fx[1], fx[2]);
-    assert_true(lsf_float < 1.05);
-    assert_true(lsf_fixed > 1.3);
+    for (int compliant = 0; compliant < 2; compliant++) {
+        double lsf_float = sharing(true, compliant, fl, &off_fl), lsf_fixed = sharing(false, compliant, fx, &off_fx);
+        print_message("%s meshes, pin error 10 um on planet1: floating sun LSF %.4f (shares %.4f %.4f %.4f, sun off "
+                      "centre %.2f um); fixed sun LSF %.4f (shares %.4f %.4f %.4f)\n",
+                      compliant ? "compliant" : "lumped", lsf_float, fl[0], fl[1], fl[2], off_fl * 1e6, lsf_fixed,
+                      fx[0], fx[1], fx[2]);
+        assert_true(lsf_float < 1.05);
+        assert_true(lsf_fixed > 1.3);
+    }
 }
 
 /* The spur pair with both gears on bearings (1e8 N/m) and a kinematic
@@ -428,17 +458,34 @@ static json_object *calibrated_on_bearings(double kb)
     return root;
 }
 
-/* Its balance under load (ramp 20 N m, brake) at round-off through the
- * tabulated stiffness and the translations, and the bearings carry the mesh
- * force: the wheel's mean centre displacement over the last 5000 of 20000
- * steps is the mean mesh force over k_b (quasi-static: the bearing mode,
- * above 1 kHz, is far above the load's time scale) within 1%. */
-static void calibrated_mesh_on_bearings(void **state)
+/* The `pair` scene with a compliant mesh (the contact patch model in series
+ * with the teeth, docs/IMPACT.md) and both gears on bearings. */
+static json_object *compliant_on_bearings(double kb)
 {
-    (void)state;
-    const double kb = 5e7;
-    gs_system *s = vt_system(calibrated_on_bearings(kb));
-    assert_non_null(s->meshes[0].k_table); /* calibrated */
+    json_object *root = vt_scene("pair");
+    json_object *joints = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(joints); i++) {
+        json_object *j = json_object_array_get_idx(joints, i);
+        json_object_object_add(j, "type", json_object_new_string("bearing"));
+        json_object_object_add(j, "stiffness", json_object_new_double(kb));
+        json_object_object_add(j, "damping", json_object_new_double(200.0));
+    }
+    json_object *m = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+    json_object_object_del(m, "stiffness");
+    json_object_object_add(m, "model", json_object_new_string("compliant"));
+    return root;
+}
+
+/* A pair on bearings (k_b N/m) under load (ramp 20 N m, brake): the balance
+ * at round-off through the mesh law and the translations, and the bearings
+ * carry the mesh force: the wheel's mean centre displacement over the last
+ * 5000 of 20000 steps is the mean mesh force over k_b (quasi-static: the
+ * bearing modes, above 1 kHz, are far above the load's time scale) within
+ * 1%. */
+static void pair_on_bearings_carries(json_object *root, double kb, const char *what, const char *mesh_model)
+{
+    gs_system *s = vt_system(root);
+    assert_string_equal(s->meshes[0].ops->name, mesh_model);
     int w = gs_scene_find_body(s->scene, "wheel");
     int tc = s->bodies[w].tcoord;
     assert_true(tc >= 0);
@@ -455,13 +502,26 @@ static void calibrated_mesh_on_bearings(void **state)
     }
     fm /= n, xm[0] /= n, xm[1] /= n;
     double xmag = hypot(xm[0], xm[1]), xcf = fabs(fm) / kb;
-    print_message("calibrated mesh on bearings (k_b %.0e N/m), 20000 steps: worst |balance| %.3e J of %.3e J (%.2e); "
+    print_message("%s mesh on bearings (k_b %.0e N/m), 20000 steps: worst |balance| %.3e J of %.3e J (%.2e); "
                   "mean mesh force %.3f N; wheel centre displaced %.4e m, F / k_b %.4e m (rel %.2e)\n",
-                  kb, worst, scale, worst / scale, fm, xmag, xcf, fabs(xmag - xcf) / xcf);
+                  what, kb, worst, scale, worst / scale, fm, xmag, xcf, fabs(xmag - xcf) / xcf);
     assert_true(worst < 1e-9 * scale);
     assert_true(fabs(fm) > 100.0);
     assert_true(fabs(xmag - xcf) < 0.01 * xcf);
     gs_system_free(&s);
+}
+
+static void calibrated_mesh_on_bearings(void **state)
+{
+    (void)state;
+    json_object *root = calibrated_on_bearings(5e7);
+    pair_on_bearings_carries(root, 5e7, "calibrated", "lumped");
+}
+
+static void compliant_mesh_on_bearings(void **state)
+{
+    (void)state;
+    pair_on_bearings_carries(compliant_on_bearings(5e7), 5e7, "compliant", "compliant");
 }
 
 /* Closed forms: a spur pair on fixed axes with a constant lumped mesh,
@@ -535,6 +595,7 @@ int main(void)
         cmocka_unit_test(pin_bearings_rotational_mode),
         cmocka_unit_test(pin_bearings_translational_mode),
         cmocka_unit_test(calibrated_mesh_on_bearings),
+        cmocka_unit_test(compliant_mesh_on_bearings),
         cmocka_unit_test(floating_sun_shares_load),
         cmocka_unit_test(kinematic_pair_on_bearings),
         cmocka_unit_test(modal_closed_forms),
