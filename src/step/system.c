@@ -385,7 +385,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                       "modal analysis only)";
         for (int m = 0; !why && translates && m < scene->n_meshes; m++)
             if (scene->meshes[m].model == GS_MESH_CONTACT)
-                why = "a scene with a bearing joint cannot have contact meshes yet (the contact step has no "
+                why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes yet (the contact step has no "
                       "translations)";
         if (why) {
             gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);

@@ -301,6 +301,100 @@ static void pin_bearings_balance(void **state)
     pin_bearings_run(true);
 }
 
+/* The pin_bearing joint's force alone, on lin_parker_4's coordinates: for
+ * random states and increments (carrier turns up to 2 rad in one
+ * increment, planets and carrier translate) the energy identity
+ * V(q0 + dq) - V(q0) = g . dq holds to round-off, the damper's work
+ * g_d . dq equals its reported dissipation, and the Jacobian matches central
+ * differences of g. */
+static void pin_bearing_discrete_gradient(void **state)
+{
+    (void)state;
+    gs_system *s = vt_system(lin_parker(4, false, 300.0));
+    int n = s->n_coords, found = 0;
+    double *q0 = calloc((size_t)n, sizeof(double)), *dq = calloc((size_t)n, sizeof(double));
+    double *q1 = calloc((size_t)n, sizeof(double)), *g = calloc((size_t)n, sizeof(double));
+    double *gp = calloc((size_t)n, sizeof(double)), *gm = calloc((size_t)n, sizeof(double));
+    double *J = calloc((size_t)n * n, sizeof(double)), *Jd = calloc((size_t)n * n, sizeof(double));
+    unsigned rng = 12345u;
+    double worst_e = 0, worst_d = 0, worst_j = 0;
+    for (int trial = 0; trial < 200; trial++) {
+        for (int i = 0; i < n; i++) {
+            rng = rng * 1664525u + 1013904223u;
+            double u1 = (rng >> 8) / 16777216.0 - 0.5;
+            rng = rng * 1664525u + 1013904223u;
+            double u2 = (rng >> 8) / 16777216.0 - 0.5;
+            bool trans = false;
+            for (int b = 0; b < s->n_bodies; b++)
+                trans |= s->bodies[b].tcoord == i || s->bodies[b].tcoord + 1 == i;
+            q0[i] = trans ? 2e-5 * u1 : 6.0 * u1;
+            dq[i] = trans ? 1e-5 * u2 : (trial % 2 ? 4.0 : 1e-6) * u2;
+        }
+        for (int jn = 0; jn < s->n_joints; jn++) {
+            const gs_joint_rt *j = &s->joints[jn];
+            if (strcmp(j->ops->name, "pin_bearing") != 0)
+                continue;
+            found++;
+            memset(g, 0, (size_t)n * sizeof(double));
+            memset(J, 0, (size_t)n * n * sizeof(double));
+            double diss, h = 1e-5;
+            j->ops->force(s, j, q0, dq, h, g, J, &diss);
+            for (int i = 0; i < n; i++)
+                q1[i] = q0[i] + dq[i];
+            double dV = j->ops->energy(s, j, q1) - j->ops->energy(s, j, q0), gd = 0, V0 = j->ops->energy(s, j, q0);
+            for (int i = 0; i < n; i++)
+                gd += g[i] * dq[i];
+            /* g . dq = dV + dissipation */
+            double sc = fabs(V0) + fabs(dV) + diss + 1e-30;
+            worst_e = fmax(worst_e, fabs(gd - dV - diss) / sc);
+            /* the undamped part alone: a copy of the joint without its damper */
+            gs_joint_rt j0 = *j;
+            j0.c[0] = j0.c[1] = 0.0;
+            memset(g, 0, (size_t)n * sizeof(double));
+            memset(Jd, 0, (size_t)n * n * sizeof(double));
+            double d0;
+            j0.ops->force(s, &j0, q0, dq, h, g, Jd, &d0);
+            gd = 0;
+            for (int i = 0; i < n; i++)
+                gd += g[i] * dq[i];
+            worst_d = fmax(worst_d, fabs(d0));
+            worst_e = fmax(worst_e, fabs(gd - dV) / (fabs(V0) + fabs(dV) + 1e-30));
+            /* Jacobian against central differences in dq */
+            for (int c = 0; c < n; c++) {
+                bool trans = false;
+                for (int b = 0; b < s->n_bodies; b++)
+                    trans |= s->bodies[b].tcoord == c || s->bodies[b].tcoord + 1 == c;
+                /* g is linear in the translations (any step) and smooth in
+                 * the rotation (O(step^2) truncation) */
+                double step = trans ? 1e-9 : 1e-6, keep = dq[c];
+                memset(gp, 0, (size_t)n * sizeof(double));
+                memset(gm, 0, (size_t)n * sizeof(double));
+                double dd;
+                dq[c] = keep + step;
+                j->ops->force(s, j, q0, dq, h, gp, Jd, &dd);
+                dq[c] = keep - step;
+                j->ops->force(s, j, q0, dq, h, gm, Jd, &dd);
+                dq[c] = keep;
+                for (int r = 0; r < n; r++) {
+                    double fd = (gp[r] - gm[r]) / (2 * step), an = J[(size_t)r * n + c];
+                    double big = fmax(fabs(fd), fabs(an));
+                    if (big > 1e-3)
+                        worst_j = fmax(worst_j, fabs(fd - an) / big);
+                }
+            }
+        }
+    }
+    print_message("pin_bearing joint, %d random increments: energy identity worst %.2e (relative), undamped copy "
+                  "dissipates %.1e J, Jacobian vs central differences worst %.2e\n", found, worst_e, worst_d,
+                  worst_j);
+    assert_int_equal(found, 4 * 200);
+    assert_true(worst_e < 1e-12);
+    assert_true(worst_d == 0.0);
+    assert_true(worst_j < 1e-5);
+    free(q0), free(dq), free(q1), free(g), free(gp), free(gm), free(J), free(Jd);
+    gs_system_free(&s);
+}
+
 static void pin_bearings_planet_mode(void **state)
 {
     (void)state;
@@ -582,6 +676,31 @@ static void refusals(void **state)
     assert_int_equal(gs_system_new(sc, 0, 1, &s, &d), GS_ERANGE);
     assert_string_equal(d.field, "meshes[0].model"); /* kinematic with a planet on a turning carrier */
     json_object_put(root);
+    /* planets on pin bearings: an impact mesh of one names the mesh, a
+     * contact mesh in the scene names the joints, an elastic planet the joints */
+    const char *model[3] = {"impact", "contact", "lumped"}, *field[3] = {"meshes[0].model", "joints", "joints"};
+    for (int c = 0; c < 3; c++) {
+        root = lin_parker(4, false, 0.0);
+        m0 = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
+        json_object_object_del(m0, "stiffness");
+        json_object_object_del(m0, "damping");
+        json_object_object_add(m0, "model", json_object_new_string(model[c]));
+        if (c == 0)
+            json_object_object_add(m0, "backlash_mm", json_object_new_double(0.05));
+        if (c == 2) {
+            json_object *b = json_object_array_get_idx(json_object_object_get(root, "bodies"), 1);
+            assert_string_equal(json_object_get_string(json_object_object_get(b, "name")), "planet1");
+            json_object_object_add(b, "model", json_object_new_string("elastic"));
+        }
+        txt = json_object_to_json_string(root);
+        if (gs_scene_parse(txt, strlen(txt), &sc, &d) != GS_OK)
+            print_message("parse: %s: %s\n", d.field, d.message);
+        assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
+        assert_int_equal(gs_system_new(sc, 0, 1, &s, &d), GS_ERANGE);
+        print_message("refused (%s): %s: %s\n", model[c], d.field, d.message);
+        assert_string_equal(d.field, field[c]);
+        json_object_put(root);
+    }
 }
 
 int main(void)
@@ -591,6 +710,7 @@ int main(void)
         cmocka_unit_test(rotational_mode_stays),
         cmocka_unit_test(translational_mode_stays),
         cmocka_unit_test(pin_bearings_balance),
+        cmocka_unit_test(pin_bearing_discrete_gradient),
         cmocka_unit_test(pin_bearings_planet_mode),
         cmocka_unit_test(pin_bearings_rotational_mode),
         cmocka_unit_test(pin_bearings_translational_mode),
