@@ -682,15 +682,8 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
      * Newton needs when a floating member closes a flank inside a step. */
     bool touching = fabs(x0 + 0.5 * dx) > hb;
     double cd = touching ? m->damping : 0.0, dW = 0.0;
-    if (sys->smooth_contact) {
-        double W = 0.0;
-        for (int side = 0; side < 2; side++) {
-            double sg = side ? -1.0 : 1.0, dw1;
-            W += gsi_mesh_wet(sg * x0 - hb, sg * x1 - hb, &dw1);
-            dW += sg * dw1;
-        }
-        cd = m->damping * W;
-    }
+    if (sys->smooth_contact)
+        cd = m->damping * gsi_mesh_wet_share(x0, x1, hb, &dW);
     double fd = cd * dx / h;
     jxx += (cd + m->damping * dW * dx) / h;
     for (int i = 0; i < n; i++)

@@ -80,6 +80,18 @@ double gsi_mesh_wet(double x0, double x1, double *dw1)
     return x1 > 0.0 ? x1 / L : x0 / -L;
 }
 
+double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW)
+{
+    double W = 0.0, dw1;
+    *dW = 0.0;
+    for (int side = 0; side < 2; side++) {
+        double sg = side ? -1.0 : 1.0;
+        W += gsi_mesh_wet(sg * x0 - hb, sg * x1 - hb, &dw1);
+        *dW += sg * dw1;
+    }
+    return W;
+}
+
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
 {
     const double *a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */

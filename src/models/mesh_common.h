@@ -25,6 +25,9 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
  * a flank spends in contact, continuous in the step's end) and its
  * derivative in x1. */
 double gsi_mesh_wet(double x0, double x1, double *dw1);
+/* The share of the step [x0, x1] either flank of a dead zone |x| <= hb
+ * spends in contact (gsi_mesh_wet on both), and its derivative in x1. */
+double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW);
 
 /* Add to J (n x n, row-major) the Jacobian of a force law in the line-of-
  * action coordinate s = a.q and the phase p = c.q: the derivatives of the

@@ -424,7 +424,11 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     double k0 = stiffness_d(m, p0, &dk0), k1 = stiffness_d(m, p0 + dp, &dk1);
     double kbar = 0.5 * (k0 + k1);
     double dfs; /* (f1^2 - f0^2) / (2 ds), exact for the piecewise-linear f */
-    if (ds != 0.0)
+    bool same_flank = (s0 > hb && s1 > hb) || (s0 < -hb && s1 < -hb);
+    if (same_flank)
+        dfs = 0.5 * (f0 + f1); /* f1 - f0 = ds: the same quotient without the cancellation of
+                                * f1^2 - f0^2 when the step moves s by far less than f */
+    else if (ds != 0.0)
         dfs = (f1 * f1 - f0 * f0) / (2.0 * ds);
     else
         dfs = f0; /* limit f f'(s), f' = 1 outside the dead zone, f = 0 inside */
@@ -446,22 +450,16 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     bool touching = fabs(smid) > hb;
     double cd = touching ? m->damping : 0.0, dW = 0.0;
     bool floating = sys->smooth_contact;
-    if (floating) {
-        double W = 0.0;
-        for (int side = 0; side < 2; side++) {
-            double sg = side ? -1.0 : 1.0, dw1;
-            W += gsi_mesh_wet(sg * s0 - hb, sg * s1 - hb, &dw1);
-            dW += sg * dw1;
-        }
-        cd = m->damping * W;
-    }
+    if (floating)
+        cd = m->damping * gsi_mesh_wet_share(s0, s1, hb, &dW);
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
         g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
     double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + (cd + m->damping * dW * ds) / h;
-    if (floating && ds != 0.0) /* the exact slope of dfs across the dead zone's edges: a floating
-                               * member makes the step a coupled problem that needs it */
+    if (floating && ds != 0.0 && !same_flank) /* the exact slope of dfs across the dead zone's edges:
+                                               * a floating member makes the step a coupled problem
+                                               * that needs it (on one flank it is 1/2, above) */
         jss = kbar * ((f1 != 0.0 ? f1 : 0.0) - dfs) / ds + (cd + m->damping * dW * ds) / h;
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
