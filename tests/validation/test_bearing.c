@@ -460,9 +460,17 @@ static void pin_bearings_translational_mode(void **state)
  * (deploy/scenes/planetary_floating.json): the largest planet share over the
  * mean, averaged over the last 5000 of 25000 steps (0.25 s; steady carrier
  * speed), with the floating sun and with the sun on a fixed axis. */
-static double sharing(bool floating, bool compliant, double share_out[3], double *sun_offset)
+static double sharing_pins(bool floating, bool compliant, double pin_k, double share_out[3], double *sun_offset)
 {
     json_object *root = vt_scene("planetary_floating");
+    json_object *pj = json_object_object_get(root, "joints");
+    for (size_t i = 0; pin_k > 0 && i < json_object_array_length(pj); i++) {
+        json_object *j = json_object_array_get_idx(pj, i);
+        if (!strncmp(json_object_get_string(json_object_object_get(j, "body")), "planet", 6)) {
+            json_object_object_add(j, "bearing_stiffness", json_object_new_double(pin_k));
+            json_object_object_add(j, "bearing_damping", json_object_new_double(100.0));
+        }
+    }
     json_object *meshes = json_object_object_get(root, "meshes");
     for (size_t i = 0; compliant && i < json_object_array_length(meshes); i++) {
         json_object *m = json_object_array_get_idx(meshes, i);
@@ -511,6 +519,11 @@ static double sharing(bool floating, bool compliant, double share_out[3], double
     return mx; /* shares are normalised to mean 1 */
 }
 
+static double sharing(bool floating, bool compliant, double share_out[3], double *sun_offset)
+{
+    return sharing_pins(floating, compliant, 0.0, share_out, sun_offset);
+}
+
 static void floating_sun_shares_load(void **state)
 {
     (void)state;
@@ -524,6 +537,24 @@ static void floating_sun_shares_load(void **state)
         assert_true(lsf_float < 1.05);
         assert_true(lsf_fixed > 1.3);
     }
+}
+
+/* The same pin error with the sun on a fixed axis and the planets on pin
+ * bearings of decreasing stiffness: softer planet supports let the planets
+ * float and share the load more equally (printed; the LSF falls
+ * monotonically and the softest is far below the rigid pins' 1.49). */
+static void pin_bearings_share_load(void **state)
+{
+    (void)state;
+    const double kp[3] = {1e8, 2e7, 5e6};
+    double lsf[3], sh[3][3], off;
+    for (int i = 0; i < 3; i++) {
+        lsf[i] = sharing_pins(false, false, kp[i], sh[i], &off);
+        print_message("fixed sun, planets on pin bearings %.0e N/m, pin error 10 um on planet1: LSF %.4f (shares %.4f "
+                      "%.4f %.4f)\n", kp[i], lsf[i], sh[i][0], sh[i][1], sh[i][2]);
+    }
+    assert_true(lsf[0] > lsf[1] && lsf[1] > lsf[2]);
+    assert_true(lsf[2] < 1.3);
 }
 
 /* The spur pair with both gears on bearings (1e8 N/m) and a kinematic
@@ -762,6 +793,7 @@ int main(void)
         cmocka_unit_test(calibrated_mesh_on_bearings),
         cmocka_unit_test(compliant_mesh_on_bearings),
         cmocka_unit_test(floating_sun_shares_load),
+        cmocka_unit_test(pin_bearings_share_load),
         cmocka_unit_test(kinematic_pair_on_bearings),
         cmocka_unit_test(modal_closed_forms),
         cmocka_unit_test(refusals),
