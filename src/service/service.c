@@ -154,6 +154,13 @@ json_object *gsi_state_json(gs_service *s)
         json_object_object_add(b, "angle", json_object_new_double(gs_system_angle(sys, i)));
         json_object_object_add(b, "omega", json_object_new_double(gs_system_omega(sys, i)));
         json_object_object_add(b, "rpm", json_object_new_double(gs_system_rpm(sys, i)));
+        int tc = sys->bodies[i].tcoord;
+        if (tc >= 0) { /* on a bearing or a pin bearing: the centre's displacement (m) */
+            json_object *x = json_object_new_array();
+            json_object_array_add(x, json_object_new_double(sys->q[tc]));
+            json_object_array_add(x, json_object_new_double(sys->q[tc + 1]));
+            json_object_object_add(b, "offset", x);
+        }
         json_object_array_add(bodies, b);
     }
     json_object_object_add(o, "bodies", bodies);

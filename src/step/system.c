@@ -229,8 +229,8 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         bool translates = false;
         for (int k = 0; k < 2; k++)
             translates |= s->bodies[body[k]].tcoord >= 0;
-        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0
-                                                          : sm->model != GS_MESH_LUMPED && sm->model != GS_MESH_COMPLIANT)) {
+        bool has_tr = sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT; /* s with translations */
+        if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : !has_tr)) {
             char f[64];
             snprintf(f, sizeof f, "meshes[%d].model", m->index);
             return gs_diag_set(d, GS_ERANGE, f,
@@ -385,8 +385,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                       "modal analysis only)";
         for (int m = 0; !why && translates && m < scene->n_meshes; m++)
             if (scene->meshes[m].model == GS_MESH_CONTACT)
-                why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes yet (the contact step has no "
-                      "translations)";
+                why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes "
+                      "yet (the contact step has no translations)";
         if (why) {
             gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
             gs_scene_free(&scene);

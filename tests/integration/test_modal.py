@@ -264,6 +264,8 @@ for label, scene in (("floating sun", None), ("planets on pin bearings (lin_park
            f"planets {last.get('planets')}")
     R.check(f"{label}: balance at round-off (1e-9 of the input work)",
             abs(bal) < 1e-9 * max(last["energy"]["work_in"], 1e-30), last["energy"])
+    moved = [b["name"] for b in last["bodies"] if "offset" in b and math.hypot(*b["offset"]) > 1e-8]
+    R.check(f"{label}: telemetry carries the centres' offsets, and they move", bool(moved), last["bodies"])
     for n in (2, 3):
         if runs.get(n):
             tn, fn = runs[n]
