@@ -613,7 +613,7 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
     w->ftot = fabs(T) / w->rb;
     int phase = w->nf ? 0 : 1; /* 0: plain FE; 1: with the near-field correction */
     if (w->nf)
-        max_iter *= 2;
+        max_iter *= 4; /* the fixed point on the pair loads converges linearly */
     for (int it = 0; it < max_iter; it++) {
         double gmin;
         GS_TRY(collect(w, *delta, &nr, &gmin));
