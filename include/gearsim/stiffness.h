@@ -61,6 +61,11 @@ typedef struct gs_stiffness_opts {
                         * see tooth errors and run-out, which are not periodic in one pitch) */
     int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
                         * for both gears */
+    int nearfield;     /* 0 (default): the plain FE contact; 1: near-field (Hertz)
+                        * correction of the contact compliance (docs/STIFFNESS.md
+                        * "Near-field correction") */
+    double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,
+                        * mm (at most one module); 0 (default): 0.8 module */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
@@ -170,5 +175,25 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
  * command returns (docs/STIFFNESS.md). s is the analysed scene. */
 struct json_object;
 struct json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s);
+
+/* Near-field correction (docs/STIFFNESS.md "Near-field correction"): the
+ * Hertzian line contact of two cylinders, per unit length.
+ *
+ * gs_hertz_line_modulus: the contact modulus E* of two bodies, 1/E* =
+ * 1/E'_1 + 1/E'_2 with E' = E (plane stress) or E / (1 - nu^2) (plane strain).
+ * gs_hertz_line_half_width: a = sqrt(4 P R / (pi E*)) for the line load P
+ * (N/m), the effective radius R (1/R = 1/R_1 + 1/R_2, m). NaN for
+ * non-positive arguments.
+ * gs_hertz_line_approach: the approach of the surface point on the load's
+ * axis towards the point at depth d of one half-plane (E, nu, plane) under
+ * the Hertzian pressure of half-width a and resultant P per unit length:
+ *     2 P / (pi E') [asinh(d/a) - nu' (d/a) (sqrt(1 + (d/a)^2) - d/a)],
+ * nu' = nu (plane stress) or nu / (1 - nu) (plane strain); for d >> a
+ * Johnson's (Contact Mechanics, eq. 5.39) 2 P / (pi E') (ln(2 d / a) - nu'/2).
+ * Metres and pascals; NaN for invalid arguments. */
+double gs_hertz_line_modulus(double E1, double nu1, double E2, double nu2, gs_plane plane);
+double gs_hertz_line_half_width(double load_per_m, double r_eff_m, double e_star_pa);
+double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, double E, double nu,
+                              gs_plane plane);
 
 #endif

@@ -33,6 +33,11 @@
 #include "io/h5attr.h"
 #include "gearsim/util.h"
 
+/* Automatic near-field depth, in modules. */
+#define GS_NF_DEPTH 0.8
+/* A contact point within this many modules of a tip circle is a corner contact. */
+#define GS_NF_CORNER 0.02
+
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
 {
     o->positions = 24;
@@ -45,6 +50,8 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->max_iter = 12;
     o->cycles = 1;
     o->order = 0;
+    o->nearfield = 0;
+    o->nearfield_depth_mm = 0.0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -217,6 +224,21 @@ typedef struct work {
     int n_prev;            /* 1 when the last linearisation changed delta by little */
     gs_qp *qp;
     int qp_n;
+    /* Near-field correction: the extra compliance c (m/N) of each loaded tooth
+     * pair from the previous linearisation, added to its rows' block of W. */
+    int nf;                /* on */
+    double nf_depth;       /* depth d, m */
+    double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
+    int n_pc;
+    struct {
+        int tooth[2];
+        double c;          /* m/N */
+        double L;          /* FE near-field compliance (surface to Q, both bodies), m/N */
+        double depth[2];   /* depth of Q in each body, m */
+        double reff;       /* effective radius of curvature, m */
+        int skip;          /* corner contact, or Q not found: no correction */
+    } pc[GS_STIFF_MAX_PAIRS];
+    double *fq, *uq;       /* scratch 2 n_nodes of the larger body */
 } work;
 
 static void work_free(work *w)
@@ -236,6 +258,8 @@ static void work_free(work *w)
     free(w->gz);
     free(w->gbar);
     free(w->a);
+    free(w->fq);
+    free(w->uq);
     gs_qp_free(&w->qp);
 }
 
@@ -325,6 +349,257 @@ static int row_nodes(const work *w, const gs_contact_row *r, int k, gs_index *no
     return n;
 }
 
+/* Tooth pair (driver tooth, driven tooth) of a candidate. */
+static void cand_teeth(const work *w, const gs_contact_candidate *c, int tooth[2])
+{
+    gs_index mnode = c->window[c->n_window / 2];
+    for (int k = 0; k < 2; k++) {
+        const sbody *b = &w->b[k];
+        tooth[k] = c->slave == w->si[k] ? c->slave_tooth
+                                        : node_tooth(b->mesh, b->sb->gear.teeth, mnode);
+    }
+}
+
+/* Near-field correction of the compliance of row i: c of its tooth pair
+ * from the previous linearisation (0 when none). */
+static double nf_compliance(const work *w, int i)
+{
+    int t[2];
+    cand_teeth(w, w->cand[i], t);
+    for (int p = 0; p < w->n_pc; p++)
+        if (w->pc[p].tooth[0] == t[0] && w->pc[p].tooth[1] == t[1])
+            return w->pc[p].c;
+    return 0.0;
+}
+
+/* Shape functions of the element of body b containing the reference point
+ * q (corner barycentrics; 6-node elements with their mid-side nodes taken
+ * at the edge midpoints, true away from curved boundary edges). Returns the
+ * number of nodes (3 or 6) in node/N, 0 when q is in no element. */
+static int locate(const gs_mesh *m, const double q[2], gs_index node[6], double N[6])
+{
+    for (gs_index e = 0; e < m->n_tris; e++) {
+        const gs_index *t = m->tri + 3 * e;
+        const double *p0 = m->xy + 2 * t[0], *p1 = m->xy + 2 * t[1], *p2 = m->xy + 2 * t[2];
+        double det = (p1[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (p1[1] - p0[1]);
+        double l1 = ((q[0] - p0[0]) * (p2[1] - p0[1]) - (p2[0] - p0[0]) * (q[1] - p0[1])) / det;
+        double l2 = ((p1[0] - p0[0]) * (q[1] - p0[1]) - (q[0] - p0[0]) * (p1[1] - p0[1])) / det;
+        double l0 = 1.0 - l1 - l2, tol = -1e-10;
+        if (l0 < tol || l1 < tol || l2 < tol)
+            continue;
+        double L[3] = {l0, l1, l2};
+        for (int i = 0; i < 3; i++)
+            node[i] = t[i];
+        if (!m->mid) {
+            for (int i = 0; i < 3; i++)
+                N[i] = L[i];
+            return 3;
+        }
+        for (int i = 0; i < 3; i++) {
+            N[i] = L[i] * (2.0 * L[i] - 1.0);
+            node[3 + i] = m->mid[3 * e + i];
+            N[3 + i] = 4.0 * L[i] * L[(i + 1) % 3];
+        }
+        return 6;
+    }
+    return 0;
+}
+
+/* Hertzian approach (both bodies, surface to their depths) of pair p under
+ * the normal load lam (N), divided by lam. */
+static double nf_hertz(const work *w, int p, double lam)
+{
+    const gs_material *m0 = &w->b[0].sb->material, *m1 = &w->b[1].sb->material;
+    double estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa, m1->poisson,
+                                         m0->plane);
+    double bw = fmin(w->b[0].sb->gear.face_width_m, w->b[1].sb->gear.face_width_m);
+    double Pm = lam / bw, a = gs_hertz_line_half_width(Pm, w->pc[p].reff, estar), s = 0.0;
+    for (int k = 0; k < 2; k++) {
+        const gs_material *mk = &w->b[k].sb->material;
+        s += gs_hertz_line_approach(Pm, a, w->pc[p].depth[k], mk->youngs_pa, mk->poisson, mk->plane);
+    }
+    return s / lam;
+}
+
+/* Normal load of every stored pair in the current solution; c from it. */
+static void nearfield_refresh(work *w, int nr)
+{
+    for (int p = 0; p < w->n_pc; p++) {
+        double lam = 0.0;
+        for (int i = 0; i < nr; i++) {
+            int t[2];
+            if (w->x[i] <= 0.0)
+                continue;
+            cand_teeth(w, w->cand[i], t);
+            if (t[0] == w->pc[p].tooth[0] && t[1] == w->pc[p].tooth[1])
+                lam += w->x[i];
+        }
+        if (w->pc[p].skip || !(lam > 1e-6 * w->ftot))
+            w->pc[p].c = 0.0;
+        else
+            w->pc[p].c = fmax(nf_hertz(w, p, lam) - w->pc[p].L, 0.0);
+    }
+}
+
+/* At the converged plain FE solution (rows w->row, forces w->x,
+ * displacements in the bodies): the near-field data of every loaded tooth
+ * pair. Per pair and body k the FE approach of the contact point
+ * (load-weighted over the pair's rows) is to be replaced by the approach of
+ * the point Q_k at depth d below it (FE, by reciprocity: one static solve
+ * with a unit load at Q_k) plus the Hertzian approach between the surface
+ * and depth d (gs_hertz_line_approach, with the half-width of the pair's
+ * load and the involute curvature radii at the contact point). Stored: the
+ * FE's surface-to-Q approach per unit load L (frozen: it is a property of
+ * the mesh under the FE's own load distribution), the depths and the
+ * effective radius; nearfield_refresh then sets c = Hertz(lam)/lam - L. */
+static gs_err nearfield_measure(work *w, int nr, double delta)
+{
+    struct {
+        int tooth[2];
+        double lam, x[2], n[2];
+    } g[GS_STIFF_MAX_PAIRS];
+    int ng = 0;
+    for (int i = 0; i < nr; i++) {
+        double l = w->x[i];
+        if (l <= 0.0)
+            continue;
+        int t[2];
+        cand_teeth(w, w->cand[i], t);
+        int p = 0;
+        while (p < ng && (g[p].tooth[0] != t[0] || g[p].tooth[1] != t[1]))
+            p++;
+        if (p == ng) {
+            if (ng == GS_STIFF_MAX_PAIRS)
+                continue;
+            memset(&g[p], 0, sizeof g[p]);
+            g[p].tooth[0] = t[0];
+            g[p].tooth[1] = t[1];
+            ng++;
+        }
+        const gs_contact_row *r = &w->row[i];
+        /* dg/dx_slave is the master's outward normal: the driver's outward
+         * normal is +that when the driven gear is the master. */
+        double sd = w->cand[i]->slave == w->si[0] ? -1.0 : 1.0;
+        g[p].lam += l;
+        g[p].x[0] += l * r->x[0][0];
+        g[p].x[1] += l * r->x[0][1];
+        g[p].n[0] += l * sd * r->gap.grad[0];
+        g[p].n[1] += l * sd * r->gap.grad[1];
+    }
+    const gs_material *mat[2] = {&w->b[0].sb->material, &w->b[1].sb->material};
+    double estar = gs_hertz_line_modulus(mat[0]->youngs_pa, mat[0]->poisson, mat[1]->youngs_pa,
+                                         mat[1]->poisson, mat[0]->plane);
+    double bw = fmin(w->b[0].sb->gear.face_width_m, w->b[1].sb->gear.face_width_m);
+    int np = 0;
+    for (int p = 0; p < ng; p++) {
+        double lam = g[p].lam, X[2] = {g[p].x[0] / lam, g[p].x[1] / lam};
+        double nn = hypot(g[p].n[0], g[p].n[1]);
+        if (!(lam > 1e-6 * w->ftot) || !(nn > 0.0))
+            continue;
+        double nD[2] = {g[p].n[0] / nn, g[p].n[1] / nn};
+        /* Involute curvature radii at the contact point; concave for an
+         * internal gear. */
+        double curv = 0.0, R[2];
+        bool corner = false;
+        for (int k = 0; k < 2; k++) {
+            const gs_gear_params *gp = &w->b[k].sb->gear;
+            double rr = hypot(X[0] - w->b[k].c[0], X[1] - w->b[k].c[1]);
+            /* A contact at a tip corner is not a Hertzian line contact:
+             * left to the FE. */
+            double rt = gs_gear_tip_radius(gp), eps = GS_NF_CORNER * gp->module_m;
+            if (gp->kind == GS_GEAR_INTERNAL ? rr < rt + eps : rr > rt - eps)
+                corner = true;
+            double rb = gs_gear_base_radius(gp);
+            R[k] = sqrt(fmax(rr * rr - rb * rb, 0.0));
+            R[k] = fmax(R[k], 0.05 * gp->module_m);
+            curv += (gp->kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) / R[k];
+        }
+        if (corner) {
+            memset(&w->pc[np], 0, sizeof w->pc[np]);
+            w->pc[np].tooth[0] = g[p].tooth[0];
+            w->pc[np].tooth[1] = g[p].tooth[1];
+            w->pc[np].skip = 1;
+            np++;
+            continue;
+        }
+        double Pm = lam / bw;
+        double a = gs_hertz_line_half_width(Pm, 1.0 / fmax(curv, 1e-9), estar);
+        double c = 0.0, L = 0.0, dep[2] = {0.0, 0.0};
+        bool skip = false;
+        for (int k = 0; k < 2 && !skip; k++) {
+            sbody *b = &w->b[k];
+            const gs_mesh *m = b->mesh;
+            double nk[2] = {k == 0 ? nD[0] : -nD[0], k == 0 ? nD[1] : -nD[1]};
+            double th = w->theta0[k] + (k == 0 ? delta : 0.0), cs = cos(th), sn = sin(th);
+            double eb[2] = {-(cs * nk[0] + sn * nk[1]), -(-sn * nk[0] + cs * nk[1])};
+            gs_index node[6];
+            double N[6];
+            int nq = 0;
+            double depth = w->nf_depth;
+            /* Q in the body; near a tip the normal may leave the tooth
+             * before depth d: a smaller depth then, else no correction. */
+            for (int tries = 0; tries < 4 && nq == 0; tries++, depth *= 0.75) {
+                double Q[2] = {X[0] - depth * nk[0] - b->c[0], X[1] - depth * nk[1] - b->c[1]};
+                double qb[2] = {cs * Q[0] + sn * Q[1], -sn * Q[0] + cs * Q[1]};
+                nq = locate(m, qb, node, N);
+            }
+            depth /= 0.75;
+            if (nq == 0) {
+                skip = true;
+                break;
+            }
+            size_t len = (size_t)(2 * m->n_nodes);
+            memset(w->fq, 0, len * sizeof *w->fq);
+            for (int t = 0; t < nq; t++) {
+                w->fq[2 * node[t]] += N[t] * eb[0];
+                w->fq[2 * node[t] + 1] += N[t] * eb[1];
+            }
+            GS_TRY(gs_fe_static_solve(b->fs, 1, w->fq, w->uq));
+            /* FE approach at Q (reciprocity) and at the surface, all rows' loads. */
+            double aq = 0.0, as = 0.0;
+            for (int i = 0; i < nr; i++) {
+                double l = w->x[i];
+                if (l <= 0.0)
+                    continue;
+                gs_index nd[4];
+                double gg[4][2];
+                int mm = row_nodes(w, &w->row[i], k, nd, gg);
+                double bq = 0.0, bs = 0.0;
+                for (int t = 0; t < mm; t++) {
+                    bq += gg[t][0] * w->uq[2 * nd[t]] + gg[t][1] * w->uq[2 * nd[t] + 1];
+                    bs += gg[t][0] * b->u[2 * nd[t]] + gg[t][1] * b->u[2 * nd[t] + 1];
+                }
+                aq += l * bq;
+                int t[2];
+                cand_teeth(w, w->cand[i], t);
+                if (t[0] == g[p].tooth[0] && t[1] == g[p].tooth[1])
+                    as += l * bs;
+            }
+            as /= lam;
+            double dh = gs_hertz_line_approach(Pm, a, depth, b->sb->material.youngs_pa,
+                                               b->sb->material.poisson, b->sb->material.plane);
+            c += (dh - (as - aq)) / lam;
+            L += (as - aq) / lam;
+            dep[k] = depth;
+        }
+        /* The FE's point load is stiffer than the Hertzian one while the
+         * mesh does not resolve a; never add a negative compliance (W must
+         * stay positive definite). */
+        c = skip ? 0.0 : fmax(c, 0.0);
+        w->pc[np].tooth[0] = g[p].tooth[0];
+        w->pc[np].tooth[1] = g[p].tooth[1];
+        w->pc[np].c = c;
+        w->pc[np].L = L;
+        w->pc[np].depth[0] = dep[0];
+        w->pc[np].depth[1] = dep[1];
+        w->pc[np].reff = 1.0 / fmax(curv, 1e-9);
+        w->pc[np].skip = skip;
+        np++;
+    }
+    w->n_pc = np;
+    return GS_OK;
+}
+
 /* One load case from the current state (delta in *delta, displacements in
  * the bodies): iterate linearisations. Fills lambda in w->x, the rows in
  * w->row (nr), and the outcome. */
@@ -334,6 +609,11 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
     int nr = 0;
     *converged = 0;
     w->n_prev = 0;
+    w->n_pc = 0;
+    w->ftot = fabs(T) / w->rb;
+    int phase = w->nf ? 0 : 1; /* 0: plain FE; 1: with the near-field correction */
+    if (w->nf)
+        max_iter *= 4; /* the fixed point on the pair loads converges linearly */
     for (int it = 0; it < max_iter; it++) {
         double gmin;
         GS_TRY(collect(w, *delta, &nr, &gmin));
@@ -389,6 +669,22 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
                         s += gg[t][0] * vj[2 * p] + gg[t][1] * vj[2 * p + 1];
                     }
                     w->H[(size_t)i * n + (size_t)j] += s;
+                }
+            }
+        }
+        if (w->nf && w->n_pc > 0) {
+            /* The pair's extra compliance on its rows' block (rank one). */
+            for (int i = 0; i < nr; i++) {
+                double ci = nf_compliance(w, i);
+                if (ci == 0.0)
+                    continue;
+                int ti[2];
+                cand_teeth(w, w->cand[i], ti);
+                for (int j = 0; j <= i; j++) {
+                    int tj[2];
+                    cand_teeth(w, w->cand[j], tj);
+                    if (ti[0] == tj[0] && ti[1] == tj[1])
+                        w->H[(size_t)i * n + (size_t)j] += ci;
                 }
             }
         }
@@ -459,12 +755,22 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
          * two passes give two nearly parallel rows per flank contact, whose
          * split of the load is degenerate (the QP may flip between them)
          * while delta, the gaps and the force per tooth pair do not move. */
+        if (phase == 1 && w->n_pc > 0)
+            nearfield_refresh(w, nr);
         double scale = fabs(dnew - delta0) + 1e-9 / w->rb;
         bool small = fabs(dnew - *delta) <= 1e-7 * scale;
         *delta = dnew;
         *iters = it + 1;
         *nr_out = nr;
         if (small && it > 0 && w->n_prev == 1) {
+            if (phase == 0) {
+                /* Plain FE settled: measure the near field, then iterate
+                 * with the correction. */
+                GS_TRY(nearfield_measure(w, nr, dnew));
+                phase = 1;
+                w->n_prev = 0;
+                continue;
+            }
             *converged = 1;
             break;
         }
@@ -500,14 +806,8 @@ static void pairs_of(const work *w, int nr, double F, gs_stiffness_point *pt)
         double l = w->x[i];
         if (l <= 0.0)
             continue;
-        const gs_contact_candidate *c = w->cand[i];
-        gs_index mnode = c->window[c->n_window / 2];
         int tooth[2];
-        for (int k = 0; k < 2; k++) {
-            const sbody *b = &w->b[k];
-            tooth[k] = c->slave == w->si[k] ? c->slave_tooth
-                                            : node_tooth(b->mesh, b->sb->gear.teeth, mnode);
-        }
+        cand_teeth(w, w->cand[i], tooth);
         double f = -l * w->a[i] * w->sgn / w->rb;
         int j = 0;
         while (j < na && (acc[j].tooth[0] != tooth[0] || acc[j].tooth[1] != tooth[1]))
@@ -619,6 +919,11 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         o.max_iter = 12;
     if (o.cycles < 1 || o.cycles > 10000)
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
+    if (o.nearfield != 0 && o.nearfield != 1)
+        return gs_diag_set(d, GS_ERANGE, "nearfield", "nearfield must be 0 or 1");
+    if (!(o.nearfield_depth_mm >= 0.0 && o.nearfield_depth_mm <= 100.0))
+        return gs_diag_set(d, GS_ERANGE, "nearfield_depth_mm",
+                           "the near-field depth must be in [0, 100] mm (0: automatic)");
     gs_stiffness_run *r = gs_calloc(1, sizeof *r);
     if (!r)
         return GS_ENOMEM;
@@ -656,6 +961,27 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         }
     }
     w.rb = gs_gear_base_radius(gA);
+    w.nf = o.nearfield;
+    if (w.nf) {
+        /* Depth of the FE field point below the contact: given, or a fixed
+         * fraction of the smaller module (docs/STIFFNESS.md). */
+        double mmin = fmin(gA->module_m, gB->module_m);
+        w.nf_depth = o.nearfield_depth_mm > 0.0 ? o.nearfield_depth_mm * 1e-3 : GS_NF_DEPTH * mmin;
+        if (w.nf_depth > mmin) {
+            e = gs_diag_set(d, GS_ERANGE, "nearfield_depth_mm",
+                            "the near-field depth %.3g mm is beyond one module (%.3g mm)",
+                            w.nf_depth * 1e3, mmin * 1e3);
+            goto done;
+        }
+        gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
+                                                                   : w.b[1].mesh->n_nodes;
+        w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
+        w.uq = malloc((size_t)(2 * nmax) * sizeof *w.uq);
+        if (!w.fq || !w.uq) {
+            e = GS_ENOMEM;
+            goto done;
+        }
+    }
     double bw = fmin(gA->face_width_m, gB->face_width_m);
     double T = r->T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
     w.sgn = T > 0 ? 1.0 : -1.0;

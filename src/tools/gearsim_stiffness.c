@@ -5,6 +5,7 @@
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
+ *                     [--nearfield] [--nearfield-depth MM]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -13,7 +14,9 @@
  * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
- * over T (1 -+ H) instead of the chord from T/2. Exit status 0 on success, 1 on bad usage, 2 on an
+ * over T (1 -+ H) instead of the chord from T/2. --nearfield adds the
+ * near-field (Hertz) correction of the contact compliance, --nearfield-depth
+ * sets its depth (mm; default 0.8 module; implies --nearfield). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
@@ -30,6 +33,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
                "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
+               "                         [--nearfield] [--nearfield-depth MM]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -152,7 +156,15 @@ int main(int argc, char **argv)
                 fprintf(stderr, "gearsim-stiffness: --tangent-step must be in [0, 0.5]\n");
                 return 1;
             }
-        } else if (!strcmp(a, "--no-tangent"))
+        } else if (!strcmp(a, "--nearfield-depth") && has) {
+            if (!parse_double(argv[++i], &o.nearfield_depth_mm) || !(o.nearfield_depth_mm > 0.0)) {
+                fprintf(stderr, "gearsim-stiffness: --nearfield-depth must be a positive number (mm)\n");
+                return 1;
+            }
+            o.nearfield = 1;
+        } else if (!strcmp(a, "--nearfield"))
+            o.nearfield = 1;
+        else if (!strcmp(a, "--no-tangent"))
             o.tangent = 0;
         else if (!strcmp(a, "--json"))
             json = 1;

@@ -22,7 +22,14 @@ Asserted (bars are named constants; each can fail):
   the linear triangles are stiff) and within BAR_SINGLE_DEFAULT;
 * refine 1: the single-contact mean error smaller than on the default mesh
   (gearsim converges towards the reference), |k error| below BAR_K_REFINE1.
-The quadratic-element work (issue 14) is to tighten these to 2% / 1%.
+* quadratic elements (--order 2), refine 0: per position within BAR_K_O2,
+  the cycle mean too stiff by less than BAR_CYCLE_O2; with the near-field
+  correction (--nearfield) within BAR_K_O2_NF and the cycle mean within
+  BAR_CYCLE_O2_NF and closer than without it; order 2 refine 1 with the
+  correction: k and TE within BAR_K_O2R1_NF per position, cycle and
+  single-contact means within BAR_MEAN_O2R1_NF.
+Issue 14's targets (2 % per position on the default mesh, 1 % fine) are not
+met yet: docs/CONVERGENCE.md "Against the independent reference".
 """
 import os
 import sys
@@ -43,6 +50,14 @@ BAR_K_DEFAULT = 0.25       # |k / k_ref - 1| per position, default mesh (20.7%)
 BAR_TE_DEFAULT = 0.25      # |TE / TE_ref - 1| per position, default mesh (17.2%)
 BAR_SINGLE_DEFAULT = 0.25  # single-contact mean k error, default mesh (> 0 asserted; +14.7%)
 BAR_K_REFINE1 = 0.15       # |k error| per position at refine 1 (10.7%)
+# Quadratic elements (--order 2) and the near-field correction (--nearfield,
+# docs/STIFFNESS.md "Near-field correction"); measured when written:
+BAR_K_O2 = 0.13            # |k error| per position, order 2 refine 0, plain FE (11.4%)
+BAR_CYCLE_O2 = 0.08        # cycle-mean k error in (0, bar): too stiff (+5.5%)
+BAR_K_O2_NF = 0.06         # |k error| per position, order 2 refine 0, near-field (5.2%)
+BAR_CYCLE_O2_NF = 0.04     # |cycle-mean k error|, order 2 refine 0, near-field (2.9%)
+BAR_K_O2R1_NF = 0.045      # |k error| and |TE error| per position, order 2 refine 1, near-field (3.9%, 4.0%)
+BAR_MEAN_O2R1_NF = 0.01    # |cycle-mean| and |single-contact-mean| k error, same (0.22%, 0.24%)
 
 failures = []
 
@@ -90,6 +105,38 @@ def main():
           "refine 1: single-contact mean error smaller than on the default mesh (%s vs %s)"
           % ("n/a" if sm1 is None else "%+.2f%%" % (100 * sm1),
              "n/a" if sm0 is None else "%+.2f%%" % (100 * sm0)))
+
+    # Quadratic elements, plain and with the near-field (Hertz) correction.
+    q0 = compare.compare(PAIR, tool, refine=0, extra=["--order", "2"])
+    compare.print_result(q0)
+    sq0 = q0["summary"]
+    check(sq0["max_abs_err_k"] < BAR_K_O2, "order 2: max |k error| %.2f%% < %.0f%%"
+          % (100 * sq0["max_abs_err_k"], 100 * BAR_K_O2))
+    check(0 < sq0["cycle_mean_err_k"] < BAR_CYCLE_O2,
+          "order 2: cycle-mean k too stiff, by less than %.0f%% (%+.2f%%)"
+          % (100 * BAR_CYCLE_O2, 100 * sq0["cycle_mean_err_k"]))
+    n0 = compare.compare(PAIR, tool, refine=0, extra=["--order", "2", "--nearfield"])
+    compare.print_result(n0)
+    sn0 = n0["summary"]
+    check(sn0["max_abs_err_k"] < BAR_K_O2_NF, "order 2 near-field: max |k error| %.2f%% < %.0f%%"
+          % (100 * sn0["max_abs_err_k"], 100 * BAR_K_O2_NF))
+    check(abs(sn0["cycle_mean_err_k"]) < min(BAR_CYCLE_O2_NF, abs(sq0["cycle_mean_err_k"])),
+          "order 2 near-field: |cycle-mean k error| %.2f%% < %.0f%% and below the plain FE's %.2f%%"
+          % (100 * abs(sn0["cycle_mean_err_k"]), 100 * BAR_CYCLE_O2_NF,
+             100 * abs(sq0["cycle_mean_err_k"])))
+    n1 = compare.compare(PAIR, tool, refine=1, extra=["--order", "2", "--nearfield"])
+    compare.print_result(n1)
+    sn1 = n1["summary"]
+    check(sn1["max_abs_err_k"] < BAR_K_O2R1_NF and sn1["max_abs_err_te"] < BAR_K_O2R1_NF,
+          "order 2 refine 1 near-field: max |k error| %.2f%%, max |TE error| %.2f%% < %.1f%%"
+          % (100 * sn1["max_abs_err_k"], 100 * sn1["max_abs_err_te"], 100 * BAR_K_O2R1_NF))
+    sm = sn1["single_mean_err_k"]
+    check(abs(sn1["cycle_mean_err_k"]) < BAR_MEAN_O2R1_NF and sm is not None
+          and abs(sm) < BAR_MEAN_O2R1_NF,
+          "order 2 refine 1 near-field: cycle-mean %+.2f%% and single-contact-mean %s k error "
+          "within %.0f%%" % (100 * sn1["cycle_mean_err_k"],
+                             "n/a" if sm is None else "%+.2f%%" % (100 * sm),
+                             100 * BAR_MEAN_O2R1_NF))
 
     print("%d failed" % len(failures))
     return 1 if failures else 0
