@@ -29,7 +29,7 @@
 int main(int argc, char **argv)
 {
     const char *models = "contact,lumped,calibrated", *teeth = "0,4,8,12,16";
-    te_study_opts o = {TE_CONTACT, 150, 40, 1e-5, 0.01, 0.01, 1.0, 0, 10, 20, 30, {0}, 0, NULL};
+    te_study_opts o = {TE_CONTACT, 150, 40, 1e-5, 0.01, 0.01, 1.0, 0, 10, 20, 30, {0}, 0, NULL, 0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!v) {

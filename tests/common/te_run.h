@@ -230,6 +230,7 @@ typedef struct {
     double pitch_um, runout_um, phase_deg;
     int faulty[32], nf;
     const char *csv; /* write PREFIX_<model>_<case>.csv when set */
+    int no_pitch;    /* leave out the pitch-error case */
 } te_study_opts;
 
 #define TE_Z 20
@@ -269,7 +270,10 @@ static inline int te_study(const te_study_opts *o, te_study_result *res)
     double th_rec = 0.5 * o->omega * o->ramp + o->omega * o->settle, span = 2 * GS_PI * o->revs;
     te_record r[3];
     double re1[3], im1[3];
+    memset(r, 0, sizeof r);
     for (int q = 0; q < 3; q++) {
+        if (q == 1 && o->no_pitch)
+            continue;
         te_setup su = {o->model, o->torque, o->omega, o->h, o->ramp, o->damping_s, cases[q], 0.0};
         long max_steps = (long)(2.0 * (o->ramp + o->settle + span / o->omega) / o->h) + 1000;
         if (te_run(&su, th_rec, span, max_steps, &r[q]) != 0) {
@@ -304,10 +308,12 @@ static inline int te_study(const te_study_opts *o, te_study_result *res)
             }
         }
     }
-    res->n_windows = te_window_shifts(&r[1], &r[0], o->faulty, o->nf, TE_Z, res->shift, 256, &res->shift_mean,
-                                      &res->shift_sem, &res->shift_median);
     double th0 = r[0].th[0];
-    res->record_shift = te_mean(&r[1], th0, th0 + span) - te_mean(&r[0], th0, th0 + span);
+    if (!o->no_pitch) {
+        res->n_windows = te_window_shifts(&r[1], &r[0], o->faulty, o->nf, TE_Z, res->shift, 256,
+                                          &res->shift_mean, &res->shift_sem, &res->shift_median);
+        res->record_shift = te_mean(&r[1], th0, th0 + span) - te_mean(&r[0], th0, th0 + span);
+    }
     res->runout_1x = hypot(re1[2] - re1[0], im1[2] - im1[0]);
     for (int q = 0; q < 3; q++)
         te_record_free(&r[q]);
