@@ -166,7 +166,8 @@ static double kin_energy(const gs_system *sys, const gs_gmesh_rt *m, const doubl
  * the contact point on the path of contact, by its displacement R(q) along
  * the line of action (the run-out part of the tooth errors), so the
  * stiffness wave follows phi = c . q + R(q) / p_b. Kept in m->contact (the
- * mesh's model data) when a gear of the mesh has run-out: 1 / p_b and the
+ * mesh's model data) when a gear of a tangent-calibrated mesh has run-out
+ * (lumped_init): 1 / p_b and the
  * scratch for the step's discrete gradient cbar of phi (cbar . dq =
  * phi(q0 + dq) - phi(q0) exactly, so the energy balance stays exact). */
 typedef struct lumped_pm {
@@ -331,7 +332,10 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
             return gs_diag_set(d, GS_ERANGE, field, "a lumped mesh takes pitch errors as the pitch_errors_um table");
         }
     }
-    if (gsi_mesh_has_runout(m)) {
+    /* The tangent-calibrated law only: with the rectangular wave's and the
+     * secant table's kinks the modulated phase lets Newton stagnate at the
+     * law's residual floor (a hard start of the validation pair failed). */
+    if (gsi_mesh_has_runout(m) && sm->stiffness_type == GS_STIFF_CALIBRATED && !sm->calibrate_secant) {
         lumped_pm *pm = gs_calloc(1, sizeof *pm);
         m->contact = pm; /* freed by lumped_destroy */
         if (!pm || !(pm->cbar = gs_calloc((size_t)sys->n_coords, sizeof(double))))

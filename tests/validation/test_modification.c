@@ -55,8 +55,8 @@
  *    150 N m, pinion at 40 rad/s: mesh frequency 127 Hz, 0.013 of the mesh
  *    mode; h 1e-5 s; tests/common/te_run.h): the once-per-revolution TE of
  *    a 20 um pinion run-out over one revolution of the lumped and calibrated
- *    meshes within TE_DYNAMIC_BAR (5 %) of the contact model's; their
- *    sidebands at orders 19 and 21 (f_mesh -+ f_rot) at the phase
+ *    meshes within TE_DYNAMIC_BAR (5 %) of the contact model's; the
+ *    calibrated mesh's sidebands at orders 19 and 21 (f_mesh -+ f_rot) at the phase
  *    modulation's A_20 pi e / p_b (mean within 5 %, each within 10 %; the
  *    perfect pair's below a tenth of it); the window
  *    mean TE shift of lumped and calibrated at the closed form of linear
@@ -1060,9 +1060,11 @@ static void tooth_errors_dynamic(void **state)
                       "(%+.2f%%, %+.2f%%; mean %+.2f%%); perfect gears %.4f, %.4f um\n", te_model_names[mi],
                       lo * 1e6, hi * 1e6, pred * 1e6, 100 * (lo / pred - 1), 100 * (hi / pred - 1),
                       100 * (0.5 * (lo + hi) / pred - 1), r[mi].order[0][1] * 1e6, r[mi].order[0][3] * 1e6);
-        assert_true(fabs(0.5 * (lo + hi) / pred - 1) < TE_DYNAMIC_BAR);
-        assert_true(fabs(lo / pred - 1) < 2 * TE_DYNAMIC_BAR && fabs(hi / pred - 1) < 2 * TE_DYNAMIC_BAR);
-        assert_true(r[mi].order[0][1] < 0.1 * pred && r[mi].order[0][3] < 0.1 * pred);
+        if (mi == TE_CALIBRATED) { /* the rectangular wave is not modulated (meshes.c, lumped_init) */
+            assert_true(fabs(0.5 * (lo + hi) / pred - 1) < TE_DYNAMIC_BAR);
+            assert_true(fabs(lo / pred - 1) < 2 * TE_DYNAMIC_BAR && fabs(hi / pred - 1) < 2 * TE_DYNAMIC_BAR);
+            assert_true(r[mi].order[0][1] < 0.1 * pred && r[mi].order[0][3] < 0.1 * pred);
+        }
     }
 }
 
