@@ -2,14 +2,15 @@
  * Tooth errors in the dynamic models (docs/GEOMETRY.md "Tooth errors:
  * dynamic comparison"): the 20/30 pair at low speed in the `contact`,
  * rectangular `lumped` and calibrated `lumped` meshes, each run without
- * errors, with a pitch error on one pinion tooth and with run-out of the
- * pinion, over one pinion revolution after the ramp-up (tests/common/te_run.h).
- * Prints per model the mean TE shift of the pitch error (over the revolution
- * and over the 3 mesh cycles centred on the faulty tooth), the
+ * errors, with pitch errors on some pinion teeth and with run-out of the
+ * pinion, over --revs pinion revolutions after the ramp-up
+ * (tests/common/te_run.h). Prints per model the mean TE shift of the pitch
+ * errors (over the 3 mesh cycles centred on each faulty tooth, and over
+ * the whole record), the
  * once-per-revolution TE of the run-out and the orders 1, z-1, z, z+1,
  * 2z-1, 2z, 2z+1 of the pinion's rotation, and the agreement of the lumped
  * models with the contact model; writes the TE series as CSV. Not a test:
- * long (the contact runs take some 50 000 steps each at 40 rad/s).
+ * long (a contact run takes some 18 000 steps per revolution at 40 rad/s).
  *
  *   te_errors [--models contact,lumped,calibrated] [--omega 40] [--torque 150]
  *             [--h 1e-5] [--ramp 0.01] [--settle 0.01] [--damping-s 0]
