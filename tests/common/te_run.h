@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Shared by tests/bench/te_errors.c and tests/validation/test_modification.c:
+ * Shared by tests/bench/te_errors.c and tests/validation/test_tooth_errors.c:
  * the dynamic transmission error of the 20/30 pair (module 2.5, face 10 mm,
  * thinning 0.05 mm) with tooth errors on the pinion, in the `contact`
  * (elastic gears), rectangular `lumped` and calibrated `lumped` (rigid gears)
