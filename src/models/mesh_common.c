@@ -94,12 +94,18 @@ double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW)
 
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
 {
+    gsi_mesh_add_jacobian_c(m, m->c, n, J, jss, jsp, jps, jpp);
+}
+
+void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, double *J, double jss, double jsp,
+                             double jps, double jpp)
+{
     const double *a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */
     for (int i = 0; i < n; i++) {
-        if (a[i] == 0.0 && m->c[i] == 0.0)
+        if (a[i] == 0.0 && c[i] == 0.0)
             continue;
         for (int j = 0; j < n; j++)
-            J[i * n + j] += a[i] * (jss * a[j] + jsp * m->c[j]) + m->c[i] * (jps * a[j] + jpp * m->c[j]);
+            J[i * n + j] += a[i] * (jss * a[j] + jsp * c[j]) + c[i] * (jps * a[j] + jpp * c[j]);
     }
 }
 
@@ -188,6 +194,43 @@ double gsi_mesh_error(const gs_gmesh_rt *m, const double *q)
     return E;
 }
 
+/* The run-out part's difference quotient (R(v0 + dv) - R(v0)) / dv in
+ * closed form without cancellation: 2 sin(dv/2)/dv times the midpoint
+ * derivative; with dq its derivative in dv. */
+static double runout_quot(const gs_gmesh_rt *m, int e, double v0, double dvv, double *dq)
+{
+    double am = v0 + 0.5 * dvv + m->err[e].phase, sinc, dsinc;
+    if (fabs(dvv) > 1e-4) {
+        sinc = 2.0 * sin(0.5 * dvv) / dvv;
+        dsinc = (cos(0.5 * dvv) - sinc) / dvv;
+    } else {
+        sinc = 1.0 - dvv * dvv / 24.0;
+        dsinc = -dvv / 12.0;
+    }
+    double T = -m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am);
+    double Tp = -m->err[e].n[0] * cos(am) - m->err[e].n[1] * sin(am);
+    *dq = m->err[e].runout * (dsinc * T + 0.5 * sinc * Tp);
+    return m->err[e].runout * sinc * T;
+}
+
+static double err_dv(const gs_gmesh_rt *m, int e, const double *dq)
+{
+    int ck = m->err[e].coord, cc = m->err[e].carrier;
+    return (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
+}
+
+/* Add f * g to J at the gear's and carrier's coordinates of error e (rows
+ * and columns, with the carrier's sign). */
+static void err_add_jacobian(const gs_gmesh_rt *m, int e, int n, double f, double *J)
+{
+    int idx[2] = {m->err[e].coord, m->err[e].carrier};
+    double sg[2] = {1.0, -1.0};
+    for (int a = 0; a < 2; a++)
+        for (int b = 0; b < 2; b++)
+            if (idx[a] >= 0 && idx[b] >= 0)
+                J[idx[a] * n + idx[b]] += f * sg[a] * sg[b];
+}
+
 /* Add to abar the exact discrete gradient of the tooth errors over the step:
  * per gear, (E(v1) - E(v0)) / (v1 - v0) on its angle (and minus it on the
  * carrier's), the derivative when the angle does not move; the run-out part
@@ -197,8 +240,8 @@ static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq,
     for (int e = 0; e < m->n_err; e++) {
         int ck = m->err[e].coord, cc = m->err[e].carrier;
         double v0 = err_angle(m, e, q0);
-        double dvv = (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
-        double d0, d1;
+        double dvv = err_dv(m, e, dq);
+        double d0, d1, dr;
         double p0 = pitch_part(m, e, v0, &d0), gq;
         if (dvv != 0.0) {
             double p1 = pitch_part(m, e, v0 + dvv, &d1);
@@ -206,9 +249,7 @@ static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq,
         } else {
             gq = d0;
         }
-        double am = v0 + 0.5 * dvv + m->err[e].phase;
-        double sinc = fabs(dvv) > 1e-6 ? 2.0 * sin(0.5 * dvv) / dvv : 1.0 - dvv * dvv / 24.0;
-        gq += m->err[e].runout * sinc * (-m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am));
+        gq += runout_quot(m, e, v0, dvv, &dr);
         if (ck >= 0)
             abar[ck] += gq;
         if (cc >= 0)
@@ -219,31 +260,56 @@ static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq,
 void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J)
 {
     for (int e = 0; e < m->n_err; e++) {
-        int ck = m->err[e].coord, cc = m->err[e].carrier;
         double v0 = err_angle(m, e, q0);
-        double dvv = (ck >= 0 ? dq[ck] : 0.0) - (cc >= 0 ? dq[cc] : 0.0);
-        double d0, d1, dg = 0.0;
+        double dvv = err_dv(m, e, dq);
+        double d0, d1, dg = 0.0, dr;
         if (dvv != 0.0) { /* d/d dv of (P(v0 + dv) - P(v0)) / dv */
             double p0 = pitch_part(m, e, v0, &d0), p1 = pitch_part(m, e, v0 + dvv, &d1);
             dg = (d1 - (p1 - p0) / dvv) / dvv;
         }
-        double am = v0 + 0.5 * dvv + m->err[e].phase, sinc, dsinc;
-        if (fabs(dvv) > 1e-4) {
-            sinc = 2.0 * sin(0.5 * dvv) / dvv;
-            dsinc = (cos(0.5 * dvv) - sinc) / dvv;
-        } else {
-            sinc = 1.0 - dvv * dvv / 24.0;
-            dsinc = -dvv / 12.0;
-        }
-        double T = -m->err[e].n[0] * sin(am) + m->err[e].n[1] * cos(am);
-        double Tp = -m->err[e].n[0] * cos(am) - m->err[e].n[1] * sin(am);
-        dg += m->err[e].runout * (dsinc * T + 0.5 * sinc * Tp);
-        int idx[2] = {ck, cc};
-        double sg[2] = {1.0, -1.0};
-        for (int a = 0; a < 2; a++)
-            for (int b = 0; b < 2; b++)
-                if (idx[a] >= 0 && idx[b] >= 0)
-                    J[idx[a] * n + idx[b]] += f * sg[a] * sg[b] * dg;
+        runout_quot(m, e, v0, dvv, &dr);
+        err_add_jacobian(m, e, n, f * (dg + dr), J);
+    }
+}
+
+bool gsi_mesh_has_runout(const gs_gmesh_rt *m)
+{
+    for (int e = 0; e < m->n_err; e++)
+        if (m->err[e].runout != 0.0)
+            return true;
+    return false;
+}
+
+double gsi_mesh_runout(const gs_gmesh_rt *m, const double *q)
+{
+    double R = 0.0;
+    for (int e = 0; e < m->n_err; e++)
+        if (m->err[e].runout != 0.0)
+            R += runout_part(m, e, err_angle(m, e, q));
+    return R;
+}
+
+void gsi_mesh_runout_grad(const gs_gmesh_rt *m, const double *q0, const double *dq, double scale, double *v)
+{
+    for (int e = 0; e < m->n_err; e++) {
+        if (m->err[e].runout == 0.0)
+            continue;
+        double dr, gq = scale * runout_quot(m, e, err_angle(m, e, q0), err_dv(m, e, dq), &dr);
+        if (m->err[e].coord >= 0)
+            v[m->err[e].coord] += gq;
+        if (m->err[e].carrier >= 0)
+            v[m->err[e].carrier] -= gq;
+    }
+}
+
+void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J)
+{
+    for (int e = 0; e < m->n_err; e++) {
+        if (m->err[e].runout == 0.0)
+            continue;
+        double dr;
+        runout_quot(m, e, err_angle(m, e, q0), err_dv(m, e, dq), &dr);
+        err_add_jacobian(m, e, n, f * dr, J);
     }
 }
 

@@ -33,6 +33,9 @@ double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW);
  * action coordinate s = a.q and the phase p = c.q: the derivatives of the
  * s-force (jss by s, jsp by p) and of the p-force (jps, jpp). */
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
+/* The same with the step's discrete gradient c of the phase in place of m->c. */
+void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, double *J, double jss, double jsp,
+                             double jps, double jpp);
 
 /* Line-of-action displacement s(q) = a . q plus the translations (step.h,
  * gs_gmesh_rt.n_tr) and the tooth errors (gs_gmesh_rt.n_err). */
@@ -44,6 +47,15 @@ double gsi_mesh_error(const gs_gmesh_rt *m, const double *q);
 /* Add to J the part of a force f along the line of action that comes from
  * the step's discrete gradient of the tooth errors moving with dq. */
 void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J);
+/* The run-out part R(q) of the tooth errors (the gears' centre offsets
+ * along the line of action; lumped meshes modulate their mesh phase with
+ * it, meshes.c), whether there is one, the addition of scale times its
+ * exact discrete gradient over the step to v, and the Jacobian of a
+ * phase force f through that gradient. */
+bool gsi_mesh_has_runout(const gs_gmesh_rt *m);
+double gsi_mesh_runout(const gs_gmesh_rt *m, const double *q);
+void gsi_mesh_runout_grad(const gs_gmesh_rt *m, const double *q0, const double *dq, double scale, double *v);
+void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J);
 /* Its discrete gradient over the step from q0 by dq: a vector abar with
  * abar . dq = s(q0 + dq) - s(q0) exactly (m->a itself when nothing
  * translates; else written into m->abar). */

@@ -161,6 +161,56 @@ static double kin_energy(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     return 0.0;
 }
 
+/* Run-out modulates the mesh phase of a lumped mesh (docs/GEOMETRY.md,
+ * "Run-out: the TE spectrum"): a gear's centre offset moves its flanks, and
+ * the contact point on the path of contact, by its displacement R(q) along
+ * the line of action (the run-out part of the tooth errors), so the
+ * stiffness wave follows phi = c . q + R(q) / p_b. Kept in m->contact (the
+ * mesh's model data) when a gear of a tangent-calibrated mesh has run-out
+ * (lumped_init): 1 / p_b and the
+ * scratch for the step's discrete gradient cbar of phi (cbar . dq =
+ * phi(q0 + dq) - phi(q0) exactly, so the energy balance stays exact). */
+typedef struct lumped_pm {
+    double inv_pb;
+    double *cbar;
+} lumped_pm;
+
+static double lumped_phase(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+{
+    const lumped_pm *pm = m->contact;
+    double p = dot(m->c, q, sys->n_coords);
+    return pm ? p + pm->inv_pb * gsi_mesh_runout(m, q) : p;
+}
+
+static const double *lumped_phase_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0,
+                                       const double *dq)
+{
+    const lumped_pm *pm = m->contact;
+    if (!pm)
+        return m->c;
+    memcpy(pm->cbar, m->c, (size_t)sys->n_coords * sizeof(double));
+    gsi_mesh_runout_grad(m, q0, dq, pm->inv_pb, pm->cbar);
+    return pm->cbar;
+}
+
+/* The Jacobian of the phase force gp through the phase's discrete gradient. */
+static void lumped_phase_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double gp,
+                                  double *J)
+{
+    const lumped_pm *pm = m->contact;
+    if (pm)
+        gsi_mesh_runout_jacobian(m, n, q0, dq, gp * pm->inv_pb, J);
+}
+
+static void lumped_destroy(gs_gmesh_rt *m)
+{
+    lumped_pm *pm = m->contact;
+    if (pm)
+        free(pm->cbar);
+    free(pm);
+    m->contact = NULL;
+}
+
 /* Relative load step of the tangent calibration's central difference. */
 #define CAL_TANGENT_STEP 0.05
 
@@ -262,11 +312,7 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
             return gs_diag_set(d, GS_ERANGE, field, "the calibration gave no stiffness at roll %.3f", r.pt[j].roll);
         }
     }
-    int n = sys->n_coords;
-    double phase = 0;
-    for (int i = 0; i < n; i++)
-        phase += m->c[i] * sys->q[i];
-    m->phase0 = phase;
+    m->phase0 = lumped_phase(sys, m, sys->q);
     m->phase_dir = r.torque_nm < 0 ? -1.0 : 1.0;
     m->k_single = m->k_double = sum / r.positions; /* the mean, for the damping estimate */
     gs_stiffness_result_clear(&r);
@@ -285,6 +331,19 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
             snprintf(field, sizeof field, "bodies[%d].pitch_error", sm->gear[k]);
             return gs_diag_set(d, GS_ERANGE, field, "a lumped mesh takes pitch errors as the pitch_errors_um table");
         }
+    }
+    /* The tangent-calibrated law only: in lumped_force (rectangular wave,
+     * secant table) the modulated phase let Newton stagnate at that law's
+     * residual floor, the cancellation in (f1^2 - f0^2) / (2 ds) (a hard
+     * start of the validation pair failed; docs/GEOMETRY.md). */
+    if (gsi_mesh_has_runout(m) && sm->stiffness_type == GS_STIFF_CALIBRATED && !sm->calibrate_secant) {
+        lumped_pm *pm = gs_calloc(1, sizeof *pm);
+        m->contact = pm; /* freed by lumped_destroy */
+        if (!pm || !(pm->cbar = gs_calloc((size_t)sys->n_coords, sizeof(double))))
+            return GS_ENOMEM;
+        const gs_gear_params *g = &sys->scene->bodies[sm->gear[sys->scene->bodies[sm->gear[0]].gear.kind ==
+                                                                 GS_GEAR_INTERNAL ? 1 : 0]].gear;
+        pm->inv_pb = g->teeth / (2 * GS_PI * gs_gear_base_radius(g)); /* the phase gear's base pitch */
     }
     m->k_single = sm->k_single;
     m->k_double = sm->stiffness_type == GS_STIFF_CONSTANT ? sm->k_single : sm->k_double;
@@ -350,7 +409,8 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     int n = sys->n_coords;
     const double *ab = gsi_mesh_grad(sys, m, q0, dq);
     double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
-    double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
+    const double *cb = lumped_phase_grad(sys, m, q0, dq);
+    double p0 = lumped_phase(sys, m, q0), dp = dot(cb, dq, n);
     double s1 = s0 + ds, p1 = p0 + dp, hb = m->half_backlash;
     double dk0, dk1, dd0, dd1;
     double k0 = table_d(m, m->k_table, p0, &dk0), k1 = table_d(m, m->k_table, p1, &dk1);
@@ -395,9 +455,10 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
     jss += (cd + m->damping * dWs * ds) / h;
     jsp += m->damping * dWp * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
-    gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+        g[i] += ab[i] * (gs + fd) + cb[i] * gp;
+    gsi_mesh_add_jacobian_c(m, cb, n, J, jss, jsp, jps, jpp);
     gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
+    lumped_phase_jacobian(m, n, q0, dq, gp, J);
     *diss = fd * ds;
     *force = gs + fd;
 }
@@ -416,7 +477,8 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     int n = sys->n_coords;
     const double *ab = gsi_mesh_grad(sys, m, q0, dq);
     double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
-    double p0 = dot(m->c, q0, n), dp = dot(m->c, dq, n);
+    const double *cb = lumped_phase_grad(sys, m, q0, dq);
+    double p0 = lumped_phase(sys, m, q0), dp = dot(cb, dq, n);
     double s1 = s0 + ds;
     double hb = m->half_backlash;
     double f0 = dead(s0, hb), f1 = dead(s1, hb);
@@ -454,7 +516,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
         cd = m->damping * gsi_mesh_wet_share(s0, s1, hb, &dW);
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
-        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
+        g[i] += ab[i] * (gs + fd) + cb[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
     double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + (cd + m->damping * dW * ds) / h;
     if (floating && ds != 0.0 && !same_flank) /* the exact slope of dfs across the dead zone's edges:
@@ -464,16 +526,16 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
-    gsi_mesh_add_jacobian(m, n, J, jss, jsp, jps, jpp);
+    gsi_mesh_add_jacobian_c(m, cb, n, J, jss, jsp, jps, jpp);
     gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
+    lumped_phase_jacobian(m, n, q0, dq, gp, J);
     *diss = fd * ds;
     *force = gs + fd;
 }
 
 static double lumped_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
 {
-    int n = sys->n_coords;
-    double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = dot(m->c, q, n);
+    double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = lumped_phase(sys, m, q);
     if (m->d0_table) {
         double dv;
         double c = m->half_backlash + table_d(m, m->d0_table, p, &dv);
@@ -489,4 +551,5 @@ const gs_gmesh_ops gsi_gmesh_kinematic = {
 
 const gs_gmesh_ops gsi_gmesh_lumped = {
     .name = "lumped", .init = lumped_init, .n_eq = 0, .force = lumped_force, .energy = lumped_energy,
+    .destroy = lumped_destroy,
 };
