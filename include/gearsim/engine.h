@@ -28,6 +28,7 @@ typedef enum {
     GS_OP_RESTORE,     /* payload: gs_engine_snapshot serialisation */
     GS_OP_SHUTDOWN,
     GS_OP_SNAPSHOT,    /* internal: owners send body states to rank 0 */
+    GS_OP_SWEEP,       /* payload: a sweep (gearsim/sweep.h); other ranks run gs_sweep_serve */
 } gs_op;
 
 typedef struct gs_engine gs_engine;
@@ -52,6 +53,7 @@ void gs_engine_free(gs_engine **e);
 int gs_engine_rank(const gs_engine *e);
 int gs_engine_size(const gs_engine *e);
 gs_system *gs_engine_system(gs_engine *e);   /* NULL when nothing is loaded */
+MPI_Comm gs_engine_comm(const gs_engine *e);
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
 
 /* Rank 0: broadcast an operation and execute it here too. Errors name the

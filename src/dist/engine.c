@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include "gearsim/engine.h"
+#include "gearsim/sweep.h"
 #include "gearsim/util.h"
 #include "models/mesh_common.h"
 
@@ -177,6 +178,7 @@ void gs_engine_free(gs_engine **pe)
 int gs_engine_rank(const gs_engine *e) { return e->rank; }
 int gs_engine_size(const gs_engine *e) { return e->size; }
 gs_system *gs_engine_system(gs_engine *e) { return e->sys; }
+MPI_Comm gs_engine_comm(const gs_engine *e) { return e->comm; }
 
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user)
 {
@@ -630,6 +632,9 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         return restore(e, payload, len, d);
     case GS_OP_SNAPSHOT:
         return gather_states(e);
+    case GS_OP_SWEEP:
+        /* Rank 0 coordinates the sweep from the service (gs_sweep_run_*). */
+        return e->rank == 0 ? GS_OK : gs_sweep_serve(e->comm, payload, len);
     }
     return GS_EINVAL;
 }
