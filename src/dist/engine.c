@@ -24,6 +24,7 @@ struct gs_engine {
     double *states;         /* rank 0: gathered body states for a snapshot */
     size_t n_states;
     gs_step_timing timing;  /* this rank's, since load */
+    bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
 };
 
 gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
@@ -335,12 +336,56 @@ void gs_engine_timing(const gs_engine *e, gs_step_timing *out)
     *out = e->timing;
 }
 
+/* The replicated rigid state from rank 0 to the others after a chunk
+ * stepped on rank 0 alone (collective). */
+static void sync_solo(gs_engine *e)
+{
+    gs_system *s = e->sys;
+    size_t n = (size_t)s->n_coords, k = 2 * n;
+    double *b = malloc((k + 6) * sizeof(double));
+    if (!b)
+        MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
+    if (e->rank == 0) {
+        memcpy(b, s->q, n * sizeof(double));
+        memcpy(b + n, s->w, n * sizeof(double));
+        b[k] = s->time, b[k + 1] = (double)s->step, b[k + 2] = s->work_in;
+        b[k + 3] = s->dissipated, b[k + 4] = (double)s->level, b[k + 5] = s->h_sub;
+    }
+    MPI_Bcast(b, (int)(k + 6), MPI_DOUBLE, 0, e->comm);
+    if (e->rank != 0) {
+        memcpy(s->q, b, n * sizeof(double));
+        memcpy(s->w, b + n, n * sizeof(double));
+        s->time = b[k], s->step = (int64_t)b[k + 1], s->work_in = b[k + 2];
+        s->dissipated = b[k + 3], s->level = (int)b[k + 4], s->h_sub = b[k + 5];
+        for (int i = 0; i < s->n_meshes; i++)
+            s->meshes[i].deflection = gsi_mesh_s(s, &s->meshes[i], s->q) - s->meshes[i].s_ref;
+    }
+    free(b);
+}
+
 static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 {
     int64_t i = 0;
     gs_err err = GS_OK;
+    /* A train without bodies of their own state (rigid and lumped) has
+     * nothing worth distributing: its records are a few flops per body, far
+     * less than the two collectives per step that would gather them. Rank 0
+     * steps alone (assembling every body's records, as one process does)
+     * and the others take its state once per chunk. */
+    e->solo = e->size > 1 && !gs_system_has_body_state(e->sys);
+    if (e->solo && e->rank != 0) {
+        sync_solo(e);
+        if (done)
+            *done = n;
+        return GS_OK;
+    }
     for (; i < n; i++) {
-        err = dist_step(e);
+        if (e->solo) {
+            err = gs_step_serial(e->sys);
+            e->timing.steps++;
+        } else {
+            err = dist_step(e);
+        }
         if (err != GS_OK)
             break;
         /* The hook (telemetry, recording) runs on rank 0 only and does not
@@ -348,6 +393,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
         if (e->rank == 0 && e->hook)
             e->hook(e, e->hook_user);
     }
+    if (e->solo)
+        sync_solo(e);
     if (done)
         *done = i;
     return err;
