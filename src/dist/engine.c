@@ -351,7 +351,22 @@ static void sync_solo(gs_engine *e)
         b[k] = s->time, b[k + 1] = (double)s->step, b[k + 2] = s->work_in;
         b[k + 3] = s->dissipated, b[k + 4] = (double)s->level, b[k + 5] = s->h_sub;
     }
-    MPI_Bcast(b, (int)(k + 6), MPI_DOUBLE, 0, e->comm);
+    /* The others wait the whole chunk here: poll with short sleeps rather
+     * than spin in a blocking broadcast (TOOLCHAIN.md gotcha 3). */
+    MPI_Request rq;
+    MPI_Ibcast(b, (int)(k + 6), MPI_DOUBLE, 0, e->comm, &rq);
+    if (e->rank == 0) {
+        MPI_Wait(&rq, MPI_STATUS_IGNORE);
+    } else {
+        int flag = 0;
+        for (;;) {
+            MPI_Test(&rq, &flag, MPI_STATUS_IGNORE);
+            if (flag)
+                break;
+            struct timespec ts = {0, 500000};
+            nanosleep(&ts, NULL);
+        }
+    }
     if (e->rank != 0) {
         memcpy(s->q, b, n * sizeof(double));
         memcpy(s->w, b + n, n * sizeof(double));

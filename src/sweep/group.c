@@ -90,8 +90,9 @@ static gs_err point_start(const gs_sweep *sw, gs_engine *geng, point_run *pr, in
 }
 
 /* Steps of the point for about slice_s seconds; true when the point ended
- * (row or error in r). */
-static bool point_slice(gs_engine *geng, point_run *pr, double slice_s, gs_sweep_result *r)
+ * (row or error in r). `between` (may be NULL) runs between chunks. */
+static bool point_slice(gs_engine *geng, point_run *pr, double slice_s, gs_sweep_result *r,
+                        void (*between)(void *), void *ctx)
 {
     double t0 = gs_now();
     do {
@@ -126,6 +127,8 @@ static bool point_slice(gs_engine *geng, point_run *pr, double slice_s, gs_sweep
             pr->point = -1;
             return true;
         }
+        if (between)
+            between(ctx);
     } while (gs_now() - t0 < slice_s);
     return false;
 }
@@ -222,10 +225,10 @@ static void receive_results(gs_sweep_run *r)
     }
 }
 
-void gs_sweep_run_poll(gs_sweep_run *r, double slice_s)
+/* Take what the groups finished and give the free ones their next point. */
+static void dispatch(void *ctx)
 {
-    if (r->ended)
-        return;
+    gs_sweep_run *r = ctx;
     receive_results(r);
     for (int g = 1; g < r->groups && r->qi < r->nq; g++)
         if (r->busy[g] == -1) {
@@ -233,6 +236,13 @@ void gs_sweep_run_poll(gs_sweep_run *r, double slice_s)
             r->busy[g] = (int)p;
             MPI_Send(&p, 1, MPI_INT64_T, r->leader[g], TAG_CMD, r->comm);
         }
+}
+
+void gs_sweep_run_poll(gs_sweep_run *r, double slice_s)
+{
+    if (r->ended)
+        return;
+    dispatch(r);
     if (r->own.point < 0 && r->qi < r->nq) {
         gs_sweep_result x;
         if (point_start(r->sw, r->geng, &r->own, r->queue[r->qi++], &x) != GS_OK) {
@@ -244,7 +254,7 @@ void gs_sweep_run_poll(gs_sweep_run *r, double slice_s)
         gs_sweep_result x;
         memset(&x, 0, sizeof x);
         x.point = r->own.point;
-        if (point_slice(r->geng, &r->own, slice_s, &x))
+        if (point_slice(r->geng, &r->own, slice_s, &x, r->groups > 1 ? dispatch : NULL, r))
             push(r, &x);
     }
 }
@@ -331,7 +341,7 @@ static void lead(const gs_sweep *sw, MPI_Comm comm, gs_engine *geng)
         gs_sweep_result x;
         bool stopped = false;
         if (point_start(sw, geng, &pr, (int)cmd, &x) == GS_OK) {
-            while (!point_slice(geng, &pr, 0.05, &x)) {
+            while (!point_slice(geng, &pr, 0.05, &x, NULL, NULL)) {
                 int flag = 0;
                 MPI_Iprobe(0, TAG_CMD, comm, &flag, MPI_STATUS_IGNORE);
                 if (flag) {

@@ -28,10 +28,12 @@ H = 2e-6
 
 
 def sweep(ranks, groups):
-    """(points per second, table text) of one sweep on a fresh daemon."""
+    """(points per second, table text) of one sweep on a fresh daemon: from
+    the request to the done event, the subscription made before."""
     with dmod.Daemon(ranks=ranks) as d, d.client(timeout=60) as c:
         args = dict(builtin="planetary_sweep", settle=SETTLE, measure=MEASURE, time_step=H, groups=groups,
                     path="bench")
+        c.subscribe()
         t0 = time.perf_counter()
         done = c.sweep([{"path": "driver_rpm", "from": 17000, "to": 25000, "points": POINTS}], timeout=3600, **args)
         dt = time.perf_counter() - t0
