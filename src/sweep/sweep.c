@@ -152,7 +152,7 @@ static int driver_and_brake(const gs_scene *s, int *ld, int *brk)
 }
 
 /* Rigid speeds per unit driver speed: a_m . w = 0 for every mesh, w_drv = 1
- * (least squares). */
+ * (least squares, minimum norm). */
 static bool speed_ratios(const gs_system *sys, int drv, double *ratio)
 {
     int n = sys->n_coords, m = sys->n_meshes + 1;
@@ -166,7 +166,12 @@ static bool speed_ratios(const gs_system *sys, int drv, double *ratio)
             A[(size_t)i * n + j] = sys->meshes[i].a[j];
     A[(size_t)(m - 1) * n + sys->bodies[drv].coord] = 1.0;
     b[m - 1] = 1.0;
-    bool ok = LAPACKE_dgels(LAPACK_ROW_MAJOR, 'N', m, n, 1, A, n, b, 1) == 0;
+    /* Minimum norm (SVD): translations of bodies on bearings are free of the
+     * rows and take no speed. */
+    double *sv = calloc((size_t)(m < n ? m : n), sizeof(double));
+    lapack_int rank;
+    bool ok = sv && LAPACKE_dgelsd(LAPACK_ROW_MAJOR, m, n, 1, A, n, b, 1, sv, 1e-12, &rank) == 0;
+    free(sv);
     for (int j = 0; j < n; j++)
         ratio[j] = b[j];
     free(A), free(b);
