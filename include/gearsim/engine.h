@@ -61,6 +61,10 @@ void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
  * of steps taken. */
 gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs_diag *d,
                      int64_t *steps_done);
+/* Wait for a non-blocking MPI request without burning a core: test it,
+ * spinning for spin_s seconds, then with sleeps of 0.5 ms (TOOLCHAIN.md
+ * gotcha 3). */
+void gs_mpi_wait_idle(MPI_Request *rq, double spin_s);
 /* Other ranks: execute operations until GS_OP_SHUTDOWN. */
 gs_err gs_engine_serve(gs_engine *e);
 

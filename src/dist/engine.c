@@ -355,18 +355,10 @@ static void sync_solo(gs_engine *e)
      * than spin in a blocking broadcast (TOOLCHAIN.md gotcha 3). */
     MPI_Request rq;
     MPI_Ibcast(b, (int)(k + 6), MPI_DOUBLE, 0, e->comm, &rq);
-    if (e->rank == 0) {
+    if (e->rank == 0)
         MPI_Wait(&rq, MPI_STATUS_IGNORE);
-    } else {
-        int flag = 0;
-        for (;;) {
-            MPI_Test(&rq, &flag, MPI_STATUS_IGNORE);
-            if (flag)
-                break;
-            struct timespec ts = {0, 500000};
-            nanosleep(&ts, NULL);
-        }
-    }
+    else
+        gs_mpi_wait_idle(&rq, 0.0);
     if (e->rank != 0) {
         memcpy(s->q, b, n * sizeof(double));
         memcpy(s->w, b + n, n * sizeof(double));
@@ -715,6 +707,21 @@ gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs
     return exec(e, op, payload, len, d, done);
 }
 
+void gs_mpi_wait_idle(MPI_Request *rq, double spin_s)
+{
+    int flag = 0;
+    double t0 = gs_now();
+    for (;;) {
+        MPI_Test(rq, &flag, MPI_STATUS_IGNORE);
+        if (flag)
+            return;
+        if (gs_now() - t0 >= spin_s) {
+            struct timespec ts = {0, 500000};
+            nanosleep(&ts, NULL);
+        }
+    }
+}
+
 gs_err gs_engine_serve(gs_engine *e)
 {
     for (;;) {
@@ -722,15 +729,7 @@ gs_err gs_engine_serve(gs_engine *e)
         MPI_Request rq;
         MPI_Ibcast(hdr, 2, MPI_INT64_T, 0, e->comm, &rq);
         /* Spin briefly (a chunk of an advance follows quickly), then sleep. */
-        int flag = 0;
-        double t0 = gs_now();
-        while (!flag) {
-            MPI_Test(&rq, &flag, MPI_STATUS_IGNORE);
-            if (!flag && gs_now() - t0 > 0.005) {
-                struct timespec ts = {0, 500000};
-                nanosleep(&ts, NULL);
-            }
-        }
+        gs_mpi_wait_idle(&rq, 0.005);
         size_t len = (size_t)hdr[1];
         char *payload = malloc(len + 1);
         if (!payload)

@@ -15,7 +15,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "gearsim/step.h"
 #include "gearsim/sweep.h"
@@ -318,15 +317,7 @@ static int64_t wait_cmd(MPI_Comm comm)
     int64_t cmd = -1;
     MPI_Request rq;
     MPI_Irecv(&cmd, 1, MPI_INT64_T, 0, TAG_CMD, comm, &rq);
-    int flag = 0;
-    double t0 = gs_now();
-    while (!flag) {
-        MPI_Test(&rq, &flag, MPI_STATUS_IGNORE);
-        if (!flag && gs_now() - t0 > 0.005) {
-            struct timespec ts = {0, 500000};
-            nanosleep(&ts, NULL);
-        }
-    }
+    gs_mpi_wait_idle(&rq, 0.005);
     return cmd;
 }
 
