@@ -15,6 +15,7 @@
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "service/options.h"
 #include "service/service_internal.h"
 
 struct svc_sweep {
@@ -112,6 +113,22 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     json_object_put(spec);
     if (e != GS_OK)
         return e;
+    /* Each group loads the scene: the daemon's scene size limit holds. */
+    char *pt = NULL;
+    gs_scene *sc = NULL;
+    if ((e = gs_sweep_point_scene(sw, 0, &pt, d)) == GS_OK && (e = gs_scene_parse(pt, strlen(pt), &sc, d)) == GS_OK) {
+        int big;
+        double mb = gs_scene_estimate_bytes(sc, &big) / 1048576.0;
+        if (mb > (double)gsi_opt_max_scene_mb())
+            e = gs_diag_set(d, GS_ETOOBIG, "args.scene", "a point's scene would need about %.0f MiB (estimate); this "
+                            "daemon's limit is %lld MiB (--max-scene-mb)", mb, (long long)gsi_opt_max_scene_mb());
+    }
+    free(pt);
+    gs_scene_free(&sc);
+    if (e != GS_OK) {
+        gs_sweep_free(&sw);
+        return e;
+    }
     int64_t groups;
     bool resume;
     char rel[600];
