@@ -28,6 +28,7 @@ typedef enum {
     GS_OP_RESTORE,     /* payload: gs_engine_snapshot serialisation */
     GS_OP_SHUTDOWN,
     GS_OP_SNAPSHOT,    /* internal: owners send body states to rank 0 */
+    GS_OP_SWEEP,       /* payload: a sweep (gearsim/sweep.h); other ranks run gs_sweep_serve */
 } gs_op;
 
 typedef struct gs_engine gs_engine;
@@ -52,6 +53,7 @@ void gs_engine_free(gs_engine **e);
 int gs_engine_rank(const gs_engine *e);
 int gs_engine_size(const gs_engine *e);
 gs_system *gs_engine_system(gs_engine *e);   /* NULL when nothing is loaded */
+MPI_Comm gs_engine_comm(const gs_engine *e);
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
 
 /* Rank 0: broadcast an operation and execute it here too. Errors name the
@@ -59,6 +61,10 @@ void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
  * of steps taken. */
 gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs_diag *d,
                      int64_t *steps_done);
+/* Wait for a non-blocking MPI request without burning a core: test it,
+ * spinning for spin_s seconds, then with sleeps of 0.5 ms (TOOLCHAIN.md
+ * gotcha 3). */
+void gs_mpi_wait_idle(MPI_Request *rq, double spin_s);
 /* Other ranks: execute operations until GS_OP_SHUTDOWN. */
 gs_err gs_engine_serve(gs_engine *e);
 

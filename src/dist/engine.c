@@ -6,6 +6,7 @@
 #include <time.h>
 
 #include "gearsim/engine.h"
+#include "gearsim/sweep.h"
 #include "gearsim/util.h"
 #include "models/mesh_common.h"
 
@@ -23,6 +24,7 @@ struct gs_engine {
     double *states;         /* rank 0: gathered body states for a snapshot */
     size_t n_states;
     gs_step_timing timing;  /* this rank's, since load */
+    bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
 };
 
 gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
@@ -177,6 +179,7 @@ void gs_engine_free(gs_engine **pe)
 int gs_engine_rank(const gs_engine *e) { return e->rank; }
 int gs_engine_size(const gs_engine *e) { return e->size; }
 gs_system *gs_engine_system(gs_engine *e) { return e->sys; }
+MPI_Comm gs_engine_comm(const gs_engine *e) { return e->comm; }
 
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user)
 {
@@ -333,12 +336,63 @@ void gs_engine_timing(const gs_engine *e, gs_step_timing *out)
     *out = e->timing;
 }
 
+/* The replicated rigid state from rank 0 to the others after a chunk
+ * stepped on rank 0 alone (collective). */
+static void sync_solo(gs_engine *e)
+{
+    gs_system *s = e->sys;
+    size_t n = (size_t)s->n_coords, k = 2 * n;
+    double *b = malloc((k + 6) * sizeof(double));
+    if (!b)
+        MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
+    if (e->rank == 0) {
+        memcpy(b, s->q, n * sizeof(double));
+        memcpy(b + n, s->w, n * sizeof(double));
+        b[k] = s->time, b[k + 1] = (double)s->step, b[k + 2] = s->work_in;
+        b[k + 3] = s->dissipated, b[k + 4] = (double)s->level, b[k + 5] = s->h_sub;
+    }
+    /* The others wait the whole chunk here: poll with short sleeps rather
+     * than spin in a blocking broadcast (TOOLCHAIN.md gotcha 3). */
+    MPI_Request rq;
+    MPI_Ibcast(b, (int)(k + 6), MPI_DOUBLE, 0, e->comm, &rq);
+    if (e->rank == 0)
+        MPI_Wait(&rq, MPI_STATUS_IGNORE);
+    else
+        gs_mpi_wait_idle(&rq, 0.0);
+    if (e->rank != 0) {
+        memcpy(s->q, b, n * sizeof(double));
+        memcpy(s->w, b + n, n * sizeof(double));
+        s->time = b[k], s->step = (int64_t)b[k + 1], s->work_in = b[k + 2];
+        s->dissipated = b[k + 3], s->level = (int)b[k + 4], s->h_sub = b[k + 5];
+        for (int i = 0; i < s->n_meshes; i++)
+            s->meshes[i].deflection = gsi_mesh_s(s, &s->meshes[i], s->q) - s->meshes[i].s_ref;
+    }
+    free(b);
+}
+
 static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 {
     int64_t i = 0;
     gs_err err = GS_OK;
+    /* A train without bodies of their own state (rigid and lumped) has
+     * nothing worth distributing: its records are a few flops per body, far
+     * less than the two collectives per step that would gather them. Rank 0
+     * steps alone (assembling every body's records, as one process does)
+     * and the others take its state once per chunk. */
+    e->solo = e->size > 1 && !gs_system_has_body_state(e->sys);
+    if (e->solo && e->rank != 0) {
+        sync_solo(e);
+        if (done)
+            *done = n;
+        return GS_OK;
+    }
     for (; i < n; i++) {
-        err = dist_step(e);
+        if (e->solo) {
+            err = gs_step_serial(e->sys);
+            e->timing.steps++;
+        } else {
+            err = dist_step(e);
+        }
         if (err != GS_OK)
             break;
         /* The hook (telemetry, recording) runs on rank 0 only and does not
@@ -346,6 +400,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
         if (e->rank == 0 && e->hook)
             e->hook(e, e->hook_user);
     }
+    if (e->solo)
+        sync_solo(e);
     if (done)
         *done = i;
     return err;
@@ -630,6 +686,9 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         return restore(e, payload, len, d);
     case GS_OP_SNAPSHOT:
         return gather_states(e);
+    case GS_OP_SWEEP:
+        /* Rank 0 coordinates the sweep from the service (gs_sweep_run_*). */
+        return e->rank == 0 ? GS_OK : gs_sweep_serve(e->comm, payload, len);
     }
     return GS_EINVAL;
 }
@@ -648,6 +707,21 @@ gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs
     return exec(e, op, payload, len, d, done);
 }
 
+void gs_mpi_wait_idle(MPI_Request *rq, double spin_s)
+{
+    int flag = 0;
+    double t0 = gs_now();
+    for (;;) {
+        MPI_Test(rq, &flag, MPI_STATUS_IGNORE);
+        if (flag)
+            return;
+        if (gs_now() - t0 >= spin_s) {
+            struct timespec ts = {0, 500000};
+            nanosleep(&ts, NULL);
+        }
+    }
+}
+
 gs_err gs_engine_serve(gs_engine *e)
 {
     for (;;) {
@@ -655,15 +729,7 @@ gs_err gs_engine_serve(gs_engine *e)
         MPI_Request rq;
         MPI_Ibcast(hdr, 2, MPI_INT64_T, 0, e->comm, &rq);
         /* Spin briefly (a chunk of an advance follows quickly), then sleep. */
-        int flag = 0;
-        double t0 = gs_now();
-        while (!flag) {
-            MPI_Test(&rq, &flag, MPI_STATUS_IGNORE);
-            if (!flag && gs_now() - t0 > 0.005) {
-                struct timespec ts = {0, 500000};
-                nanosleep(&ts, NULL);
-            }
-        }
+        gs_mpi_wait_idle(&rq, 0.005);
         size_t len = (size_t)hdr[1];
         char *payload = malloc(len + 1);
         if (!payload)

@@ -236,8 +236,8 @@ static double corner_sweep(const gs_gear_params *pf, const half_profile *hf,
     return worst;
 }
 
-gs_err gs_pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, double a,
-                       gs_pair_info *info, gs_diag *d)
+static gs_err pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, double a,
+                           gs_pair_info *info, gs_diag *d)
 {
     memset(info, 0, sizeof *info);
     GS_TRY(pair_kinds(g1, g2, d));
@@ -455,4 +455,55 @@ gs_err gs_planetary_check(const gs_gear_params *sun, const gs_gear_params *plane
     if (e != GS_OK)
         return gs_diag_set(d, e, "gears", "planet-ring mesh: %s", dd.message);
     return GS_OK;
+}
+
+/* The analysis is a pure function of the two gears and the distance, and
+ * its corner sweep costs milliseconds: every parse of a scene repeats it
+ * for each mesh, and a sweep parses its scene once per point. The last
+ * results are kept (the library is used from one thread: the daemon's MPI
+ * thread, or a tool). */
+#define PAIR_CACHE 32
+typedef struct pair_memo {
+    gs_gear_params g1, g2;
+    double a;
+    gs_err err;
+    gs_pair_info info;
+    gs_diag diag;
+    bool used;
+} pair_memo;
+
+static bool same_gear(const gs_gear_params *x, const gs_gear_params *y)
+{
+    return x->kind == y->kind && x->teeth == y->teeth && x->module_m == y->module_m &&
+           x->pressure_angle == y->pressure_angle && x->addendum_coef == y->addendum_coef &&
+           x->dedendum_coef == y->dedendum_coef && x->fillet_coef == y->fillet_coef &&
+           x->profile_shift == y->profile_shift && x->thinning_m == y->thinning_m &&
+           x->face_width_m == y->face_width_m && x->hub_radius_m == y->hub_radius_m;
+}
+
+gs_err gs_pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, double a,
+                       gs_pair_info *info, gs_diag *d)
+{
+    static pair_memo memo[PAIR_CACHE];
+    static int next;
+    for (int i = 0; i < PAIR_CACHE; i++) {
+        const pair_memo *m = &memo[i];
+        if (m->used && m->a == a && same_gear(&m->g1, g1) && same_gear(&m->g2, g2)) {
+            *info = m->info;
+            if (d && m->err != GS_OK)
+                *d = m->diag;
+            return m->err;
+        }
+    }
+    gs_diag own;
+    gs_diag_clear(&own);
+    gs_err e = pair_analyse(g1, g2, a, info, &own);
+    if (d && e != GS_OK)
+        *d = own;
+    if (e != GS_ENOMEM) {
+        pair_memo *m = &memo[next];
+        next = (next + 1) % PAIR_CACHE;
+        *m = (pair_memo){.g1 = *g1, .g2 = *g2, .a = a, .err = e, .info = *info, .diag = own, .used = true};
+    }
+    return e;
 }

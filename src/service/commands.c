@@ -39,7 +39,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
     json_object *caps = json_object_new_array();
     static const char *const cap[] = {"rigid", "elastic", "kinematic", "lumped", "contact", "fields", "record",
-                                      "checkpoint", "jobs", "fetch", "modal", NULL};
+                                      "checkpoint", "jobs", "fetch", "modal", "sweep", NULL};
     for (int i = 0; cap[i]; i++)
         json_object_array_add(caps, json_object_new_string(cap[i]));
     json_object_object_add(o, "capabilities", caps);
@@ -345,11 +345,13 @@ static gs_err cmd_resume(gs_service *s, json_object *args, const char *id, json_
 static gs_err cmd_cancel(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)args, (void)id, (void)d;
-    bool was = s->adv.active || s->stiff.run;
+    bool was = s->adv.active || s->stiff.run || s->sweep;
     if (s->adv.active)
         gsi_finish_advance(s, true, GS_OK, NULL);
     if (s->stiff.run)
         gsi_stiffness_stop(s, true);
+    if (s->sweep)
+        gsi_sweep_stop(s, true);
     *res = json_object_new_object();
     json_object_object_add(*res, "state", json_object_new_string(state_names[s->state]));
     json_object_object_add(*res, "cancelled", json_object_new_boolean(was));
@@ -387,6 +389,7 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     } else {
         json_object_object_add(o, "stiffness", NULL);
     }
+    json_object_object_add(o, "sweep", gsi_sweep_status(s));
     /* The last finished long requests, oldest first: completion without PUB. */
     json_object *fin = json_object_new_array();
     for (int i = 0; i < s->n_finished; i++)
@@ -1148,6 +1151,8 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
 }
 
 static const char *const modal_args[] = {"scene", "builtin", "shapes", NULL};
+static const char *const sweep_args[] = {"scene", "builtin", "parameters", "settle", "measure", "time_step", "mesh",
+                                         "driver_rpm", "groups", "path", "resume", NULL};
 
 /* Natural frequencies and mode shapes of the linearised rigid/lumped train
  * (docs/MODAL.md): of the scene in args.scene or the builtin args.builtin,
@@ -1287,6 +1292,7 @@ static const gsi_command commands[] = {
     {"fetch", cmd_fetch, true, fetch_args},
     {"stiffness", cmd_stiffness, true, stiffness_args},
     {"modal", cmd_modal, true, modal_args},
+    {"sweep", gsi_cmd_sweep, false, sweep_args},
     {"shutdown", cmd_shutdown, true, no_args},
     {NULL, NULL, false, NULL},
 };

@@ -663,6 +663,8 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
         else if (s->stiff.run && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
+        else if (s->sweep && !gsi_sweep_allows(c->name))
+            e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a sweep runs (cancel ends it)", c->name);
         else {
             json_object *result = NULL;
             e = c->handler(s, args, id, &result, &d);
@@ -1025,7 +1027,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
                 gs_engine_size(eng), s->cmd_endpoint, s->tel_endpoint);
     }
     while (e == GS_OK && !s->shutdown && !stop_signal) {
-        bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run;
+        bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run || s->sweep;
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
         int rc = zmq_poll(items, 1, running ? 0 : 100);
         if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
@@ -1039,7 +1041,9 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             }
         if (s->shutdown)
             break;
-        if (s->stiff.run)
+        if (s->sweep)
+            gsi_sweep_chunk(s);
+        else if (s->stiff.run)
             gsi_stiffness_chunk(s);
         else if (s->adv.active && s->state == SVC_RUNNING)
             run_chunk(s);
@@ -1057,6 +1061,8 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     }
     if (s->stiff.run)
         gsi_stiffness_stop(s, true);
+    if (s->sweep)
+        gsi_sweep_stop(s, true); /* finished points stay in its table: resumable */
     gs_record_close(&s->record);
     gs_diag d;
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);

@@ -74,6 +74,9 @@ typedef struct svc_finished {
     json_object *done;       /* the done event's body */
 } svc_finished;
 
+/* A `sweep` job under way (service/sweep_cmd.c). */
+typedef struct svc_sweep svc_sweep;
+
 typedef struct svc_cache_entry {
     char key[GSI_CACHE_KEY]; /* identity hex + '/' + id */
     char *reply;
@@ -99,6 +102,7 @@ typedef struct gs_service {
     svc_state state;
     svc_advance adv;
     svc_stiffness stiff;
+    svc_sweep *sweep;        /* NULL when none */
     svc_finished finished[GSI_FINISHED_KEEP];
     int n_finished;
     gs_record *record;
@@ -165,6 +169,15 @@ void gsi_publish_done(gs_service *s, const char *kind, json_object *o);
  * end: cancelled (cancel, shutdown) or finished. */
 void gsi_stiffness_chunk(gs_service *s);
 void gsi_stiffness_stop(gs_service *s, bool cancelled);
+
+/* The `sweep` job (sweep_cmd.c): the command, the next slice (service
+ * loop), its end (cancelled: cancel, shutdown), its entry in `status`, and
+ * whether a command may run while it holds the other ranks. */
+gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_object **result, gs_diag *d);
+void gsi_sweep_chunk(gs_service *s);
+void gsi_sweep_stop(gs_service *s, bool cancelled);
+json_object *gsi_sweep_status(gs_service *s);
+bool gsi_sweep_allows(const char *cmd);
 
 /* Flush the record; on failure (disk full, ...) publish an `error` event and
  * stop recording. The simulation goes on either way. */

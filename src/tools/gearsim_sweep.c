@@ -1,73 +1,106 @@
 /* SPDX-License-Identifier: MIT
- * gearsim-sweep: a speed sweep of a rigid/lumped train, point after point in
- * one process (docs/MODAL.md, "Speed sweep").
+ * gearsim-sweep: parameter sweeps outside the daemon (docs/MODAL.md,
+ * "Sweeps"); the points are those of the daemon's `sweep` job
+ * (src/sweep), computed here one after the other in one process.
  *
  *   gearsim-sweep SCENE.json --from RPM --to RPM [--points N] [--settle S]
  *                 [--measure S] [--time-step H] [--mesh NAME]
+ *       a speed sweep: one CSV row per point on stdout as it finishes;
+ *   gearsim-sweep --spec SWEEP.json [--task I --tasks N] [--out PART.csv]
+ *       the sweep of a file holding the `sweep` command's arguments (scene,
+ *       builtin or scene_file, parameters, settle, measure, time_step, mesh,
+ *       driver_rpm; groups, path and resume are ignored): all its points, or
+ *       with --task the points p with p % N == I (one Slurm array task,
+ *       deploy/sweep_slurm.sh); the table to --out or stdout;
+ *   gearsim-sweep --spec SWEEP.json --collect PART.csv... --out BASE
+ *       the parts into one table, BASE.csv and BASE.h5; fails naming the
+ *       missing points unless every point is there.
  *
- * The driver is the body of the scene's first moment load (made constant at
- * its moment); at each point every body starts at the rigid speeds of the
- * driver's speed (the meshes' kinematics, least squares over the lumped
- * line-of-action rows) and the brake coefficient is set so that the point is
- * in steady state (power balance M w_d = c w_o^2). After --settle seconds the
- * response is measured over --measure seconds. Prints one CSV row per
- * point: driver rpm, mesh frequency of the mesh (Hz), its dynamic
- * transmission error rms (um, deflection about its mean), its dynamic factor
- * (largest force / mean force), the planets' load-sharing factor (largest
- * share, 1 = equal; empty without planets) and the balance residual over the
- * energy scale. Progress per point on stderr. Exit status 0, 1 bad usage,
- * 2 an error (message naming the field). Not an MPI program. */
-#include <lapacke.h>
+ * The driver is the body of the scene's first moment load (made constant);
+ * every body starts at the rigid speeds of the driver's speed and the brake
+ * coefficient is set to the power balance, so each point starts in steady
+ * state. Columns: point, the parameters, mesh frequency (Hz), DTE rms (um),
+ * dynamic factor, load-sharing factor (empty without planets), each body's
+ * mean speed (rpm), the balance residual over the energy scale. Progress on
+ * stderr. Exit status 0, 1 bad usage, 2 an error (message naming the
+ * field). Not an MPI program. */
+#include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "gearsim/step.h"
+#include "gearsim/sweep.h"
 #include "gearsim/util.h"
-#include "tool.h"
 
 static void usage(void)
 {
     fprintf(stderr, "usage: gearsim-sweep SCENE.json --from RPM --to RPM [--points N] [--settle S] [--measure S]\n"
-                    "                     [--time-step H] [--mesh NAME]\n");
+                    "                     [--time-step H] [--mesh NAME]\n"
+                    "       gearsim-sweep --spec SWEEP.json [--task I --tasks N] [--out PART.csv]\n"
+                    "       gearsim-sweep --spec SWEEP.json --collect PART.csv... --out BASE\n");
 }
 
-static int driver_and_brake(const gs_scene *s, int *drv, int *ld, int *brk)
+static void print_row(const gs_sweep *sw, int p, const double *row)
 {
-    *drv = *ld = *brk = -1;
-    for (int i = 0; i < s->n_loads; i++) {
-        const gs_scene_load *l = &s->loads[i];
-        if (*ld < 0 && (l->type == GS_LOAD_CONSTANT || l->type == GS_LOAD_RAMP))
-            *ld = i, *drv = l->body;
-        if (*brk < 0 && l->type == GS_LOAD_BRAKE)
-            *brk = i;
+    printf("%d", p);
+    for (int c = 0; c < gs_sweep_columns(sw); c++)
+        if (isfinite(row[c]))
+            printf(",%.17g", row[c]);
+        else
+            printf(",");
+    printf("\n");
+    fflush(stdout);
+}
+
+/* The spec of a --spec file: its scene_file (relative to the file) or
+ * builtin becomes the scene; the daemon's own keys are dropped. */
+static json_object *read_spec(const char *path)
+{
+    json_object *o = json_object_from_file(path);
+    if (!o || json_object_get_type(o) != json_type_object) {
+        fprintf(stderr, "gearsim-sweep: %s: not a JSON object (%s)\n", path, json_util_get_last_err());
+        json_object_put(o);
+        return NULL;
     }
-    return *ld >= 0 && *brk >= 0;
-}
-
-/* Rigid speeds per unit driver speed: a_m . w = 0 for every mesh, w_drv = 1. */
-static int speed_ratios(const gs_system *sys, int drv, double *ratio)
-{
-    int n = sys->n_coords, m = sys->n_meshes + 1;
-    double *A = calloc((size_t)m * n, sizeof(double)), *b = calloc((size_t)(m > n ? m : n), sizeof(double));
-    for (int i = 0; i < sys->n_meshes; i++)
-        for (int j = 0; j < n; j++)
-            A[(size_t)i * n + j] = sys->meshes[i].a[j];
-    A[(size_t)(m - 1) * n + sys->bodies[drv].coord] = 1.0;
-    b[m - 1] = 1.0;
-    int ok = LAPACKE_dgels(LAPACK_ROW_MAJOR, 'N', m, n, 1, A, n, b, 1) == 0;
-    for (int j = 0; j < n; j++)
-        ratio[j] = b[j];
-    free(A), free(b);
-    return ok;
+    json_object *v;
+    if (json_object_object_get_ex(o, "scene_file", &v)) {
+        char p[4096];
+        const char *f = json_object_get_string(v), *slash = strrchr(path, '/');
+        if (f[0] == '/' || !slash)
+            snprintf(p, sizeof p, "%s", f);
+        else
+            snprintf(p, sizeof p, "%.*s/%s", (int)(slash - path), path, f);
+        json_object *sc = json_object_from_file(p);
+        if (!sc) {
+            fprintf(stderr, "gearsim-sweep: %s: scene_file: cannot read '%s'\n", path, p);
+            json_object_put(o);
+            return NULL;
+        }
+        json_object_object_add(o, "scene", sc);
+        json_object_object_del(o, "scene_file");
+    }
+    if (json_object_object_get_ex(o, "builtin", &v)) {
+        const char *text = gs_scene_builtin(json_object_get_string(v));
+        if (!text) {
+            fprintf(stderr, "gearsim-sweep: %s: builtin: no builtin scene '%s'\n", path, json_object_get_string(v));
+            json_object_put(o);
+            return NULL;
+        }
+        json_object_object_add(o, "scene", json_tokener_parse(text));
+        json_object_object_del(o, "builtin");
+    }
+    json_object_object_del(o, "groups");
+    json_object_object_del(o, "path");
+    json_object_object_del(o, "resume");
+    return o;
 }
 
 int main(int argc, char **argv)
 {
-    const char *path = NULL, *mesh_name = NULL;
+    const char *path = NULL, *mesh_name = NULL, *spec_path = NULL, *out = NULL;
     double from = NAN, to = NAN, settle = 0.01, measure = 0.01, h = 0;
-    int points = 40;
+    int points = 40, task = -1, tasks = 0, first_part = 0, n_parts = 0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         if (i + 1 < argc && !strcmp(a, "--from"))
@@ -84,130 +117,125 @@ int main(int argc, char **argv)
             h = atof(argv[++i]);
         else if (i + 1 < argc && !strcmp(a, "--mesh"))
             mesh_name = argv[++i];
-        else if (a[0] != '-' && !path)
+        else if (i + 1 < argc && !strcmp(a, "--spec"))
+            spec_path = argv[++i];
+        else if (i + 1 < argc && !strcmp(a, "--task"))
+            task = atoi(argv[++i]);
+        else if (i + 1 < argc && !strcmp(a, "--tasks"))
+            tasks = atoi(argv[++i]);
+        else if (i + 1 < argc && !strcmp(a, "--out"))
+            out = argv[++i];
+        else if (!strcmp(a, "--collect")) {
+            first_part = i + 1;
+            while (i + 1 < argc && strncmp(argv[i + 1], "--", 2))
+                i++, n_parts++;
+        } else if (a[0] != '-' && !path)
             path = a;
         else {
             usage();
             return 1;
         }
     }
-    if (!path || !isfinite(from) || !isfinite(to) || points < 1 || points > 10000 || !(settle >= 0) ||
-        !(measure > 0) || !(h >= 0)) {
-        usage();
-        return 1;
-    }
-    gs_scene *s0 = tool_load_scene("gearsim-sweep", path);
-    if (!s0)
-        return 2;
-    int drv, ld, brk;
-    if (!driver_and_brake(s0, &drv, &ld, &brk)) {
-        fprintf(stderr, "gearsim-sweep: %s: loads: a sweep needs a moment load (the driver) and a brake\n", path);
-        gs_scene_free(&s0);
-        return 2;
-    }
-    int mi = 0;
-    if (mesh_name) {
-        mi = -1;
-        for (int i = 0; i < s0->n_meshes; i++)
-            if (!strcmp(s0->meshes[i].name, mesh_name))
-                mi = i;
-    }
-    if (mi < 0 || mi >= s0->n_meshes) {
-        fprintf(stderr, "gearsim-sweep: %s: meshes: no mesh '%s'\n", path, mesh_name ? mesh_name : "");
-        gs_scene_free(&s0);
-        return 2;
-    }
-    char *text = gs_strdup(s0->json);
-    gs_scene_free(&s0);
-    printf("point,driver_rpm,mesh_hz,dte_rms_um,dynamic_factor,lsf,balance_rel\n");
-    for (int p = 0; p < points; p++) {
-        double rpm = points == 1 ? from : from + (to - from) * p / (points - 1);
-        double wd = rpm / GS_RPM_PER_RAD_S;
-        gs_scene *s;
-        gs_diag d;
-        if (gs_scene_parse(text, strlen(text), &s, &d) != GS_OK) {
-            fprintf(stderr, "gearsim-sweep: %s: %s: %s\n", path, d.field, d.message);
+    json_object *spec;
+    const char *what;
+    if (spec_path) {
+        if (path || (task >= 0) != (tasks > 0) || (tasks > 0 && task >= tasks) || (first_part && (!n_parts || !out)) ||
+            (first_part && task >= 0)) {
+            usage();
+            return 1;
+        }
+        if (!(spec = read_spec(spec_path)))
+            return 2;
+        what = spec_path;
+    } else {
+        if (!path || !isfinite(from) || !isfinite(to) || points < 1 || points > GS_SWEEP_MAX_POINTS ||
+            !(settle >= 0) || !(measure > 0) || !(h >= 0) || first_part || task >= 0) {
+            usage();
+            return 1;
+        }
+        json_object *scene = json_object_from_file(path);
+        if (!scene) {
+            fprintf(stderr, "gearsim-sweep: %s: cannot read the scene (%s)\n", path, json_util_get_last_err());
             return 2;
         }
+        spec = json_object_new_object();
+        json_object_object_add(spec, "scene", scene);
+        json_object *prm = json_object_new_object(), *arr = json_object_new_array();
+        json_object_object_add(prm, "path", json_object_new_string("driver_rpm"));
+        json_object_object_add(prm, "from", json_object_new_double(from));
+        json_object_object_add(prm, "to", json_object_new_double(to));
+        json_object_object_add(prm, "points", json_object_new_int(points));
+        json_object_array_add(arr, prm);
+        json_object_object_add(spec, "parameters", arr);
+        json_object_object_add(spec, "settle", json_object_new_double(settle));
+        json_object_object_add(spec, "measure", json_object_new_double(measure));
         if (h > 0)
-            s->time_step = h;
-        gs_scene_load *L = &s->loads[ld];
-        L->type = GS_LOAD_CONSTANT;
-        int out_body = s->loads[brk].body;
-        /* speeds from a first build of the same scene */
-        gs_scene *sk;
-        gs_scene_parse(text, strlen(text), &sk, &d);
-        gs_system *k;
-        if (gs_system_new(sk, 0, 1, &k, &d) != GS_OK) {
-            fprintf(stderr, "gearsim-sweep: %s: %s: %s\n", path, d.field, d.message);
-            gs_scene_free(&s);
-            return 2;
-        }
-        double *ratio = calloc((size_t)k->n_coords, sizeof(double));
-        if (!speed_ratios(k, drv, ratio)) {
-            fprintf(stderr, "gearsim-sweep: %s: meshes: the train has no rigid motion driven by '%s'\n", path,
-                    s->bodies[drv].name);
-            return 2;
-        }
-        for (int i = 0; i < s->n_bodies; i++)
-            if (k->bodies[i].coord >= 0)
-                s->bodies[i].omega0 = wd * ratio[k->bodies[i].coord];
-        double wo = s->bodies[out_body].omega0;
-        gs_system_free(&k);
-        free(ratio);
-        if (fabs(wo) < 1e-12) {
-            fprintf(stderr, "gearsim-sweep: %s: loads: the brake's body does not turn with the driver\n", path);
-            return 2;
-        }
-        s->loads[brk].coefficient = fabs(L->moment * wd / (wo * wo));
-        gs_system *sys;
-        if (gs_system_new(s, 0, 1, &sys, &d) != GS_OK) {
-            fprintf(stderr, "gearsim-sweep: point %d: %s: %s\n", p, d.field, d.message);
-            return 2;
-        }
-        long n_settle = lround(settle / sys->h), n_meas = lround(measure / sys->h);
-        double sx = 0, sxx = 0, fbig = 0, fsum = 0, shmax = 0, worst = 0, scale = 1e-300, fmesh = 0;
-        int np = 0;
-        gs_energy e;
-        for (long st = 0; st < n_settle + n_meas; st++) {
-            if (gs_step_serial(sys) != GS_OK) {
-                fprintf(stderr, "gearsim-sweep: point %d (%.1f rpm): %s: %s\n", p, rpm, sys->diag.field,
-                        sys->diag.message[0] ? sys->diag.message : "the step failed");
-                return 2;
-            }
-            gs_system_energy(sys, &e);
-            worst = fmax(worst, fabs(e.balance_residual));
-            scale = fmax(scale, fmax(fabs(e.total), fmax(e.work_in, e.dissipated)));
-            if (st < n_settle)
-                continue;
-            const gs_gmesh_rt *m = &sys->meshes[mi];
-            sx += m->deflection;
-            sxx += m->deflection * m->deflection;
-            fbig = fmax(fbig, fabs(m->force));
-            fsum += fabs(m->force);
-            double phr = 0;
-            for (int j = 0; j < sys->n_coords; j++)
-                phr += m->c[j] * sys->w[j];
-            fmesh += fabs(phr);
-            int pl[16];
-            double sh[16];
-            np = gs_system_planet_shares(sys, pl, sh, 16);
-            double mx = 0;
-            for (int i = 0; i < np; i++)
-                mx = fmax(mx, sh[i]);
-            shmax += mx;
-        }
-        double mean = sx / n_meas, var = fmax(sxx / n_meas - mean * mean, 0.0);
-        printf("%d,%.6f,%.6f,%.6f,%.6f,", p, rpm, fmesh / n_meas, sqrt(var) * 1e6, fbig / (fsum / n_meas));
-        if (np)
-            printf("%.6f,", shmax / n_meas);
-        else
-            printf(",");
-        printf("%.3e\n", worst / scale);
-        fflush(stdout);
-        fprintf(stderr, "point %d/%d: %.1f rpm done\n", p + 1, points, rpm);
-        gs_system_free(&sys);
+            json_object_object_add(spec, "time_step", json_object_new_double(h));
+        if (mesh_name)
+            json_object_object_add(spec, "mesh", json_object_new_string(mesh_name));
+        what = path;
     }
-    free(text);
-    return 0;
+    gs_sweep *sw;
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_err e = gs_sweep_parse(spec, "", NULL, &sw, &d);
+    json_object_put(spec);
+    if (e != GS_OK) {
+        fprintf(stderr, "gearsim-sweep: %s: %s: %s (%s)\n", what, d.field, d.message, gs_errcode(e));
+        return 2;
+    }
+    int n = gs_sweep_points(sw), nc = gs_sweep_columns(sw);
+    double *rows = gs_calloc((size_t)n * nc, sizeof(double));
+    unsigned char *done = gs_calloc((size_t)n, 1);
+    int status = 0;
+    if (first_part) {
+        for (int k = 0; k < n_parts && e == GS_OK; k++)
+            e = gs_sweep_read_csv(sw, argv[first_part + k], rows, done, &d);
+        int missing = 0;
+        for (int p = 0; p < n && e == GS_OK; p++)
+            if (!done[p]) {
+                fprintf(stderr, "%s%d", missing++ ? "," : "gearsim-sweep: missing points: ", p);
+            }
+        if (missing)
+            fprintf(stderr, "\n");
+        char f[4096];
+        snprintf(f, sizeof f, "%s.csv", out);
+        if (e == GS_OK && !missing)
+            e = gs_sweep_write_csv(sw, rows, done, f, &d);
+        snprintf(f, sizeof f, "%s.h5", out);
+        if (e == GS_OK && !missing)
+            e = gs_sweep_write_h5(sw, rows, done, f, &d);
+        if (e != GS_OK)
+            fprintf(stderr, "gearsim-sweep: %s: %s\n", d.field, d.message);
+        status = e != GS_OK || missing ? 2 : 0;
+    } else {
+        if (!out) {
+            printf("point");
+            for (int c = 0; c < nc; c++)
+                printf(",%s", gs_sweep_column(sw, c));
+            printf("\n");
+        }
+        for (int p = 0; p < n; p++) {
+            if (tasks > 0 && p % tasks != task)
+                continue;
+            e = gs_sweep_point_serial(sw, p, rows + (size_t)p * nc, &d);
+            if (e != GS_OK) {
+                fprintf(stderr, "gearsim-sweep: point %d: %s: %s\n", p, d.field, d.message);
+                status = 2;
+                continue;
+            }
+            done[p] = 1;
+            if (!out)
+                print_row(sw, p, rows + (size_t)p * nc);
+            fprintf(stderr, "point %d/%d done\n", p + 1, n);
+        }
+        if (out && gs_sweep_write_csv(sw, rows, done, out, &d) != GS_OK) {
+            fprintf(stderr, "gearsim-sweep: %s: %s\n", out, d.message);
+            status = 2;
+        }
+    }
+    free(rows);
+    free(done);
+    gs_sweep_free(&sw);
+    return status;
 }

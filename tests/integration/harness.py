@@ -212,6 +212,9 @@ class Probe:
                 else:
                     self.stray.append((frames, parsed, err))
                 got += 1
+                return got   # a reply: let the caller look at it, even under a stream of events
+            if got >= 5000:
+                return got   # a fast run's telemetry never pauses: return now and then
 
     def send(self, cmd, args=None, rid=None, raw=None):
         """Send a request (or raw bytes/frames); returns the id expected in the reply."""

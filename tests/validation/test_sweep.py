@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Speed sweep of the lumped planetary (deploy/scenes/planetary_sweep.json)
-against its modal analysis: `gearctl sweep` over 41 driver speeds (mesh
+against its modal analysis: `gearctl sweep`, the daemon's `sweep` job at
+mpirun -n 2 on 2 groups of ranks, over 41 driver speeds (mesh
 frequency 5100-7500 Hz, h = 2e-6 s so that the midpoint rule's frequency
 error, (w h)^2 / 12, stays below 0.1%) finds resonance peaks of the sun mesh's
 dynamic transmission error; each peak lies within 2% of a natural frequency
@@ -21,10 +22,18 @@ from harness import Results  # noqa: E402
 R = Results("test_sweep: speed sweep resonances at the modal frequencies")
 GEARCTL = os.path.join(dmod.SOURCE_ROOT, "clients", "python", "gearctl")
 env = dict(os.environ, GEARSIM_BUILD_ROOT=dmod.BUILD_ROOT)
-r = subprocess.run([sys.executable, GEARCTL, "sweep", dmod.scene_path("planetary_sweep"), "--from", "17000",
-                    "--to", "25000", "--points", "41", "--time-step", "2e-6", "--settle", "0.008",
-                    "--measure", "0.006", "--json"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
-R.check("gearctl sweep runs", r.returncode == 0, r.stderr[-2000:])
+# GEARSIM_SWEEP_CSV / GEARSIM_SWEEP_PLOT: also write the table and the plot (docs/MODAL.md's figures).
+extra = []
+if os.environ.get("GEARSIM_SWEEP_CSV"):
+    extra += ["--csv", os.environ["GEARSIM_SWEEP_CSV"]]
+if os.environ.get("GEARSIM_SWEEP_PLOT"):
+    extra += ["--plot", os.environ["GEARSIM_SWEEP_PLOT"]]
+with dmod.Daemon(ranks=2) as d:
+    r = subprocess.run([sys.executable, GEARCTL, "--connection-file", d.conn_file, "sweep", "builtin:planetary_sweep",
+                        "--from", "17000", "--to", "25000", "--points", "41", "--time-step", "2e-6", "--settle",
+                        "0.008", "--measure", "0.006", "--groups", "2", "--json"] + extra,
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+R.check("gearctl sweep runs (daemon at -n 2, 2 groups)", r.returncode == 0, r.stderr[-2000:])
 if r.returncode == 0:
     res = json.loads(r.stdout)
     pts, peaks, modes = res["points"], res["peaks"], res["modes"]

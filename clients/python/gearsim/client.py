@@ -234,6 +234,36 @@ class Client:
             return dict(result, id=rid)
         return self.wait_done(rid, on_progress=on_progress, timeout=timeout).get("result")
 
+    def sweep(self, parameters, scene=None, builtin=None, settle=None, measure=None, time_step=None, mesh=None,
+              driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None):
+        """A parameter sweep run by the daemon on groups of its ranks (docs/MODAL.md,
+        "Sweeps"): `parameters` a list of {path, values} or {path, from, to, points}
+        (path "driver_rpm" or a JSON path into the scene); the scene a dict or a JSON
+        file path, or a builtin name. wait=True: the `done` event (its csv and h5
+        name the table in the data directory; fetch() them); wait=False: the
+        accepted reply with "id" added. on_progress gets one event per point."""
+        args = {"parameters": list(parameters)}
+        if (scene is None) == (builtin is None):
+            raise ValueError("sweep() needs exactly one of scene= and builtin=")
+        if scene is not None:
+            if isinstance(scene, (str, os.PathLike)):
+                with open(scene) as f:
+                    scene = json.load(f)
+            args["scene"] = scene
+        else:
+            args["builtin"] = builtin
+        for k, v in (("settle", settle), ("measure", measure), ("time_step", time_step), ("mesh", mesh),
+                     ("driver_rpm", driver_rpm), ("groups", groups), ("path", path), ("resume", resume)):
+            if v is not None:
+                args[k] = str(v) if k == "path" else v
+        if wait and self._sub is None:
+            self.subscribe()
+        rid = self.send("sweep", args)
+        result = self.wait_reply(rid, timeout=max(self.timeout, 60.0))
+        if not wait:
+            return dict(result, id=rid)
+        return self.wait_done(rid, on_progress=on_progress, timeout=timeout)
+
     def pause(self):
         return self.request("pause")
 
@@ -446,7 +476,7 @@ class Client:
                                                err.get("field"), ev)
                         return ev
                 adv, stf = st.get("advance"), st.get("stiffness")
-                running = any(x and x.get("parent_id") == parent_id for x in (adv, stf))
+                running = any(x and x.get("parent_id") == parent_id for x in (adv, stf, st.get("sweep")))
                 if not running:
                     tail, until = [], _time.monotonic() + 1.5
                     while _time.monotonic() < until:

@@ -1,0 +1,121 @@
+/* SPDX-License-Identifier: MIT
+ * gearsim: parameter sweeps (src/sweep, docs/MODAL.md "Sweeps").
+ *
+ * A sweep is a scene and one to four parameters, each a list of values:
+ * `driver_rpm` (the driver's speed; every point then starts in steady state
+ * at that speed) or a JSON path into the scene ("loads[0].moment",
+ * "meshes[2].stiffness.single", "joints[3].pin_error_um", ...). The points
+ * are the grid of all values (the last parameter varies fastest). Each point
+ * is an independent run of `settle` + `measure` seconds; its row holds the
+ * parameter values and the response measured over `measure`: mesh
+ * frequency, dynamic transmission error rms, dynamic factor, load-sharing
+ * factor (trains with planets), the mean speed of every body and the energy
+ * balance residual. A point's row depends only on the sweep and the point,
+ * never on which ranks computed it.
+ *
+ * Points run on groups of MPI ranks (gs_sweep_run_*: rank 0 of the world
+ * coordinates, every group computes points one after the other, each with a
+ * replicated engine over its group's communicator), as separate processes
+ * (gs_sweep_point_serial: gearsim-sweep, a Slurm array task), and are
+ * collected into one table (CSV and HDF5). */
+#ifndef GEARSIM_SWEEP_H
+#define GEARSIM_SWEEP_H
+
+#include <json-c/json.h>
+#include <mpi.h>
+
+#include "gearsim/engine.h"
+
+#define GS_SWEEP_MAX_PARAMS 4
+#define GS_SWEEP_MAX_POINTS 4096
+#define GS_SWEEP_MAX_COLUMNS 96
+
+typedef struct gs_sweep gs_sweep;
+
+/* Parse and check a sweep specification (an object: scene, parameters,
+ * settle, measure, time_step, mesh, driver_rpm; other keys are refused
+ * unless listed in `extra`, NULL-terminated, which the caller reads).
+ * Errors name the field under `prefix` ("args" -> "args.parameters[0].path").
+ * Every point's scene is built and parsed here, so a bad value is refused
+ * before anything runs. */
+gs_err gs_sweep_parse(json_object *spec, const char *prefix, const char *const *extra, gs_sweep **out,
+                      gs_diag *d);
+void gs_sweep_free(gs_sweep **sw);
+int gs_sweep_points(const gs_sweep *sw);
+int gs_sweep_columns(const gs_sweep *sw);            /* row length (point index excluded) */
+const char *gs_sweep_column(const gs_sweep *sw, int c); /* column name */
+/* The canonical JSON text of what determines the results (scene, parameters,
+ * times, mesh, driver speed): equal texts give equal tables. */
+const char *gs_sweep_canonical(const gs_sweep *sw);
+const char *gs_sweep_scene_name(const gs_sweep *sw);
+/* The specification as parsed (its own keys only), as JSON text. */
+const char *gs_sweep_spec_text(const gs_sweep *sw);
+
+/* The scene JSON text of point p (malloc'd). */
+gs_err gs_sweep_point_scene(const gs_sweep *sw, int p, char **text, gs_diag *d);
+
+/* The response of one point, accumulated step by step. */
+typedef struct gs_sweep_meter gs_sweep_meter;
+gs_err gs_sweep_meter_new(const gs_sweep *sw, int p, const gs_system *sys, gs_sweep_meter **out);
+/* After each step; false once the point's steps are all taken. */
+bool gs_sweep_meter_step(gs_sweep_meter *m, const gs_system *sys);
+int64_t gs_sweep_meter_steps_left(const gs_sweep_meter *m);
+int64_t gs_sweep_meter_steps_total(const gs_sweep_meter *m);
+/* The row (gs_sweep_columns values; NAN where a column does not apply). */
+void gs_sweep_meter_row(const gs_sweep_meter *m, double *row);
+void gs_sweep_meter_free(gs_sweep_meter **m);
+
+/* One point in this process (no MPI): its row, or an error naming the field. */
+gs_err gs_sweep_point_serial(const gs_sweep *sw, int p, double *row, gs_diag *d);
+
+/* The table: rows[p * columns .. ] for every point, done[p] non-zero where
+ * computed, err[p] (may be NULL) a message for failed points. CSV: a header
+ * `point,<columns>` and one line per point with %.17g numbers (empty for
+ * NAN and for points not done). HDF5: group /sweep with one dataset per
+ * column, `point`, `done`, and attributes scene, spec (canonical text). */
+gs_err gs_sweep_write_csv(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
+                          gs_diag *d);
+gs_err gs_sweep_write_h5(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
+                         gs_diag *d);
+/* Rows back from a CSV written by gs_sweep_write_csv for the same sweep
+ * (columns checked); points present get done[p] = 1. */
+gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, unsigned char *done, gs_diag *d);
+
+/* ------------------------------------------------------------------ groups
+ * Points on groups of ranks inside one MPI job. Rank 0 of `world` calls
+ * gs_sweep_run_begin, which broadcasts GS_OP_SWEEP through the world
+ * engine (every other rank enters gs_sweep_serve from gs_engine_serve),
+ * splits the world into `groups` groups of consecutive ranks (rank 0 leads
+ * group 0) and hands out the points of todo[] one at a time to whichever
+ * group is free. Rank 0 computes group 0's points in slices of about
+ * `slice_s` seconds inside gs_sweep_run_poll, so its caller stays
+ * responsive. */
+typedef struct gs_sweep_run gs_sweep_run;
+typedef struct gs_sweep_result {
+    int point;
+    gs_err err;
+    char message[480];   /* "field: message" of a failed point */
+    double row[GS_SWEEP_MAX_COLUMNS];
+} gs_sweep_result;
+
+gs_err gs_sweep_run_begin(gs_engine *world, const gs_sweep *sw, const unsigned char *todo, int groups,
+                          gs_sweep_run **out, gs_diag *d);
+/* Receive what the groups finished, hand out points, compute a slice of
+ * group 0's point. Finished points are returned through gs_sweep_run_take. */
+void gs_sweep_run_poll(gs_sweep_run *r, double slice_s);
+/* The next finished point (true) since the last call. */
+bool gs_sweep_run_take(gs_sweep_run *r, gs_sweep_result *out);
+bool gs_sweep_run_finished(const gs_sweep_run *r);
+int gs_sweep_run_groups(const gs_sweep_run *r);
+/* Points computed in this run per second of wall time so far. */
+double gs_sweep_run_rate(const gs_sweep_run *r);
+/* End the run (the groups stop at their next slice; a point under way is
+ * dropped unless it finishes first, then it is returned by take) and
+ * release the other ranks. Collective with them; call it once. */
+void gs_sweep_run_end(gs_sweep_run *r);
+void gs_sweep_run_free(gs_sweep_run **r);
+
+/* Ranks other than 0: the GS_OP_SWEEP payload (called by the engine). */
+gs_err gs_sweep_serve(MPI_Comm world, const char *payload, size_t len);
+
+#endif
