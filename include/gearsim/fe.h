@@ -167,6 +167,7 @@ typedef struct gs_fe_stats {
     uint64_t steps;            /* completed steps */
     uint64_t cache_hits;       /* node columns found in the compliance cache */
     uint64_t cache_misses;     /* node columns computed (two solves each, batched) */
+    uint64_t block_reused;     /* compliance entries copied from the previous block */
     gs_index cached_nodes;     /* nodes held now */
     size_t cache_bytes;        /* memory they use */
     double factor_nnz;         /* entries of the Cholesky factor of the elastic block */
@@ -264,6 +265,8 @@ double gs_fe_body_omega(const gs_fe_body *b);
 double gs_fe_body_kinetic(const gs_fe_body *b);
 /* 1/2 u^T K u (J). */
 double gs_fe_body_elastic(const gs_fe_body *b);
+/* Both of the above in one pass over the matrices (the same values). */
+void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic);
 /* Energy dissipated by material damping since the last set_state, J. */
 double gs_fe_body_damped(const gs_fe_body *b);
 /* I theta' + s . u' (body frame, about the axis; N m s). */

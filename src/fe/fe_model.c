@@ -392,6 +392,27 @@ double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const do
     return diag + 2.0 * off;
 }
 
+void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, double *qm, double *qk)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    const double *mx = m->mx, *kx = m->kx;
+    double offm = 0, diagm = 0, offk = 0, diagk = 0;
+    for (gs_index j = 0; j < m->ne; j++) {
+        gs_index end = cp[j + 1] - 1;
+        double am = 0, ak = 0;
+        for (gs_index p = cp[j]; p < end; p++) {
+            am += mx[p] * xm[ri[p]];
+            ak += kx[p] * xk[ri[p]];
+        }
+        offm += am * xm[j];
+        diagm += mx[end] * xm[j] * xm[j];
+        offk += ak * xk[j];
+        diagk += kx[end] * xk[j] * xk[j];
+    }
+    *qm = diagm + 2.0 * offm;
+    *qk = diagk + 2.0 * offk;
+}
+
 gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M)
 {
     if (!m)
