@@ -43,11 +43,13 @@ typedef struct gs_material {
     double density;     /* rho kg/m^3, default 7850 */
     gs_plane plane;     /* default plane stress with the face width as thickness */
     double damping_s;   /* beta of stiffness-proportional damping D = beta K, s; default 0 */
+    double damping_m;   /* alpha of mass-proportional damping D = alpha M of the elastic
+                         * unknowns (not the rigid rotation), 1/s; default 0 */
 } gs_material;
 
 static inline gs_material gs_material_steel(void)
 {
-    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS, 0.0};
+    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS, 0.0, 0.0};
     return m;
 }
 
@@ -157,7 +159,7 @@ typedef struct gs_fe_balance {
     double work_in;        /* sum over steps of F_{n+1/2} . dq (moment on theta, nodal loads) */
     double work_iface;     /* sum over steps of f . dq of the interface forces (gs_fe_body_apply) */
     double dissipated;     /* sum of c dq_theta^2 / h (the brake) and of damped */
-    double damped;         /* sum of dq^T D dq / h, D = damping_s K (material damping) */
+    double damped;         /* sum of dq^T D dq / h, D = damping_m M + damping_s K (material damping) */
     double residual;       /* E - energy0 - work_in - work_iface + dissipated */
 } gs_fe_balance;
 

@@ -3,7 +3,7 @@
  *
  * The step matrix of the body, theta last, is
  *
- *     A = [ A_ee  a ]     A_ee = 2/h^2 M + (1/2 + beta/h) K  (sparse, elastic block)
+ *     A = [ A_ee  a ]     A_ee = (2/h^2 + alpha_d/h) M + (1/2 + beta/h) K  (sparse)
  *         [ a^T   d ]     a = 2/h^2 s,  d = 2/h^2 I + c/h
  *
  * Only A_ee goes to CHOLMOD (its fill-reducing ordering is not disturbed by
@@ -19,16 +19,19 @@
  * The right-hand side is not formed as b = 2/h M w - K q + F: with
  * dq = h w + delta, A (h w) cancels 2/h M w exactly and
  *
- *     A delta = F - K (q + (h/2 + beta) w) - c w_theta e_theta,
+ *     A delta = F - K (q + (h/2 + beta) w) - alpha_d M w - c w_theta e_theta,
  *
  * the same scheme with the large rigid part taken out before the solve: the
  * round-off no longer scales with the spin speed (energy drift at 3000 rpm
  * went from ~1e-11 to ~1e-14 over 1e4 steps), and the right-hand side needs
  * K only. Then q += h w + delta, w += 2 delta / h.
  *
- * Stiffness-proportional damping D = beta K (material damping_s) enters as
- * the force -D dq / h, constant over the step: it adds beta/h K to A and
- * dissipates exactly dq^T D dq / h per step, which is booked.
+ * Rayleigh damping D = alpha_d M + beta K of the elastic unknowns (material
+ * damping_m, damping_s) enters as the force -D dq / h = -D (w_n + w_{n+1})/2,
+ * the midpoint velocity, constant over the step: it adds alpha_d/h M +
+ * beta/h K to A_ee, - alpha_d M w to the right-hand side, and dissipates
+ * exactly dq^T D dq / h per step, which is booked. The rigid rotation is
+ * not damped (alpha_d M acts on u' only, not on the coupling s or I).
  *
  * Compliance: (A^{-1})_ij = G_ij + y_i y_j / sigma (elastic i, j),
  * -y_i / sigma (elastic i, theta), 1 / sigma (theta, theta), where
@@ -242,7 +245,10 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
     const gs_fe_model *m = b->m;
     factor_slot *sl = &b->slot[k];
     sl->h = 0;
+    /* alpha for M: 2/h^2 of the scheme plus alpha_d/h of mass-proportional
+     * damping (exactly 2/h^2 without it); the theta border keeps 2/h^2. */
     double alpha = 2.0 / (h * h), kappa = 0.5 + m->mat.damping_s / h;
+    double alpha_m = m->mat.damping_m > 0 ? alpha + m->mat.damping_m / h : alpha;
     if (!sl->y) {
         sl->y = gs_calloc((size_t)b->ne + 1, sizeof *sl->y);
         if (!sl->y)
@@ -253,13 +259,13 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
         return GS_OK;
     }
     if (!b->A) {
-        b->A = gsi_fe_cholmod_matrix(m, alpha, kappa, &b->cc);
+        b->A = gsi_fe_cholmod_matrix(m, alpha_m, kappa, &b->cc);
         if (!b->A)
             return GS_ENOMEM;
     } else {
         double *Ax = b->A->x;
         for (gs_index p = 0; p < m->nnz; p++)
-            Ax[p] = alpha * m->mx[p] + kappa * m->kx[p];
+            Ax[p] = alpha_m * m->mx[p] + kappa * m->kx[p];
     }
     if (!sl->L) {
         int src = -1;
@@ -567,7 +573,10 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
         r[i] = b->fnod[i];
         b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
     }
-    gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
+    if (m->mat.damping_m > 0) /* and - alpha_d M w */
+        gsi_fe_symv2(m, -m->mat.damping_m, b->w, -1.0, b->delta, r);
+    else
+        gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     double rt = moment_nm - b->c * b->w[ne];
 
     b->moment = moment_nm;
@@ -605,10 +614,10 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     }
     b->n_touched = 0;
     double dis = b->c * dqt * dqt / h;
-    if (b->m->mat.damping_s > 0) {
+    if (b->m->mat.damping_s > 0 || b->m->mat.damping_m > 0) {
         for (gs_index i = 0; i < ne; i++)
             b->dq[i] = increment(b, i);
-        double dd = gsi_fe_quadform(b->m, 0.0, b->m->mat.damping_s / h, b->dq);
+        double dd = gsi_fe_quadform(b->m, b->m->mat.damping_m / h, b->m->mat.damping_s / h, b->dq);
         dis += dd;
         b->damped += dd;
     }

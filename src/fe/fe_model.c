@@ -123,7 +123,8 @@ static gs_err check_inputs(const gs_mesh *mesh, const gs_material *mat, double t
         !(isfinite(mat->density) && mat->density > 0) ||
         !(mat->poisson > -1.0 && mat->poisson < 0.5) ||
         (mat->plane != GS_PLANE_STRESS && mat->plane != GS_PLANE_STRAIN) ||
-        !(isfinite(mat->damping_s) && mat->damping_s >= 0))
+        !(isfinite(mat->damping_s) && mat->damping_s >= 0) ||
+        !(isfinite(mat->damping_m) && mat->damping_m >= 0))
         return GS_EINVAL;
     if (!(isfinite(t) && t > 0) || !(isfinite(core) && core >= 0))
         return GS_EINVAL;
