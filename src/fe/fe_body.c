@@ -118,6 +118,12 @@ struct gs_fe_body {
      * each index of q, -1 when absent. */
     gs_index blk_n;
     gs_index *blk_q, *blk_pos;
+    /* Computed at the end of a step from the new state, in the one pass
+     * over the matrices that the energies need anyway: -K (q + (h/2 +
+     * beta) w), the next step's right-hand side without loads (valid for
+     * next_h), and the energies. Invalid after any change of state. */
+    double *next_r, next_h, next_T, next_V;
+    bool next_valid;
     double *blk_C;
     size_t cap_blk_q, cap_blk_C;
     bool blk_valid;
@@ -165,6 +171,7 @@ void gs_fe_body_free(gs_fe_body **pb)
     free(b->blk_q);
     free(b->blk_pos);
     free(b->blk_C);
+    free(b->next_r);
     free(b);
     *pb = NULL;
 }
@@ -400,6 +407,11 @@ void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
         *kinetic = *elastic = 0;
         return;
     }
+    if (b->next_valid) {
+        *kinetic = b->next_T;
+        *elastic = b->next_V;
+        return;
+    }
     const gs_fe_model *m = b->m;
     double wt = b->w[b->ne], sw = 0, wmw, qkq;
     for (gs_index i = 0; i < b->ne; i++)
@@ -488,6 +500,7 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
     if (b->in_step)
         return GS_ESTATE;
     const gs_fe_model *m = b->m;
+    b->next_valid = false;
     for (gs_index k = 0; k < m->n_free_nodes; k++)
         for (int c = 0; c < 2; c++) {
             gs_index n = 2 * m->free_node[k] + c;
@@ -500,6 +513,7 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
     b->q[b->ne] = theta;
     b->w[b->ne] = b->held ? 0.0 : omega;
     block_forget(b);
+    b->next_valid = false;
     reset_accounts(b);
     return GS_OK;
 }
@@ -512,6 +526,7 @@ gs_err gs_fe_body_hold_theta(gs_fe_body *b, bool held)
         return GS_ESTATE;
     b->held = held;
     block_forget(b);
+    b->next_valid = false;
     if (held && b->w[b->ne] != 0) {
         b->w[b->ne] = 0;
         reset_accounts(b);
@@ -569,14 +584,19 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
                 return GS_EINVAL;
             b->fnod[2 * k + c] = f;
         }
-    for (gs_index i = 0; i < ne; i++) {
-        r[i] = b->fnod[i];
-        b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
+    if (!f_nodes && b->next_valid && b->next_h == h && !(m->mat.damping_m > 0)) {
+        /* computed by the last end_step from this state: the same values */
+        memcpy(r, b->next_r, (size_t)ne * sizeof *r);
+    } else {
+        for (gs_index i = 0; i < ne; i++) {
+            r[i] = b->fnod[i];
+            b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
+        }
+        if (m->mat.damping_m > 0) /* and - alpha_d M w */
+            gsi_fe_symv2(m, -m->mat.damping_m, b->w, -1.0, b->delta, r);
+        else
+            gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     }
-    if (m->mat.damping_m > 0) /* and - alpha_d M w */
-        gsi_fe_symv2(m, -m->mat.damping_m, b->w, -1.0, b->delta, r);
-    else
-        gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     double rt = moment_nm - b->c * b->w[ne];
 
     b->moment = moment_nm;
@@ -591,6 +611,35 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
 static double increment(const gs_fe_body *b, gs_index i)
 {
     return b->h * b->w[i] + b->delta[i];
+}
+
+/* The energies of the new state and the next right-hand side in one pass
+ * (struct gs_fe_body, next_*); without memory for it, nothing is kept. */
+static void prepare_next(gs_fe_body *b)
+{
+    const gs_fe_model *m = b->m;
+    const gs_index ne = b->ne;
+    b->next_valid = false;
+    if (ne == 0)
+        return;
+    if (!b->next_r) {
+        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
+        if (!b->next_r)
+            return;
+    }
+    const double h = b->h;
+    for (gs_index i = 0; i < ne; i++) {
+        b->next_r[i] = 0.0;
+        b->dq[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* as begin_step forms it */
+    }
+    double wmw, qkq, wt = b->w[ne], sw = 0;
+    gsi_fe_symv_quadform2(m, b->dq, b->next_r, b->w, b->q, &wmw, &qkq);
+    for (gs_index i = 0; i < ne; i++)
+        sw += m->s[i] * b->w[i];
+    b->next_T = 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    b->next_V = 0.5 * qkq;
+    b->next_h = h;
+    b->next_valid = true;
 }
 
 gs_err gs_fe_body_end_step(gs_fe_body *b)
@@ -631,6 +680,7 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     b->dissipated += dis;
     b->in_step = false;
     b->st.steps++;
+    prepare_next(b);
     return GS_OK;
 }
 

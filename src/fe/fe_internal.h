@@ -71,6 +71,11 @@ double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const do
  * the order of gsi_fe_quadform (the same values as its two calls). */
 void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, double *qm, double *qk);
 
+/* gsi_fe_symv2(m, 0, x, -1, x, y) and gsi_fe_quadform2(m, xm, xk, qm, qk)
+ * in one pass over the pattern, each result bit for bit as from those. */
+void gsi_fe_symv_quadform2(const gs_fe_model *m, const double *x, double *y, const double *xm,
+                           const double *xk, double *qm, double *qk);
+
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */
 struct cholmod_sparse_struct;
