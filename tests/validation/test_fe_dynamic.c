@@ -328,6 +328,23 @@ static void modal_periods_quadratic(void **state)
 
 /* ---- 2b. material damping ----------------------------------------------- */
 
+/* nsteps free steps of a damped body: E / E0 at the end, the worst balance
+ * residual over E0 in *worst; all of the dissipation must be damping (no
+ * brake). */
+static double free_decay(gs_fe_body *body, int nsteps, double *worst)
+{
+    double E0 = energy(body);
+    *worst = 0;
+    for (int s = 0; s < nsteps; s++) {
+        assert_int_equal(gs_fe_body_step(body, 0.0, NULL), GS_OK);
+        gs_fe_balance bal;
+        gs_fe_body_get_balance(body, &bal);
+        *worst = fmax(*worst, fabs(bal.residual) / E0);
+        assert_true(bal.damped == bal.dissipated);
+    }
+    return energy(body) / E0;
+}
+
 /* Stiffness-proportional damping D = beta K keeps the undamped modes and
  * damps mode k at the ratio zeta_k = beta w_k / 2 (proportional damping,
  * closed form). The lowest elastic mode, started alone with beta chosen for
@@ -363,15 +380,7 @@ static void damped_mode_decay(void **state)
         }
     assert_int_equal(gs_fe_body_set_step(r.body, h, 0.0), GS_OK);
     assert_int_equal(gs_fe_body_set_state(r.body, 1e-3 * v[n - 1], 0.0, un, NULL), GS_OK);
-    double E0 = energy(r.body), worst = 0;
-    for (int s = 0; s < nsteps; s++) {
-        assert_int_equal(gs_fe_body_step(r.body, 0.0, NULL), GS_OK);
-        gs_fe_balance bal;
-        gs_fe_body_get_balance(r.body, &bal);
-        worst = fmax(worst, fabs(bal.residual) / E0);
-        assert_true(bal.damped == bal.dissipated); /* no brake: all of it is damping */
-    }
-    double ratio = energy(r.body) / E0, expect = exp(-2 * zeta * w * nsteps * h);
+    double worst, ratio = free_decay(r.body, nsteps, &worst), expect = exp(-2 * zeta * w * nsteps * h);
     print_message("# damping beta %.3e s (zeta %.2f at w %.1f rad/s): E/E0 after 10 periods %.6f, "
                   "closed form %.6f (%+.2e); balance %.2e of E0\n",
                   beta, zeta, w, ratio, expect, ratio / expect - 1, worst);
@@ -436,15 +445,7 @@ static void rayleigh_mode_decay(void **state)
             }
         assert_int_equal(gs_fe_body_set_step(r.body, h, 0.0), GS_OK);
         assert_int_equal(gs_fe_body_set_state(r.body, 0.0, 0.0, un, NULL), GS_OK);
-        double E0 = energy(r.body), worst = 0;
-        for (int st = 0; st < nsteps; st++) {
-            assert_int_equal(gs_fe_body_step(r.body, 0.0, NULL), GS_OK);
-            gs_fe_balance bal;
-            gs_fe_body_get_balance(r.body, &bal);
-            worst = fmax(worst, fabs(bal.residual) / E0);
-            assert_true(bal.damped == bal.dissipated);
-        }
-        double ratio = energy(r.body) / E0, expect = exp(-2 * zk * w * nsteps * h);
+        double worst, ratio = free_decay(r.body, nsteps, &worst), expect = exp(-2 * zk * w * nsteps * h);
         print_message("# Rayleigh alpha %.3e 1/s, beta %.3e s: mode %d (w %.1f rad/s, zeta %.4f): E/E0 after "
                       "10 periods %.6f, closed form %.6f (%+.2e); balance %.2e of E0\n",
                       alpha, beta, modes[mk] + 1, w, zk, ratio, expect, ratio / expect - 1, worst);
