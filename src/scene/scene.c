@@ -30,8 +30,7 @@ static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth"
 /* material.damping_ratio zeta at material.damping_hz f: the stiffness-
  * proportional damping that gives zeta at f (zeta_k = beta w_k / 2, so
  * beta = zeta / (pi f)); not together with damping_s. */
-struct json_object;
-static gs_err material_ratio(struct json_object *mat, const char *mp, gs_material *m, gs_diag *d);
+static gs_err material_ratio(json_object *mat, const char *mp, gs_material *m, gs_diag *d);
 
 static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", "damping_m",
                                             "damping_ratio", "damping_hz", NULL};

@@ -173,6 +173,48 @@ static void zero_damping_is_identical(void **state)
     gs_system_free(&b);
 }
 
+/* The scene keys: the ratio converted, bad combinations refused naming the
+ * field. */
+static gs_err parse_material(const char *mat, gs_scene **sc, gs_diag *d)
+{
+    json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
+    json_object *b0 = json_object_array_get_idx(json_object_object_get(root, "bodies"), 0);
+    json_object_object_add(b0, "material", json_tokener_parse(mat));
+    const char *txt = json_object_to_json_string(root);
+    gs_err e = gs_scene_parse(txt, strlen(txt), sc, d);
+    json_object_put(root);
+    return e;
+}
+
+static void scene_keys(void **state)
+{
+    (void)state;
+    gs_scene *sc = NULL;
+    gs_diag d;
+    assert_int_equal(parse_material("{\"damping_ratio\": 0.05, \"damping_hz\": 9230, \"damping_m\": 100}", &sc, &d),
+                     GS_OK);
+    assert_true(fabs(sc->bodies[0].material.damping_s - 0.05 / (GS_PI * 9230)) <= 1e-18);
+    assert_true(sc->bodies[0].material.damping_m == 100);
+    assert_true(sc->bodies[1].material.damping_s == 0 && sc->bodies[1].material.damping_m == 0);
+    gs_scene_free(&sc);
+    const struct {
+        const char *mat, *field;
+    } bad[] = {
+        {"{\"damping_ratio\": 0.05}", "bodies[0].material.damping_hz"},
+        {"{\"damping_hz\": 9230}", "bodies[0].material.damping_ratio"},
+        {"{\"damping_ratio\": 0.05, \"damping_hz\": 9230, \"damping_s\": 1e-6}", "bodies[0].material.damping_ratio"},
+        {"{\"damping_ratio\": 2, \"damping_hz\": 9230}", "bodies[0].material.damping_ratio"},
+        {"{\"damping_ratio\": 0.05, \"damping_hz\": 0}", "bodies[0].material.damping_hz"},
+        {"{\"damping_m\": -1}", "bodies[0].material.damping_m"},
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        gs_err e = parse_material(bad[k].mat, &sc, &d);
+        print_message("# %s -> %s: %s\n", bad[k].mat, d.field, d.message);
+        assert_int_not_equal(e, GS_OK);
+        assert_string_equal(d.field, bad[k].field);
+    }
+}
+
 /* 3. GEARSIM_LONG=1: 300 ms, three runs. */
 static void long_runs(void **state)
 {
@@ -194,6 +236,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(balance_with_damping),
         cmocka_unit_test(zero_damping_is_identical),
+        cmocka_unit_test(scene_keys),
     };
     const struct CMUnitTest long_tests[] = {
         cmocka_unit_test(long_runs),
