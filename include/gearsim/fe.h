@@ -43,11 +43,13 @@ typedef struct gs_material {
     double density;     /* rho kg/m^3, default 7850 */
     gs_plane plane;     /* default plane stress with the face width as thickness */
     double damping_s;   /* beta of stiffness-proportional damping D = beta K, s; default 0 */
+    double damping_m;   /* alpha of mass-proportional damping D = alpha M of the elastic
+                         * unknowns (not the rigid rotation), 1/s; default 0 */
 } gs_material;
 
 static inline gs_material gs_material_steel(void)
 {
-    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS, 0.0};
+    gs_material m = {210e9, 0.3, 7850.0, GS_PLANE_STRESS, 0.0, 0.0};
     return m;
 }
 
@@ -157,7 +159,7 @@ typedef struct gs_fe_balance {
     double work_in;        /* sum over steps of F_{n+1/2} . dq (moment on theta, nodal loads) */
     double work_iface;     /* sum over steps of f . dq of the interface forces (gs_fe_body_apply) */
     double dissipated;     /* sum of c dq_theta^2 / h (the brake) and of damped */
-    double damped;         /* sum of dq^T D dq / h, D = damping_s K (material damping) */
+    double damped;         /* sum of dq^T D dq / h, D = damping_m M + damping_s K (material damping) */
     double residual;       /* E - energy0 - work_in - work_iface + dissipated */
 } gs_fe_balance;
 
@@ -167,6 +169,7 @@ typedef struct gs_fe_stats {
     uint64_t steps;            /* completed steps */
     uint64_t cache_hits;       /* node columns found in the compliance cache */
     uint64_t cache_misses;     /* node columns computed (two solves each, batched) */
+    uint64_t block_reused;     /* compliance entries copied from the previous block */
     gs_index cached_nodes;     /* nodes held now */
     size_t cache_bytes;        /* memory they use */
     double factor_nnz;         /* entries of the Cholesky factor of the elastic block */
@@ -264,6 +267,8 @@ double gs_fe_body_omega(const gs_fe_body *b);
 double gs_fe_body_kinetic(const gs_fe_body *b);
 /* 1/2 u^T K u (J). */
 double gs_fe_body_elastic(const gs_fe_body *b);
+/* Both of the above in one pass over the matrices (the same values). */
+void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic);
 /* Energy dissipated by material damping since the last set_state, J. */
 double gs_fe_body_damped(const gs_fe_body *b);
 /* I theta' + s . u' (body frame, about the axis; N m s). */

@@ -3,7 +3,7 @@
  *
  * The step matrix of the body, theta last, is
  *
- *     A = [ A_ee  a ]     A_ee = 2/h^2 M + (1/2 + beta/h) K  (sparse, elastic block)
+ *     A = [ A_ee  a ]     A_ee = (2/h^2 + alpha_d/h) M + (1/2 + beta/h) K  (sparse)
  *         [ a^T   d ]     a = 2/h^2 s,  d = 2/h^2 I + c/h
  *
  * Only A_ee goes to CHOLMOD (its fill-reducing ordering is not disturbed by
@@ -19,16 +19,19 @@
  * The right-hand side is not formed as b = 2/h M w - K q + F: with
  * dq = h w + delta, A (h w) cancels 2/h M w exactly and
  *
- *     A delta = F - K (q + (h/2 + beta) w) - c w_theta e_theta,
+ *     A delta = F - K (q + (h/2 + beta) w) - alpha_d M w - c w_theta e_theta,
  *
  * the same scheme with the large rigid part taken out before the solve: the
  * round-off no longer scales with the spin speed (energy drift at 3000 rpm
  * went from ~1e-11 to ~1e-14 over 1e4 steps), and the right-hand side needs
  * K only. Then q += h w + delta, w += 2 delta / h.
  *
- * Stiffness-proportional damping D = beta K (material damping_s) enters as
- * the force -D dq / h, constant over the step: it adds beta/h K to A and
- * dissipates exactly dq^T D dq / h per step, which is booked.
+ * Rayleigh damping D = alpha_d M + beta K of the elastic unknowns (material
+ * damping_m, damping_s) enters as the force -D dq / h = -D (w_n + w_{n+1})/2,
+ * the midpoint velocity, constant over the step: it adds alpha_d/h M +
+ * beta/h K to A_ee, - alpha_d M w to the right-hand side, and dissipates
+ * exactly dq^T D dq / h per step, which is booked. The rigid rotation is
+ * not damped (alpha_d M acts on u' only, not on the coupling s or I).
  *
  * Compliance: (A^{-1})_ij = G_ij + y_i y_j / sigma (elastic i, j),
  * -y_i / sigma (elastic i, theta), 1 / sigma (theta, theta), where
@@ -108,6 +111,23 @@ struct gs_fe_body {
     uint64_t clock;    /* counts uses of slots */
     uint64_t request;  /* clock at the start of the current request */
 
+    /* The last compliance block (blk_n dofs, resolved indices blk_q) for
+     * the current h and c: the next step's block shares most of its dofs
+     * and copies their entries instead of gathering them from the columns
+     * again (bit for bit the same values). blk_pos: position in blk_q of
+     * each index of q, -1 when absent. */
+    gs_index blk_n;
+    gs_index *blk_q, *blk_pos;
+    /* Computed at the end of a step from the new state, in the one pass
+     * over the matrices that the energies need anyway: -K (q + (h/2 +
+     * beta) w), the next step's right-hand side without loads (valid for
+     * next_h), and the energies. Invalid after any change of state. */
+    double *next_r, next_h, next_T, next_V;
+    bool next_valid;
+    double *blk_C;
+    size_t cap_blk_q, cap_blk_C;
+    bool blk_valid;
+
     gs_fe_stats st;
 };
 
@@ -148,6 +168,10 @@ void gs_fe_body_free(gs_fe_body **pb)
     free(b->slot_of);
     free(b->node_of);
     free(b->stamp);
+    free(b->blk_q);
+    free(b->blk_pos);
+    free(b->blk_C);
+    free(b->next_r);
     free(b);
     *pb = NULL;
 }
@@ -200,8 +224,11 @@ static gs_err solve_one(gs_fe_body *b)
     return GS_OK;
 }
 
+static void block_forget(gs_fe_body *b);
+
 static void cache_clear(gs_fe_body *b)
 {
+    block_forget(b);
     for (gs_index s = 0; s < b->cache_len; s++)
         b->slot_of[b->node_of[s]] = -1;
     b->cache_len = 0;
@@ -225,7 +252,10 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
     const gs_fe_model *m = b->m;
     factor_slot *sl = &b->slot[k];
     sl->h = 0;
+    /* alpha for M: 2/h^2 of the scheme plus alpha_d/h of mass-proportional
+     * damping (exactly 2/h^2 without it); the theta border keeps 2/h^2. */
     double alpha = 2.0 / (h * h), kappa = 0.5 + m->mat.damping_s / h;
+    double alpha_m = m->mat.damping_m > 0 ? alpha + m->mat.damping_m / h : alpha;
     if (!sl->y) {
         sl->y = gs_calloc((size_t)b->ne + 1, sizeof *sl->y);
         if (!sl->y)
@@ -236,13 +266,13 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
         return GS_OK;
     }
     if (!b->A) {
-        b->A = gsi_fe_cholmod_matrix(m, alpha, kappa, &b->cc);
+        b->A = gsi_fe_cholmod_matrix(m, alpha_m, kappa, &b->cc);
         if (!b->A)
             return GS_ENOMEM;
     } else {
         double *Ax = b->A->x;
         for (gs_index p = 0; p < m->nnz; p++)
-            Ax[p] = alpha * m->mx[p] + kappa * m->kx[p];
+            Ax[p] = alpha_m * m->mx[p] + kappa * m->kx[p];
     }
     if (!sl->L) {
         int src = -1;
@@ -349,6 +379,7 @@ gs_err gs_fe_body_set_step(gs_fe_body *b, double h, double brake_c)
         b->h = h;
     }
     b->c = brake_c;
+    block_forget(b);
     GS_TRY(update_sigma(b));
     b->have_step = true;
     return GS_OK;
@@ -369,6 +400,26 @@ double gsi_fe_body_time_bare_solve(gs_fe_body *b, int reps)
 }
 
 /* ---- state -------------------------------------------------------------- */
+
+void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
+{
+    if (!b) {
+        *kinetic = *elastic = 0;
+        return;
+    }
+    if (b->next_valid) {
+        *kinetic = b->next_T;
+        *elastic = b->next_V;
+        return;
+    }
+    const gs_fe_model *m = b->m;
+    double wt = b->w[b->ne], sw = 0, wmw, qkq;
+    for (gs_index i = 0; i < b->ne; i++)
+        sw += m->s[i] * b->w[i];
+    gsi_fe_quadform2(m, b->w, b->q, &wmw, &qkq);
+    *kinetic = 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    *elastic = 0.5 * qkq;
+}
 
 double gs_fe_body_kinetic(const gs_fe_body *b)
 {
@@ -449,6 +500,7 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
     if (b->in_step)
         return GS_ESTATE;
     const gs_fe_model *m = b->m;
+    b->next_valid = false;
     for (gs_index k = 0; k < m->n_free_nodes; k++)
         for (int c = 0; c < 2; c++) {
             gs_index n = 2 * m->free_node[k] + c;
@@ -460,6 +512,8 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
         }
     b->q[b->ne] = theta;
     b->w[b->ne] = b->held ? 0.0 : omega;
+    block_forget(b);
+    b->next_valid = false;
     reset_accounts(b);
     return GS_OK;
 }
@@ -471,6 +525,8 @@ gs_err gs_fe_body_hold_theta(gs_fe_body *b, bool held)
     if (b->in_step)
         return GS_ESTATE;
     b->held = held;
+    block_forget(b);
+    b->next_valid = false;
     if (held && b->w[b->ne] != 0) {
         b->w[b->ne] = 0;
         reset_accounts(b);
@@ -528,11 +584,19 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
                 return GS_EINVAL;
             b->fnod[2 * k + c] = f;
         }
-    for (gs_index i = 0; i < ne; i++) {
-        r[i] = b->fnod[i];
-        b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
+    if (!f_nodes && b->next_valid && b->next_h == h && !(m->mat.damping_m > 0)) {
+        /* computed by the last end_step from this state: the same values */
+        memcpy(r, b->next_r, (size_t)ne * sizeof *r);
+    } else {
+        for (gs_index i = 0; i < ne; i++) {
+            r[i] = b->fnod[i];
+            b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
+        }
+        if (m->mat.damping_m > 0) /* and - alpha_d M w */
+            gsi_fe_symv2(m, -m->mat.damping_m, b->w, -1.0, b->delta, r);
+        else
+            gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     }
-    gsi_fe_symv2(m, 0.0, b->delta, -1.0, b->delta, r);
     double rt = moment_nm - b->c * b->w[ne];
 
     b->moment = moment_nm;
@@ -547,6 +611,35 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
 static double increment(const gs_fe_body *b, gs_index i)
 {
     return b->h * b->w[i] + b->delta[i];
+}
+
+/* The energies of the new state and the next right-hand side in one pass
+ * (struct gs_fe_body, next_*); without memory for it, nothing is kept. */
+static void prepare_next(gs_fe_body *b)
+{
+    const gs_fe_model *m = b->m;
+    const gs_index ne = b->ne;
+    b->next_valid = false;
+    if (ne == 0)
+        return;
+    if (!b->next_r) {
+        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
+        if (!b->next_r)
+            return;
+    }
+    const double h = b->h;
+    for (gs_index i = 0; i < ne; i++) {
+        b->next_r[i] = 0.0;
+        b->dq[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* as begin_step forms it */
+    }
+    double wmw, qkq, wt = b->w[ne], sw = 0;
+    gsi_fe_symv_quadform2(m, b->dq, b->next_r, b->w, b->q, &wmw, &qkq);
+    for (gs_index i = 0; i < ne; i++)
+        sw += m->s[i] * b->w[i];
+    b->next_T = 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    b->next_V = 0.5 * qkq;
+    b->next_h = h;
+    b->next_valid = true;
 }
 
 gs_err gs_fe_body_end_step(gs_fe_body *b)
@@ -570,10 +663,10 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     }
     b->n_touched = 0;
     double dis = b->c * dqt * dqt / h;
-    if (b->m->mat.damping_s > 0) {
+    if (b->m->mat.damping_s > 0 || b->m->mat.damping_m > 0) {
         for (gs_index i = 0; i < ne; i++)
             b->dq[i] = increment(b, i);
-        double dd = gsi_fe_quadform(b->m, 0.0, b->m->mat.damping_s / h, b->dq);
+        double dd = gsi_fe_quadform(b->m, b->m->mat.damping_m / h, b->m->mat.damping_s / h, b->dq);
         dis += dd;
         b->damped += dd;
     }
@@ -587,6 +680,7 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
     b->dissipated += dis;
     b->in_step = false;
     b->st.steps++;
+    prepare_next(b);
     return GS_OK;
 }
 
@@ -793,6 +887,59 @@ static gs_err cached_columns(gs_fe_body *b, int n, const gs_index *dofs, gs_inde
     return GS_OK;
 }
 
+/* Entry (r, c) of A^{-1} before symmetrisation, from the cached column of
+ * qc (col, NULL for theta) and the border (is = 1/sigma, 0 when held). */
+static double raw_entry(const gs_fe_body *b, gs_index qr, gs_index qc, const double *col, double is)
+{
+    const gs_index ne = b->ne;
+    if (qr < 0 || qc < 0)
+        return 0;
+    if (qr == ne && qc == ne)
+        return is;
+    if (qr == ne)
+        return -b->y[qc] * is;
+    if (qc == ne)
+        return -b->y[qr] * is;
+    return col[qr] + b->y[qr] * b->y[qc] * is;
+}
+
+/* Remember the block C of the dofs qi for the next request. */
+static void block_keep(gs_fe_body *b, int n, const gs_index *qi, const double *C)
+{
+    b->blk_valid = false;
+    if (!b->blk_pos) {
+        b->blk_pos = gs_calloc((size_t)b->ne + 1, sizeof *b->blk_pos);
+        if (!b->blk_pos)
+            return;
+        for (gs_index i = 0; i <= b->ne; i++)
+            b->blk_pos[i] = -1;
+    }
+    for (gs_index k = 0; k < b->blk_n; k++)
+        if (b->blk_q[k] >= 0)
+            b->blk_pos[b->blk_q[k]] = -1;
+    b->blk_n = 0;
+    gs_index *q = gs_grow(b->blk_q, &b->cap_blk_q, (size_t)(n ? n : 1), sizeof *q);
+    if (!q)
+        return;
+    b->blk_q = q;
+    double *c = gs_grow(b->blk_C, &b->cap_blk_C, (size_t)n * (size_t)n + 1, sizeof *c);
+    if (!c)
+        return;
+    b->blk_C = c;
+    memcpy(b->blk_q, qi, (size_t)n * sizeof *qi);
+    memcpy(b->blk_C, C, (size_t)n * (size_t)n * sizeof *C);
+    b->blk_n = n;
+    for (int k = 0; k < n; k++)
+        if (qi[k] >= 0)
+            b->blk_pos[qi[k]] = k;
+    b->blk_valid = true;
+}
+
+static void block_forget(gs_fe_body *b)
+{
+    b->blk_valid = false;
+}
+
 gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C)
 {
     if (!b || n < 0 || (n > 0 && (!dofs || !C)))
@@ -803,31 +950,49 @@ gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double 
     GS_TRY(cached_columns(b, n, dofs, &qi));
     const gs_index ne = b->ne;
     const double is = b->held ? 0.0 : 1.0 / b->sigma;
+    /* Positions in the last block (-1: not there); an unchanged list of
+     * dofs is one copy. */
+    bool same = b->blk_valid && b->blk_n == n;
+    for (int k = 0; same && k < n; k++)
+        same = b->blk_q[k] == qi[k];
+    if (same) {
+        memcpy(C, b->blk_C, (size_t)n * (size_t)n * sizeof *C);
+        b->st.block_reused += (uint64_t)n * (uint64_t)n;
+        free(qi);
+        return GS_OK;
+    }
+    gs_index *old = b->blk_valid ? gs_calloc((size_t)n, sizeof *old) : NULL;
+    if (old)
+        for (int k = 0; k < n; k++)
+            old[k] = qi[k] >= 0 ? b->blk_pos[qi[k]] : -1;
+    const gs_index np = b->blk_n;
+    uint64_t reused = 0;
+    /* Entries symmetrised as (a_ij + a_ji) / 2: G is symmetric only up to
+     * the round-off of the solves, C is made exactly so. */
     for (int j = 0; j < n; j++) {
         gs_index qj = qi[j];
-        const double *col = (qj >= 0 && qj < ne) ? column(b, qj) : NULL;
-        for (int i = 0; i < n; i++) {
-            gs_index qk = qi[i];
+        const double *colj = (qj >= 0 && qj < ne) ? column(b, qj) : NULL;
+        gs_index oj = old ? old[j] : -1;
+        for (int i = j; i < n; i++) {
+            gs_index oi = old ? old[i] : -1;
             double v;
-            if (qk < 0 || qj < 0)
-                v = 0;
-            else if (qk == ne && qj == ne)
-                v = is;
-            else if (qk == ne)
-                v = -b->y[qj] * is;
-            else if (qj == ne)
-                v = -b->y[qk] * is;
-            else
-                v = col[qk] + b->y[qk] * b->y[qj] * is;
-            C[i + (size_t)j * n] = v;
-        }
-    }
-    /* G is symmetric up to round-off in the solves; make C exactly so */
-    for (int j = 0; j < n; j++)
-        for (int i = j + 1; i < n; i++) {
-            double v = 0.5 * (C[i + (size_t)j * n] + C[j + (size_t)i * n]);
+            if (oi >= 0 && oj >= 0) {
+                v = b->blk_C[oi + (size_t)oj * np];
+                reused += i == j ? 1 : 2;
+            } else {
+                gs_index qk = qi[i];
+                v = raw_entry(b, qk, qj, colj, is);
+                if (i != j) {
+                    const double *coli = (qk >= 0 && qk < ne) ? column(b, qk) : NULL;
+                    v = 0.5 * (v + raw_entry(b, qj, qk, coli, is));
+                }
+            }
             C[i + (size_t)j * n] = C[j + (size_t)i * n] = v;
         }
+    }
+    b->st.block_reused += reused;
+    free(old);
+    block_keep(b, n, qi, C);
     free(qi);
     return GS_OK;
 }
@@ -846,6 +1011,28 @@ static gs_err touch(gs_fe_body *b, gs_index i, double f)
     return GS_OK;
 }
 
+/* d += sum_g f[g] col[g], added to each entry in the order of g: the same
+ * values as ng axpys one after the other, in one pass over d. */
+#define AXPY_GROUP 4
+static void axpy_group(double *d, gs_index ne, int ng, const double *f, const double *const *col)
+{
+    if (ng == AXPY_GROUP) {
+        const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3];
+        for (gs_index r = 0; r < ne; r++) {
+            double v = d[r];
+            v += f[0] * c0[r];
+            v += f[1] * c1[r];
+            v += f[2] * c2[r];
+            v += f[3] * c3[r];
+            d[r] = v;
+        }
+        return;
+    }
+    for (int g = 0; g < ng; g++)
+        for (gs_index r = 0; r < ne; r++)
+            d[r] += f[g] * col[g][r];
+}
+
 gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double *f)
 {
     if (!b || n < 0 || (n > 0 && (!dofs || !f)))
@@ -860,6 +1047,9 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
     gs_err e = GS_OK;
     const gs_index ne = b->ne;
     double tau = 0;
+    const double *cols[AXPY_GROUP];
+    double fs[AXPY_GROUP];
+    int ng = 0;
     for (int k = 0; k < n && e == GS_OK; k++) {
         gs_index i = qi[k];
         if (i < 0 || f[k] == 0)
@@ -869,11 +1059,16 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
             tau -= f[k];
             continue;
         }
-        const double *col = column(b, i);
-        for (gs_index r = 0; r < ne; r++)
-            b->delta[r] += f[k] * col[r];
+        cols[ng] = column(b, i);
+        fs[ng++] = f[k];
+        if (ng == AXPY_GROUP) {
+            axpy_group(b->delta, ne, ng, fs, cols);
+            ng = 0;
+        }
         tau += f[k] * b->y[i];
     }
+    if (ng > 0)
+        axpy_group(b->delta, ne, ng, fs, cols);
     free(qi);
     if (e != GS_OK)
         return e;

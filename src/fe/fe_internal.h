@@ -67,6 +67,15 @@ void gsi_fe_symv2(const gs_fe_model *m, double alpha, const double *xm, double b
 /* x^T (alpha M + beta K) x on the elastic block, without workspace. */
 double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const double *x);
 
+/* x_m^T M x_m and x_k^T K x_k in one pass over the pattern, each summed in
+ * the order of gsi_fe_quadform (the same values as its two calls). */
+void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, double *qm, double *qk);
+
+/* gsi_fe_symv2(m, 0, x, -1, x, y) and gsi_fe_quadform2(m, xm, xk, qm, qk)
+ * in one pass over the pattern, each result bit for bit as from those. */
+void gsi_fe_symv_quadform2(const gs_fe_model *m, const double *x, double *y, const double *xm,
+                           const double *xk, double *qm, double *qk);
+
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */
 struct cholmod_sparse_struct;

@@ -123,7 +123,8 @@ static gs_err check_inputs(const gs_mesh *mesh, const gs_material *mat, double t
         !(isfinite(mat->density) && mat->density > 0) ||
         !(mat->poisson > -1.0 && mat->poisson < 0.5) ||
         (mat->plane != GS_PLANE_STRESS && mat->plane != GS_PLANE_STRAIN) ||
-        !(isfinite(mat->damping_s) && mat->damping_s >= 0))
+        !(isfinite(mat->damping_s) && mat->damping_s >= 0) ||
+        !(isfinite(mat->damping_m) && mat->damping_m >= 0))
         return GS_EINVAL;
     if (!(isfinite(t) && t > 0) || !(isfinite(core) && core >= 0))
         return GS_EINVAL;
@@ -390,6 +391,53 @@ double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const do
         diag += (alpha * m->mx[end] + beta * m->kx[end]) * x[j] * x[j];
     }
     return diag + 2.0 * off;
+}
+
+void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, double *qm, double *qk)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    const double *mx = m->mx, *kx = m->kx;
+    double offm = 0, diagm = 0, offk = 0, diagk = 0;
+    for (gs_index j = 0; j < m->ne; j++) {
+        gs_index end = cp[j + 1] - 1;
+        double am = 0, ak = 0;
+        for (gs_index p = cp[j]; p < end; p++) {
+            am += mx[p] * xm[ri[p]];
+            ak += kx[p] * xk[ri[p]];
+        }
+        offm += am * xm[j];
+        diagm += mx[end] * xm[j] * xm[j];
+        offk += ak * xk[j];
+        diagk += kx[end] * xk[j] * xk[j];
+    }
+    *qm = diagm + 2.0 * offm;
+    *qk = diagk + 2.0 * offk;
+}
+
+void gsi_fe_symv_quadform2(const gs_fe_model *m, const double *x, double *y, const double *xm,
+                           const double *xk, double *qm, double *qk)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    const double *mx = m->mx, *kx = m->kx;
+    double offm = 0, diagm = 0, offk = 0, diagk = 0;
+    for (gs_index j = 0; j < m->ne; j++) {
+        gs_index end = cp[j + 1] - 1;
+        double bx = -1.0 * x[j], acc = 0, am = 0, ak = 0;
+        for (gs_index p = cp[j]; p < end; p++) {
+            gs_index i = ri[p];
+            y[i] += kx[p] * bx;
+            acc += kx[p] * x[i];
+            am += mx[p] * xm[i];
+            ak += kx[p] * xk[i];
+        }
+        y[j] += -1.0 * acc + kx[end] * bx;
+        offm += am * xm[j];
+        diagm += mx[end] * xm[j] * xm[j];
+        offk += ak * xk[j];
+        diagk += kx[end] * xk[j] * xk[j];
+    }
+    *qm = diagm + 2.0 * offm;
+    *qk = diagk + 2.0 * offk;
 }
 
 gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M)

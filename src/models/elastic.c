@@ -250,8 +250,7 @@ static void elastic_energy(const gs_system *sys, const gs_body_rt *b, double *T,
         *V = b->V;
         return;
     }
-    *T = gs_fe_body_kinetic(el->body);
-    *V = gs_fe_body_elastic(el->body);
+    gs_fe_body_energy(el->body, T, V);
 }
 
 /* Snapshot state: q then w of the FE body (ne + 1 each, theta last). */

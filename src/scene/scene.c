@@ -27,7 +27,13 @@ static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth"
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error",
     "modification", "pitch_errors_um", "runout", NULL};
-static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", NULL};
+/* material.damping_ratio zeta at material.damping_hz f: the stiffness-
+ * proportional damping that gives zeta at f (zeta_k = beta w_k / 2, so
+ * beta = zeta / (pi f)); not together with damping_s. */
+static gs_err material_ratio(json_object *mat, const char *mp, gs_material *m, gs_diag *d);
+
+static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", "damping_m",
+                                            "damping_ratio", "damping_hz", NULL};
 static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", "order", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", "stiffness", "damping",
@@ -256,6 +262,9 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
                                  &b->material.density, d));
         GS_TRY(gsi_json_number(mat, "damping_s", mp, 0, 1, false, b->material.damping_s,
                                &b->material.damping_s, d));
+        GS_TRY(gsi_json_number(mat, "damping_m", mp, 0, 1e6, false, b->material.damping_m,
+                               &b->material.damping_m, d));
+        GS_TRY(material_ratio(mat, mp, &b->material, d));
         int pl;
         GS_TRY(enum_field(mat, "plane", mp, "stress", planes, 2, &pl, d));
         b->material.plane = (gs_plane)pl;
@@ -1297,4 +1306,26 @@ gs_err gs_scene_load_file(const char *path, gs_scene **out, gs_diag *d)
     gs_err e = gs_scene_parse(text, len, out, d);
     free(text);
     return e;
+}
+
+static gs_err material_ratio(json_object *mat, const char *mp, gs_material *m, gs_diag *d)
+{
+    bool has_r = json_object_object_get_ex(mat, "damping_ratio", NULL);
+    bool has_f = json_object_object_get_ex(mat, "damping_hz", NULL);
+    char p[300];
+    if (!has_r && !has_f)
+        return GS_OK;
+    if (has_r != has_f) {
+        gsi_path(p, sizeof p, mp, has_r ? "damping_hz" : "damping_ratio");
+        return gs_diag_set(d, GS_ESCHEMA, p, "'damping_ratio' and 'damping_hz' go together");
+    }
+    if (json_object_object_get_ex(mat, "damping_s", NULL)) {
+        gsi_path(p, sizeof p, mp, "damping_ratio");
+        return gs_diag_set(d, GS_ESCHEMA, p, "give 'damping_s' or 'damping_ratio' with 'damping_hz', not both");
+    }
+    double zeta, f;
+    GS_TRY(gsi_json_number(mat, "damping_ratio", mp, 0, 1, true, 0, &zeta, d));
+    GS_TRY(gsi_json_positive(mat, "damping_hz", mp, 1e7, true, 1, &f, d));
+    m->damping_s = zeta / (GS_PI * f);
+    return GS_OK;
 }

@@ -379,6 +379,90 @@ static void cache_reuse_and_eviction(void **state)
     assert_int_equal(st.cached_nodes, 6);
 }
 
+/* Consecutive requests that share dofs (the contact plan of successive
+ * steps) copy the shared entries of the previous block: the block, in
+ * another order and with new, repeated and immovable dofs, must equal bit
+ * for bit the block computed from the same cached columns. The grouped
+ * back-substitution (four columns per pass) must give the same state bit
+ * for bit as one column at a time, on a body with the same columns (the
+ * columns themselves depend on which nodes were solved for together). */
+static void block_reuse_is_exact(void **state)
+{
+    fixture *f = *state;
+    gs_fe_body *b = f->body, *twin = NULL;
+    set_wavy_state(f, 0.1, 30.0);
+    gs_index d1[7] = {GS_FE_DOF_THETA, gs_fe_dof_node(40, 0), gs_fe_dof_node(40, 1), gs_fe_dof_node(41, 0),
+                      gs_fe_dof_node(41, 1), gs_fe_dof_node(50, 0), gs_fe_dof_node(50, 1)};
+    /* d2: 41 and 50 kept (in another order), 40 gone, 52 new, 41x twice, a
+     * fixed node (0, on the inner circle) */
+    gs_index d2[8] = {gs_fe_dof_node(50, 1), GS_FE_DOF_THETA, gs_fe_dof_node(41, 0), gs_fe_dof_node(52, 0),
+                      gs_fe_dof_node(41, 1), gs_fe_dof_node(0, 0), gs_fe_dof_node(41, 0), gs_fe_dof_node(50, 0)};
+    double C1[49], C2[64], R2[64];
+    gs_fe_stats st0, st;
+    assert_int_equal(gs_fe_body_new(f->model, &twin), GS_OK);
+    double *u = calloc((size_t)(4 * f->mesh->n_nodes), sizeof *u);
+    assert_non_null(u);
+    gs_fe_body_nodal(b, u, u + 2 * f->mesh->n_nodes);
+    assert_int_equal(gs_fe_body_set_state(twin, gs_fe_body_theta(b), gs_fe_body_omega(b), u,
+                                          u + 2 * f->mesh->n_nodes), GS_OK);
+    gs_fe_body *bb[2] = {b, twin};
+    for (int k = 0; k < 2; k++) {
+        assert_int_equal(gs_fe_body_set_step(bb[k], 1e-5, 0.5), GS_OK);
+        assert_int_equal(gs_fe_body_compliance(bb[k], 7, d1, C1), GS_OK);
+        gs_fe_body_get_stats(bb[k], &st0);
+        assert_int_equal(gs_fe_body_compliance(bb[k], 8, d2, C2), GS_OK);
+        gs_fe_body_get_stats(bb[k], &st);
+        assert_true(st.block_reused > st0.block_reused); /* the shared entries were copied */
+    }
+    /* set_step forgets the kept block (columns stay): computed afresh */
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0.5), GS_OK);
+    gs_fe_body_get_stats(b, &st0);
+    assert_int_equal(gs_fe_body_compliance(b, 8, d2, R2), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.block_reused, st0.block_reused);
+    assert_memory_equal(C2, R2, sizeof C2);
+    /* the same list again: one copy, same bits */
+    assert_int_equal(gs_fe_body_compliance(b, 8, d2, C2), GS_OK);
+    assert_memory_equal(C2, R2, sizeof C2);
+    /* a step with forces on nine node dofs (two full groups of four, one
+     * more), all in one call on b, one call per dof on the twin; theta held
+     * in both, so that no border correction (summed per call) differs */
+    gs_index d3[10] = {GS_FE_DOF_THETA, gs_fe_dof_node(40, 0), gs_fe_dof_node(40, 1), gs_fe_dof_node(41, 0),
+                       gs_fe_dof_node(41, 1), gs_fe_dof_node(50, 0), gs_fe_dof_node(50, 1), gs_fe_dof_node(52, 0),
+                       gs_fe_dof_node(52, 1), gs_fe_dof_node(53, 0)};
+    double fz[10] = {0.3, 1, -2, 3, 0, 5, -6, 7, 8, -9};
+    for (int k = 0; k < 2; k++) {
+        assert_int_equal(gs_fe_body_hold_theta(bb[k], true), GS_OK);
+        assert_int_equal(gs_fe_body_begin_step(bb[k], 0.7, NULL), GS_OK);
+    }
+    assert_int_equal(gs_fe_body_apply(b, 10, d3, fz), GS_OK);
+    double c53;
+    assert_int_equal(gs_fe_body_compliance(twin, 1, &d3[9], &c53), GS_OK); /* node 53 solved alone in both */
+    for (int j = 0; j < 10; j++)
+        assert_int_equal(gs_fe_body_apply(twin, 1, &d3[j], &fz[j]), GS_OK);
+    for (int k = 0; k < 2; k++)
+        assert_int_equal(gs_fe_body_end_step(bb[k]), GS_OK);
+    double dq = 0;
+    for (gs_index i = 0; i < f->n; i++)
+        dq = fmax(dq, fabs(gs_fe_body_q(b)[i] - gs_fe_body_q(twin)[i]));
+    print_message("# grouped vs one-by-one back-substitution: max |q - q_twin| = %.3g\n", dq);
+    assert_true(dq == 0);
+    /* a new brake changes the theta entries: the kept block is not used */
+    assert_int_equal(gs_fe_body_hold_theta(b, false), GS_OK);
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 2.0), GS_OK);
+    gs_fe_body_get_stats(b, &st0);
+    assert_int_equal(gs_fe_body_compliance(b, 8, d2, C2), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.block_reused, st0.block_reused);
+    assert_true(C2[1 + 8] != R2[1 + 8]); /* (theta, theta) */
+    /* the energies in one pass equal the two separate ones */
+    double T, V;
+    gs_fe_body_energy(b, &T, &V);
+    assert_true(T == gs_fe_body_kinetic(b) && V == gs_fe_body_elastic(b));
+    free(u);
+    gs_fe_body_free(&twin);
+}
+
 static void nodal_roundtrip_and_hold(void **state)
 {
     fixture *f = *state;
@@ -419,6 +503,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(refactor_only_on_new_h, setup, teardown),
         cmocka_unit_test_setup_teardown(condensation_matches_dense, setup, teardown),
         cmocka_unit_test_setup_teardown(cache_reuse_and_eviction, setup, teardown),
+        cmocka_unit_test_setup_teardown(block_reuse_is_exact, setup, teardown),
         cmocka_unit_test_setup_teardown(nodal_roundtrip_and_hold, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -237,7 +237,7 @@ static void run_strip(const strip_cfg *cf, strip_out *o)
     free(mesh->fixed); /* a free strip: no clamp */
     mesh->fixed = NULL;
     mesh->n_fixed = 0;
-    gs_material mat = {YOUNG, cf->nu, RHO, GS_PLANE_STRESS, 0.0};
+    gs_material mat = {YOUNG, cf->nu, RHO, GS_PLANE_STRESS, 0.0, 0.0};
     double i_strip = RHO * THK * LEN * HGT * (LEN * LEN / 3 + HGT * HGT / 12);
     gs_fe_model *model;
     gs_fe_body *body;

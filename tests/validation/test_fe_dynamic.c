@@ -16,7 +16,8 @@
  *     measured from zero crossings over 20 periods, within 1% of 2 pi / w
  *     (and within 1e-4 of the midpoint rule's own period
  *     2 pi / ((2/h) atan(w h / 2)), which is what the scheme must produce).
- *  2b. Material damping D = beta K: a mode decays at zeta = beta w / 2.
+ *  2b. Material damping D = beta K: a mode decays at zeta = beta w / 2;
+ *      Rayleigh D = alpha M + beta K (theta held): zeta = alpha/(2w) + beta w/2.
  *  3. Energy balance with a driving moment (constant + ripple) and a speed
  *     brake: E_n - E_0 - W_in + D stays at round-off (1e-12 of the largest
  *     of E, W_in, D) at every step, and the speed settles at M0 / c.
@@ -327,6 +328,23 @@ static void modal_periods_quadratic(void **state)
 
 /* ---- 2b. material damping ----------------------------------------------- */
 
+/* nsteps free steps of a damped body: E / E0 at the end, the worst balance
+ * residual over E0 in *worst; all of the dissipation must be damping (no
+ * brake). */
+static double free_decay(gs_fe_body *body, int nsteps, double *worst)
+{
+    double E0 = energy(body);
+    *worst = 0;
+    for (int s = 0; s < nsteps; s++) {
+        assert_int_equal(gs_fe_body_step(body, 0.0, NULL), GS_OK);
+        gs_fe_balance bal;
+        gs_fe_body_get_balance(body, &bal);
+        *worst = fmax(*worst, fabs(bal.residual) / E0);
+        assert_true(bal.damped == bal.dissipated);
+    }
+    return energy(body) / E0;
+}
+
 /* Stiffness-proportional damping D = beta K keeps the undamped modes and
  * damps mode k at the ratio zeta_k = beta w_k / 2 (proportional damping,
  * closed form). The lowest elastic mode, started alone with beta chosen for
@@ -362,15 +380,7 @@ static void damped_mode_decay(void **state)
         }
     assert_int_equal(gs_fe_body_set_step(r.body, h, 0.0), GS_OK);
     assert_int_equal(gs_fe_body_set_state(r.body, 1e-3 * v[n - 1], 0.0, un, NULL), GS_OK);
-    double E0 = energy(r.body), worst = 0;
-    for (int s = 0; s < nsteps; s++) {
-        assert_int_equal(gs_fe_body_step(r.body, 0.0, NULL), GS_OK);
-        gs_fe_balance bal;
-        gs_fe_body_get_balance(r.body, &bal);
-        worst = fmax(worst, fabs(bal.residual) / E0);
-        assert_true(bal.damped == bal.dissipated); /* no brake: all of it is damping */
-    }
-    double ratio = energy(r.body) / E0, expect = exp(-2 * zeta * w * nsteps * h);
+    double worst, ratio = free_decay(r.body, nsteps, &worst), expect = exp(-2 * zeta * w * nsteps * h);
     print_message("# damping beta %.3e s (zeta %.2f at w %.1f rad/s): E/E0 after 10 periods %.6f, "
                   "closed form %.6f (%+.2e); balance %.2e of E0\n",
                   beta, zeta, w, ratio, expect, ratio / expect - 1, worst);
@@ -381,6 +391,74 @@ static void damped_mode_decay(void **state)
     free(M);
     free(lam);
     ring_free(&r);
+}
+
+/* Rayleigh damping D = alpha M + beta K (material damping_m, damping_s) on
+ * a body with theta held: D is then proportional to the body's M and K, the
+ * undamped modes stay, and mode k is damped at zeta_k = alpha / (2 w_k) +
+ * beta w_k / 2 (closed form). The lowest mode, with zeta = 2% at it split
+ * evenly between the two terms, loses energy as exp(-2 zeta w t) after 10
+ * damped periods (h = T/200; within 1%, as above), and a higher mode (the
+ * fourth) decays at its own zeta_k; the energy lost equals the booked
+ * dissipation to round-off at every step. */
+static void rayleigh_mode_decay(void **state)
+{
+    (void)state;
+    ring r0;
+    ring_new(&r0, 3, 36);
+    gs_index n = r0.ne + 1, ne = r0.ne;
+    double *K = calloc((size_t)(n * n), sizeof *K), *M = calloc((size_t)(n * n), sizeof *M);
+    double *Ke = calloc((size_t)(ne * ne), sizeof *Ke), *Me = calloc((size_t)(ne * ne), sizeof *Me);
+    double *lam = calloc((size_t)ne, sizeof *lam);
+    assert_int_equal(gs_fe_model_dense(r0.model, K, M), GS_OK);
+    for (gs_index j = 0; j < ne; j++)
+        for (gs_index i = 0; i < ne; i++) {
+            Ke[i + j * ne] = K[i + j * n];
+            Me[i + j * ne] = M[i + j * n];
+        }
+    eig(ne, Ke, Me, lam);
+    ring_free(&r0);
+    const double zeta = 0.02, w0 = sqrt(lam[0]);
+    const double alpha = zeta * w0, beta = zeta / w0; /* each gives zeta/2 at w0 */
+    const int modes[2] = {0, 3};
+    for (int mk = 0; mk < 2; mk++) {
+        const double w = sqrt(lam[modes[mk]]), zk = alpha / (2 * w) + beta * w / 2;
+        const double *v = Ke + (size_t)modes[mk] * ne;
+        ring r;
+        memset(&r, 0, sizeof r);
+        assert_int_equal(gsi_fe_mesh_annulus(R_IN, R_OUT, 3, 36, &r.mesh), GS_OK);
+        gs_material mat = gs_material_steel();
+        mat.damping_s = beta;
+        mat.damping_m = alpha;
+        assert_int_equal(gs_fe_model_new(r.mesh, &mat, FACE, 1e-3, &r.model), GS_OK);
+        assert_int_equal(gs_fe_body_new(r.model, &r.body), GS_OK);
+        assert_int_equal(gs_fe_body_hold_theta(r.body, true), GS_OK);
+        gs_index nn = r.mesh->n_nodes;
+        double Td = 2 * GS_PI / (w * sqrt(1 - zk * zk)), h = Td / 200.0;
+        int nsteps = 200 * 10;
+        double *un = calloc((size_t)(2 * nn), sizeof *un);
+        for (gs_index k = 0; k < nn; k++)
+            for (int c = 0; c < 2; c++) {
+                gs_index d = gs_fe_model_dof(r.model, k, c);
+                if (d >= 0)
+                    un[2 * k + c] = 1e-3 * v[d];
+            }
+        assert_int_equal(gs_fe_body_set_step(r.body, h, 0.0), GS_OK);
+        assert_int_equal(gs_fe_body_set_state(r.body, 0.0, 0.0, un, NULL), GS_OK);
+        double worst, ratio = free_decay(r.body, nsteps, &worst), expect = exp(-2 * zk * w * nsteps * h);
+        print_message("# Rayleigh alpha %.3e 1/s, beta %.3e s: mode %d (w %.1f rad/s, zeta %.4f): E/E0 after "
+                      "10 periods %.6f, closed form %.6f (%+.2e); balance %.2e of E0\n",
+                      alpha, beta, modes[mk] + 1, w, zk, ratio, expect, ratio / expect - 1, worst);
+        assert_true(fabs(ratio / expect - 1) < 0.01);
+        assert_true(worst < 1e-12);
+        free(un);
+        ring_free(&r);
+    }
+    free(K);
+    free(M);
+    free(Ke);
+    free(Me);
+    free(lam);
 }
 
 /* ---- 3. balance with moment and brake ----------------------------------- */
@@ -433,6 +511,7 @@ int main(void)
         cmocka_unit_test(modal_periods),
         cmocka_unit_test(modal_periods_quadratic),
         cmocka_unit_test(damped_mode_decay),
+        cmocka_unit_test(rayleigh_mode_decay),
         cmocka_unit_test(balance_with_moment_and_brake),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

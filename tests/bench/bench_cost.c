@@ -1,0 +1,199 @@
+/* SPDX-License-Identifier: MIT
+ * Benchmark: the cost of a step of elastic gears in tooth contact against
+ * its floor (prints only; not a pass/fail test). The floor is one bare
+ * CHOLMOD solve per gear on that gear's own factor (METHOD.md section 4:
+ * the free motion needs one solve per body and step, everything else —
+ * search, compliance blocks, QP, back-substitution — is what the design
+ * adds on top). At -n k the floor is the largest sum of bare solves over
+ * the gears one rank owns.
+ *
+ * For contact_drive (the 30/20 pair) and planetary_contact (five elastic
+ * gears, six contact meshes) at their scene step: a warm-up (the ramp, the
+ * first teeth into mesh), then a timed chunk through the engine, as the
+ * daemon steps it, and the rank-0 breakdown (docs/PERFORMANCE.md, "Cost
+ * per step").
+ *
+ *   bench_cost                    one rank
+ *   mpirun -n 2 bench_cost        two ranks
+ *   bench_cost quick              shorter chunks
+ *   bench_cost full|quick SCENE   one of the two scenes only
+ *
+ * Run by `meson test -C build --benchmark --suite bench cost` (both rank
+ * counts). Wall times are ratios within one run on a shared machine. */
+#define _GNU_SOURCE /* RUSAGE_THREAD */
+#include <json-c/json.h>
+#include <mpi.h>
+#include <stdio.h>
+#include <sys/resource.h>
+#include <time.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "fe/fe_internal.h"
+#include "gearsim/engine.h"
+#include "gearsim/fe.h"
+#include "gearsim/mesh.h"
+#include "gearsim/models.h"
+#include "gearsim/util.h"
+
+/* CPU seconds of this thread: on a shared machine the wall clock also
+ * counts the time other processes held the core. */
+static double cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* User-mode CPU seconds of this thread: without the kernel's time (on a
+ * virtual machine under load, interrupts and page work land there). */
+static double user_now(void)
+{
+    struct rusage ru;
+    getrusage(RUSAGE_THREAD, &ru);
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec;
+}
+
+typedef struct bcase {
+    const char *scene;
+    int warm, steps;
+} bcase;
+
+/* Seconds per bare solve on a fresh factor of body i's model at the scene's
+ * step (the same mesh, material and step matrix as its owner's): wall
+ * clock, and CPU time in *cpu. */
+static double bare_solve(const gs_system *sys, int i, int reps, double *cpu, double *user)
+{
+    const gs_scene_body *sb = &sys->scene->bodies[i];
+    gs_mesh *mesh = NULL;
+    gs_fe_model *m = NULL;
+    gs_fe_body *b = NULL;
+    gs_diag d;
+    double t = -1;
+    if (gs_scene_gear_mesh(sb, &mesh, &d) == GS_OK &&
+        gs_fe_model_new(mesh, &sb->material, sb->gear.face_width_m, 1e-6, &m) == GS_OK &&
+        gs_fe_body_new(m, &b) == GS_OK && gs_fe_body_set_step(b, sys->h, 0.0) == GS_OK)
+    {
+        double c0 = cpu_now(), u0 = user_now();
+        t = gsi_fe_body_time_bare_solve(b, reps);
+        *cpu = (cpu_now() - c0) / reps;
+        *user = (user_now() - u0) / reps;
+    }
+    gs_fe_body_free(&b);
+    gs_fe_model_free(&m);
+    gs_mesh_free(&mesh);
+    return t;
+}
+
+static int run_case(gs_engine *e, const bcase *c, int size)
+{
+    json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
+    json_object *out = json_object_new_object();
+    json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
+    json_object_object_add(root, "outputs", out);
+    const char *txt = json_object_to_json_string(root);
+    gs_diag d;
+    if (gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL) != GS_OK) {
+        fprintf(stderr, "bench_cost: %s: %s: %s\n", c->scene, d.field, d.message);
+        json_object_put(root);
+        return 1;
+    }
+    json_object_put(root);
+    int64_t n = c->warm, done = 0;
+    if (gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) != GS_OK || done != n) {
+        fprintf(stderr, "bench_cost: %s: warm-up stopped at %lld\n", c->scene, (long long)done);
+        return 1;
+    }
+    gs_system *sys = gs_engine_system(e);
+    gs_step_timing t0, t1;
+    gs_engine_timing(e, &t0);
+    n = c->steps;
+    double w0 = gs_now(), c0 = cpu_now(), u0 = user_now();
+    if (gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) != GS_OK || done != n) {
+        fprintf(stderr, "bench_cost: %s: stopped at %lld\n", c->scene, (long long)done);
+        return 1;
+    }
+    double wall = (gs_now() - w0) / (double)n, cpu = (cpu_now() - c0) / (double)n;
+    double user = (user_now() - u0) / (double)n;
+    gs_engine_timing(e, &t1);
+
+    /* The floor: bare solves, timed here on rank 0 while the other ranks
+     * idle (they poll with sleeps), summed per owning rank. */
+    double floor_rank[64] = {0}, cfloor_rank[64] = {0}, ufloor_rank[64] = {0}, floor_all = 0;
+    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up\n", c->scene, size, sys->h, c->steps,
+           c->warm);
+    printf("%-10s %5s %9s %12s %12s\n", "gear", "rank", "unknowns", "solve (ms)", "CPU (ms)");
+    for (int i = 0; i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (!b->ops->state_size)
+            continue;
+        double tc = 0, tu = 0, ts = bare_solve(sys, i, 2000, &tc, &tu);
+        if (ts < 0)
+            return 1;
+        gs_mesh *mesh = NULL;
+        gs_scene_gear_mesh(&sys->scene->bodies[i], &mesh, &d);
+        gs_index nn = mesh ? mesh->n_nodes : 0;
+        gs_mesh_free(&mesh);
+        printf("%-10s %5d %9lld %12.4f %12.4f\n", sys->scene->bodies[i].name, b->owner, (long long)(2 * nn),
+               1e3 * ts, 1e3 * tc);
+        if (b->owner >= 0 && b->owner < 64) {
+            floor_rank[b->owner] += ts;
+            cfloor_rank[b->owner] += tc;
+            ufloor_rank[b->owner] += tu;
+        }
+        floor_all += ts;
+    }
+    double fl = 0, cfl = 0, ufl = 0;
+    for (int r = 0; r < size && r < 64; r++) {
+        ufl = ufl > ufloor_rank[r] ? ufl : ufloor_rank[r];
+        fl = fl > floor_rank[r] ? fl : floor_rank[r];
+        cfl = cfl > cfloor_rank[r] ? cfl : cfloor_rank[r];
+    }
+    double steps = (double)n;
+    printf("breakdown on rank 0 (ms per step): prepare %.4f records %.4f reduce %.4f solve %.4f bcast %.4f "
+           "apply %.4f sync %.4f\n",
+           1e3 * (t1.prepare - t0.prepare) / steps, 1e3 * (t1.records - t0.records) / steps,
+           1e3 * (t1.reduce - t0.reduce) / steps, 1e3 * (t1.solve - t0.solve) / steps,
+           1e3 * (t1.bcast - t0.bcast) / steps, 1e3 * (t1.apply - t0.apply) / steps,
+           1e3 * (t1.sync - t0.sync) / steps);
+    printf("RESULT scene %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
+           "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
+           c->scene, size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
+           1e3 * floor_all);
+    fflush(stdout);
+    gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+    return 0;
+}
+
+int main(int argc, char **argv)
+{
+    int provided;
+    MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
+    gs_engine *e = NULL;
+    if (gs_engine_new(MPI_COMM_WORLD, &e) != GS_OK) {
+        MPI_Abort(MPI_COMM_WORLD, 1);
+        return 1;
+    }
+    int rank = gs_engine_rank(e), size = gs_engine_size(e), rc = 0;
+    if (rank != 0) {
+        rc = gs_engine_serve(e) != GS_OK;
+    } else {
+        bool quick = argc > 1 && strcmp(argv[1], "quick") == 0;
+        const bcase cases[] = {
+            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000},
+            {"planetary_contact", quick ? 200 : 1000, quick ? 200 : 800},
+        };
+        const char *thr = getenv("OPENBLAS_NUM_THREADS");
+        printf("# bench_cost: cost per step against one bare solve per gear; OPENBLAS_NUM_THREADS=%s\n",
+               thr ? thr : "(unset)");
+        const char *only = argc > 2 ? argv[2] : NULL;
+        for (size_t k = 0; k < sizeof cases / sizeof cases[0] && rc == 0; k++)
+            if (!only || !strcmp(only, cases[k].scene))
+                rc = run_case(e, &cases[k], size);
+        gs_diag d;
+        gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
+    }
+    gs_engine_free(&e);
+    MPI_Finalize();
+    return rc;
+}
