@@ -10,7 +10,8 @@ pkgs=(build-essential pkgconf meson ninja-build
       python3-matplotlib python3-cvxopt
       clang libclang-rt-14-dev  # clang + libFuzzer: tests/fuzz, deploy/fuzz.sh
       jupyter-nbconvert python3-ipykernel python3-nbclient python3-nbformat  # the example notebook
-      python3-pip python3-setuptools python3-wheel)  # pip install ./clients/python (test_install)
+      python3-pip python3-setuptools python3-wheel  # pip install ./clients/python (test_install)
+      gmsh calculix-ccx)  # the FE reference (tests/reference/) and bench_reference.py; no test needs them
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
