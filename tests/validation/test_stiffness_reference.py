@@ -59,14 +59,9 @@ def main():
     n = len(ref)
     print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
         n, min(r["k"] for r in ref), max(r["k"] for r in ref)))
-    check(n >= REF_MIN_POSITIONS, "reference has >= %d positions (%d)" % (REF_MIN_POSITIONS, n))
-    check(all(abs(r["roll"] - j / n) < 1e-6 for j, r in enumerate(ref)),
-          "reference rolls are j/%d" % n)
-    est = max(r["est"] for r in ref)
-    check(est < REF_EST_BAR, "reference finest level within %.2f%% of its limit (%.3f%%)"
-          % (100 * REF_EST_BAR, 100 * est))
-    ratio = max(r["k"] for r in ref) / min(r["k"] for r in ref)
-    check(ratio > REF_SHAPE_RATIO, "reference k max/min > %.2f (%.3f)" % (REF_SHAPE_RATIO, ratio))
+    for cond, what in compare.reference_checks(ref, REF_MIN_POSITIONS, REF_EST_BAR,
+                                                REF_SHAPE_RATIO):
+        check(cond, what)
 
     res0 = compare.compare(PAIR, tool)          # the scene's (default) mesh density
     compare.print_result(res0)

@@ -64,20 +64,23 @@ def mean_abs(res):
     return sum(abs(x["err_k"]) for x in res["rows"]) / len(res["rows"])
 
 
+def run(tool, order):
+    """gearsim at the given element order, refine 0, against the reference."""
+    res = compare.compare(PAIR, tool, refine=0, extra=["--order", str(order)])
+    print("order %d:" % order)
+    compare.print_result(res)
+    return res
+
+
 def main():
     tool = compare.find_tool(BUILD)
     ref = compare.load_reference(PAIR)
     n = len(ref)
     print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
         n, min(r["k"] for r in ref), max(r["k"] for r in ref)))
-    check(n >= REF_MIN_POSITIONS, "reference has >= %d positions (%d)" % (REF_MIN_POSITIONS, n))
-    check(all(abs(r["roll"] - j / n) < 1e-6 for j, r in enumerate(ref)),
-          "reference rolls are j/%d" % n)
-    est = max(r["est"] for r in ref)
-    check(est < REF_EST_BAR, "reference finest level within %.2f%% of its limit (%.3f%%)"
-          % (100 * REF_EST_BAR, 100 * est))
-    ratio = max(r["k"] for r in ref) / min(r["k"] for r in ref)
-    check(ratio > REF_SHAPE_RATIO, "reference k max/min > %.2f (%.3f)" % (REF_SHAPE_RATIO, ratio))
+    for cond, what in compare.reference_checks(ref, REF_MIN_POSITIONS, REF_EST_BAR,
+                                                REF_SHAPE_RATIO):
+        check(cond, what)
     base = compare.load_reference(UNSHIFTED)
     te_s = max(r["te_um"] for r in ref)
     te_u = max(r["te_um"] for r in base)
@@ -85,18 +88,14 @@ def main():
           "shifted pair's largest TE %.4f um below the unshifted pair's %.4f um by more "
           "than %.0f%% (%+.2f%%)" % (te_s, te_u, 100 * REF_SHIFT_MIN, 100 * (te_s / te_u - 1)))
 
-    res1 = compare.compare(PAIR, tool, refine=0, extra=["--order", "1"])
-    print("order 1:")
-    compare.print_result(res1)
+    res1 = run(tool, 1)
     s1 = res1["summary"]
     check(s1["max_abs_err_k"] < BAR_K_O1, "order 1 refine 0: max |k error| %.2f%% < %.0f%%"
           % (100 * s1["max_abs_err_k"], 100 * BAR_K_O1))
     check(s1["max_abs_err_te"] < BAR_TE_O1, "order 1 refine 0: max |TE error| %.2f%% < %.0f%%"
           % (100 * s1["max_abs_err_te"], 100 * BAR_TE_O1))
 
-    res2 = compare.compare(PAIR, tool, refine=0, extra=["--order", "2"])
-    print("order 2:")
-    compare.print_result(res2)
+    res2 = run(tool, 2)
     s2 = res2["summary"]
     check(s2["max_abs_err_k"] < BAR_K_O2, "order 2 refine 0: max |k error| %.2f%% < %.0f%%"
           % (100 * s2["max_abs_err_k"], 100 * BAR_K_O2))
