@@ -466,11 +466,12 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     # driver hub: small rigid rotation theta about the axis, theta = dof 1 of
     # node NROT (linear ties: u_x = -y theta, u_y = x theta); its
     # generalised force is the moment about the axis.
-    # Coefficients in fixed point, as the coordinates: ccx misreads a
-    # coefficient such as 8.8360612160443e-09 (a hub node on an axis) as a
-    # lever arm of order 1, which ties part of the moment to nothing (found
-    # at roll 10/12 of the shifted pair: 37 % of the moment lost, TE 4.76
-    # instead of 12.62 um; the hub force exposed it, 734 N instead of 2000).
+    # Coefficients in fixed point, as the coordinates: ccx misread a
+    # 21-character coefficient such as -1.41062664837932e-06 (a hub node
+    # next to an axis), which ties part of the moment to nothing (found at
+    # roll 10/12 of the shifted pair: the hub carried 37 % of the moment,
+    # TE 4.76 instead of 12.62 um; the hub force exposed it, 734 N instead
+    # of 2000).
     o.append("*EQUATION")
     for n in sorted(hubn[21]):
         x, y = nodes[n]
