@@ -11,6 +11,11 @@ pkgs=(build-essential pkgconf meson ninja-build
       clang libclang-rt-14-dev  # clang + libFuzzer: tests/fuzz, deploy/fuzz.sh
       jupyter-nbconvert python3-ipykernel python3-nbclient python3-nbformat  # the example notebook
       python3-pip python3-setuptools python3-wheel)  # pip install ./clients/python (test_install)
+# The FE reference (tests/reference/) and bench_reference.py: no test needs
+# them, so they come only with --reference.
+if [ "${1:-}" = "--reference" ]; then
+  pkgs+=(gmsh calculix-ccx)
+fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

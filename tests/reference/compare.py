@@ -32,6 +32,22 @@ def load_reference(pair_dir):
                  k=float(r["k_n_per_mm_um"]), est=float(r["finest_rel_err"])) for r in rows]
 
 
+def reference_checks(ref, min_positions, est_bar, shape_ratio):
+    """The sanity conditions of a stored reference, as (holds, description)
+    pairs for a test to assert: at least min_positions rolls j/N, the finest
+    level within est_bar of its limit everywhere, k max/min above
+    shape_ratio (double against single contact)."""
+    n = len(ref)
+    est = max(r["est"] for r in ref)
+    ratio = max(r["k"] for r in ref) / min(r["k"] for r in ref)
+    return [(n >= min_positions, "reference has >= %d positions (%d)" % (min_positions, n)),
+            (all(abs(r["roll"] - j / n) < 1e-6 for j, r in enumerate(ref)),
+             "reference rolls are j/%d" % n),
+            (est < est_bar, "reference finest level within %.2f%% of its limit (%.3f%%)"
+             % (100 * est_bar, 100 * est)),
+            (ratio > shape_ratio, "reference k max/min > %.2f (%.3f)" % (shape_ratio, ratio))]
+
+
 def find_tool(build):
     for p in (os.path.join(build, "src", "tools", "gearsim-stiffness"),):
         if os.access(p, os.X_OK):

@@ -278,10 +278,15 @@ PHYS = dict(g0=1, g1=2, c0=11, c1=12, hub0=21, hub1=22)
 def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=1.0,
                    tooth_factor=4.0, zone=0.3,
                    e_mpa=210000.0, nu=0.3, face=10.0, torque=None, penalty=1e8,
-                   fine_dist=None, order=2):
+                   fine_dist=None, order=2, outline_mm=None):
     """Mesh and write the ccx deck of one position.  g1 (driver) at the
     origin turned by th1, g2 at centre2 turned by th2.  h: element size on
-    the fine flanks and fillets (mm).  Returns info dict."""
+    the fine flanks and fillets (mm).  outline_mm: if given, the element
+    size on the outline of every other tooth (and its root arcs) is at most
+    this, growing by `grow` per mm into the body (a bound independent of h:
+    curved 6-node elements as large as the body size on a fillet of radius
+    ~0.4 m fold over).  Every 6-node triangle is checked (jacobian_check)
+    before ccx runs.  Returns info dict."""
     os.makedirs(workdir, exist_ok=True)
     a = centre2[0]
     pp = (a * g1.r / (g1.r + g2.r), 0.0)           # pitch point (centres on x)
@@ -320,9 +325,15 @@ def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=1.
     dmin = terms[0]
     for t in terms[1:]:
         dmin = "Min(%s, %s)" % (t, dmin)
+    outline = "%.12g" % hmax
+    if outline_mm is not None and A["coarse"] + B["coarse"]:
+        L.append("Field[3] = Distance;")
+        L.append("Field[3].CurvesList = {%s};" % ", ".join(map(str, A["coarse"] + B["coarse"])))
+        L.append("Field[3].NumPointsPerCurve = 100;")
+        outline = "%.12g + %.12g * F3" % (outline_mm, grow)
     L.append("Field[2] = MathEval;")
-    L.append('Field[2].F = "Min(Min(%.12g + %.12g * Max(%s - %.6g, 0), %.12g + %.12g * F1), %.12g)";'
-             % (h, grow, dmin, zone, tooth_factor * h, grow, hmax))
+    L.append('Field[2].F = "Min(Min(Min(%.12g + %.12g * Max(%s - %.6g, 0), %.12g + %.12g * F1), %.12g), %s)";'
+             % (h, grow, dmin, zone, tooth_factor * h, grow, hmax, outline))
     L.append("Background Field = 2;")
     L.append("Mesh.MeshSizeExtendFromBoundary = 0;")
     L.append("Mesh.MeshSizeFromPoints = 0;")
@@ -343,11 +354,51 @@ def build_position(workdir, g1, g2, centre2, th1, th2, h, grow=0.3, hmax_frac=1.
                    stdout=subprocess.DEVNULL)
     tmesh = time.time() - t0
     nodes, elems = read_msh(msh)
+    if order == 2:
+        bad = jacobian_check(nodes, elems)
+        if bad:
+            raise RuntimeError("%d curved 6-node triangles fold over (worst det J ratio %.3f at "
+                               "(%.3f, %.3f) mm) in %s: bound the element size there "
+                               "(pair.json outline_mm)" % (len(bad), bad[0][0], bad[0][1][0],
+                                                           bad[0][1][1], msh))
     write_inp(os.path.join(workdir, "pair.inp"), nodes, elems, e_mpa, nu, face, torque,
               penalty, order, g1.rb)
     nn = len(nodes)
     ne = sum(1 for e in elems if e[0] in (9, 2))
     return dict(nodes=nn, elements=ne, mesh_s=tmesh, teeth1=t1, teeth2=t2, contact_points=cps)
+
+
+def jacobian_check(nodes, elems, floor=0.05):
+    """6-node triangles (gmsh type 9) whose Jacobian determinant, sampled
+    at the corners, the mid-sides and the centroid (det J of a quadratic
+    triangle is a quadratic polynomial), changes sign or falls below
+    `floor` times its largest value.  Returns [(min/max, centroid)], worst
+    first."""
+    pts = ((0, 0), (1, 0), (0, 1), (0.5, 0), (0.5, 0.5), (0, 0.5), (1 / 3, 1 / 3))
+    bad = []
+    for typ, _, conn in elems:
+        if typ != 9:
+            continue
+        P = [nodes[n] for n in conn]
+        ds = []
+        for xi, eta in pts:
+            l0 = 1.0 - xi - eta
+            # derivatives of the shape functions (corners 0,1,2; mid-sides 01, 12, 20)
+            dxi = (1 - 4 * l0, 4 * xi - 1, 0.0, 4 * (l0 - xi), 4 * eta, -4 * eta)
+            deta = (1 - 4 * l0, 0.0, 4 * eta - 1, -4 * xi, 4 * xi, 4 * (l0 - eta))
+            a = sum(d * p[0] for d, p in zip(dxi, P))
+            b = sum(d * p[1] for d, p in zip(dxi, P))
+            c = sum(d * p[0] for d, p in zip(deta, P))
+            e = sum(d * p[1] for d, p in zip(deta, P))
+            ds.append(a * e - b * c)
+        lo, hi = min(ds), max(ds)
+        if hi < 0:                      # clockwise element: orientation is fixed later
+            lo, hi = -hi, -lo
+        if hi <= 0 or lo < floor * hi:
+            bad.append((lo / hi if hi > 0 else -1.0,
+                        (sum(p[0] for p in P[:3]) / 3, sum(p[1] for p in P[:3]) / 3)))
+    bad.sort()
+    return bad
 
 
 def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
@@ -415,13 +466,19 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     # driver hub: small rigid rotation theta about the axis, theta = dof 1 of
     # node NROT (linear ties: u_x = -y theta, u_y = x theta); its
     # generalised force is the moment about the axis.
+    # Coefficients in fixed point, as the coordinates: ccx misread a
+    # 21-character coefficient such as -1.41062664837932e-06 (a hub node
+    # next to an axis), which ties part of the moment to nothing (found at
+    # roll 10/12 of the shifted pair: the hub carried 37 % of the moment,
+    # TE 4.76 instead of 12.62 um; the hub force exposed it, 734 N instead
+    # of 2000).
     o.append("*EQUATION")
     for n in sorted(hubn[21]):
         x, y = nodes[n]
         o.append("2")
-        o.append("%d, 1, 1., %d, 1, %.15g" % (n, rotn, y))
+        o.append("%d, 1, 1., %d, 1, %.12f" % (n, rotn, y))
         o.append("2")
-        o.append("%d, 2, 1., %d, 1, %.15g" % (n, rotn, -x))
+        o.append("%d, 2, 1., %d, 1, %.12f" % (n, rotn, -x))
     o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
     o.append("S1, S0")
     o.append("*SURFACE INTERACTION, NAME=SI")

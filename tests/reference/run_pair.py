@@ -57,12 +57,12 @@ def main():
     done = set()
     if os.path.exists(out):
         for r in csv.DictReader(open(out)):
-            done.add((float(r["h_mm"]), float(r["roll"]), float(r["penalty"])))
+            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["penalty"])))
     rolls = a.rolls if a.rolls else range(a.positions)
     for h in a.h:
         for j in rolls:
             roll = j / a.positions
-            if (h, roll, a.penalty) in done:
+            if (h, round(roll, 6), a.penalty) in done:     # rolls are stored to 6 digits
                 continue
             # kinematic angles as gearsim's stiffness analysis sets them
             th1 = roll * 2.0 * math.pi / g1.z
@@ -71,7 +71,8 @@ def main():
             info = gearref.build_position(wd, g1, g2, (centre, 0.0), th1, th2, h,
                                           e_mpa=cfg.get("E_mpa", 210000.0),
                                           nu=cfg.get("nu", 0.3), face=face, torque=torque,
-                                          penalty=a.penalty)
+                                          penalty=a.penalty,
+                                          outline_mm=cfg.get("outline_mm"))
             delta, dt, cpu = gearref.run_ccx(wd, a.threads)
             te_mm = g1.rb * delta
             row = dict(roll="%.6f" % roll, h_mm=h, penalty="%g" % a.penalty,
