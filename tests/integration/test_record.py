@@ -24,7 +24,7 @@ from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_record: HDF5 record, checkpoint/restore, fetch")
 N = 1500
-COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual"]
+COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual", "contact_work"]
 
 
 def attr_text(v):

@@ -14,7 +14,7 @@ import json
 import math
 import os
 
-ENERGY_COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual"]
+ENERGY_COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual", "contact_work"]
 
 
 def _text(v):
