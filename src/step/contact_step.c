@@ -186,9 +186,6 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
     return dg;
 }
 
-/* Evaluate the candidates of contact mesh mi at the current positions and
- * keep those that become rows; returns the deepest penetration. With an
- * adaptive step that can still refine, the others are kept to watch. */
 /* Closure: a row that pairs a slave node with a master's convex corner (turn
  * above 20 degrees: a tip corner, not a vertex of a flank polyline) in the
  * corner's blend zone is replaced by the line gap of the nearest of the two
@@ -232,6 +229,10 @@ static bool corner_to_line(const gs_contact_pose pose[2], gs_contact_row *r)
     return true;
 }
 
+/* Evaluate the candidates of contact mesh mi at the current positions and
+ * keep those that become rows; returns the deepest penetration. With an
+ * adaptive step that can still refine (or closure), the others are kept to
+ * watch. */
 static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
 {
     gsi_contact_mesh *cm = sys->meshes[mi].contact;
