@@ -11,6 +11,7 @@
  *  - seed 7.1 with "closure": at least 20 impacts, the balance with the
  *    booked work at 1e-10 relative, penetration bounded per impact;
  *  - no corner locking: the largest mesh force against the mean.
+ * A wrong treatment name is refused naming numerics.contact.
  * GEARSIM_LONG=1 runs the 200 ms figures of docs/CONTACT.md (both schemes,
  * refine 0 and 1). */
 #include <setjmp.h>
@@ -130,6 +131,23 @@ static void seed_unchanged(void **state)
     assert_true(pen > 0.1e-6);
     gs_system_free(&a);
     gs_system_free(&b);
+}
+
+/* A wrong treatment name is refused naming the field. */
+static void bad_scheme(void **state)
+{
+    (void)state;
+    json_object *root = vt_scene("contact_drive");
+    json_object_object_add(json_object_object_get(root, "numerics"), "contact", json_object_new_string("exact"));
+    const char *txt = json_object_to_json_string(root);
+    gs_scene *sc = NULL;
+    gs_diag d;
+    gs_err e = gs_scene_parse(txt, strlen(txt), &sc, &d);
+    print_message("numerics.contact 'exact': %s: %s\n", d.field, d.message);
+    assert_int_not_equal(e, GS_OK);
+    assert_string_equal(d.field, "numerics.contact");
+    assert_non_null(strstr(d.message, "closure"));
+    json_object_put(root);
 }
 
 /* Closure on contact_drive: balance with the booked work at round-off,
@@ -275,6 +293,7 @@ int main(void)
         return cmocka_run_group_tests(one, NULL, NULL);
     }
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(bad_scheme),
         cmocka_unit_test(seed_unchanged),
         cmocka_unit_test(closure_drive),
         cmocka_unit_test(closure_impacts),
