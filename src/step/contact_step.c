@@ -28,11 +28,8 @@
  * after a solve, the solution) brings to g <= 0: penetration is closed in
  * the step, up to the linearisation. The reactions then do the work
  * lambda^T G x = -lambda^T g, booked per mesh as contact_work (never in the
- * residual). A slave node in the blend zone of a master's convex corner
- * (a tip corner) is held, inside the master, by the line gap of the nearer
- * master segment (its normal at the contact point); outside, the corner's
- * own row against the slave's flank carries the contact (corner_row), where
- * the wedge's bisector row would lock the rolling. */
+ * residual). The rows are the seed's otherwise (the same gap functions,
+ * tip corners included). */
 #include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
@@ -187,63 +184,6 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
     return dg;
 }
 
-/* Closure: rows that pair a slave node with a master's convex corner (turn
- * above 20 degrees: a tip corner, not a vertex of a flank polyline) in the
- * corner's blend zone. The wedge's blended gradient there points along the
- * corner's bisector, about 58 degrees off the line of action with almost no
- * lever arm, and locks the rolling. Inside the master (the nearer segment's
- * line gap <= 0) or beside that segment, the row becomes that line gap: the
- * master's normal at the contact point. Outside and beyond the segment's
- * end (the corner's fan), a line gap would hold the node at the segment's
- * extension, where there is no material: the row is dropped when
- * the corner node is a slave candidate itself (its row against this
- * slave's flank carries the contact along the flank's normal), kept as it
- * is otherwise. Returns 0: row unchanged, 1: replaced, 2: dropped. */
-static int corner_row(const gsi_contact_mesh *cm, const gs_contact_pose pose[2], gs_contact_row *r)
-{
-    if (r->gap.kind != GS_GAP_CONVEX || !(r->gap.blend > 0) || r->n_nodes != 4)
-        return 0;
-    const double *a = r->x[1], *b = r->x[2], *c = r->x[3];
-    double u[2] = {b[0] - a[0], b[1] - a[1]}, v[2] = {c[0] - b[0], c[1] - b[1]};
-    double turn = atan2(u[0] * v[1] - u[1] * v[0], u[0] * v[0] + u[1] * v[1]);
-    if (fabs(turn) < 20.0 * 3.14159265358979323846 / 180.0)
-        return 0;
-    int first = r->gap.segment == r->gap.master[0] ? 1 : 2; /* row node of the segment's start */
-    const double *p0 = r->x[first], *p1 = r->x[first + 1], *xs = r->x[0];
-    double d[2] = {p1[0] - p0[0], p1[1] - p0[1]}, dd = d[0] * d[0] + d[1] * d[1];
-    double tau = dd > 0 ? ((xs[0] - p0[0]) * d[0] + (xs[1] - p0[1]) * d[1]) / dd : -1.0;
-    gs_contact_row l;
-    memset(&l, 0, sizeof l);
-    if (gs_gap_line(xs, p0, p1, &l.gap.g, l.gap.grad) != GS_OK)
-        return 0;
-    if (!(l.gap.g <= 0.0 || (tau >= 0.0 && tau <= 1.0))) {
-        for (gs_index j = 0; j < cm->n_cand; j++)
-            if (cm->cand[j].slave == r->body[2] && cm->cand[j].slave_node == r->node[2])
-                return 2;
-        return 0;
-    }
-    l.gap.kind = GS_GAP_LINE;
-    l.gap.segment = r->gap.segment;
-    l.gap.n_master = 2;
-    l.gap.master[0] = r->gap.master[first - 1];
-    l.gap.master[1] = r->gap.master[first];
-    l.n_nodes = 3;
-    for (int q = 0; q < 3; q++) {
-        int src = q == 0 ? 0 : first + q - 1, bq = r->body[src];
-        l.body[q] = bq;
-        l.node[q] = r->node[src];
-        l.x[q][0] = r->x[src][0];
-        l.x[q][1] = r->x[src][1];
-        const double *dg = l.gap.grad + 2 * q;
-        double xc[2] = {l.x[q][0] - pose[bq].c[0], l.x[q][1] - pose[bq].c[1]};
-        gs_gap_chain(dg, pose[bq].theta, xc, &l.dg_dtheta[bq], l.dg_du[q]);
-        l.dg_dc[bq][0] += dg[0];
-        l.dg_dc[bq][1] += dg[1];
-    }
-    *r = l;
-    return 1;
-}
-
 /* Evaluate the candidates of contact mesh mi at the current positions and
  * keep those that become rows; returns the deepest penetration. With an
  * adaptive step that can still refine (or closure), the others are kept to
@@ -264,12 +204,6 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         double g = r.gap.g;
         if (-g > *pen)
             *pen = -g;
-        if (closure) {
-            int cr = corner_row(cm, pose, &r);
-            if (cr == 2)
-                continue;
-            g = r.gap.g;
-        }
         bool take = g <= 0.0;
         if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
