@@ -81,6 +81,8 @@ struct gs_gmesh_rt {
     int n_rows;              /* constraints in the last step */
     double penetration;      /* deepest penetration at the last step's start, m (>= 0) */
     double friction_loss;    /* energy dissipated by flank friction since load, J */
+    double contact_work;     /* work of the contact reactions since load, J (numerics.contact
+                              * "closure": the gap closure's; exactly 0 with "seed") */
     /* impact meshes (rattle): */
     int64_t impacts;         /* impacts since the start (sustained-contact impulses not counted) */
     double impact_loss;      /* kinetic energy its impulses dissipated since the start, J */
@@ -102,10 +104,12 @@ typedef struct gs_step_plan {
     size_t rec_size, sol_size;
 } gs_step_plan;
 
-/* Energy bookkeeping (J). balance_residual = total - total0 - work_in + dissipated. */
+/* Energy bookkeeping (J).
+ * balance_residual = total - total0 - work_in + dissipated - contact_work. */
 typedef struct gs_energy {
     double kinetic, potential, total, work_in, dissipated, balance_residual;
     double elastic;          /* the part of potential stored in elastic bodies */
+    double contact_work;     /* work of the contact reactions (gap closure), booked */
 } gs_energy;
 
 struct gs_system {
@@ -136,6 +140,7 @@ struct gs_system {
     int64_t refinements;     /* substeps refused by the solve and taken again finer */
     bool refined;            /* a refinement happened in the current step of h */
     double work_in, dissipated, energy0;
+    double contact_work;     /* sum of the meshes' contact_work */
     double last_residual;    /* Newton residual of the last step */
     int last_iterations;
     char warning[256];       /* set at build time, e.g. projected initial speeds */
@@ -177,7 +182,7 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,
- * n_rows, penetration, friction loss), then the bodies' interface forces
+ * n_rows, penetration, friction loss, contact work), then the bodies' interface forces
  * (plan.sol_off). */
 gs_err gs_step_prepare(gs_system *sys);
 /* After gs_step_apply on every rank: advance the time by the substep just
@@ -197,8 +202,8 @@ gs_err gs_step_apply(gs_system *sys, const double *sol);
 gs_err gs_step_serial(gs_system *sys);
 /* Offsets in the solution. Per mesh contact figures: constraints with a
  * positive force, constraints imposed, deepest penetration, friction loss of
- * the step. */
-#define GS_SOL_CONTACT 4
+ * the step, work of the contact reactions in the step. */
+#define GS_SOL_CONTACT 5
 static inline size_t gs_sol_mesh_force(const gs_system *s, int m) { return (size_t)(s->n_coords + 1 + m); }
 static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
 {

@@ -410,12 +410,12 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
 /* Snapshot format: magic, n_coords, n_meshes, step, time, work_in,
  * dissipated, energy0, q[n], w[n], per mesh force, contacts, rows,
  * penetration (the last step's, reported by telemetry), impacts and their
- * energy loss, friction loss (since load), n_states (as a double), the body states (elastic:
+ * energy loss, friction loss, contact work (since load), n_states (as a double), the body states (elastic:
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
  * NUL-terminated. */
-#define SNAP_MAGIC 0x37534753u /* "GSS7" */
+#define SNAP_MAGIC 0x38534753u /* "GSS8" */
 #define SNAP_HEAD_DOUBLES 5 /* time, work_in, dissipated, energy0, adaptive level */
-#define MESH_SNAP 7 /* doubles per mesh */
+#define MESH_SNAP 8 /* doubles per mesh */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -497,7 +497,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     for (size_t i = 0; i < nm; i++) {
         const gs_gmesh_rt *m = &s->meshes[i];
         double ct[MESH_SNAP] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration,
-                                (double)m->impacts, m->impact_loss, m->friction_loss};
+                                (double)m->impacts, m->impact_loss, m->friction_loss,
+                                m->contact_work};
         PUT(ct, sizeof ct);
     }
     double nsd = (double)ns;
@@ -638,7 +639,11 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         m->impacts = (int64_t)ct[4];
         m->impact_loss = ct[5];
         m->friction_loss = ct[6];
+        m->contact_work = ct[7];
     }
+    s->contact_work = 0.0;
+    for (int i = 0; i < s->n_meshes; i++)
+        s->contact_work += s->meshes[i].contact_work;
     return GS_OK;
 }
 

@@ -107,7 +107,7 @@ gs_err gs_record_open_as(const char *path, const char *create_as, const gs_syste
     gsi_h5_string_attr(r->file, "gearsim_version", "0.1.0");
     gsi_h5_scalar_attr(r->file, "time_step", H5T_NATIVE_DOUBLE, &sys->h);
     hid_t g = H5Gcreate2(r->file, "telemetry", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
-    int cols[DS_N] = {1, 1, 6, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
+    int cols[DS_N] = {1, 1, 7, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
     bool ok = g >= 0;
     for (int i = 0; i < DS_N && ok; i++) {
         r->cols[i] = cols[i];
@@ -120,7 +120,8 @@ gs_err gs_record_open_as(const char *path, const char *create_as, const gs_syste
     }
     if (ok) {
         gsi_h5_string_attr(r->ds[DS_ENERGY], "columns",
-                        "[\"kinetic\",\"potential\",\"total\",\"work_in\",\"dissipated\",\"balance_residual\"]");
+                        "[\"kinetic\",\"potential\",\"total\",\"work_in\",\"dissipated\",\"balance_residual\","
+                        "\"contact_work\"]");
         char *bn = names_json(sys, false), *mn = names_json(sys, true);
         gsi_h5_string_attr(g, "bodies", bn ? bn : "[]");
         gsi_h5_string_attr(g, "meshes", mn ? mn : "[]");
@@ -157,8 +158,8 @@ gs_err gs_record_sample(gs_record *r, const gs_system *sys)
     r->buf[DS_TIME][k] = sys->time;
     int64_t st = sys->step;
     memcpy(&r->buf[DS_STEP][k], &st, sizeof st);
-    double ev[6] = {e.kinetic, e.potential, e.total, e.work_in, e.dissipated, e.balance_residual};
-    memcpy(&r->buf[DS_ENERGY][6 * k], ev, sizeof ev);
+    double ev[7] = {e.kinetic, e.potential, e.total, e.work_in, e.dissipated, e.balance_residual, e.contact_work};
+    memcpy(&r->buf[DS_ENERGY][7 * k], ev, sizeof ev);
     for (int b = 0; b < sys->n_bodies; b++) {
         r->buf[DS_ANGLE][k * sys->n_bodies + b] = gs_system_angle(sys, b);
         r->buf[DS_OMEGA][k * sys->n_bodies + b] = gs_system_omega(sys, b);
@@ -796,7 +797,7 @@ gs_err gs_record_reopen_as(const char *path, const char *open_as, const gs_syste
         free(r);
         return gs_diag_set(d, GS_EIO, "path", "cannot reopen the record file '%s'", path);
     }
-    int cols[DS_N] = {1, 1, 6, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
+    int cols[DS_N] = {1, 1, 7, sys->n_bodies, sys->n_bodies, sys->n_meshes, sys->n_meshes};
     const char *bad = NULL;
     hid_t g = H5Gopen2(r->file, "telemetry", H5P_DEFAULT);
     if (g < 0)

@@ -47,7 +47,7 @@ static const char *const stiff_keys[] = {"type",      "value",     "single",    
                                          "transition", "positions", "calibration", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
-static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", "adaptive", NULL};
+static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", "adaptive", "contact", NULL};
 static const char *const adaptive_keys[] = {"penetration_um", "levels", NULL};
 static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
 static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every",
@@ -1207,6 +1207,11 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_number(o, "newton_tol", "numerics", 1e-16, 1e-3, false, 1e-13, &s->newton_tol, d));
         CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
         s->max_newton = (int)v;
+        /* Contact treatment (docs/CONTACT.md, "Contact treatments"). */
+        static const char *const schemes[] = {"seed", "closure"};
+        int cs;
+        CHECK(enum_field(o, "contact", "numerics", "seed", schemes, 2, &cs, d));
+        s->contact_scheme = cs;
         json_object *ad;
         CHECK(gsi_json_object(o, "adaptive", "numerics", false, &ad, d));
         if (ad) {

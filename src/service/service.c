@@ -136,6 +136,7 @@ static json_object *energy_json(const gs_energy *e)
     json_object_object_add(o, "work_in", json_object_new_double(e->work_in));
     json_object_object_add(o, "dissipated", json_object_new_double(e->dissipated));
     json_object_object_add(o, "balance_residual", json_object_new_double(e->balance_residual));
+    json_object_object_add(o, "contact_work", json_object_new_double(e->contact_work));
     return o;
 }
 
@@ -176,6 +177,7 @@ json_object *gsi_state_json(gs_service *s)
             json_object_object_add(j, "contacts", json_object_new_int(m->n_active));
             json_object_object_add(j, "rows", json_object_new_int(m->n_rows));
             json_object_object_add(j, "friction_loss", json_object_new_double(m->friction_loss));
+            json_object_object_add(j, "contact_work", json_object_new_double(m->contact_work));
         }
         if (m->ops->after_step) {
             json_object_object_add(j, "impacts", json_object_new_int64(m->impacts));

@@ -21,7 +21,15 @@
  *  4. the interface forces f = E^T mu + G^T lambda go back to the bodies
  *     (exactly zero for a body no row touches), the rigid increments are x.
  * The rows drop g(x_n): the reaction does no work (lambda^T G x = 0 by
- * complementarity), so frictionless contact conserves energy exactly. */
+ * complementarity), so frictionless contact conserves energy exactly.
+ *
+ * numerics.contact "closure" (docs/CONTACT.md, "Contact treatments") keeps
+ * the gap instead, G x >= -g(x_n), on every candidate the free motion (or,
+ * after a solve, the solution) brings to g <= 0: penetration is closed in
+ * the step, up to the linearisation. The reactions then do the work
+ * lambda^T G x = -lambda^T g, booked per mesh as contact_work (never in the
+ * residual). The rows are the seed's otherwise (the same gap functions,
+ * tip corners included). */
 #include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
@@ -57,6 +65,8 @@ typedef struct solver {
     double *mg, *mJ, *H0, *c0, *xp, *mf; /* force meshes: g, J, saved H block and c, last x, forces */
     size_t cap_m[6];
     double *H, *c, *E, *e, *G, *g, *x, *lam_eq, *lam_in, *S, *f;
+    double *inc;         /* closure: the step's increments of every plan dof */
+    size_t cap_inc;
     size_t cap[11];      /* capacities of the eleven arrays above, in that order of reserve() */
     gs_qp *qp;
     int qp_n, qp_eq, qp_in;
@@ -80,6 +90,7 @@ void gsi_contact_free(gs_system *sys)
     free(s->mg), free(s->mJ), free(s->H0), free(s->c0), free(s->xp), free(s->mf);
     free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
+    free(s->inc);
     gs_qp_free(&s->qp);
     free(s);
     sys->solver = NULL;
@@ -175,10 +186,12 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
 
 /* Evaluate the candidates of contact mesh mi at the current positions and
  * keep those that become rows; returns the deepest penetration. With an
- * adaptive step that can still refine, the others are kept to watch. */
+ * adaptive step that can still refine (or closure), the others are kept to
+ * watch. */
 static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
 {
     gsi_contact_mesh *cm = sys->meshes[mi].contact;
+    bool closure = sys->scene->contact_scheme == GS_CONTACT_CLOSURE;
     gs_contact_pose pose[2];
     for (int k = 0; k < 2; k++) {
         gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
@@ -192,11 +205,11 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         if (-g > *pen)
             *pen = -g;
         bool take = g <= 0.0;
-        if (!take && cm->predict) /* the free motion's change of g */
+        if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
         if (take)
             GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, mi, &r));
-        else if (sys->level < sys->scene->adapt_levels)
+        else if (closure || sys->level < sys->scene->adapt_levels)
             GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, &r));
     }
     return GS_OK;
@@ -213,6 +226,87 @@ static double watched_penetration(const gs_system *sys, const solver *s, const d
         pen = fmax(pen, -g);
     }
     return pen;
+}
+
+/* Closure: the step's increments of every plan dof (into s->inc, at the
+ * bodies' base offsets) from the solution x: an unknown's is x itself, any
+ * other dof a of body i moves by d0_a + C_a,sel H_sel (x_sel - d0_sel), the
+ * response to the interface forces H_sel (x_sel - d0_sel) on its unknowns
+ * (the same forces the body is given back). */
+static gs_err plan_increments(const gs_system *sys, solver *s, const double *rec, int N, size_t total_dof)
+{
+    const gs_step_plan *p = &sys->plan;
+    if (!grow(&s->inc, &s->cap_inc, total_dof + 1) || !grow(&s->f, &s->cap[9], (size_t)N))
+        return GS_ENOMEM;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        int nd = p->n_dof[i], k = 0;
+        const double *C = rec + p->rec_off[i], *d0 = C + (size_t)nd * nd;
+        const int *unk = s->unk + s->base[i];
+        double *inc = s->inc + s->base[i];
+        for (int a = 0; a < nd; a++)
+            if (unk[a] >= 0)
+                s->sel[k++] = a;
+        /* forces on the selected dofs, in s->f[0 .. k) */
+        for (int a = 0; a < k; a++) {
+            double v = 0.0;
+            for (int b = 0; b < k; b++)
+                v += s->H[(size_t)unk[s->sel[a]] * N + unk[s->sel[b]]] * (s->x[unk[s->sel[b]]] - d0[s->sel[b]]);
+            s->f[a] = v;
+        }
+        for (int a = 0; a < nd; a++) {
+            if (unk[a] >= 0) {
+                inc[a] = s->x[unk[a]];
+                continue;
+            }
+            double v = d0[a];
+            for (int b = 0; b < k; b++)
+                v += C[(size_t)s->sel[b] * nd + a] * s->f[b];
+            inc[a] = v;
+        }
+    }
+    return GS_OK;
+}
+
+/* Closure: row r's gap at the step's end, linearised, from s->inc. */
+static double closure_gap(const gs_system *sys, const solver *s, const gs_contact_row *r,
+                          const gsi_contact_mesh *cm)
+{
+    const gs_step_plan *p = &sys->plan;
+    double g = r->gap.g;
+    for (int k = 0; k < 2; k++) {
+        int b = cm->body[k];
+        if (sys->bodies[b].coord >= 0)
+            g += r->dg_dtheta[k] * s->inc[s->base[b]];
+    }
+    for (int t = 0; t < r->n_nodes; t++) {
+        int gk = r->body[t], b = cm->body[gk];
+        int pk = cm->elastic[gk] ? gsi_plan_find(p, b, r->node[t]) : -1;
+        if (pk < 0)
+            continue;
+        for (int comp = 0; comp < 2; comp++)
+            g += r->dg_du[t][comp] * s->inc[s->base[b] + (size_t)node_dof(sys, b, pk, comp)];
+    }
+    return g;
+}
+
+/* Closure: move the watched candidates the solution would take to g < 0
+ * into the rows (the rows only grow, so the solves that follow end);
+ * returns how many moved. */
+static gs_err promote_watched(gs_system *sys, solver *s, int *moved)
+{
+    *moved = 0;
+    int kept = 0;
+    for (int j = 0; j < s->n_watch; j++) {
+        const row_ref *w = &s->watch[j];
+        if (closure_gap(sys, s, &w->r, sys->meshes[w->mesh].contact) < 0.0) {
+            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, w->mesh, &w->r));
+            (*moved)++;
+        } else {
+            s->watch[kept++] = *w;
+        }
+    }
+    s->n_watch = kept;
+    return GS_OK;
 }
 
 /* Velocity of the material point at x of gear body b from its rigid motion
@@ -453,6 +547,9 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
         ct[1] = s->n_rows - before;
         ct[2] = pen;
     }
+    bool closure = sys->scene->contact_scheme == GS_CONTACT_CLOSURE;
+    int passes = 0;
+again:;
     /* 2. Unknowns: coordinates, then the nodes that enter a row. */
     int *nu = gs_grow(s->unk, &s->cap_unk, total_dof + 1, sizeof(int));
     if (!nu)
@@ -533,7 +630,8 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
         const gs_contact_row *cr = &s->rows[r].r;
         const gsi_contact_mesh *cm = sys->meshes[s->rows[r].mesh].contact;
         double *G = s->G + (size_t)r * N;
-        s->g[r] = 0.0; /* homogeneous: the gap g(x_n) is dropped on purpose */
+        /* seed: homogeneous, the gap g(x_n) is dropped on purpose; closure: kept */
+        s->g[r] = closure ? -cr->gap.g : 0.0;
         for (int k = 0; k < 2; k++) {
             int b = cm->body[k], c = sys->bodies[b].coord;
             if (c >= 0)
@@ -584,9 +682,21 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
             GS_TRY(solve_step_qp(sys, s, &pr, &res, sol, &mdiss));
         }
     }
-    /* 5c. Adaptive step: a solution that would push a watched node deeper
+    /* 5c. Closure: candidates without a row that the solution takes inside
+     * get one, and the step is solved again (at most 8 times). */
+    if (closure && s->n_watch > 0 && passes < 8) {
+        GS_TRY(plan_increments(sys, s, rec, N, total_dof));
+        int moved;
+        GS_TRY(promote_watched(sys, s, &moved));
+        if (moved > 0) {
+            passes++;
+            goto again;
+        }
+    }
+    /* 5d. Adaptive step: a solution that would push a watched node deeper
      * than the threshold is not taken; the step is taken again finer. */
-    if (s->n_watch > 0 && watched_penetration(sys, s, rec, s->x) > sys->scene->adapt_penetration)
+    if (s->n_watch > 0 && sys->level < sys->scene->adapt_levels &&
+        watched_penetration(sys, s, rec, s->x) > sys->scene->adapt_penetration)
         return GS_EREFINE;
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));
@@ -615,7 +725,19 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
     for (int a = 0; a < ne; a++)
         for (int j = 0; j < N; j++)
             s->f[j] += s->E[(size_t)a * N + j] * s->lam_eq[a];
+    if (closure)
+        for (int mi = 0; mi < sys->n_meshes; mi++)
+            if (sys->meshes[mi].ops->contact)
+                sol[gs_sol_mesh_contact(sys, mi) + 1] = 0.0;
     for (int r = 0; r < ni; r++) {
+        if (closure) {
+            /* rows per mesh (promoted ones too), and the reactions' work */
+            double gx = 0.0;
+            for (int j = 0; j < N; j++)
+                gx += s->G[(size_t)r * N + j] * s->x[j];
+            sol[gs_sol_mesh_contact(sys, s->rows[r].mesh) + 1] += 1.0;
+            sol[gs_sol_mesh_contact(sys, s->rows[r].mesh) + 4] += s->lam_in[r] * gx;
+        }
         if (s->lam_in[r] == 0.0)
             continue;
         for (int j = 0; j < N; j++)

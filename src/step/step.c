@@ -329,7 +329,12 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         me->n_rows = (int)ct[1];
         me->penetration = ct[2];
         me->friction_loss += ct[3];
+        me->contact_work += ct[4]; /* gap closure (numerics.contact); 0 with the seed's rows */
     }
+    /* The sum over the meshes, formed the same way after a restore. */
+    sys->contact_work = 0.0;
+    for (int i = 0; i < sys->n_meshes; i++)
+        sys->contact_work += sys->meshes[i].contact_work;
     /* Stop with the limit named rather than go on with garbage. */
     if (err == GS_OK)
         err = gs_system_check(sys, &sys->diag);

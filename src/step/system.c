@@ -792,7 +792,8 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
     e->total = T + V;
     e->work_in = sys->work_in;
     e->dissipated = sys->dissipated;
-    e->balance_residual = e->total - sys->energy0 - sys->work_in + sys->dissipated;
+    e->contact_work = sys->contact_work;
+    e->balance_residual = e->total - sys->energy0 - sys->work_in + sys->dissipated - sys->contact_work;
 }
 
 void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta)

@@ -24,7 +24,7 @@ from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_record: HDF5 record, checkpoint/restore, fetch")
 N = 1500
-COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual"]
+COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual", "contact_work"]
 
 
 def attr_text(v):
@@ -67,7 +67,7 @@ def check_layout(path, scene, tel):
         R.check("record: time is (n)", g["time"].shape == (n,), g["time"].shape)
         R.check("record: step is (n) int64", g["step"].shape == (n,) and g["step"].dtype == np.int64,
                 (g["step"].shape, g["step"].dtype))
-        R.check("record: energy is (n x 6)", g["energy"].shape == (n, 6), g["energy"].shape)
+        R.check("record: energy is (n x 7)", g["energy"].shape == (n, 7), g["energy"].shape)
         cols = names(g["energy"].attrs["columns"]) if "columns" in g["energy"].attrs else None
         R.check("record: energy attribute columns", cols == COLUMNS, cols)
         R.check(f"record: angle is (n x {nb})", g["angle"].shape == (n, nb), g["angle"].shape)

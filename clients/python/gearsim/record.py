@@ -4,8 +4,8 @@
 Layout (written by gearsimd's `record`):
   file attributes  scene (JSON text), gearsim_version
   /telemetry       time (n), step (n, int64),
-                   energy (n x 6; attribute columns: kinetic, potential, total,
-                   work_in, dissipated, balance_residual),
+                   energy (n x 7; attribute columns: kinetic, potential, total,
+                   work_in, dissipated, balance_residual, contact_work),
                    angle (n x nbodies), omega (n x nbodies), mesh_force (n x nmeshes);
                    group attributes bodies, meshes (JSON lists of names)
 Attributes may be stored as strings or bytes; both are accepted. Set
@@ -14,7 +14,7 @@ import json
 import math
 import os
 
-ENERGY_COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual"]
+ENERGY_COLUMNS = ["kinetic", "potential", "total", "work_in", "dissipated", "balance_residual", "contact_work"]
 
 
 def _text(v):
