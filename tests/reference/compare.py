@@ -48,6 +48,18 @@ def reference_checks(ref, min_positions, est_bar, shape_ratio):
             (ratio > shape_ratio, "reference k max/min > %.2f (%.3f)" % (shape_ratio, ratio))]
 
 
+def open_checked(pair_dir, build, min_positions, est_bar, shape_ratio, check):
+    """The tool and the reference of a pair, the reference's own checks passed
+    to check(cond, what) (the validation tests' common start)."""
+    tool = find_tool(build)
+    ref = load_reference(pair_dir)
+    print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
+        len(ref), min(r["k"] for r in ref), max(r["k"] for r in ref)))
+    for cond, what in reference_checks(ref, min_positions, est_bar, shape_ratio):
+        check(cond, what)
+    return tool, ref
+
+
 def find_tool(build):
     for p in (os.path.join(build, "src", "tools", "gearsim-stiffness"),):
         if os.access(p, os.X_OK):

@@ -71,14 +71,8 @@ def check(cond, what):
 
 
 def main():
-    tool = compare.find_tool(BUILD)
-    ref = compare.load_reference(PAIR)
-    n = len(ref)
-    print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
-        n, min(r["k"] for r in ref), max(r["k"] for r in ref)))
-    for cond, what in compare.reference_checks(ref, REF_MIN_POSITIONS, REF_EST_BAR,
-                                                REF_SHAPE_RATIO):
-        check(cond, what)
+    tool, ref = compare.open_checked(PAIR, BUILD, REF_MIN_POSITIONS, REF_EST_BAR,
+                                     REF_SHAPE_RATIO, check)
 
     res0 = compare.compare(PAIR, tool)          # the scene's (default) mesh density
     compare.print_result(res0)

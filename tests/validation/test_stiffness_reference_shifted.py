@@ -73,14 +73,8 @@ def run(tool, order):
 
 
 def main():
-    tool = compare.find_tool(BUILD)
-    ref = compare.load_reference(PAIR)
-    n = len(ref)
-    print("reference: %d positions, k %.3f .. %.3f N/(mm um)" % (
-        n, min(r["k"] for r in ref), max(r["k"] for r in ref)))
-    for cond, what in compare.reference_checks(ref, REF_MIN_POSITIONS, REF_EST_BAR,
-                                                REF_SHAPE_RATIO):
-        check(cond, what)
+    tool, ref = compare.open_checked(PAIR, BUILD, REF_MIN_POSITIONS, REF_EST_BAR,
+                                     REF_SHAPE_RATIO, check)
     base = compare.load_reference(UNSHIFTED)
     te_s = max(r["te_um"] for r in ref)
     te_u = max(r["te_um"] for r in base)
