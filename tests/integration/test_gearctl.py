@@ -62,7 +62,7 @@ def run_and_plot(d):
     try:
         with h5py.File(out_h, "r") as f:
             g = f["telemetry"]
-            ok_h5 = "scene" in f.attrs and g["energy"].shape[1] == 6 and g["omega"].shape[1] == 2 and \
+            ok_h5 = "scene" in f.attrs and g["energy"].shape[1] == 7 and g["omega"].shape[1] == 2 and \
                 g["time"].shape[0] >= expect
             R.check(f"record file: valid HDF5 with the record layout ({g['time'].shape[0]} rows)", ok_h5,
                     {k: g[k].shape for k in g})

@@ -452,7 +452,12 @@ class Client:
                 return ev
             if timeout is not None and now - start > timeout:
                 raise GearsimTimeout(f"advance {parent_id} not done after {timeout:g} s")
-            if now - last_check > 2.0:
+            if ev is not None and ev.get("type") != "heartbeat":
+                # Events still coming (or queued behind a slow callback): the
+                # done event is behind them; ask status only when the stream
+                # has been quiet for 2 s.
+                last_check = now
+            elif now - last_check > 2.0:
                 # A done event dropped at a high-water mark (or a subscriber
                 # that is gone) must not hang us: status lists the last
                 # finished requests with their done payload.
@@ -466,9 +471,13 @@ class Client:
                         until = _time.monotonic() + 1.5
                         while _time.monotonic() < until:
                             e = self.next_event(max(until - _time.monotonic(), 0.0))
-                            if e is not None and self._dispatch(e, parent_id, on_telemetry, on_progress, on_event):
+                            if e is None:
+                                continue
+                            if self._dispatch(e, parent_id, on_telemetry, on_progress, on_event):
                                 f = e
                                 break
+                            if e.get("type") != "heartbeat":
+                                until = _time.monotonic() + 1.5   # still draining
                         ev = f if f.get("type") == "done" else dict(f, v=PROTOCOL, type="done", from_status=True)
                         err = ev.get("error")
                         if err and not ev.get("cancelled"):
