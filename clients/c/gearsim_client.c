@@ -391,6 +391,12 @@ int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
                     *done = ev;
                     return 0;
                 }
+                /* Events still coming (or queued behind a slow callback):
+                 * the done event is behind them; ask status only after a
+                 * quiet GSC_DONE_POLL_MS. */
+                if (!(json_object_object_get_ex(ev, "type", &t) &&
+                      strcmp(json_object_get_string(t), "heartbeat") == 0))
+                    last_poll = now_ms();
                 if (on_event)
                     on_event(ev, user);
                 json_object_put(ev);
@@ -425,6 +431,9 @@ int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
                             f = e2;
                             break;
                         }
+                        if (!(json_object_object_get_ex(e2, "type", &t) &&
+                              strcmp(json_object_get_string(t), "heartbeat") == 0))
+                            until = now_ms() + 1500; /* still draining */
                         if (on_event)
                             on_event(e2, user);
                         json_object_put(e2);
