@@ -112,12 +112,16 @@ def kill_and_resume(label, scene, ranks, steps):
                 if time.monotonic() > deadline:
                     raise TimeoutError("no autosave.h5 within 300 s")
                 time.sleep(0.005)
+            # Kill at a random step of the remaining run: poll for it (a
+            # delay computed from the measured rate overshoots on a machine
+            # whose load changes during the run).
             st = c.status()
-            rate = max(st["timing"]["steps_per_second"], 1.0)
-            left = steps - st["step"]
-            delay = RNG.uniform(0.0, 0.7 * left / rate)
-            time.sleep(delay)
-            st = c.status()
+            target = st["step"] + int(RNG.uniform(0.0, 0.7) * (steps - st["step"]))
+            t_kill = time.monotonic()
+            while st.get("advance") is not None and st["step"] < target:
+                time.sleep(0.005)
+                st = c.status()
+            delay = time.monotonic() - t_kill
         running = st.get("advance") is not None
         sess = d1.proc.pid
         d1.kill()
