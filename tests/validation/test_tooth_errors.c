@@ -50,7 +50,7 @@
 #define TE_WINDOW_SCATTER_BAR 0.01
 /* The contact model's perfect pair at orders z -+ 1, as a fraction of the
  * run-out sidebands' prediction A_z pi e / p_b (closure: 0.06-0.08; the
- * seed's 7-9 times the prediction). */
+ * seed's 10-12 times the prediction). */
 #define TE_QUIET_BAR 0.2
 
 /* Tooth errors in the lumped and calibrated meshes against the dynamic
