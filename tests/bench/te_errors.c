@@ -15,12 +15,16 @@
  *   te_errors [--models contact,lumped,calibrated] [--omega 40] [--torque 150]
  *             [--h 1e-5] [--ramp 0.01] [--settle 0.01] [--damping-s 0]
  *             [--revs 1] [--pitch-um 10] [--teeth 0,4,8,12,16] [--runout-um 20]
- *             [--phase-deg 30]
- *             [--csv PREFIX]
+ *             [--phase-deg 30] [--contact seed|closure]
+ *             [--damping-ratio 0 --damping-hz F] [--csv PREFIX]
  *
  * --csv PREFIX writes PREFIX_<model>_<case>.csv (time s, pinion angle rad,
  * TE um) for every run. --teeth lists the faulty pinion teeth (default
- * 0,4,8,12,16: windows of 3 mesh cycles that do not overlap). */
+ * 0,4,8,12,16: windows of 3 mesh cycles that do not overlap). --contact
+ * sets numerics.contact of the contact model (docs/CONTACT.md "Contact
+ * treatments"); --damping-ratio zeta at --damping-hz f gives both elastic
+ * gears material damping (docs/FE.md "Material damping"; not with
+ * --damping-s). */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -30,7 +34,7 @@
 int main(int argc, char **argv)
 {
     const char *models = "contact,lumped,calibrated", *teeth = "0,4,8,12,16";
-    te_study_opts o = {TE_CONTACT, 150, 40, 1e-5, 0.01, 0.01, 1.0, 0, 10, 20, 30, {0}, 0, NULL, 0};
+    te_study_opts o = {TE_CONTACT, 150, 40, 1e-5, 0.01, 0.01, 1.0, 0, 10, 20, 30, {0}, 0, NULL, 0, NULL, 0, 0};
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!v) {
@@ -62,6 +66,12 @@ int main(int argc, char **argv)
             o.runout_um = atof(v);
         else if (!strcmp(a, "--phase-deg"))
             o.phase_deg = atof(v);
+        else if (!strcmp(a, "--contact"))
+            o.contact_scheme = v;
+        else if (!strcmp(a, "--damping-ratio"))
+            o.damping_ratio = atof(v);
+        else if (!strcmp(a, "--damping-hz"))
+            o.damping_hz = atof(v);
         else if (!strcmp(a, "--csv"))
             o.csv = v;
         else {
@@ -79,16 +89,18 @@ int main(int argc, char **argv)
         o.faulty[o.nf++] = (int)j;
         c = *end == ',' ? end + 1 : end;
     }
-    if (!(o.omega > 0 && o.torque > 0 && o.h > 0 && o.ramp > 0 && o.settle >= 0 && o.revs > 0) || o.nf == 0) {
+    if (!(o.omega > 0 && o.torque > 0 && o.h > 0 && o.ramp > 0 && o.settle >= 0 && o.revs > 0) || o.nf == 0 ||
+        o.damping_ratio < 0 || (o.damping_ratio > 0 && !(o.damping_hz > 0)) ||
+        (o.damping_ratio > 0 && o.damping_s > 0)) {
         fprintf(stderr, "bad option value\n");
         return 2;
     }
     double f_mesh = o.omega * TE_Z / (2 * GS_PI);
     printf("20/30 pair (m 2.5, b 10 mm), %.0f N m on the pinion at %.1f rad/s (mesh frequency %.1f Hz), h %.1e s, "
-           "ramp %.3f s, settle %.3f s, %.2f revolutions recorded, material damping %.2e s (contact); pitch "
-           "error %.2f um on pinion teeth %s, run-out %.2f um at %.1f deg\n",
-           o.torque, o.omega, f_mesh, o.h, o.ramp, o.settle, o.revs, o.damping_s, o.pitch_um, teeth, o.runout_um,
-           o.phase_deg);
+           "ramp %.3f s, settle %.3f s, %.2f revolutions recorded, material damping %.2e s or %.3f at %.0f Hz "
+           "(contact), contact treatment %s; pitch error %.2f um on pinion teeth %s, run-out %.2f um at %.1f deg\n",
+           o.torque, o.omega, f_mesh, o.h, o.ramp, o.settle, o.revs, o.damping_s, o.damping_ratio, o.damping_hz,
+           o.contact_scheme ? o.contact_scheme : "seed", o.pitch_um, teeth, o.runout_um, o.phase_deg);
     fflush(stdout);
     te_study_result res[3];
     int have[3] = {0, 0, 0};
@@ -115,8 +127,15 @@ int main(int argc, char **argv)
                r->shift_median * 1e6, r->n_windows);
         for (int i = 0; i < r->n_windows; i++)
             printf(" %.3f", r->shift[i] * 1e6);
-        printf("), over the record %.4f um; run-out: once-per-revolution TE %.4f um\n", r->record_shift * 1e6,
+        printf("), over the record %.4f um (linear sharing %.4f); run-out: once-per-revolution TE %.4f um\n",
+               r->record_shift * 1e6, -cos(20 * GS_PI / 180) * o.pitch_um * o.nf / TE_Z,
                r->runout_1x * 1e6);
+        /* run-out sidebands against the phase modulation's A_z pi e / p_b
+         * (docs/GEOMETRY.md "Run-out: the TE spectrum") */
+        double pred = r->order[0][2] * GS_PI * o.runout_um / (GS_PI * 2.5e3 * cos(20 * GS_PI / 180));
+        printf("%-10s run-out sidebands: orders 19 %.4f, 21 %.4f um (perfect gears %.4f, %.4f) against "
+               "A_20 pi e / p_b = %.4f um\n", te_model_names[mi], r->order[2][1] * 1e6, r->order[2][3] * 1e6,
+               r->order[0][1] * 1e6, r->order[0][3] * 1e6, pred * 1e6);
         fflush(stdout);
     }
     double kp = cos(20 * GS_PI / 180) * o.pitch_um * 1e-6;

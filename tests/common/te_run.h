@@ -32,6 +32,9 @@ typedef struct {
     double damping_s;   /* contact: material damping beta (s) of both gears, 0 none */
     const char *errors; /* JSON members added to the pinion ("" none) */
     double angle0;      /* initial pinion angle, rad (whole pitches keep the mesh) */
+    const char *contact_scheme; /* contact: numerics.contact, "seed" or "closure" (NULL: the default) */
+    double damping_ratio, damping_hz; /* contact: material damping zeta at f of both gears (0: none;
+                                       * not with damping_s) */
 } te_setup;
 
 /* One run: samples from the first step whose pinion angle is at least
@@ -57,9 +60,14 @@ static inline void te_record_free(te_record *r)
 static inline void te_scene_text(const te_setup *su, char *buf, size_t len)
 {
     int contact = su->model == TE_CONTACT;
-    char mat[128] = "";
+    char mat[160] = "", num[64] = "";
     if (contact && su->damping_s > 0)
         snprintf(mat, sizeof mat, ", \"material\": {\"damping_s\": %.17g}", su->damping_s);
+    else if (contact && su->damping_ratio > 0)
+        snprintf(mat, sizeof mat, ", \"material\": {\"damping_ratio\": %.17g, \"damping_hz\": %.17g}",
+                 su->damping_ratio, su->damping_hz);
+    if (contact && su->contact_scheme)
+        snprintf(num, sizeof num, ", \"contact\": \"%s\"", su->contact_scheme);
     const char *stiff = su->model == TE_CALIBRATED ? ", \"stiffness\": {\"type\": \"calibrated\"}" : "";
     double c = 2.25 * su->torque / su->omega; /* wheel brake: 1.5 T at 2 omega / 3 */
     snprintf(buf, len,
@@ -73,11 +81,11 @@ static inline void te_scene_text(const te_setup *su, char *buf, size_t len)
              "\"meshes\": [{\"name\": \"pw\", \"gears\": [\"pinion\", \"wheel\"], \"model\": \"%s\"%s}],"
              "\"loads\": [{\"body\": \"pinion\", \"type\": \"ramp\", \"moment\": %.17g, \"ramp_time\": %.17g},"
              "{\"body\": \"wheel\", \"type\": \"brake\", \"coefficient\": %.17g}],"
-             "\"numerics\": {\"time_step\": %.17g},"
+             "\"numerics\": {\"time_step\": %.17g%s},"
              "\"initial\": {\"pinion\": {\"angle\": %.17g}, \"wheel\": {\"angle\": 0.10471975511965977}}}",
              contact ? "elastic" : "rigid", mat, su->errors[0] ? ", " : "", su->errors,
              contact ? "elastic" : "rigid", mat, contact ? "contact" : "lumped", stiff, su->torque, su->ramp, c,
-             su->h, su->angle0);
+             su->h, num, su->angle0);
 }
 
 /* Build and run a setup; 0 on success, else prints the diagnostic and
@@ -231,6 +239,8 @@ typedef struct {
     int faulty[32], nf;
     const char *csv; /* write PREFIX_<model>_<case>.csv when set */
     int no_pitch;    /* leave out the pitch-error case */
+    const char *contact_scheme;       /* contact: numerics.contact (NULL: the default, "seed") */
+    double damping_ratio, damping_hz; /* contact: material damping zeta at f (0: none) */
 } te_study_opts;
 
 #define TE_Z 20
@@ -274,7 +284,8 @@ static inline int te_study(const te_study_opts *o, te_study_result *res)
     for (int q = 0; q < 3; q++) {
         if (q == 1 && o->no_pitch)
             continue;
-        te_setup su = {o->model, o->torque, o->omega, o->h, o->ramp, o->damping_s, cases[q], 0.0};
+        te_setup su = {o->model, o->torque, o->omega, o->h,       o->ramp,          o->damping_s,
+                       cases[q], 0.0,      o->contact_scheme, o->damping_ratio, o->damping_hz};
         long max_steps = (long)(2.0 * (o->ramp + o->settle + span / o->omega) / o->h) + 1000;
         if (te_run(&su, th_rec, span, max_steps, &r[q]) != 0) {
             for (int k = 0; k <= q; k++)
