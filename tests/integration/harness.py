@@ -308,6 +308,20 @@ def snap(client):
     return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}
 
 
+def replay_after_restore(client, path, before, after, timeout=600):
+    """Advance `before` steps, checkpoint to `path`, advance `after` steps and
+    take snap(); restore `path`, advance the same `after` steps and take
+    snap() again. Returns both snapshots: equal when checkpoint and restore
+    carry the whole state."""
+    client.advance(steps=before, timeout=timeout)
+    client.checkpoint(path)
+    client.advance(steps=after, timeout=timeout)
+    a = snap(client)
+    client.restore(path)
+    client.advance(steps=after, timeout=timeout)
+    return a, snap(client)
+
+
 def _proc_net_listen():
     """inode -> (address, port) of every listening TCP socket of the machine
     (/proc/net/tcp and tcp6, state 0A)."""

@@ -33,7 +33,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
-from harness import Results, snap  # noqa: E402
+from harness import Results, replay_after_restore, snap  # noqa: E402
 
 R = Results("test_modal: Lin-Parker (1999) planetary natural frequencies and mode structure")
 GEARCTL = os.path.join(dmod.SOURCE_ROOT, "clients", "python", "gearctl")
@@ -212,13 +212,7 @@ with dmod.Daemon(ranks=1) as d:
 with dmod.Daemon(ranks=1) as d:
     with d.client() as c:
         c.load(scene=dmod.load_scene("planetary_floating"))
-        c.advance(steps=800, timeout=600)
-        c.checkpoint("fl.h5")
-        c.advance(steps=400, timeout=600)
-        a = snap(c)
-        c.restore("fl.h5")
-        c.advance(steps=400, timeout=600)
-        b = snap(c)
+        a, b = replay_after_restore(c, "fl.h5", 800, 400)
         R.check("floating sun: checkpoint, restore and the same 400 steps give the same state", a == b,
                 (a.get("step"), b.get("step")))
 # Time integration with bearing joints (the floating sun with a pin error):

@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results, json_diff, snap  # noqa: E402
+from harness import Results, json_diff, replay_after_restore, snap  # noqa: E402
 
 R = Results("test_record: HDF5 record, checkpoint/restore, fetch")
 N = 1500
@@ -257,13 +257,7 @@ def elastic():
             c.unload()
             scene["numerics"] = {"time_step": 1e-5, "adaptive": {"penetration_um": 1.0, "levels": 3}}
             c.load(scene=scene)
-            c.advance(steps=40, timeout=600)
-            c.checkpoint("acp.h5")
-            c.advance(steps=40, timeout=600)
-            a = snap(c)
-            c.restore("acp.h5")
-            c.advance(steps=40, timeout=600)
-            b = snap(c)
+            a, b = replay_after_restore(c, "acp.h5", 40, 40)
             R.check("adaptive restore: the continuation is identical bit for bit (step level restored)",
                     a == b, "; ".join(json_diff(a, b)))
             R.check("adaptive: time is exactly step * time_step", b.get("time") == 80 * 1e-5, b.get("time"))
