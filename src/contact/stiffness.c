@@ -228,6 +228,8 @@ typedef struct work {
      * pair from the previous linearisation, added to its rows' block of W. */
     int nf;                /* on */
     double nf_depth;       /* depth d, m */
+    double nf_estar;       /* contact modulus E* of the pair, Pa */
+    double nf_bw;          /* face width in contact, m */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
     struct {
@@ -409,11 +411,8 @@ static int locate(const gs_mesh *m, const double q[2], gs_index node[6], double 
  * the normal load lam (N), divided by lam. */
 static double nf_hertz(const work *w, int p, double lam)
 {
-    const gs_material *m0 = &w->b[0].sb->material, *m1 = &w->b[1].sb->material;
-    double estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa, m1->poisson,
-                                         m0->plane);
-    double bw = fmin(w->b[0].sb->gear.face_width_m, w->b[1].sb->gear.face_width_m);
-    double Pm = lam / bw, a = gs_hertz_line_half_width(Pm, w->pc[p].reff, estar), s = 0.0;
+    double Pm = lam / w->nf_bw, a = gs_hertz_line_half_width(Pm, w->pc[p].reff, w->nf_estar);
+    double s = 0.0;
     for (int k = 0; k < 2; k++) {
         const gs_material *mk = &w->b[k].sb->material;
         s += gs_hertz_line_approach(Pm, a, w->pc[p].depth[k], mk->youngs_pa, mk->poisson, mk->plane);
@@ -486,10 +485,6 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         g[p].n[0] += l * sd * r->gap.grad[0];
         g[p].n[1] += l * sd * r->gap.grad[1];
     }
-    const gs_material *mat[2] = {&w->b[0].sb->material, &w->b[1].sb->material};
-    double estar = gs_hertz_line_modulus(mat[0]->youngs_pa, mat[0]->poisson, mat[1]->youngs_pa,
-                                         mat[1]->poisson, mat[0]->plane);
-    double bw = fmin(w->b[0].sb->gear.face_width_m, w->b[1].sb->gear.face_width_m);
     int np = 0;
     for (int p = 0; p < ng; p++) {
         double lam = g[p].lam, X[2] = {g[p].x[0] / lam, g[p].x[1] / lam};
@@ -522,8 +517,8 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
             np++;
             continue;
         }
-        double Pm = lam / bw;
-        double a = gs_hertz_line_half_width(Pm, 1.0 / fmax(curv, 1e-9), estar);
+        double Pm = lam / w->nf_bw;
+        double a = gs_hertz_line_half_width(Pm, 1.0 / fmax(curv, 1e-9), w->nf_estar);
         double c = 0.0, L = 0.0, dep[2] = {0.0, 0.0};
         bool skip = false;
         for (int k = 0; k < 2 && !skip; k++) {
@@ -973,6 +968,10 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
                             w.nf_depth * 1e3, mmin * 1e3);
             goto done;
         }
+        const gs_material *m0 = &w.b[0].sb->material, *m1 = &w.b[1].sb->material;
+        w.nf_estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa,
+                                           m1->poisson, m0->plane);
+        w.nf_bw = fmin(gA->face_width_m, gB->face_width_m);
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;
         w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
