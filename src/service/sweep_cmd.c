@@ -78,6 +78,16 @@ static int spec_state(const char *path, const char *canonical)
     return st;
 }
 
+/* The table's files as the client named them (relative to the data directory). */
+static void add_paths(json_object *o, const char *rel)
+{
+    char r[640];
+    snprintf(r, sizeof r, "%s.csv", rel);
+    json_object_object_add(o, "csv", json_object_new_string(r));
+    snprintf(r, sizeof r, "%s.h5", rel);
+    json_object_object_add(o, "h5", json_object_new_string(r));
+}
+
 static const char *const sweep_only[] = {"groups", "path", "resume", "builtin", NULL};
 
 gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
@@ -183,8 +193,6 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
                             rel);
         else if (resume)
             e = gs_sweep_read_csv(sw, w->csv, w->rows, w->done, d);
-        if (e != GS_OK && !strcmp(d->field, "path"))
-            snprintf(d->field, sizeof d->field, "args.path");
     }
     if (e == GS_OK)
         e = write_spec(w, false, d);
@@ -226,11 +234,7 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     for (int c = 0; c < gs_sweep_columns(sw); c++)
         json_object_array_add(cols, json_object_new_string(gs_sweep_column(sw, c)));
     json_object_object_add(*res, "columns", cols);
-    char r[640];
-    snprintf(r, sizeof r, "%s.csv", rel);
-    json_object_object_add(*res, "csv", json_object_new_string(r));
-    snprintf(r, sizeof r, "%s.h5", rel);
-    json_object_object_add(*res, "h5", json_object_new_string(r));
+    add_paths(*res, rel);
     return GS_OK;
 }
 
@@ -326,11 +330,7 @@ void gsi_sweep_stop(gs_service *s, bool cancelled)
     double wall = gs_now() - w->wall_start;
     json_object_object_add(o, "wall_seconds", json_object_new_double(wall));
     json_object_object_add(o, "points_per_second", json_object_new_double(wall > 0 ? w->n_computed / wall : 0.0));
-    char r[640];
-    snprintf(r, sizeof r, "%s.csv", w->rel);
-    json_object_object_add(o, "csv", json_object_new_string(r));
-    snprintf(r, sizeof r, "%s.h5", w->rel);
-    json_object_object_add(o, "h5", json_object_new_string(r));
+    add_paths(o, w->rel);
     json_object_object_add(o, "failed", json_object_get(w->failed));
     if (e != GS_OK) {
         json_object *er = json_object_new_object();
