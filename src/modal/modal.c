@@ -11,8 +11,6 @@
 #include "gearsim/modal.h"
 #include "gearsim/util.h"
 
-static const double PI = 3.14159265358979323846;
-
 const char *gs_mode_kind_name(int kind)
 {
     static const char *const names[] = {"rotational", "translational", "planet", "mixed"};
@@ -346,7 +344,7 @@ static gs_err solve(gs_modal *m, gs_diag *d)
                 v += N[(size_t)c * n + i] * Kr[(size_t)j * r + c];
             m->shape[(size_t)j * n + i] = v;
         }
-        m->freq_hz[j] = sqrt(m->omega2[j] > 0 ? m->omega2[j] : 0.0) / (2 * PI);
+        m->freq_hz[j] = sqrt(m->omega2[j] > 0 ? m->omega2[j] : 0.0) / (2 * GS_PI);
         for (int q = 0; q < nb3; q++) {
             double v = 0;
             for (int i = 0; i < n; i++)
@@ -368,10 +366,10 @@ static gs_err classify(const gs_scene *s, gs_modal *m)
     m->group_central = calloc((size_t)n, sizeof(double));
     if (!m->group || !m->group_first || !m->group_mult || !m->group_kind || !m->group_central)
         return GS_ENOMEM;
-    double wmax = 2 * PI * m->freq_hz[n - 1];
+    double wmax = 2 * GS_PI * m->freq_hz[n - 1];
     int G = 0;
     for (int j = 0; j < n; j++) {
-        if (j == 0 || 2 * PI * (m->freq_hz[j] - m->freq_hz[j - 1]) > GS_MODAL_GROUP_TOL * wmax) {
+        if (j == 0 || 2 * GS_PI * (m->freq_hz[j] - m->freq_hz[j - 1]) > GS_MODAL_GROUP_TOL * wmax) {
             m->group_first[G] = j;
             G++;
         }

@@ -680,10 +680,7 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
      * bearings or pin errors (sys->smooth_contact, as the lumped mesh) over
      * the share of the step in contact, continuous in the step's end, which
      * Newton needs when a floating member closes a flank inside a step. */
-    bool touching = fabs(x0 + 0.5 * dx) > hb;
-    double cd = touching ? m->damping : 0.0, dW = 0.0;
-    if (sys->smooth_contact)
-        cd = m->damping * gsi_mesh_wet_share(x0, x1, hb, &dW);
+    double dW, cd = gsi_mesh_contact_damping(sys, m, x0, dx, hb, &dW);
     double fd = cd * dx / h;
     jxx += (cd + m->damping * dW * dx) / h;
     for (int i = 0; i < n; i++)

@@ -7,6 +7,7 @@
 #include <math.h>
 
 #include "gearsim/step.h"
+#include "mesh_common.h"
 
 static void bearing_force(const gs_system *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
                           double *g, double *J, double *diss)
@@ -76,7 +77,7 @@ static void pin_bearing_force(const gs_system *sys, const gs_joint_rt *j, const 
         double th0 = q0[c], thm = th0 + 0.5 * dth, jp[2] = {-j->pin0[1], j->pin0[0]}, rj[2], r1[2];
         pin_rot(thm, jp, rj);
         pin_rot(th0 + dth, jp, t1); /* d/d dtheta of R(theta_1) pin0 */
-        double sinc = fabs(dth) > 1e-6 ? 2.0 * sin(0.5 * dth) / dth : 1.0 - dth * dth / 24.0;
+        double sinc = gsi_half_sinc(dth);
         t[0] = sinc * rj[0], t[1] = sinc * rj[1];
         if (fabs(dth) > 1e-6) { /* dt / d dtheta, for the Jacobian */
             dt[0] = (t1[0] - t[0]) / dth, dt[1] = (t1[1] - t[1]) / dth;

@@ -80,7 +80,7 @@ double gsi_mesh_wet(double x0, double x1, double *dw1)
     return x1 > 0.0 ? x1 / L : x0 / -L;
 }
 
-double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW)
+static double wet_share(double x0, double x1, double hb, double *dW)
 {
     double W = 0.0, dw1;
     *dW = 0.0;
@@ -90,6 +90,15 @@ double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW)
         *dW += sg * dw1;
     }
     return W;
+}
+
+double gsi_mesh_contact_damping(const gs_system *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
+                                double *dW)
+{
+    *dW = 0.0;
+    if (!sys->smooth_contact)
+        return fabs(x0 + 0.5 * dx) > hb ? m->damping : 0.0;
+    return m->damping * wet_share(x0, x0 + dx, hb, dW);
 }
 
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp)
@@ -109,15 +118,21 @@ void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, doubl
     }
 }
 
+/* Direction of the line of action of translating gear k with the carrier
+ * at angle t. */
+static void tr_dir_at(const gs_gmesh_rt *m, int k, double t, double n[2])
+{
+    double c = cos(t), s = sin(t);
+    n[0] = c * m->tr_n0[k][0] - s * m->tr_n0[k][1];
+    n[1] = s * m->tr_n0[k][0] + c * m->tr_n0[k][1];
+}
+
 /* Direction of the line of action of translating gear k at q. */
 static void tr_dir(const gs_gmesh_rt *m, int k, const double *q, double n[2])
 {
     n[0] = m->tr_n0[k][0], n[1] = m->tr_n0[k][1];
-    if (m->tr_carrier >= 0) {
-        double t = q[m->tr_carrier], c = cos(t), s = sin(t);
-        n[0] = c * m->tr_n0[k][0] - s * m->tr_n0[k][1];
-        n[1] = s * m->tr_n0[k][0] + c * m->tr_n0[k][1];
-    }
+    if (m->tr_carrier >= 0)
+        tr_dir_at(m, k, q[m->tr_carrier], n);
 }
 
 /* Ramp step of width w centred on 0, and its slope. */
@@ -345,21 +360,16 @@ const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const do
          * n1 - n0 = 2 sin(dth / 2) R(th_mid) J n0 (J: quarter turn). */
         int c = m->tr_carrier;
         double th0 = q0[c], dth = dq[c], thm = th0 + 0.5 * dth;
-        double n0[2], n1[2], q1[2] = {0, 0};
-        tr_dir(m, k, q0, n0);
-        q1[0] = th0 + dth;
-        { /* n at the step's end */
-            double cc = cos(q1[0]), ss = sin(q1[0]);
-            n1[0] = cc * m->tr_n0[k][0] - ss * m->tr_n0[k][1];
-            n1[1] = ss * m->tr_n0[k][0] + cc * m->tr_n0[k][1];
-        }
+        double n0[2], n1[2];
+        tr_dir_at(m, k, th0, n0);
+        tr_dir_at(m, k, th0 + dth, n1); /* n at the step's end */
         m->abar[x] += 0.5 * (n0[0] + n1[0]);
         m->abar[x + 1] += 0.5 * (n0[1] + n1[1]);
         double jn[2] = {-m->tr_n0[k][1], m->tr_n0[k][0]};
         double cm = cos(thm), sm = sin(thm);
         double rj[2] = {cm * jn[0] - sm * jn[1], sm * jn[0] + cm * jn[1]};
         double xb = q0[x] + 0.5 * dq[x] + m->tr_off[k][0], yb = q0[x + 1] + 0.5 * dq[x + 1] + m->tr_off[k][1];
-        double sinc = fabs(dth) > 1e-6 ? 2.0 * sin(0.5 * dth) / dth : 1.0 - dth * dth / 24.0;
+        double sinc = gsi_half_sinc(dth);
         m->abar[c] += sinc * (rj[0] * xb + rj[1] * yb);
     }
     error_grad(m, q0, dq, m->abar);

@@ -1,8 +1,11 @@
 /* SPDX-License-Identifier: MIT
  * Library-internal pieces shared by the mesh models with a force along the
- * line of action (src/models/meshes.c, compliant_mesh.c, impact_mesh.c). */
+ * line of action (src/models/meshes.c, compliant_mesh.c, impact_mesh.c) and
+ * the joints (joints.c). */
 #ifndef GEARSIM_MODELS_MESH_COMMON_H
 #define GEARSIM_MODELS_MESH_COMMON_H
+
+#include <math.h>
 
 #include "gearsim/step.h"
 
@@ -25,9 +28,23 @@ double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mea
  * a flank spends in contact, continuous in the step's end) and its
  * derivative in x1. */
 double gsi_mesh_wet(double x0, double x1, double *dw1);
-/* The share of the step [x0, x1] either flank of a dead zone |x| <= hb
- * spends in contact (gsi_mesh_wet on both), and its derivative in x1. */
-double gsi_mesh_wet_share(double x0, double x1, double hb, double *dW);
+/* The damping coefficient of a mesh whose line-of-action coordinate moves
+ * from x0 by dx past a dead zone |x| <= hb: m->damping while in contact at
+ * the step's midpoint; in scenes with sys->smooth_contact (bearings, pin
+ * errors) m->damping times the share of the step either flank spends in
+ * contact (gsi_mesh_wet on both), continuous in the step's end, with dW its
+ * derivative in the end (0 otherwise). */
+double gsi_mesh_contact_damping(const gs_system *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
+                                double *dW);
+
+/* 2 sin(t / 2) / t, its series near 0: (R(th + t) - R(th)) v = t times this
+ * times R(th + t / 2) J v for a rotation R (J: quarter turn), the exact
+ * discrete gradient of a rotating direction over a step (mesh_common.c,
+ * joints.c). */
+static inline double gsi_half_sinc(double t)
+{
+    return fabs(t) > 1e-6 ? 2.0 * sin(0.5 * t) / t : 1.0 - t * t / 24.0;
+}
 
 /* Add to J (n x n, row-major) the Jacobian of a force law in the line-of-
  * action coordinate s = a.q and the phase p = c.q: the derivatives of the

@@ -508,21 +508,18 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
      * contact instead (continuous in the step's end, as tangent_force), which
      * Newton needs when a floating member closes a flank inside a step (in
      * every mesh of a scene with bearing joints or pin errors: sys->smooth_contact). */
-    double smid = s0 + 0.5 * ds;
-    bool touching = fabs(smid) > hb;
-    double cd = touching ? m->damping : 0.0, dW = 0.0;
-    bool floating = sys->smooth_contact;
-    if (floating)
-        cd = m->damping * gsi_mesh_wet_share(s0, s1, hb, &dW);
+    double dW, cd = gsi_mesh_contact_damping(sys, m, s0, ds, hb, &dW);
     double fd = cd * ds / h;
     for (int i = 0; i < n; i++)
         g[i] += ab[i] * (gs + fd) + cb[i] * gp;
     /* Jacobian of the s-part: d(dfs)/d(ds) = 1/2 where both ends are in contact. */
-    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + (cd + m->damping * dW * ds) / h;
-    if (floating && ds != 0.0 && !same_flank) /* the exact slope of dfs across the dead zone's edges:
-                                               * a floating member makes the step a coupled problem
-                                               * that needs it (on one flank it is 1/2, above) */
-        jss = kbar * ((f1 != 0.0 ? f1 : 0.0) - dfs) / ds + (cd + m->damping * dW * ds) / h;
+    double jd = (cd + m->damping * dW * ds) / h;
+    double jss = (f0 != 0.0 || f1 != 0.0 ? 0.5 * kbar : 0.0) + jd;
+    /* The exact slope of dfs across the dead zone's edges: a floating member
+     * makes the step a coupled problem that needs it (on one flank it is 1/2,
+     * above). */
+    if (sys->smooth_contact && ds != 0.0 && !same_flank)
+        jss = kbar * (f1 - dfs) / ds + jd;
     /* Cross terms: d gs / d dp and d gp / d ds (f1 moves with ds). */
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
