@@ -401,6 +401,16 @@ double gsi_fe_body_time_bare_solve(gs_fe_body *b, int reps)
 
 /* ---- state -------------------------------------------------------------- */
 
+/* Kinetic energy of the state from w^T M w of the elastic block. */
+static double kinetic_of(const gs_fe_body *b, double wmw)
+{
+    const gs_fe_model *m = b->m;
+    double wt = b->w[b->ne], sw = 0;
+    for (gs_index i = 0; i < b->ne; i++)
+        sw += m->s[i] * b->w[i];
+    return 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+}
+
 void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
 {
     if (!b) {
@@ -412,12 +422,9 @@ void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
         *elastic = b->next_V;
         return;
     }
-    const gs_fe_model *m = b->m;
-    double wt = b->w[b->ne], sw = 0, wmw, qkq;
-    for (gs_index i = 0; i < b->ne; i++)
-        sw += m->s[i] * b->w[i];
-    gsi_fe_quadform2(m, b->w, b->q, &wmw, &qkq);
-    *kinetic = 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    double wmw, qkq;
+    gsi_fe_quadform2(b->m, b->w, b->q, &wmw, &qkq);
+    *kinetic = kinetic_of(b, wmw);
     *elastic = 0.5 * qkq;
 }
 
@@ -425,11 +432,7 @@ double gs_fe_body_kinetic(const gs_fe_body *b)
 {
     if (!b)
         return 0;
-    const gs_fe_model *m = b->m;
-    double wt = b->w[b->ne], sw = 0;
-    for (gs_index i = 0; i < b->ne; i++)
-        sw += m->s[i] * b->w[i];
-    return 0.5 * (gsi_fe_quadform(m, 1.0, 0.0, b->w) + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    return kinetic_of(b, gsi_fe_quadform(b->m, 1.0, 0.0, b->w));
 }
 
 double gs_fe_body_elastic(const gs_fe_body *b)
@@ -500,7 +503,7 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
     if (b->in_step)
         return GS_ESTATE;
     const gs_fe_model *m = b->m;
-    b->next_valid = false;
+    b->next_valid = false; /* before any early return: q may be half-written */
     for (gs_index k = 0; k < m->n_free_nodes; k++)
         for (int c = 0; c < 2; c++) {
             gs_index n = 2 * m->free_node[k] + c;
@@ -513,7 +516,6 @@ gs_err gs_fe_body_set_state(gs_fe_body *b, double theta, double omega, const dou
     b->q[b->ne] = theta;
     b->w[b->ne] = b->held ? 0.0 : omega;
     block_forget(b);
-    b->next_valid = false;
     reset_accounts(b);
     return GS_OK;
 }
@@ -632,11 +634,9 @@ static void prepare_next(gs_fe_body *b)
         b->next_r[i] = 0.0;
         b->dq[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* as begin_step forms it */
     }
-    double wmw, qkq, wt = b->w[ne], sw = 0;
+    double wmw, qkq;
     gsi_fe_symv_quadform2(m, b->dq, b->next_r, b->w, b->q, &wmw, &qkq);
-    for (gs_index i = 0; i < ne; i++)
-        sw += m->s[i] * b->w[i];
-    b->next_T = 0.5 * (wmw + 2.0 * wt * sw + m->inertia_total * wt * wt);
+    b->next_T = kinetic_of(b, wmw);
     b->next_V = 0.5 * qkq;
     b->next_h = h;
     b->next_valid = true;
