@@ -351,6 +351,10 @@ static void take_points(gs_service *s)
             json_object_object_add(er, "message", json_object_new_string(d.message));
             json_object_object_add(er, "parent_id", json_object_new_string(w->parent_id));
             gsi_publish(s, "error", er);
+            /* No more appends (the table's end may be torn); the whole
+             * table is still written at the end. */
+            close(w->csv_fd);
+            w->csv_fd = -1;
         }
     }
 }

@@ -818,10 +818,18 @@ gs_err gs_sweep_append_csv(const gs_sweep *sw, int fd, const double *rows, const
     for (int i = 0; i < n; i++)
         k += gs_sweep_format_row(sw, points[i], rows + (size_t)points[i] * sw->n_cols, buf + k, cap - k);
     /* One write: an interruption leaves at most an unterminated last line,
-     * which gs_sweep_read_csv drops (that point is computed again). */
-    bool ok = write_all(fd, buf, k);
+     * which gs_sweep_read_csv drops (that point is computed again). A write
+     * that fails part way is cut off again, so that the next rows do not
+     * continue a torn line. */
+    off_t at = lseek(fd, 0, SEEK_END);
+    bool ok = at >= 0 && write_all(fd, buf, k);
+    int en = errno;
     free(buf);
-    return ok ? GS_OK : gs_diag_set(d, GS_EIO, "path", "cannot append to the table (disk full?): %s", strerror(errno));
+    if (ok)
+        return GS_OK;
+    bool cut = at >= 0 && ftruncate(fd, at) == 0;
+    return gs_diag_set(d, GS_EIO, "path", "cannot append to the table (disk full?): %s%s", strerror(en),
+                       cut ? "" : "; a torn row stays at its end");
 }
 
 gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, unsigned char *done, gs_diag *d)
@@ -872,6 +880,8 @@ gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, uns
             }
             rows[(size_t)p * sw->n_cols + c] = v;
         }
+        if (e == GS_OK && *q != '\n' && *q != '\0')
+            e = gs_diag_set(d, GS_ESCHEMA, "path", "'%s': point %ld has too many columns", path, p);
         if (e == GS_OK)
             done[p] = 1;
     }

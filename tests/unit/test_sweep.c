@@ -232,9 +232,15 @@ static void test_append_and_state(void **state)
             double a = back[p * nc + c], b = rows[p * nc + c];
             assert_true(a == b || (isnan(a) && isnan(b)));
         }
-    /* another sweep's table is refused naming the path */
-    unsigned char g2[2];
-    assert_int_equal(gs_sweep_read_csv(other, path, back, g2, &d), GS_ESCHEMA);
+    /* a row with a column too many (a torn row glued to the next) is refused */
+    assert_int_equal(gs_sweep_write_csv(sw, rows, none, path, NULL, &d), GS_OK);
+    f = fopen(path, "a");
+    assert_non_null(f);
+    fwrite(row1, 1, n - 1, f);
+    fputs(",1\n", f);
+    fclose(f);
+    assert_int_equal(gs_sweep_read_csv(sw, path, back, got, &d), GS_ESCHEMA);
+    assert_non_null(strstr(d.message, "too many columns"));
     assert_string_equal(d.field, "path");
     /* the state file */
     char sp[640];
