@@ -12,7 +12,6 @@ refuses a table that another user owns or others may write, or that has
 two names, and takes a table whose last line an interrupted append tore
 (that point is computed again; the table ends equal to the uninterrupted
 one). Nothing outside the data directory changes."""
-import hashlib
 import json
 import os
 import stat
@@ -23,30 +22,13 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, tree_digest, victim_and_data  # noqa: E402
 
 R = Results("test_sweep_files: the sweep job's files follow the data directory's file rules")
 SECRET = b"outside the data directory: never written\n"
 SPEC = {"builtin": "pair", "parameters": [{"path": "driver_rpm", "values": [1500, 2000, 2500]}],
         "settle": 0.0003, "measure": 0.0003}
 NAMES = (".csv", ".h5", ".sweep.json")
-
-
-def tree_digest(root):
-    """Names, types and contents of everything under root."""
-    out = {}
-    for dirpath, dirs, files in os.walk(root):
-        for n in dirs + files:
-            p = os.path.join(dirpath, n)
-            st = os.lstat(p)
-            if stat.S_ISREG(st.st_mode):
-                with open(p, "rb") as f:
-                    out[p] = ("file", hashlib.sha256(f.read()).hexdigest())
-            elif stat.S_ISLNK(st.st_mode):
-                out[p] = ("link", os.readlink(p))
-            else:
-                out[p] = ("other", stat.S_IFMT(st.st_mode))
-    return out
 
 
 def refused(c, name, args, words):
@@ -73,13 +55,8 @@ def read(p):
 
 
 def case(tmp):
-    outside = os.path.join(tmp, "outside")
-    os.makedirs(outside)
-    victim = os.path.join(outside, "victim.txt")
-    with open(victim, "wb") as f:
-        f.write(SECRET)
-    data = os.path.join(tmp, "data")
-    os.makedirs(data, mode=0o700)
+    victim, data = victim_and_data(tmp, SECRET)
+    outside = os.path.dirname(victim)
     before = tree_digest(outside)
     with dmod.Daemon(ranks=1, data_dir=data) as d, d.client(timeout=60.0, retries=0) as c:
         c.subscribe()
