@@ -89,9 +89,9 @@ static gs_err write_file(gs_service *s, svc_sweep *w, int which, bool last, gs_d
     return e;
 }
 
-/* A file of an unfinished sweep to resume from must be the daemon's own
- * (it writes them 0644): a file of another user, or one others may write,
- * could hold rows the daemon never computed. */
+/* A sweep's file read back (its state, the table to resume) must be the
+ * daemon's own (it writes them 0644): a file of another user, or one others
+ * may write, could hold rows the daemon never computed. */
 static gs_err read_checked(gs_service *s, const char *rel, gsi_beneath *b, char *via_fd, size_t cap, gs_diag *d)
 {
     struct stat st;
@@ -99,7 +99,8 @@ static gs_err read_checked(gs_service *s, const char *rel, gsi_beneath *b, char 
     if (st.st_uid != geteuid() || (st.st_mode & 022)) {
         gsi_beneath_close(b);
         return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' belongs to another user or is writable by others "
-                           "(mode %03o); a sweep is not resumed from it", rel, (unsigned)(st.st_mode & 0777));
+                           "(mode %03o); a sweep does not read it (remove it or choose another path)", rel,
+                           (unsigned)(st.st_mode & 0777));
     }
     gsi_fd_path(b->fd, via_fd, cap);
     return GS_OK;

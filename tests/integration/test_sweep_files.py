@@ -117,6 +117,7 @@ def case(tmp):
 
         unfinished("r1", 2, mode=0o666)
         refused(c, "resume from a table others may write", {"path": "r1", "resume": True}, ["writable by others"])
+        refused(c, "a new sweep over a state file others may write", {"path": "r1"}, ["writable by others"])
         if os.geteuid() == 0:
             unfinished("r2", 2)
             os.chown(d.path("r2.csv"), 65534, 65534)
