@@ -72,14 +72,38 @@ gs_err gs_sweep_point_serial(const gs_sweep *sw, int p, double *row, gs_diag *d)
  * computed, err[p] (may be NULL) a message for failed points. CSV: a header
  * `point,<columns>` and one line per point with %.17g numbers (empty for
  * NAN and for points not done). HDF5: group /sweep with one dataset per
- * column, `point`, `done`, and attributes scene, spec (canonical text). */
+ * column, `point`, `done`, and attributes scene, spec (canonical text).
+ * Each file is written whole to a new file beside `path` (unguessable name,
+ * O_CREAT|O_EXCL|O_NOFOLLOW, mode 0644) and renamed over `path`: a symlink
+ * or file planted at `path` or at a temporary name is never written
+ * through. The daemon passes /proc/self/fd/<dirfd>/<name> of a checked
+ * directory. With keep_fd the CSV stays open (*keep_fd, positioned at its
+ * end) for gs_sweep_append_csv; otherwise keep_fd is NULL. */
 gs_err gs_sweep_write_csv(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
-                          gs_diag *d);
+                          int *keep_fd, gs_diag *d);
+/* Append the rows of points[0..n) to a CSV kept open by gs_sweep_write_csv,
+ * in one write: an interruption leaves at most an unterminated last line. */
+gs_err gs_sweep_append_csv(const gs_sweep *sw, int fd, const double *rows, const int *points, int n, gs_diag *d);
+/* One CSV row ("p,v1,...\n") into buf; its length (truncated to cap - 1). */
+size_t gs_sweep_format_row(const gs_sweep *sw, int p, const double *row, char *buf, size_t cap);
 gs_err gs_sweep_write_h5(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
                          gs_diag *d);
-/* Rows back from a CSV written by gs_sweep_write_csv for the same sweep
- * (columns checked); points present get done[p] = 1. */
+/* Rows back from a CSV written by gs_sweep_write_csv (and appended to) for
+ * the same sweep (columns checked); points present get done[p] = 1; an
+ * unterminated last line (an interrupted append) is ignored. */
 gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, unsigned char *done, gs_diag *d);
+/* The resume state beside a table (BASE.sweep.json: points, finished, the
+ * canonical text), written like the tables. */
+gs_err gs_sweep_write_state(const gs_sweep *sw, bool finished, const char *path, gs_diag *d);
+/* What a state file's text says of sw: 0 nothing (NULL or not JSON), 1 an
+ * unfinished sweep with sw's canonical text, 2 an unfinished other sweep,
+ * 3 a finished sweep. */
+int gs_sweep_state(const gs_sweep *sw, const char *text);
+/* The `sweep` command's arguments (or a gearsim-sweep --spec file) as a
+ * specification for gs_sweep_parse: the daemon's own keys (groups, path,
+ * resume) dropped, `builtin` replaced by that builtin scene as `scene`.
+ * Errors name prefix (both scene and builtin) or prefix.builtin. */
+gs_err gs_sweep_spec_from_args(json_object *args, const char *prefix, json_object **spec, gs_diag *d);
 
 /* ------------------------------------------------------------------ groups
  * Points on groups of ranks inside one MPI job. Rank 0 of `world` calls

@@ -2,11 +2,16 @@
  * The `sweep` service job (docs/PROTOCOL.md, docs/MODAL.md "Sweeps"): a
  * scene and parameters to vary, points run concurrently on groups of ranks
  * (src/sweep/group.c), one progress event per finished point, the table
- * written as CSV after every point (the sweep's checkpoint) and as CSV and
- * HDF5 at the end, cancel, and resume of an unfinished sweep (only its
- * missing points are computed). */
+ * written as CSV at the start and the finished points' rows appended to it
+ * (the sweep's checkpoint), the table as CSV and HDF5 at the end, cancel,
+ * and resume of an unfinished sweep (only its missing points are computed).
+ * Every file follows the data directory's file rules (docs/RELIABILITY.md):
+ * checked with gsi_check_write / gsi_open_read and written through the
+ * checked directory's descriptor. */
+#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
+#include <unistd.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,17 +20,23 @@
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
 #include "scene/jsonv.h"
+#include "service/files.h"
 #include "service/options.h"
 #include "service/service_internal.h"
+
+enum { F_CSV, F_H5, F_SPEC, N_FILES };
+static const char *const file_ext[N_FILES] = {".csv", ".h5", ".sweep.json"};
 
 struct svc_sweep {
     gs_sweep *sw;
     gs_sweep_run *run;
     char parent_id[160];
     char rel[600];                       /* base path as given, without .csv */
-    char csv[PATH_MAX], h5[PATH_MAX], spec[PATH_MAX];
+    char file[N_FILES][640];             /* each file relative to the data directory */
+    int csv_fd;                          /* the CSV being appended to, or -1 */
     double *rows;
     unsigned char *done;
+    int *fresh;                          /* points taken since the last append */
     int n_points, n_before, n_todo, n_computed;
     json_object *failed;                 /* [{point, message}] */
     double wall_start;
@@ -38,44 +49,83 @@ static void sweep_free(svc_sweep **pw)
         return;
     gs_sweep_run_free(&w->run);
     gs_sweep_free(&w->sw);
+    if (w->csv_fd >= 0)
+        close(w->csv_fd);
     free(w->rows);
     free(w->done);
+    free(w->fresh);
     json_object_put(w->failed);
     free(w);
     *pw = NULL;
 }
 
-/* The spec file: the canonical sweep and whether it finished. */
-static gs_err write_spec(svc_sweep *w, bool finished, gs_diag *d)
+/* Write one of the sweep's files (the file rules: no symlink anywhere in its
+ * path, not a FIFO or device, none of the daemon's own files), through the
+ * checked directory's descriptor: /proc/self/fd/<dirfd>/<name> resolves no
+ * name but the last, which the writer replaces by rename. `last`: the CSV is
+ * closed (else kept open for appends); the state says finished. Errors name
+ * args.path. */
+static gs_err write_file(gs_service *s, svc_sweep *w, int which, bool last, gs_diag *d)
 {
-    json_object *o = json_object_new_object();
-    json_object_object_add(o, "points", json_object_new_int(w->n_points));
-    json_object_object_add(o, "finished", json_object_new_boolean(finished));
-    json_object_object_add(o, "sweep", json_object_new_string(gs_sweep_canonical(w->sw)));
-    char tmp[PATH_MAX + 8];
-    snprintf(tmp, sizeof tmp, "%s.tmp", w->spec);
-    gs_err e = json_object_to_file_ext(tmp, o, JSON_C_TO_STRING_PLAIN) == 0 && rename(tmp, w->spec) == 0
-                   ? GS_OK
-                   : gs_diag_set(d, GS_EIO, "args.path", "cannot write '%s.sweep.json'", w->rel);
-    json_object_put(o);
+    gsi_beneath b;
+    GS_TRY(gsi_check_write(s, w->file[which], "args.path", false, &b, d));
+    char target[PATH_MAX];
+    snprintf(target, sizeof target, "/proc/self/fd/%d/%s", b.dirfd, b.leaf);
+    gs_err e;
+    if (which == F_CSV) {
+        if (w->csv_fd >= 0)
+            close(w->csv_fd);
+        w->csv_fd = -1;
+        e = gs_sweep_write_csv(w->sw, w->rows, w->done, target, last ? NULL : &w->csv_fd, d);
+    } else if (which == F_H5) {
+        e = gs_sweep_write_h5(w->sw, w->rows, w->done, target, d);
+    } else {
+        e = gs_sweep_write_state(w->sw, last, target, d);
+    }
+    if (e != GS_OK)
+        gs_diag_set(d, e, "args.path", "cannot write '%s'%s", w->file[which],
+                    e == GS_EIO ? " (disk full, or the directory not writable?)" : "");
+    gsi_beneath_close(&b);
     return e;
 }
 
-/* 1: an unfinished sweep with this canonical text, 2: one with another,
- * 3: a finished one, 0: none. */
-static int spec_state(const char *path, const char *canonical)
+/* A sweep's file read back (its state, the table to resume) must be the
+ * daemon's own (it writes them 0644): a file of another user, or one others
+ * may write, could hold rows the daemon never computed. */
+static gs_err read_checked(gs_service *s, const char *rel, gsi_beneath *b, char *via_fd, size_t cap, gs_diag *d)
 {
-    json_object *o = json_object_from_file(path);
-    if (!o)
-        return 0;
-    json_object *f, *c;
-    int st = 2;
-    if (json_object_object_get_ex(o, "finished", &f) && json_object_get_boolean(f))
-        st = 3;
-    else if (json_object_object_get_ex(o, "sweep", &c) && !strcmp(json_object_get_string(c), canonical))
-        st = 1;
-    json_object_put(o);
-    return st;
+    struct stat st;
+    GS_TRY(gsi_open_read(s, rel, "args.path", b, &st, d));
+    if (st.st_uid != geteuid() || (st.st_mode & 022)) {
+        gsi_beneath_close(b);
+        return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' belongs to another user or is writable by others "
+                           "(mode %03o); a sweep does not read it (remove it or choose another path)", rel,
+                           (unsigned)(st.st_mode & 0777));
+    }
+    gsi_fd_path(b->fd, via_fd, cap);
+    return GS_OK;
+}
+
+/* The state of the sweep file (gs_sweep_state) into *st; 0 when there is
+ * none. A file that breaks the file rules is an error. */
+static gs_err spec_state(gs_service *s, svc_sweep *w, int *st, gs_diag *d)
+{
+    *st = 0;
+    gsi_beneath b;
+    struct stat sb;
+    GS_TRY(gsi_check_write(s, w->file[F_SPEC], "args.path", false, &b, d));
+    bool exists = fstatat(b.dirfd, b.leaf, &sb, AT_SYMLINK_NOFOLLOW) == 0;
+    gsi_beneath_close(&b);
+    if (!exists)
+        return GS_OK;
+    char via_fd[64];
+    GS_TRY(read_checked(s, w->file[F_SPEC], &b, via_fd, sizeof via_fd, d));
+    size_t len;
+    char *text = gs_read_file(via_fd, 1u << 26, &len);
+    gsi_beneath_close(&b);
+    *st = gs_sweep_state(w->sw, text);
+    free(text);
+    return GS_OK;
 }
 
 /* The table's files as the client named them (relative to the data directory). */
@@ -88,38 +138,14 @@ static void add_paths(json_object *o, const char *rel)
     json_object_object_add(o, "h5", json_object_new_string(r));
 }
 
-static const char *const sweep_only[] = {"groups", "path", "resume", "builtin", NULL};
-
 gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     if (s->sweep)
         return gs_diag_set(d, GS_EBUSY, "cmd", "a sweep ('%.128s') is running; cancel ends it", s->sweep->parent_id);
-    /* The specification: args without the service's own keys, the builtin
-     * scene given as the scene. */
-    json_object *spec = json_object_new_object(), *b = NULL;
-    json_object_object_foreach(args, k, v)
-    {
-        bool own = false;
-        for (int i = 0; sweep_only[i]; i++)
-            own |= !strcmp(k, sweep_only[i]);
-        if (!own)
-            json_object_object_add(spec, k, json_object_get(v));
-    }
-    if (json_object_object_get_ex(args, "builtin", &b)) {
-        const char *text = json_object_get_type(b) == json_type_string ? gs_scene_builtin(json_object_get_string(b)) : NULL;
-        if (json_object_object_get_ex(args, "scene", NULL)) {
-            json_object_put(spec);
-            return gs_diag_set(d, GS_ESCHEMA, "args", "give exactly one of 'scene' (an object) or 'builtin' (a name)");
-        }
-        if (!text) {
-            json_object_put(spec);
-            return gs_diag_set(d, GS_ENOTFOUND, "args.builtin", "no builtin scene '%.64s'",
-                               json_object_get_type(b) == json_type_string ? json_object_get_string(b) : "");
-        }
-        json_object_object_add(spec, "scene", json_tokener_parse(text));
-    }
+    json_object *spec;
+    GS_TRY(gs_sweep_spec_from_args(args, "args", &spec, d));
     gs_sweep *sw = NULL;
-    gs_err e = gs_sweep_parse(spec, "args", sweep_only, &sw, d);
+    gs_err e = gs_sweep_parse(spec, "args", NULL, &sw, d);
     json_object_put(spec);
     if (e != GS_OK)
         return e;
@@ -162,24 +188,34 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
         return e;
     }
     w->sw = sw;
+    w->csv_fd = -1;
     snprintf(w->rel, sizeof w->rel, "%s", rel);
-    const char *ext[] = {".csv", ".h5", ".sweep.json"};
-    char *full[] = {w->csv, w->h5, w->spec};
-    for (int i = 0; i < 3 && e == GS_OK; i++) {
-        char r[640];
-        snprintf(r, sizeof r, "%s%s", rel, ext[i]);
-        e = gsi_resolve_path(s, r, full[i], PATH_MAX, true, d);
+    for (int i = 0; i < N_FILES && e == GS_OK; i++) {
+        char full[PATH_MAX];
+        snprintf(w->file[i], sizeof w->file[i], "%s%s", rel, file_ext[i]);
+        e = gsi_resolve_path(s, w->file[i], full, sizeof full, true, d);
         if (e != GS_OK)
             snprintf(d->field, sizeof d->field, "args.path");
+        else
+            snprintf(w->file[i], sizeof w->file[i], "%s", gsi_data_relative(s, full));
+    }
+    /* Every name checked before anything is computed or written. */
+    for (int i = 0; i < N_FILES && e == GS_OK; i++) {
+        gsi_beneath b;
+        e = gsi_check_write(s, w->file[i], "args.path", false, &b, d);
+        gsi_beneath_close(&b);
     }
     w->n_points = gs_sweep_points(sw);
     w->rows = gs_calloc((size_t)w->n_points * (size_t)gs_sweep_columns(sw), sizeof(double));
     w->done = gs_calloc((size_t)w->n_points, 1);
+    w->fresh = gs_calloc((size_t)w->n_points, sizeof(int));
     w->failed = json_object_new_array();
-    if (e == GS_OK && (!w->rows || !w->done))
+    if (e == GS_OK && (!w->rows || !w->done || !w->fresh))
         e = GS_ENOMEM;
+    int st = 0;
+    if (e == GS_OK)
+        e = spec_state(s, w, &st, d);
     if (e == GS_OK) {
-        int st = spec_state(w->spec, gs_sweep_canonical(sw));
         if (resume && st != 1)
             e = gs_diag_set(d, st == 0 ? GS_ENOTFOUND : GS_ESTATE, "args.resume",
                             st == 0   ? "no unfinished sweep at '%s' to resume"
@@ -191,16 +227,34 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
             e = gs_diag_set(d, GS_ESTATE, "args.resume",
                             "an unfinished sweep is at '%s': pass resume: true to continue it, or choose another path",
                             rel);
-        else if (resume)
-            e = gs_sweep_read_csv(sw, w->csv, w->rows, w->done, d);
     }
+    if (e == GS_OK && resume) {
+        gsi_beneath b;
+        char via_fd[64];
+        e = read_checked(s, w->file[F_CSV], &b, via_fd, sizeof via_fd, d);
+        if (e == GS_OK) {
+            e = gs_sweep_read_csv(sw, via_fd, w->rows, w->done, d);
+            gsi_beneath_close(&b);
+            if (e != GS_OK) {
+                /* the message names the file as the client does */
+                char m[2 * sizeof d->message + sizeof w->file[F_CSV]];
+                const char *q = strstr(d->message, via_fd);
+                snprintf(m, sizeof m, "%.*s%s%s", q ? (int)(q - d->message) : 0, d->message, w->file[F_CSV],
+                         q ? q + strlen(via_fd) : "");
+                if (q)
+                    gs_diag_set(d, e, "args.path", "%.300s", m);
+                else
+                    snprintf(d->field, sizeof d->field, "args.path");
+            }
+        }
+    }
+    /* The state first (unfinished), then the table, written whole once:
+     * the rows read back (without a torn last line) or only its header. */
     if (e == GS_OK)
-        e = write_spec(w, false, d);
-    if (e == GS_OK && !resume)
-        e = gs_sweep_write_csv(sw, w->rows, w->done, w->csv, d);
+        e = write_file(s, w, F_SPEC, false, d);
+    if (e == GS_OK)
+        e = write_file(s, w, F_CSV, false, d);
     if (e != GS_OK) {
-        if (!strcmp(d->field, "path"))
-            snprintf(d->field, sizeof d->field, "args.path");
         sweep_free(&w);
         return e;
     }
@@ -251,14 +305,13 @@ static void take_points(gs_service *s)
 {
     svc_sweep *w = s->sweep;
     gs_sweep_result x;
-    bool any = false;
-    int nc = gs_sweep_columns(w->sw);
+    int nfresh = 0, nc = gs_sweep_columns(w->sw);
     while (gs_sweep_run_take(w->run, &x)) {
-        any = true;
         w->n_computed++;
         if (x.err == GS_OK) {
             memcpy(w->rows + (size_t)x.point * nc, x.row, (size_t)nc * sizeof(double));
             w->done[x.point] = 1;
+            w->fresh[nfresh++] = x.point;
         } else {
             json_object *f = json_object_new_object();
             json_object_object_add(f, "point", json_object_new_int(x.point));
@@ -291,14 +344,18 @@ static void take_points(gs_service *s)
         }
         gsi_publish(s, "progress", o);
     }
-    if (any) {
+    if (nfresh > 0 && w->csv_fd >= 0) {
         gs_diag d;
-        if (gs_sweep_write_csv(w->sw, w->rows, w->done, w->csv, &d) != GS_OK) {
+        if (gs_sweep_append_csv(w->sw, w->csv_fd, w->rows, w->fresh, nfresh, &d) != GS_OK) {
             json_object *er = json_object_new_object();
             json_object_object_add(er, "code", json_object_new_string("io_error"));
             json_object_object_add(er, "message", json_object_new_string(d.message));
             json_object_object_add(er, "parent_id", json_object_new_string(w->parent_id));
             gsi_publish(s, "error", er);
+            /* No more appends (the table's end may be torn); the whole
+             * table is still written at the end. */
+            close(w->csv_fd);
+            w->csv_fd = -1;
         }
     }
 }
@@ -314,11 +371,13 @@ void gsi_sweep_stop(gs_service *s, bool cancelled)
     bool complete = k == w->n_points;
     gs_diag d;
     gs_diag_clear(&d);
-    gs_err e = gs_sweep_write_csv(w->sw, w->rows, w->done, w->csv, &d);
+    /* The table whole, in point order, and closed; then the HDF5 table and
+     * the state. */
+    gs_err e = write_file(s, w, F_CSV, true, &d);
     if (e == GS_OK)
-        e = gs_sweep_write_h5(w->sw, w->rows, w->done, w->h5, &d);
+        e = write_file(s, w, F_H5, true, &d);
     if (e == GS_OK)
-        e = write_spec(w, complete, &d);
+        e = write_file(s, w, F_SPEC, complete, &d);
     json_object *o = json_object_new_object();
     json_object_object_add(o, "parent_id", json_object_new_string(w->parent_id));
     json_object_object_add(o, "cancelled", json_object_new_boolean(cancelled));

@@ -1,12 +1,15 @@
 /* SPDX-License-Identifier: MIT
  * Parameter sweeps: the specification, each point's scene, the response
  * measured over a point, and the table (include/gearsim/sweep.h). */
+#include <errno.h>
 #include <hdf5.h>
 #include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include "gearsim/step.h"
 #include "gearsim/sweep.h"
@@ -503,6 +506,42 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
     return e;
 }
 
+gs_err gs_sweep_spec_from_args(json_object *args, const char *prefix, json_object **out, gs_diag *d)
+{
+    static const char *const own[] = {"groups", "path", "resume", "builtin", NULL};
+    *out = NULL;
+    char f[64];
+    if (json_object_get_type(args) != json_type_object)
+        return gs_diag_set(d, GS_ESCHEMA, prefix, "a sweep is an object");
+    json_object *spec = json_object_new_object(), *b = NULL;
+    if (!spec)
+        return GS_ENOMEM;
+    json_object_object_foreach(args, k, v)
+    {
+        bool skip = false;
+        for (int i = 0; own[i]; i++)
+            skip |= !strcmp(k, own[i]);
+        if (!skip)
+            json_object_object_add(spec, k, json_object_get(v));
+    }
+    if (json_object_object_get_ex(args, "builtin", &b)) {
+        const char *name = json_object_get_type(b) == json_type_string ? json_object_get_string(b) : "";
+        const char *text = gs_scene_builtin(name);
+        if (json_object_object_get_ex(args, "scene", NULL)) {
+            json_object_put(spec);
+            return gs_diag_set(d, GS_ESCHEMA, prefix, "give exactly one of 'scene' (an object) or 'builtin' (a name)");
+        }
+        if (!text) {
+            json_object_put(spec);
+            gsi_path(f, sizeof f, prefix, "builtin");
+            return gs_diag_set(d, GS_ENOTFOUND, f, "no builtin scene '%.64s'", name);
+        }
+        json_object_object_add(spec, "scene", json_tokener_parse(text));
+    }
+    *out = spec;
+    return GS_OK;
+}
+
 gs_err gs_sweep_parse(json_object *spec, const char *prefix, const char *const *extra, gs_sweep **out,
                       gs_diag *d)
 {
@@ -638,38 +677,159 @@ gs_err gs_sweep_point_serial(const gs_sweep *sw, int p, double *row, gs_diag *d)
 
 /* ---------------------------------------------------------- the table */
 
-gs_err gs_sweep_write_csv(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
-                          gs_diag *d)
+size_t gs_sweep_format_row(const gs_sweep *sw, int p, const double *row, char *buf, size_t cap)
 {
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
-    if (!f)
-        return gs_diag_set(d, GS_EIO, "path", "cannot write '%s'", path);
-    fprintf(f, "point");
-    for (int c = 0; c < sw->n_cols; c++)
-        fprintf(f, ",%s", sw->cols[c]);
-    fputc('\n', f);
-    for (int p = 0; p < sw->n_points; p++) {
-        if (!done[p])
-            continue;
-        fprintf(f, "%d", p);
-        for (int c = 0; c < sw->n_cols; c++) {
-            double v = rows[(size_t)p * sw->n_cols + c];
-            if (isfinite(v))
-                fprintf(f, ",%.17g", v);
-            else
-                fputc(',', f);
-        }
-        fputc('\n', f);
+    size_t k = 0;
+    int n = snprintf(buf, cap, "%d", p);
+    k = n > 0 ? (size_t)n : 0;
+    for (int c = 0; c < sw->n_cols && k < cap; c++) {
+        n = isfinite(row[c]) ? snprintf(buf + k, cap - k, ",%.17g", row[c]) : snprintf(buf + k, cap - k, ",");
+        k += n > 0 ? (size_t)n : 0;
     }
-    bool ok = !ferror(f);
-    ok = (fclose(f) == 0) && ok;
+    if (k < cap)
+        k += (size_t)snprintf(buf + k, cap - k, "\n");
+    return k < cap ? k : cap - 1;
+}
+
+/* A row's longest text: the point, 25 bytes a value, the newline. */
+#define ROW_CAP (16 + 25 * GS_SWEEP_MAX_COLUMNS)
+
+/* Write all of buf (a short write is retried; any error fails). */
+static bool write_all(int fd, const char *buf, size_t n)
+{
+    while (n > 0) {
+        ssize_t w = write(fd, buf, n);
+        if (w < 0 && errno == EINTR)
+            continue;
+        if (w <= 0)
+            return false;
+        buf += w;
+        n -= (size_t)w;
+    }
+    return true;
+}
+
+/* A new file beside `path` under an unguessable O_EXCL name (a planted
+ * symlink or file is never followed or reused), made 0644 for the table's
+ * readers. -1 with the message in d. */
+static int create_beside(const char *path, char *tmp, size_t cap, gs_diag *d)
+{
+    int fd = gs_tmp_create_beside(path, tmp, cap);
+    if (fd < 0) {
+        gs_diag_set(d, GS_EIO, "path", "cannot create a file beside '%s': %s", path, strerror(errno));
+        return -1;
+    }
+    if (fchmod(fd, 0644) != 0) {
+        gs_diag_set(d, GS_EIO, "path", "cannot set the mode of a file beside '%s': %s", path, strerror(errno));
+        close(fd);
+        unlink(tmp);
+        return -1;
+    }
+    return fd;
+}
+
+gs_err gs_sweep_write_csv(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
+                          int *keep_fd, gs_diag *d)
+{
+    if (keep_fd)
+        *keep_fd = -1;
+    char tmp[4200];
+    int fd = create_beside(path, tmp, sizeof tmp, d);
+    if (fd < 0)
+        return GS_EIO;
+    size_t cap = ROW_CAP * 64, k = 0;
+    char *buf = malloc(cap);
+    bool ok = buf != NULL;
+    if (ok) {
+        k = (size_t)snprintf(buf, cap, "point");
+        for (int c = 0; c < sw->n_cols; c++)
+            k += (size_t)snprintf(buf + k, cap - k, ",%s", sw->cols[c]);
+        k += (size_t)snprintf(buf + k, cap - k, "\n");
+    }
+    for (int p = 0; ok && p <= sw->n_points; p++) {
+        /* flushed in pieces of about 64 rows, and at the end */
+        if (p == sw->n_points || cap - k < ROW_CAP) {
+            ok = write_all(fd, buf, k);
+            k = 0;
+        }
+        if (p < sw->n_points && done[p])
+            k += gs_sweep_format_row(sw, p, rows + (size_t)p * sw->n_cols, buf + k, cap - k);
+    }
+    free(buf);
+    if (ok && !keep_fd) {
+        ok = close(fd) == 0;
+        fd = -1;
+    }
     if (!ok || rename(tmp, path) != 0) {
-        remove(tmp);
+        if (fd >= 0)
+            close(fd);
+        unlink(tmp);
+        return gs_diag_set(d, GS_EIO, "path", "cannot write '%s' (disk full?)", path);
+    }
+    if (keep_fd)
+        *keep_fd = fd;
+    return GS_OK;
+}
+
+gs_err gs_sweep_write_state(const gs_sweep *sw, bool finished, const char *path, gs_diag *d)
+{
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "points", json_object_new_int(sw->n_points));
+    json_object_object_add(o, "finished", json_object_new_boolean(finished));
+    json_object_object_add(o, "sweep", json_object_new_string(sw->canonical));
+    const char *txt = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PLAIN);
+    char tmp[4200];
+    int fd = create_beside(path, tmp, sizeof tmp, d);
+    bool ok = fd >= 0 && write_all(fd, txt, strlen(txt));
+    json_object_put(o);
+    if (fd < 0)
+        return GS_EIO;
+    if (close(fd) != 0 || !ok || rename(tmp, path) != 0) {
+        unlink(tmp);
         return gs_diag_set(d, GS_EIO, "path", "cannot write '%s' (disk full?)", path);
     }
     return GS_OK;
+}
+
+int gs_sweep_state(const gs_sweep *sw, const char *text)
+{
+    json_object *o = text ? json_tokener_parse(text) : NULL;
+    if (!o)
+        return 0;
+    json_object *f, *c;
+    int st = 2;
+    if (json_object_object_get_ex(o, "finished", &f) && json_object_get_boolean(f))
+        st = 3;
+    else if (json_object_object_get_ex(o, "sweep", &c) && json_object_get_type(c) == json_type_string &&
+             !strcmp(json_object_get_string(c), sw->canonical))
+        st = 1;
+    json_object_put(o);
+    return st;
+}
+
+gs_err gs_sweep_append_csv(const gs_sweep *sw, int fd, const double *rows, const int *points, int n, gs_diag *d)
+{
+    if (n <= 0)
+        return GS_OK;
+    size_t cap = (size_t)n * ROW_CAP, k = 0;
+    char *buf = malloc(cap);
+    if (!buf)
+        return GS_ENOMEM;
+    for (int i = 0; i < n; i++)
+        k += gs_sweep_format_row(sw, points[i], rows + (size_t)points[i] * sw->n_cols, buf + k, cap - k);
+    /* One write: an interruption leaves at most an unterminated last line,
+     * which gs_sweep_read_csv drops (that point is computed again). A write
+     * that fails part way is cut off again, so that the next rows do not
+     * continue a torn line. */
+    off_t at = lseek(fd, 0, SEEK_END);
+    bool ok = at >= 0 && write_all(fd, buf, k);
+    int en = errno;
+    free(buf);
+    if (ok)
+        return GS_OK;
+    bool cut = at >= 0 && ftruncate(fd, at) == 0;
+    return gs_diag_set(d, GS_EIO, "path", "cannot append to the table (disk full?): %s%s", strerror(en),
+                       cut ? "" : "; a torn row stays at its end");
 }
 
 gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, unsigned char *done, gs_diag *d)
@@ -692,6 +852,10 @@ gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, uns
     if (!fgets(line, (int)cap, f) || strcspn(line, "\n") != strlen(want) || strncmp(line, want, strlen(want)))
         e = gs_diag_set(d, GS_ESCHEMA, "path", "'%s' is not a table of this sweep (its columns differ)", path);
     while (e == GS_OK && fgets(line, (int)cap, f)) {
+        /* An unterminated last line is the tail of an interrupted append:
+         * not a row (its point is computed again). */
+        if (!strchr(line, '\n') && feof(f))
+            break;
         char *q = line, *end;
         long p = strtol(q, &end, 10);
         if (end == q || *end != ',' || p < 0 || p >= sw->n_points) {
@@ -716,6 +880,8 @@ gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, uns
             }
             rows[(size_t)p * sw->n_cols + c] = v;
         }
+        if (e == GS_OK && *q != '\n' && *q != '\0')
+            e = gs_diag_set(d, GS_ESCHEMA, "path", "'%s': point %ld has too many columns", path, p);
         if (e == GS_OK)
             done[p] = 1;
     }
@@ -727,11 +893,18 @@ gs_err gs_sweep_read_csv(const gs_sweep *sw, const char *path, double *rows, uns
 gs_err gs_sweep_write_h5(const gs_sweep *sw, const double *rows, const unsigned char *done, const char *path,
                          gs_diag *d)
 {
-    char tmp[4200];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-    if (f < 0)
+    /* HDF5 opens by name: it is given the new file's descriptor's name. */
+    char tmp[4200], via_fd[64];
+    int fd = create_beside(path, tmp, sizeof tmp, d);
+    if (fd < 0)
+        return GS_EIO;
+    snprintf(via_fd, sizeof via_fd, "/proc/self/fd/%d", fd);
+    hid_t f = H5Fcreate(via_fd, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    close(fd);
+    if (f < 0) {
+        unlink(tmp);
         return gs_diag_set(d, GS_EIO, "path", "cannot write '%s'", path);
+    }
     int n = sw->n_points, bad = 0;
     hid_t g = H5Gcreate2(f, "sweep", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     double *col = malloc((size_t)(n ? n : 1) * sizeof(double));
@@ -760,7 +933,7 @@ gs_err gs_sweep_write_h5(const gs_sweep *sw, const double *rows, const unsigned 
     if (H5Fclose(f) < 0)
         bad = 1;
     if (bad || rename(tmp, path) != 0) {
-        remove(tmp);
+        unlink(tmp);
         return gs_diag_set(d, GS_EIO, "path", "cannot write '%s' (disk full?)", path);
     }
     return GS_OK;

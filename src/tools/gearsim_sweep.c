@@ -43,18 +43,14 @@ static void usage(void)
 
 static void print_row(const gs_sweep *sw, int p, const double *row)
 {
-    printf("%d", p);
-    for (int c = 0; c < gs_sweep_columns(sw); c++)
-        if (isfinite(row[c]))
-            printf(",%.17g", row[c]);
-        else
-            printf(",");
-    printf("\n");
+    char buf[16 + 25 * GS_SWEEP_MAX_COLUMNS];
+    fwrite(buf, 1, gs_sweep_format_row(sw, p, row, buf, sizeof buf), stdout);
     fflush(stdout);
 }
 
-/* The spec of a --spec file: its scene_file (relative to the file) or
- * builtin becomes the scene; the daemon's own keys are dropped. */
+/* The spec of a --spec file: its scene_file (relative to the file) becomes
+ * the scene, then as the daemon's job does (gs_sweep_spec_from_args): a
+ * builtin becomes the scene, the daemon's own keys are dropped. */
 static json_object *read_spec(const char *path)
 {
     json_object *o = json_object_from_file(path);
@@ -80,20 +76,15 @@ static json_object *read_spec(const char *path)
         json_object_object_add(o, "scene", sc);
         json_object_object_del(o, "scene_file");
     }
-    if (json_object_object_get_ex(o, "builtin", &v)) {
-        const char *text = gs_scene_builtin(json_object_get_string(v));
-        if (!text) {
-            fprintf(stderr, "gearsim-sweep: %s: builtin: no builtin scene '%s'\n", path, json_object_get_string(v));
-            json_object_put(o);
-            return NULL;
-        }
-        json_object_object_add(o, "scene", json_tokener_parse(text));
-        json_object_object_del(o, "builtin");
+    json_object *spec;
+    gs_diag d;
+    gs_diag_clear(&d);
+    if (gs_sweep_spec_from_args(o, "", &spec, &d) != GS_OK) {
+        fprintf(stderr, "gearsim-sweep: %s: %s: %s\n", path, d.field, d.message);
+        spec = NULL;
     }
-    json_object_object_del(o, "groups");
-    json_object_object_del(o, "path");
-    json_object_object_del(o, "resume");
-    return o;
+    json_object_put(o);
+    return spec;
 }
 
 int main(int argc, char **argv)
@@ -201,7 +192,7 @@ int main(int argc, char **argv)
         char f[4096];
         snprintf(f, sizeof f, "%s.csv", out);
         if (e == GS_OK && !missing)
-            e = gs_sweep_write_csv(sw, rows, done, f, &d);
+            e = gs_sweep_write_csv(sw, rows, done, f, NULL, &d);
         snprintf(f, sizeof f, "%s.h5", out);
         if (e == GS_OK && !missing)
             e = gs_sweep_write_h5(sw, rows, done, f, &d);
@@ -229,7 +220,7 @@ int main(int argc, char **argv)
                 print_row(sw, p, rows + (size_t)p * nc);
             fprintf(stderr, "point %d/%d done\n", p + 1, n);
         }
-        if (out && gs_sweep_write_csv(sw, rows, done, out, &d) != GS_OK) {
+        if (out && gs_sweep_write_csv(sw, rows, done, out, NULL, &d) != GS_OK) {
             fprintf(stderr, "gearsim-sweep: %s: %s\n", out, d.message);
             status = 2;
         }

@@ -2,9 +2,11 @@
 """Tiny test harness shared by the integration tests: named checks, a final
 `N passed, N failed` line, and a non-zero exit status on failure."""
 import contextlib
+import hashlib
 import json
 import os
 import shutil
+import stat
 import sys
 import tempfile
 import time
@@ -80,6 +82,37 @@ def stalled_sub(ctx, info):
     apply_curve(s, info)
     s.connect(info["telemetry"])
     return s
+
+
+def tree_digest(root):
+    """Names, types and contents of everything under root (to show that a
+    test changed nothing there)."""
+    out = {}
+    for dirpath, dirs, files in os.walk(root):
+        for n in dirs + files:
+            p = os.path.join(dirpath, n)
+            st = os.lstat(p)
+            if stat.S_ISREG(st.st_mode):
+                with open(p, "rb") as f:
+                    out[p] = ("file", hashlib.sha256(f.read()).hexdigest())
+            elif stat.S_ISLNK(st.st_mode):
+                out[p] = ("link", os.readlink(p))
+            else:
+                out[p] = ("other", stat.S_IFMT(st.st_mode))
+    return out
+
+
+def victim_and_data(tmp, content):
+    """tmp/outside/victim.txt holding content (what a test must never
+    change) and a new 0700 data directory tmp/data: (victim, data)."""
+    outside = os.path.join(tmp, "outside")
+    os.makedirs(outside)
+    victim = os.path.join(outside, "victim.txt")
+    with open(victim, "wb") as f:
+        f.write(content)
+    data = os.path.join(tmp, "data")
+    os.makedirs(data, mode=0o700)
+    return victim, data
 
 
 @contextlib.contextmanager

@@ -8,7 +8,6 @@ served, hard links and FIFOs are refused by fetch (the daemon stays
 responsive), a checkpoint or record onto the connection file, the lock file
 or the record being written is refused. Each refusal names args.path, and
 nothing outside the data directory changes."""
-import hashlib
 import os
 import stat
 import sys
@@ -20,27 +19,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, tree_digest, victim_and_data  # noqa: E402
 
 R = Results("test_files: safe opening of client-named and internal files")
 SECRET = b"outside the data directory: never served, never changed\n"
-
-
-def tree_digest(root):
-    """Names, types and contents of everything under root."""
-    out = {}
-    for dirpath, dirs, files in os.walk(root):
-        for n in dirs + files:
-            p = os.path.join(dirpath, n)
-            st = os.lstat(p)
-            if stat.S_ISREG(st.st_mode):
-                with open(p, "rb") as f:
-                    out[p] = ("file", hashlib.sha256(f.read()).hexdigest())
-            elif stat.S_ISLNK(st.st_mode):
-                out[p] = ("link", os.readlink(p))
-            else:
-                out[p] = ("other", stat.S_IFMT(st.st_mode))
-    return out
 
 
 def refused(name, fn, *a, words=None, **kw):
@@ -57,13 +39,8 @@ def refused(name, fn, *a, words=None, **kw):
 
 
 def case(tmp):
-    outside = os.path.join(tmp, "outside")
-    os.makedirs(outside)
-    victim = os.path.join(outside, "victim.txt")
-    with open(victim, "wb") as f:
-        f.write(SECRET)
-    data = os.path.join(tmp, "data")
-    os.makedirs(data, mode=0o700)
+    victim, data = victim_and_data(tmp, SECRET)
+    outside = os.path.dirname(victim)
     # Planted before the daemon starts: the old temporary names of the
     # connection file and of a checkpoint, as symlinks leading out.
     os.symlink(victim, os.path.join(data, "conn.json.tmp"))

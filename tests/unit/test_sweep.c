@@ -7,7 +7,10 @@
  * number, a value the scene refuses at some point, both values and a range,
  * a parameter swept twice); a point computed in one process, its row
  * (parameters, mean speeds, balance at round-off) and the CSV written and
- * read back bit for bit. */
+ * read back bit for bit; rows appended to a CSV kept open, an interrupted
+ * append's torn last line dropped on reading, a symlink planted at the old
+ * temporary name not followed; the resume state file; the command's
+ * arguments made a specification (the daemon's keys dropped, builtin). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -18,6 +21,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gearsim/scene.h"
@@ -168,7 +172,7 @@ static void test_point_and_table(void **state)
     int fd = mkstemp(path);
     assert_true(fd >= 0);
     close(fd);
-    assert_int_equal(gs_sweep_write_csv(sw, rows, done, path, &d), GS_OK);
+    assert_int_equal(gs_sweep_write_csv(sw, rows, done, path, NULL, &d), GS_OK);
     assert_int_equal(gs_sweep_read_csv(sw, path, back, got, &d), GS_OK);
     assert_int_equal(got[0], 0);
     assert_int_equal(got[1], 1);
@@ -180,6 +184,113 @@ static void test_point_and_table(void **state)
     gs_sweep_free(&sw);
 }
 
+static void test_append_and_state(void **state)
+{
+    (void)state;
+    gs_sweep *sw, *other;
+    gs_diag d;
+    assert_int_equal(make("[{\"path\": \"driver_rpm\", \"values\": [1500, 2000, 2500]}]", NULL, &sw, &d), GS_OK);
+    assert_int_equal(make("[{\"path\": \"driver_rpm\", \"values\": [1500, 2500]}]", NULL, &other, &d), GS_OK);
+    int nc = gs_sweep_columns(sw);
+    double *rows = calloc((size_t)(3 * nc), sizeof(double)), *back = calloc((size_t)(3 * nc), sizeof(double));
+    for (int i = 0; i < 3 * nc; i++)
+        rows[i] = i % 5 == 3 ? NAN : 1.0 / (i + 3.0) - 7e-9 * i;
+    unsigned char none[3] = {0, 0, 0}, got[3] = {0, 0, 0};
+    char dir[] = "/tmp/gs_test_sweep_XXXXXX", path[600], tmp[640], victim[640];
+    assert_non_null(mkdtemp(dir));
+    snprintf(path, sizeof path, "%s/t.csv", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    snprintf(victim, sizeof victim, "%s/victim", dir);
+    FILE *f = fopen(victim, "w");
+    assert_non_null(f);
+    fputs("victim\n", f);
+    fclose(f);
+    assert_int_equal(symlink(victim, tmp), 0);
+    /* header only, kept open; the planted link at the old name untouched */
+    int fd = -1;
+    assert_int_equal(gs_sweep_write_csv(sw, rows, none, path, &fd, &d), GS_OK);
+    assert_true(fd >= 0);
+    struct stat st;
+    assert_int_equal(lstat(path, &st), 0);
+    assert_true(S_ISREG(st.st_mode) && (st.st_mode & 0777) == 0644);
+    assert_int_equal(lstat(tmp, &st), 0);
+    assert_true(S_ISLNK(st.st_mode));
+    assert_int_equal(lstat(victim, &st), 0);
+    assert_int_equal((int)st.st_size, 7);
+    /* points 2 and 0 appended, then an append torn after a few bytes */
+    int pts[2] = {2, 0};
+    assert_int_equal(gs_sweep_append_csv(sw, fd, rows, pts, 2, &d), GS_OK);
+    char row1[4096];
+    size_t n = gs_sweep_format_row(sw, 1, rows + nc, row1, sizeof row1);
+    assert_true(n > 20 && row1[n - 1] == '\n');
+    assert_int_equal(write(fd, row1, 12), 12);
+    close(fd);
+    assert_int_equal(gs_sweep_read_csv(sw, path, back, got, &d), GS_OK);
+    assert_true(got[0] && !got[1] && got[2]);
+    for (int p = 0; p < 3; p += 2)
+        for (int c = 0; c < nc; c++) {
+            double a = back[p * nc + c], b = rows[p * nc + c];
+            assert_true(a == b || (isnan(a) && isnan(b)));
+        }
+    /* a row with a column too many (a torn row glued to the next) is refused */
+    assert_int_equal(gs_sweep_write_csv(sw, rows, none, path, NULL, &d), GS_OK);
+    f = fopen(path, "a");
+    assert_non_null(f);
+    fwrite(row1, 1, n - 1, f);
+    fputs(",1\n", f);
+    fclose(f);
+    assert_int_equal(gs_sweep_read_csv(sw, path, back, got, &d), GS_ESCHEMA);
+    assert_non_null(strstr(d.message, "too many columns"));
+    assert_string_equal(d.field, "path");
+    /* the state file */
+    char sp[640];
+    snprintf(sp, sizeof sp, "%s/t.sweep.json", dir);
+    size_t len;
+    for (int fin = 0; fin < 2; fin++) {
+        assert_int_equal(gs_sweep_write_state(sw, fin, sp, &d), GS_OK);
+        char *text = gs_read_file(sp, 1 << 20, &len);
+        assert_int_equal(gs_sweep_state(sw, text), fin ? 3 : 1);
+        assert_int_equal(gs_sweep_state(other, text), fin ? 3 : 2);
+        free(text);
+    }
+    assert_int_equal(gs_sweep_state(sw, NULL), 0);
+    assert_int_equal(gs_sweep_state(sw, "not json"), 0);
+    unlink(sp);
+    unlink(path);
+    unlink(tmp);
+    unlink(victim);
+    assert_int_equal(rmdir(dir), 0); /* nothing else was left in it */
+    free(rows);
+    free(back);
+    gs_sweep_free(&sw);
+    gs_sweep_free(&other);
+}
+
+static void test_spec_from_args(void **state)
+{
+    (void)state;
+    json_object *args = json_tokener_parse("{\"builtin\": \"pair\", \"groups\": 2, \"path\": \"x\", \"resume\": true,"
+                                           " \"parameters\": [{\"path\": \"driver_rpm\", \"values\": [1500]}]}");
+    json_object *spec;
+    gs_diag d;
+    assert_int_equal(gs_sweep_spec_from_args(args, "args", &spec, &d), GS_OK);
+    assert_true(json_object_object_get_ex(spec, "scene", NULL) && json_object_object_get_ex(spec, "parameters", NULL));
+    assert_int_equal(json_object_object_length(spec), 2);
+    gs_sweep *sw;
+    assert_int_equal(gs_sweep_parse(spec, "args", NULL, &sw, &d), GS_OK);
+    assert_string_equal(gs_sweep_scene_name(sw), "spur pair 20/30");
+    gs_sweep_free(&sw);
+    json_object_put(spec);
+    json_object_object_add(args, "builtin", json_object_new_string("nope"));
+    assert_int_equal(gs_sweep_spec_from_args(args, "args", &spec, &d), GS_ENOTFOUND);
+    assert_string_equal(d.field, "args.builtin");
+    assert_null(spec);
+    json_object_object_add(args, "scene", json_object_new_object());
+    assert_int_equal(gs_sweep_spec_from_args(args, "args", &spec, &d), GS_ESCHEMA);
+    assert_string_equal(d.field, "args");
+    json_object_put(args);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -187,6 +298,8 @@ int main(void)
         cmocka_unit_test(test_steady_state),
         cmocka_unit_test(test_refusals),
         cmocka_unit_test(test_point_and_table),
+        cmocka_unit_test(test_append_and_state),
+        cmocka_unit_test(test_spec_from_args),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
