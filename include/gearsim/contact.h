@@ -9,7 +9,9 @@
  *                   against a short master polyline: positive outside the
  *                   master body, zero on its boundary, negative inside, with
  *                   analytic gradients w.r.t. the slave point and every
- *                   master node. Plain doubles, no allocation, pure.
+ *                   master node. Plain doubles, no allocation, pure. For
+ *                   order-2 masters, the signed distance to a chain of
+ *                   parabolic edges (gs_gap_eval_quad).
  *   search          the candidate (slave node, master window) pairs of one
  *                   gear mesh, from the rigid states of the two gears (their
  *                   nodal displacements are used only to measure distances),

@@ -252,6 +252,45 @@ static void test_polyline(double L, double *pts)
     }
 }
 
+typedef gs_err (*gap_fn)(const double x[2], const double *pts, int k, gs_gap *out);
+typedef bool (*same_fn)(const gs_gap *a, const gs_gap *b);
+
+/* Largest |central difference (step h) - analytic| of g0's gradient w.r.t.
+ * the slave point x0 and each master node used (k <= 7 nodes); *skip is
+ * set when a perturbed evaluation is in another state (same false). */
+static double fd_gap_error(gap_fn f, same_fn same, const double x0[2], const double *pts, int k,
+                           const gs_gap *g0, double h, bool *skip)
+{
+    double err = 0;
+    *skip = false;
+    for (int q = 0; q < 2 + 2 * g0->n_master && !*skip; q++) {
+        double v[2];
+        for (int sg = 0; sg < 2; sg++) {
+            double x[2] = {x0[0], x0[1]}, p[14];
+            memcpy(p, pts, (size_t)(2 * k) * sizeof *p);
+            double dlt = sg ? -h : h;
+            if (q < 2)
+                x[q] += dlt;
+            else
+                p[2 * g0->master[(q - 2) / 2] + (q % 2)] += dlt;
+            gs_gap g1;
+            assert_int_equal(f(x, p, k, &g1), GS_OK);
+            if (!same(g0, &g1))
+                *skip = true;
+            v[sg] = g1.g;
+        }
+        err = fmax(err, fabs((v[0] - v[1]) / (2 * h) - g0->grad[q]));
+    }
+    return err;
+}
+
+/* Same nearest segment and blend state. */
+static bool same_blend(const gs_gap *a, const gs_gap *b)
+{
+    return b->segment == a->segment && b->n_master == a->n_master &&
+           (b->blend > 0) == (a->blend > 0) && (b->blend < 1) == (a->blend < 1);
+}
+
 static void eval_gradients(void **state)
 {
     (void)state;
@@ -274,27 +313,8 @@ static void eval_gradients(void **state)
         for (int q = 0; q < 8; q++)
             norm = fmax(norm, fabs(g0.grad[q]));
         /* the unknowns: slave x, y, then each master node used */
-        double err = 0;
-        bool skip = false;
-        for (int q = 0; q < 2 + 2 * g0.n_master && !skip; q++) {
-            double v[2];
-            for (int sg = 0; sg < 2; sg++) {
-                double x[2] = {x0[0], x0[1]}, p[12];
-                memcpy(p, pts, sizeof p);
-                double dlt = sg ? -h : h;
-                if (q < 2)
-                    x[q] += dlt;
-                else
-                    p[2 * g0.master[(q - 2) / 2] + (q % 2)] += dlt;
-                gs_gap g1;
-                assert_int_equal(gs_gap_eval(x, p, 6, &g1), GS_OK);
-                if (g1.segment != g0.segment || g1.n_master != g0.n_master ||
-                    (g1.blend > 0) != (g0.blend > 0) || (g1.blend < 1) != (g0.blend < 1))
-                    skip = true;
-                v[sg] = g1.g;
-            }
-            err = fmax(err, fabs((v[0] - v[1]) / (2 * h) - g0.grad[q]) / norm);
-        }
+        bool skip;
+        double err = fd_gap_error(gs_gap_eval, same_blend, x0, pts, 6, &g0, h, &skip) / norm;
         if (skip) {
             skipped++;
             continue;
@@ -517,6 +537,13 @@ static void quad_zero_set_and_sign(void **state)
  * chains, joint vertices (the clamped projection) included; a sample whose
  * difference straddles a change of edge or of the clamped state is
  * skipped. */
+/* Same edge, and both at a joint vertex or both not. */
+static bool same_edge(const gs_gap *a, const gs_gap *b)
+{
+    bool va = a->xi == 0.0 || a->xi == 1.0, vb = b->xi == 0.0 || b->xi == 1.0;
+    return b->segment == a->segment && va == vb;
+}
+
 static void quad_gradients(void **state)
 {
     (void)state;
@@ -534,28 +561,8 @@ static void quad_gradients(void **state)
             double x0[2] = {P[0] + 0.6 * L * (rnd(&s) - 0.5), P[1] + 0.6 * L * (rnd(&s) - 0.5)};
             gs_gap g0;
             assert_int_equal(gs_gap_eval_quad(x0, pts, 7, &g0), GS_OK);
-            bool vtx0 = g0.xi == 0.0 || g0.xi == 1.0;
-            double err = 0;
-            bool skip = false;
-            for (int q = 0; q < 8 && !skip; q++) {
-                double v[2];
-                for (int sg = 0; sg < 2; sg++) {
-                    double x[2] = {x0[0], x0[1]}, p[14];
-                    memcpy(p, pts, sizeof p);
-                    double dlt = sg ? -h : h;
-                    if (q < 2)
-                        x[q] += dlt;
-                    else
-                        p[2 * g0.master[(q - 2) / 2] + (q % 2)] += dlt;
-                    gs_gap g1;
-                    assert_int_equal(gs_gap_eval_quad(x, p, 7, &g1), GS_OK);
-                    bool vtx1 = g1.xi == 0.0 || g1.xi == 1.0;
-                    if (g1.segment != g0.segment || vtx1 != vtx0)
-                        skip = true;
-                    v[sg] = g1.g;
-                }
-                err = fmax(err, fabs((v[0] - v[1]) / (2 * h) - g0.grad[q]));
-            }
+            bool vtx0 = g0.xi == 0.0 || g0.xi == 1.0, skip;
+            double err = fd_gap_error(gs_gap_eval_quad, same_edge, x0, pts, 7, &g0, h, &skip);
             if (skip) {
                 skipped++;
                 continue;
