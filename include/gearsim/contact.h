@@ -146,8 +146,8 @@ gs_err gs_gap_eval(const double x[2], const double *pts, int k, gs_gap *out);
  * across them: g is continuous, exactly zero on the parabolic edges, and its
  * gradient is continuous except on the ridge of a joint (the bisector inside
  * a convex joint, outside a concave one), where it turns by the joint's turn
- * angle (1e-5 rad between the parabolas of a smooth flank; the tip corner's
- * angle there). master = the 3 nodes of the winning edge (2e, 2e+1, 2e+2),
+ * angle (small between the parabolas of a smooth curve: h^3 / (16 R^3) on
+ * a circle of radius R, edge chord h; the tip corner's angle there). master = the 3 nodes of the winning edge (2e, 2e+1, 2e+2),
  * n_master = 3, segment = e, kind GS_GAP_PARABOLA, blend 0.
  * Errors: GS_EINVAL (NULL, k < 3 or even), GS_EGEOMETRY (two consecutive
  * nodes equal, a degenerate edge, a value not finite). */
