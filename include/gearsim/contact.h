@@ -9,7 +9,9 @@
  *                   against a short master polyline: positive outside the
  *                   master body, zero on its boundary, negative inside, with
  *                   analytic gradients w.r.t. the slave point and every
- *                   master node. Plain doubles, no allocation, pure.
+ *                   master node. Plain doubles, no allocation, pure. For
+ *                   order-2 masters, the signed distance to a chain of
+ *                   parabolic edges (gs_gap_eval_quad).
  *   search          the candidate (slave node, master window) pairs of one
  *                   gear mesh, from the rigid states of the two gears (their
  *                   nodal displacements are used only to measure distances),
@@ -76,7 +78,8 @@ gs_err gs_gap_wedge(const double x[2], const double a[2], const double b[2], con
 typedef enum {
     GS_GAP_LINE = 0,    /* point-to-line of one segment */
     GS_GAP_CONVEX = 1,  /* convex wedge, blended with a line (see gs_gap_eval) */
-    GS_GAP_CONCAVE = 2  /* concave wedge, blended with a line */
+    GS_GAP_CONCAVE = 2, /* concave wedge, blended with a line */
+    GS_GAP_PARABOLA = 3 /* signed distance to parabolic edges (gs_gap_eval_quad) */
 } gs_gap_kind;
 
 /* The gap of a slave point against a polyline, and what it was built from. */
@@ -88,6 +91,8 @@ typedef struct gs_gap {
     int n_master;       /* 2 or 3 master nodes used */
     int master[3];      /* their indices in the polyline, increasing */
     double grad[8];     /* dg/dx (slave), then dg/d(p_master[j]), j < n_master; rest 0 */
+    double xi;          /* GS_GAP_PARABOLA: the closest point's parameter on edge
+                         * `segment` (0 at its first node, 1 at its last); 0 otherwise */
 } gs_gap;
 
 /* Gap of slave point x against the master polyline pts (k >= 2 nodes,
@@ -114,6 +119,39 @@ typedef struct gs_gap {
  * Errors: GS_EINVAL (NULL, k < 2), GS_EGEOMETRY (two consecutive nodes
  * equal, a value not finite). */
 gs_err gs_gap_eval(const double x[2], const double *pts, int k, gs_gap *out);
+
+/* Gap of slave point x against a chain of E = (k - 1) / 2 parabolic edges
+ * (order-2 boundary: k odd >= 3 nodes, 2 k doubles, material on the left;
+ * edge e runs through pts[2e] (corner), pts[2e+1] (mid-side, at xi = 1/2),
+ * pts[2e+2] (corner), P_e(xi) = sum_i N_i(xi) p_i with the quadratic shape
+ * functions N = ((1-xi)(1-2xi), 4xi(1-xi), xi(2xi-1)), xi in [0, 1]). The
+ * rule (docs/CONTACT.md "Quadratic edges"):
+ *
+ *  1. Closest point: on each edge the xi minimising |x - P_e(xi)| (the roots
+ *     of the cubic (P - x).P' by safeguarded Newton in each sign-change
+ *     bracket, and the interval ends); the first and last edge are extended
+ *     to xi in [-1, 1] and [0, 2] (the window's ends, like the extended line
+ *     of gs_gap_eval). The nearest edge wins (ties: lower index).
+ *  2. Interior point (P' . (x - P) = 0): g = (x - P).n, n the outward unit
+ *     normal (P'_y, -P'_x) / |P'| at xi, so |g| is the Euclidean distance;
+ *     dg/dx = n, dg/dp_i = -N_i(xi) n (stationarity of the projection: the
+ *     terms through xi and through n vanish).
+ *  3. Joint vertex V of two edges (the projection clamped to their shared
+ *     corner): g = s |x - V|, s the sign of (x - V).(n_a + n_b) (outside a
+ *     convex joint, inside a concave one); dg/dx = s (x - V) / |x - V| = nu,
+ *     dg/dV = -nu (the formula of 2 with N = (0, 0, 1)); at x = V, g = 0 and
+ *     nu is the mean normal.
+ *
+ * So |g| is the distance to the union of the edges and g changes sign only
+ * across them: g is continuous, exactly zero on the parabolic edges, and its
+ * gradient is continuous except on the ridge of a joint (the bisector inside
+ * a convex joint, outside a concave one), where it turns by the joint's turn
+ * angle (small between the parabolas of a smooth curve: h^3 / (16 R^3) on
+ * a circle of radius R, edge chord h; the tip corner's angle there). master = the 3 nodes of the winning edge (2e, 2e+1, 2e+2),
+ * n_master = 3, segment = e, kind GS_GAP_PARABOLA, blend 0.
+ * Errors: GS_EINVAL (NULL, k < 3 or even), GS_EGEOMETRY (two consecutive
+ * nodes equal, a degenerate edge, a value not finite). */
+gs_err gs_gap_eval_quad(const double x[2], const double *pts, int k, gs_gap *out);
 
 /* Chain rule for one node of a body at x = c + R(theta)(X + u): given
  * dg/dx (scene frame) and the node's current x - c, adds to dg_dtheta the
@@ -171,7 +209,9 @@ typedef struct gs_contact_candidate {
     int n_window;           /* k */
     gs_index window[GS_CONTACT_WINDOW_MAX]; /* master mesh nodes, consecutive on its
                                              * boundary loop, material on the left
-                                             * (reversed loop order for a ring) */
+                                             * (reversed loop order for a ring); an
+                                             * order-2 master: whole parabolic edges,
+                                             * corners at even positions */
     double distance;        /* distance to the master boundary at search time, m */
     double gap;             /* gs_gap_eval of the window at search time, m */
 } gs_contact_candidate;
@@ -224,7 +264,8 @@ gs_err gs_contact_search_run(gs_contact_search *s, const gs_contact_pose pose[2]
 /* A candidate's gap in the scene frame and its derivatives w.r.t. the
  * coordinates of both bodies, for the contact step to collect. */
 typedef struct gs_contact_row {
-    gs_gap gap;             /* from gs_gap_eval on scene positions; gap.grad is
+    gs_gap gap;             /* from gs_gap_eval (order-2 master: gs_gap_eval_quad,
+                             * window corners at even positions) on scene positions; gap.grad is
                              * w.r.t. scene positions (slave, then master[j]) */
     int n_nodes;            /* 1 + gap.n_master */
     int body[4];            /* gear of each node: slave first, then masters */

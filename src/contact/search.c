@@ -42,6 +42,8 @@ typedef struct gear_data {
     gs_index nb;
     double *ang;             /* nb: unwrapped polar angle of boundary node j (reference) */
     gs_index *bpos;          /* n_nodes: position on the boundary loop, or -1 */
+    int order;               /* element order of the mesh (1, 2) */
+    gs_index cpar;           /* order 2: parity of the corner positions on the loop */
 } gear_data;
 
 struct gs_contact_search {
@@ -112,6 +114,25 @@ static gs_err gear_prepare(gear_data *gd, const gs_mesh *m, const gs_gear_params
         double a = atan2(m->xy[2 * nd + 1], m->xy[2 * nd]);
         gd->ang[j] = j ? gd->ang[j - 1] + wrap_pi(a - prev) : a;
         prev = a;
+    }
+    gd->order = gs_mesh_order(m);
+    if (gd->order == 2) {
+        /* the loop alternates corner and mid-side nodes (mesh.h) */
+        char *is_mid = gs_calloc((size_t)m->n_nodes, 1);
+        if (!is_mid)
+            return GS_ENOMEM;
+        for (gs_index q = 0; q < 3 * m->n_tris; q++)
+            if (m->mid[q] >= 0 && m->mid[q] < m->n_nodes)
+                is_mid[m->mid[q]] = 1;
+        gd->cpar = is_mid[m->boundary[0]] ? 1 : 0;
+        bool alt = gd->nb % 2 == 0;
+        for (gs_index j = 0; j < gd->nb && alt; j++)
+            alt = (is_mid[m->boundary[j]] != 0) == ((j % 2) != gd->cpar);
+        free(is_mid);
+        if (!alt)
+            return gs_diag_set(d, GS_EINVAL, "mesh",
+                               "%s: order-2 boundary loop does not alternate corner and "
+                               "mid-side nodes", which);
     }
     /* flank spacing from flank 0 of tooth 0 */
     gs_index f0 = m->flank_ptr[0], f1 = m->flank_ptr[1];
@@ -289,6 +310,33 @@ static void make_window(const gear_data *gb, const gs_contact_pose *pb, gs_index
     }
 }
 
+/* Order 2: the window of E = (k - 1) / 2 whole parabolic edges around the
+ * edge that holds boundary segment j -> j+1 of B (that edge central; E even:
+ * the extra edge on the side of the edge's end nearer to y), material on
+ * the left, corners at even positions. */
+static void make_window_quad(const gear_data *gb, const gs_contact_pose *pb, gs_index j,
+                             const double y[2], int k, gs_contact_candidate *c, double *pts)
+{
+    const int E = (k - 1) / 2;
+    gs_index c0 = (j % 2 == gb->cpar) ? j : j - 1; /* first corner of the edge */
+    gs_index start;
+    if (E % 2)
+        start = c0 - 2 * ((E - 1) / 2);
+    else {
+        double a[2], b[2];
+        body_pos(gb, pb, gb->m->boundary[wrapi(c0, gb->nb)], a);
+        body_pos(gb, pb, gb->m->boundary[wrapi(c0 + 2, gb->nb)], b);
+        bool near_a = hypot(y[0] - a[0], y[1] - a[1]) <= hypot(y[0] - b[0], y[1] - b[1]);
+        start = near_a ? c0 - E : c0 - E + 2;
+    }
+    c->n_window = k;
+    for (int q = 0; q < k; q++) {
+        gs_index off = gb->internal ? start + (k - 1 - q) : start + q;
+        c->window[q] = gb->m->boundary[wrapi(off, gb->nb)];
+        body_pos(gb, pb, c->window[q], pts + 2 * q);
+    }
+}
+
 typedef struct pass_ctx {
     gs_contact_search *s;
     int ia, ib;
@@ -319,18 +367,23 @@ static gs_err try_node(pass_ctx *pc, gs_index nd, int tooth, int where, bool cor
     double dist = sqrt(d2);
     if (dist > fmax(s->band, s->depth))
         return GS_OK;
-    double a[2], b[2];
-    body_pos(gb, pb, gb->m->boundary[j], a);
-    body_pos(gb, pb, gb->m->boundary[wrapi(j + 1, gb->nb)], b);
-    gs_index j0 = hypot(y[0] - a[0], y[1] - a[1]) <= hypot(y[0] - b[0], y[1] - b[1])
-                      ? j
-                      : wrapi(j + 1, gb->nb);
     gs_contact_candidate c;
     memset(&c, 0, sizeof c);
     double pts[2 * GS_CONTACT_WINDOW_MAX];
-    make_window(gb, pb, j0, s->o.window, &c, pts);
     gs_gap gap;
-    GS_TRY(gs_gap_eval(y, pts, c.n_window, &gap));
+    if (gb->order == 2) {
+        make_window_quad(gb, pb, j, y, s->o.window, &c, pts);
+        GS_TRY(gs_gap_eval_quad(y, pts, c.n_window, &gap));
+    } else {
+        double a[2], b[2];
+        body_pos(gb, pb, gb->m->boundary[j], a);
+        body_pos(gb, pb, gb->m->boundary[wrapi(j + 1, gb->nb)], b);
+        gs_index j0 = hypot(y[0] - a[0], y[1] - a[1]) <= hypot(y[0] - b[0], y[1] - b[1])
+                          ? j
+                          : wrapi(j + 1, gb->nb);
+        make_window(gb, pb, j0, s->o.window, &c, pts);
+        GS_TRY(gs_gap_eval(y, pts, c.n_window, &gap));
+    }
     if (dist > s->band && !(gap.g < 0.0 && dist <= s->depth))
         return GS_OK;
     c.slave = pc->ia;
@@ -503,7 +556,10 @@ gs_err gs_contact_eval(const gs_contact_search *s, const gs_contact_pose pose[2]
     }
     scene_pos(ga, &pose[cand->slave], cand->slave_node, x);
     memset(row, 0, sizeof *row);
-    GS_TRY(gs_gap_eval(x, pts, cand->n_window, &row->gap));
+    if (gb->order == 2)
+        GS_TRY(gs_gap_eval_quad(x, pts, cand->n_window, &row->gap));
+    else
+        GS_TRY(gs_gap_eval(x, pts, cand->n_window, &row->gap));
     row->n_nodes = 1 + row->gap.n_master;
     for (int q = 0; q < row->n_nodes; q++) {
         int b = q ? cand->master : cand->slave;

@@ -242,3 +242,216 @@ void gs_gap_chain(const double dg_dx[2], double theta, const double x_minus_c[2]
     dg_du[0] = c * dg_dx[0] + s * dg_dx[1];
     dg_du[1] = -s * dg_dx[0] + c * dg_dx[1];
 }
+
+/* ------------------------------------------------------------------------ */
+/* Parabolic edges (order-2 boundaries; gs_gap_eval_quad)                   */
+/* ------------------------------------------------------------------------ */
+
+/* Edge a (xi = 0), m (xi = 1/2), b (xi = 1): P(xi) = sum_i N_i(xi) p_i in
+ * Lagrange form (exactly a, m, b at xi = 0, 1/2, 1, so a joint vertex is the
+ * same point seen from either edge), P' = 4(xi - 3/4) a + (4 - 8 xi) m +
+ * (4 xi - 1) b, P'' = c2 = 4(a - 2m + b). */
+typedef struct qedge {
+    double a[2], m[2], b[2], c2[2];
+} qedge;
+
+static void qedge_set(qedge *q, const double a[2], const double m[2], const double b[2])
+{
+    for (int t = 0; t < 2; t++) {
+        q->a[t] = a[t];
+        q->m[t] = m[t];
+        q->b[t] = b[t];
+        q->c2[t] = 4.0 * (a[t] - 2.0 * m[t] + b[t]);
+    }
+}
+
+static void shape3(double xi, double N[3])
+{
+    N[0] = (1.0 - xi) * (1.0 - 2.0 * xi);
+    N[1] = 4.0 * xi * (1.0 - xi);
+    N[2] = xi * (2.0 * xi - 1.0);
+}
+
+static void qedge_at(const qedge *q, double xi, double P[2], double dP[2])
+{
+    double N[3], dN[3] = {4.0 * xi - 3.0, 4.0 - 8.0 * xi, 4.0 * xi - 1.0};
+    shape3(xi, N);
+    for (int t = 0; t < 2; t++) {
+        P[t] = N[0] * q->a[t] + N[1] * q->m[t] + N[2] * q->b[t];
+        dP[t] = dN[0] * q->a[t] + dN[1] * q->m[t] + dN[2] * q->b[t];
+    }
+}
+
+/* f(xi) = |P - x|^2 / 2 and its first two derivatives. */
+static void qedge_f(const qedge *q, const double x[2], double xi, double *f, double *f1,
+                    double *f2)
+{
+    double P[2], dP[2];
+    qedge_at(q, xi, P, dP);
+    double d[2] = {P[0] - x[0], P[1] - x[1]};
+    *f = 0.5 * (d[0] * d[0] + d[1] * d[1]);
+    *f1 = d[0] * dP[0] + d[1] * dP[1];
+    *f2 = dP[0] * dP[0] + dP[1] * dP[1] + d[0] * q->c2[0] + d[1] * q->c2[1];
+}
+
+/* A root of f' in [lo, hi] with f'(lo) < 0 < f'(hi): Newton, kept in the
+ * bracket (bisection when a step leaves it or does not shrink it enough). */
+static double qedge_root(const qedge *q, const double x[2], double lo, double hi)
+{
+    double xi = 0.5 * (lo + hi);
+    for (int it = 0; it < 60; it++) {
+        double f, f1, f2;
+        qedge_f(q, x, xi, &f, &f1, &f2);
+        if (f1 == 0.0)
+            return xi;
+        if (f1 < 0.0)
+            lo = xi;
+        else
+            hi = xi;
+        double nx = f2 > 0.0 ? xi - f1 / f2 : 0.5 * (lo + hi);
+        if (!(nx > lo && nx < hi) || fabs(nx - xi) > 0.5 * (hi - lo))
+            nx = 0.5 * (lo + hi);
+        if (fabs(nx - xi) <= 4e-16 * (1.0 + fabs(xi)) || hi - lo <= 4e-16 * (1.0 + fabs(xi)))
+            return nx;
+        xi = nx;
+    }
+    return xi;
+}
+
+#define QEDGE_SAMPLES 8
+
+/* The global minimiser of f on [lo, hi]: the ends and every local minimum
+ * (a sign change - to + of f' between samples); returns xi and f there. */
+static double qedge_project(const qedge *q, const double x[2], double lo, double hi,
+                            double *fmin)
+{
+    double best = lo, f, f1, f2;
+    qedge_f(q, x, lo, &f, &f1, &f2);
+    double bf = f;
+    double prev_xi = lo, prev_f1 = f1;
+    for (int s = 1; s <= QEDGE_SAMPLES; s++) {
+        double xi = s == QEDGE_SAMPLES ? hi : lo + (hi - lo) * (double)s / QEDGE_SAMPLES;
+        double g, g1, g2;
+        qedge_f(q, x, xi, &g, &g1, &g2);
+        if (prev_f1 < 0.0 && g1 > 0.0) {
+            double r = qedge_root(q, x, prev_xi, xi), h, h1, h2;
+            qedge_f(q, x, r, &h, &h1, &h2);
+            if (h < bf) {
+                bf = h;
+                best = r;
+            }
+        } else if (g1 == 0.0 && g2 > 0.0 && g < bf) {
+            bf = g;
+            best = xi;
+        }
+        if (s == QEDGE_SAMPLES && g < bf) {
+            bf = g;
+            best = xi;
+        }
+        prev_xi = xi;
+        prev_f1 = g1;
+    }
+    *fmin = bf;
+    return best;
+}
+
+/* Outward unit normal (material on the left) of tangent t. */
+static bool unit_normal(const double t[2], double n[2])
+{
+    double L = hypot(t[0], t[1]);
+    if (!(L > 0.0))
+        return false;
+    n[0] = t[1] / L;
+    n[1] = -t[0] / L;
+    return true;
+}
+
+gs_err gs_gap_eval_quad(const double x[2], const double *pts, int k, gs_gap *out)
+{
+    if (!x || !pts || !out || k < 3 || k % 2 == 0)
+        return GS_EINVAL;
+    memset(out, 0, sizeof *out);
+    if (!finite2(x))
+        return GS_EGEOMETRY;
+    for (int j = 0; j < k; j++) {
+        if (!finite2(pts + 2 * j))
+            return GS_EGEOMETRY;
+        if (j > 0 && pts[2 * j] == pts[2 * j - 2] && pts[2 * j + 1] == pts[2 * j - 1])
+            return GS_EGEOMETRY;
+    }
+    const int E = (k - 1) / 2;
+    int be = -1;
+    double bxi = 0.0, bf = INFINITY;
+    for (int e = 0; e < E; e++) {
+        qedge q;
+        qedge_set(&q, pts + 4 * e, pts + 4 * e + 2, pts + 4 * e + 4);
+        double lo = e == 0 ? -1.0 : 0.0, hi = e == E - 1 ? 2.0 : 1.0, f;
+        double xi = qedge_project(&q, x, lo, hi, &f);
+        if (f < bf) {
+            bf = f;
+            be = e;
+            bxi = xi;
+        }
+    }
+    if (be < 0)
+        return GS_EGEOMETRY;
+    qedge q;
+    qedge_set(&q, pts + 4 * be, pts + 4 * be + 2, pts + 4 * be + 4);
+    double P[2], dP[2], n[2];
+    qedge_at(&q, bxi, P, dP);
+    if (!unit_normal(dP, n))
+        return GS_EGEOMETRY;
+    double d[2] = {x[0] - P[0], x[1] - P[1]};
+    double nu[2] = {n[0], n[1]};
+    /* a joint vertex: the end xi = 1 of edge be < E - 1 (a tie at the shared
+     * corner goes to the lower edge, so xi = 0 of an edge be > 0 is the
+     * vertex only when the lower edge did not reach it first) */
+    int joint = -1;
+    if (bxi == 1.0 && be < E - 1)
+        joint = be + 1;
+    else if (bxi == 0.0 && be > 0)
+        joint = be;
+    double g;
+    if (joint >= 0) {
+        qedge qa, qb;
+        qedge_set(&qa, pts + 4 * (joint - 1), pts + 4 * (joint - 1) + 2, pts + 4 * joint);
+        qedge_set(&qb, pts + 4 * joint, pts + 4 * joint + 2, pts + 4 * joint + 4);
+        double Pa[2], ta[2], Pb[2], tb[2], na[2], nb[2];
+        qedge_at(&qa, 1.0, Pa, ta);
+        qedge_at(&qb, 0.0, Pb, tb);
+        if (!unit_normal(ta, na) || !unit_normal(tb, nb))
+            return GS_EGEOMETRY;
+        double nm[2] = {na[0] + nb[0], na[1] + nb[1]};
+        double r = hypot(d[0], d[1]);
+        if (r > 0.0) {
+            double sd = d[0] * nm[0] + d[1] * nm[1];
+            double s = sd > 0.0 ? 1.0 : (sd < 0.0 ? -1.0 : (cross2(ta, tb) > 0.0 ? 1.0 : -1.0));
+            nu[0] = s * d[0] / r;
+            nu[1] = s * d[1] / r;
+            g = s * r;
+        } else {
+            double L = hypot(nm[0], nm[1]);
+            nu[0] = L > 0.0 ? nm[0] / L : na[0];
+            nu[1] = L > 0.0 ? nm[1] / L : na[1];
+            g = 0.0;
+        }
+    } else {
+        g = d[0] * n[0] + d[1] * n[1];
+    }
+    double N[3];
+    shape3(bxi, N);
+    out->g = g;
+    out->kind = GS_GAP_PARABOLA;
+    out->segment = be;
+    out->xi = bxi;
+    out->blend = 0.0;
+    out->n_master = 3;
+    out->grad[0] = nu[0];
+    out->grad[1] = nu[1];
+    for (int j = 0; j < 3; j++) {
+        out->master[j] = 2 * be + j;
+        out->grad[2 + 2 * j] = -N[j] * nu[0];
+        out->grad[3 + 2 * j] = -N[j] * nu[1];
+    }
+    return GS_OK;
+}

@@ -252,6 +252,45 @@ static void test_polyline(double L, double *pts)
     }
 }
 
+typedef gs_err (*gap_fn)(const double x[2], const double *pts, int k, gs_gap *out);
+typedef bool (*same_fn)(const gs_gap *a, const gs_gap *b);
+
+/* Largest |central difference (step h) - analytic| of g0's gradient w.r.t.
+ * the slave point x0 and each master node used (k <= 7 nodes); *skip is
+ * set when a perturbed evaluation is in another state (same false). */
+static double fd_gap_error(gap_fn f, same_fn same, const double x0[2], const double *pts, int k,
+                           const gs_gap *g0, double h, bool *skip)
+{
+    double err = 0;
+    *skip = false;
+    for (int q = 0; q < 2 + 2 * g0->n_master && !*skip; q++) {
+        double v[2];
+        for (int sg = 0; sg < 2; sg++) {
+            double x[2] = {x0[0], x0[1]}, p[14];
+            memcpy(p, pts, (size_t)(2 * k) * sizeof *p);
+            double dlt = sg ? -h : h;
+            if (q < 2)
+                x[q] += dlt;
+            else
+                p[2 * g0->master[(q - 2) / 2] + (q % 2)] += dlt;
+            gs_gap g1;
+            assert_int_equal(f(x, p, k, &g1), GS_OK);
+            if (!same(g0, &g1))
+                *skip = true;
+            v[sg] = g1.g;
+        }
+        err = fmax(err, fabs((v[0] - v[1]) / (2 * h) - g0->grad[q]));
+    }
+    return err;
+}
+
+/* Same nearest segment and blend state. */
+static bool same_blend(const gs_gap *a, const gs_gap *b)
+{
+    return b->segment == a->segment && b->n_master == a->n_master &&
+           (b->blend > 0) == (a->blend > 0) && (b->blend < 1) == (a->blend < 1);
+}
+
 static void eval_gradients(void **state)
 {
     (void)state;
@@ -274,27 +313,8 @@ static void eval_gradients(void **state)
         for (int q = 0; q < 8; q++)
             norm = fmax(norm, fabs(g0.grad[q]));
         /* the unknowns: slave x, y, then each master node used */
-        double err = 0;
-        bool skip = false;
-        for (int q = 0; q < 2 + 2 * g0.n_master && !skip; q++) {
-            double v[2];
-            for (int sg = 0; sg < 2; sg++) {
-                double x[2] = {x0[0], x0[1]}, p[12];
-                memcpy(p, pts, sizeof p);
-                double dlt = sg ? -h : h;
-                if (q < 2)
-                    x[q] += dlt;
-                else
-                    p[2 * g0.master[(q - 2) / 2] + (q % 2)] += dlt;
-                gs_gap g1;
-                assert_int_equal(gs_gap_eval(x, p, 6, &g1), GS_OK);
-                if (g1.segment != g0.segment || g1.n_master != g0.n_master ||
-                    (g1.blend > 0) != (g0.blend > 0) || (g1.blend < 1) != (g0.blend < 1))
-                    skip = true;
-                v[sg] = g1.g;
-            }
-            err = fmax(err, fabs((v[0] - v[1]) / (2 * h) - g0.grad[q]) / norm);
-        }
+        bool skip;
+        double err = fd_gap_error(gs_gap_eval, same_blend, x0, pts, 6, &g0, h, &skip) / norm;
         if (skip) {
             skipped++;
             continue;
@@ -391,12 +411,247 @@ static void continuity(void **state)
 /* Search on real gear pairs                                                */
 /* ------------------------------------------------------------------------ */
 
+/* ------------------------------------------------------------------------ */
+/* Parabolic edges (order 2): gs_gap_eval_quad                              */
+/* ------------------------------------------------------------------------ */
+
+/* Three parabolic edges (7 nodes), corner spacing L:
+ * case 0: on a circle of radius 20 L, counter-clockwise (convex body, the
+ *         material inside), nodes at equal angles;
+ * case 1: the same circle clockwise (concave: the material outside);
+ * case 2: a true convex corner: edge 0 slightly bowed along +x up to the
+ *         origin, edges 1 and 2 leaving it turned 70 degrees left;
+ * case 3: the concave corner, turned 70 degrees right. */
+static void quad_chain(int kase, double L, double p[14])
+{
+    if (kase < 2) {
+        const double R = 20 * L, dphi = 0.5 * L / R;
+        for (int j = 0; j < 7; j++) {
+            double a = (kase == 0 ? 1.0 : -1.0) * (j - 3) * dphi - GS_PI / 2;
+            p[2 * j] = R * cos(a);
+            p[2 * j + 1] = R * sin(a) + R;
+        }
+        return;
+    }
+    double turn = (kase == 2 ? 70.0 : -70.0) * DEG;
+    /* edge 0: (-L, 0) .. (0, 0), mid-side node bowed by 0.02 L outwards (-y) */
+    p[0] = -L;
+    p[1] = 0;
+    p[2] = -0.5 * L;
+    p[3] = -0.02 * L * (kase == 2 ? 1 : -1);
+    p[4] = 0;
+    p[5] = 0;
+    double t[2] = {cos(turn), sin(turn)}, nrm[2] = {t[1], -t[0]};
+    for (int j = 3; j < 7; j++) {
+        double s = 0.5 * L * (j - 2), bow = (j % 2) ? 0.01 * L : 0.0;
+        p[2 * j] = s * t[0] + bow * nrm[0];
+        p[2 * j + 1] = s * t[1] + bow * nrm[1];
+    }
+}
+
+/* Point and outward normal of edge e at xi (the test's own formulas). */
+static void quad_point(const double *p, int e, double xi, double P[2], double n[2])
+{
+    const double *a = p + 4 * e, *m = a + 2, *b = a + 4;
+    double N[3] = {(1 - xi) * (1 - 2 * xi), 4 * xi * (1 - xi), xi * (2 * xi - 1)};
+    double dN[3] = {4 * xi - 3, 4 - 8 * xi, 4 * xi - 1};
+    double t[2];
+    for (int q = 0; q < 2; q++) {
+        P[q] = N[0] * a[q] + N[1] * m[q] + N[2] * b[q];
+        t[q] = dN[0] * a[q] + dN[1] * m[q] + dN[2] * b[q];
+    }
+    double tl = hypot(t[0], t[1]);
+    n[0] = t[1] / tl;
+    n[1] = -t[0] / tl;
+}
+
+/* Zero set, sign and magnitude: on the edges g = 0 to round-off; a point P
+ * + t n at small offset t has g = t (the Euclidean distance, interior
+ * points of smooth chains; on corner chains |g| <= |t| and the sign of t);
+ * on the circle chains g is the distance to the circle to well below the
+ * sagitta of the chords through corner and mid-side nodes (the polyline
+ * gap's error), so the gap is measured to the parabolas. */
+static void quad_zero_set_and_sign(void **state)
+{
+    (void)state;
+    const double L = 1e-3;
+    uint64_t s = 11;
+    double worst_zero = 0, worst_t = 0, worst_circle = 0;
+    int n_sign = 0;
+    for (int kase = 0; kase < 4; kase++) {
+        double p[14];
+        quad_chain(kase, L, p);
+        for (int trial = 0; trial < 2000; trial++) {
+            int e = (int)(3 * rnd(&s));
+            double xi = rnd(&s), P[2], n[2];
+            quad_point(p, e, xi, P, n);
+            gs_gap g;
+            assert_int_equal(gs_gap_eval_quad(P, p, 7, &g), GS_OK);
+            assert_int_equal(g.kind, GS_GAP_PARABOLA);
+            assert_int_equal(g.n_master, 3);
+            worst_zero = fmax(worst_zero, fabs(g.g) / L);
+            double t = 0.05 * L * (2 * rnd(&s) - 1);
+            if (fabs(t) < 1e-6 * L)
+                continue;
+            double x[2] = {P[0] + t * n[0], P[1] + t * n[1]};
+            assert_int_equal(gs_gap_eval_quad(x, p, 7, &g), GS_OK);
+            n_sign++;
+            assert_true(g.g * t > 0);
+            assert_true(fabs(g.g) <= fabs(t) * (1 + 1e-12));
+            if (kase < 2 && xi > 0.1 && xi < 0.9)
+                worst_t = fmax(worst_t, fabs(g.g - t) / L);
+            if (kase < 2) {
+                const double R = 20 * L;
+                double gc = (kase == 0 ? 1 : -1) * (hypot(x[0], x[1] - R) - R);
+                worst_circle = fmax(worst_circle, fabs(g.g - gc));
+            }
+        }
+    }
+    /* sagitta of a chord between corner and mid-side node: (L/2)^2 / (8 R) */
+    const double sag = 0.25 * L * L / (8 * 20 * L);
+    print_message("# quad gap: |g| on the edges <= %.1e L; g = t to %.1e L (interior, smooth "
+                  "chains); %d signs; |g - circle distance| <= %.2e m = %.1e of the chord "
+                  "sagitta %.2e m\n",
+                  worst_zero, worst_t, n_sign, worst_circle, worst_circle / sag, sag);
+    assert_true(worst_zero < 1e-13);
+    assert_true(worst_t < 1e-12);
+    assert_true(worst_circle < 0.02 * sag);
+    assert_true(n_sign > 7000);
+    /* errors */
+    double p[14], x[2] = {0, 0};
+    gs_gap g;
+    quad_chain(0, L, p);
+    assert_int_equal(gs_gap_eval_quad(x, p, 6, &g), GS_EINVAL);
+    assert_int_equal(gs_gap_eval_quad(x, p, 1, &g), GS_EINVAL);
+    assert_int_equal(gs_gap_eval_quad(NULL, p, 7, &g), GS_EINVAL);
+    p[4] = p[2];
+    p[5] = p[3];
+    assert_int_equal(gs_gap_eval_quad(x, p, 7, &g), GS_EGEOMETRY);
+    quad_chain(0, L, p);
+    p[7] = NAN;
+    assert_int_equal(gs_gap_eval_quad(x, p, 7, &g), GS_EGEOMETRY);
+}
+
+/* Gradients against central differences (step 1e-6 L) w.r.t. the slave
+ * point and the three nodes of the edge used, at points up to 0.3 L off the
+ * chains, joint vertices (the clamped projection) included; a sample whose
+ * difference straddles a change of edge or of the clamped state is
+ * skipped. */
+/* Same edge, and both at a joint vertex or both not. */
+static bool same_edge(const gs_gap *a, const gs_gap *b)
+{
+    bool va = a->xi == 0.0 || a->xi == 1.0, vb = b->xi == 0.0 || b->xi == 1.0;
+    return b->segment == a->segment && va == vb;
+}
+
+static void quad_gradients(void **state)
+{
+    (void)state;
+    const double L = 1e-3, h = 1e-6 * L;
+    uint64_t s = 5;
+    double worst = 0;
+    int checked = 0, skipped = 0, at_vertex = 0;
+    for (int kase = 0; kase < 4; kase++) {
+        double pts[14];
+        quad_chain(kase, L, pts);
+        for (int trial = 0; trial < 1500; trial++) {
+            int e = (int)(3 * rnd(&s));
+            double P[2], n[2];
+            quad_point(pts, e, rnd(&s), P, n);
+            double x0[2] = {P[0] + 0.6 * L * (rnd(&s) - 0.5), P[1] + 0.6 * L * (rnd(&s) - 0.5)};
+            gs_gap g0;
+            assert_int_equal(gs_gap_eval_quad(x0, pts, 7, &g0), GS_OK);
+            bool vtx0 = g0.xi == 0.0 || g0.xi == 1.0, skip;
+            double err = fd_gap_error(gs_gap_eval_quad, same_edge, x0, pts, 7, &g0, h, &skip);
+            if (skip) {
+                skipped++;
+                continue;
+            }
+            checked++;
+            at_vertex += vtx0;
+            worst = fmax(worst, err);
+        }
+    }
+    print_message("# quad gap gradients vs central FD (step 1e-6 L): %d points (%d at a joint "
+                  "vertex), %d skipped at a switch, max error %.1e (|grad| <= 1)\n",
+                  checked, at_vertex, skipped, worst);
+    assert_true(worst < 1e-7);
+    assert_true(checked > 5000 && at_vertex > 50);
+}
+
+/* Continuity across the joints: |g| is the distance to the union of the
+ * edges and g changes sign only on them, so g is 1-Lipschitz. Paths along
+ * each chain at offsets -0.3 L .. 0.3 L, 20 000 steps each: |dg| <= |dx|
+ * at every step (a jump at a change of edge, or a wrong sign at a joint
+ * vertex, would break it), and the gradient turns by at most the joint's
+ * turn angle per step across a smooth chain's ridge (C1 but for that). */
+static void quad_continuity(void **state)
+{
+    (void)state;
+    const double L = 1e-3;
+    double worst_lip = 0, worst_turn_smooth = 0;
+    int switches = 0;
+    for (int kase = 0; kase < 4; kase++) {
+        double p[14];
+        quad_chain(kase, L, p);
+        for (int io = 0; io < 9; io++) {
+            double off = (io - 4) * 0.075 * L;
+            const int steps = 20000;
+            double gp = 0, xp[2] = {0, 0}, np[2] = {0, 0};
+            int segp = -1;
+            for (int k = 0; k <= steps; k++) {
+                /* along the chain: edge e, xi in [0.05, 0.95] of the whole */
+                double u = 3.0 * (0.05 + 0.9 * k / steps);
+                int e = (int)u < 3 ? (int)u : 2;
+                double P[2], n[2];
+                quad_point(p, e, u - e, P, n);
+                double x[2] = {P[0] + off * n[0], P[1] + off * n[1]};
+                gs_gap g;
+                assert_int_equal(gs_gap_eval_quad(x, p, 7, &g), GS_OK);
+                if (k > 0) {
+                    double dx = hypot(x[0] - xp[0], x[1] - xp[1]);
+                    worst_lip = fmax(worst_lip, (fabs(g.g - gp) - 1e-15 * L) / dx);
+                    if (g.segment != segp)
+                        switches++;
+                    if (kase < 2) {
+                        double c = g.grad[0] * np[0] + g.grad[1] * np[1];
+                        worst_turn_smooth = fmax(worst_turn_smooth, acos(fmin(1.0, c)));
+                    }
+                }
+                gp = g.g;
+                xp[0] = x[0];
+                xp[1] = x[1];
+                np[0] = g.grad[0];
+                np[1] = g.grad[1];
+                segp = g.segment;
+            }
+        }
+    }
+    print_message("# quad gap continuity: max |dg| / |dx| = %.9f along 36 paths (%d edge "
+                  "switches); smooth chains: gradient turns <= %.1e rad per step\n",
+                  worst_lip, switches, worst_turn_smooth);
+    assert_true(worst_lip <= 1.0 + 1e-9);
+    assert_true(switches >= 36);
+    /* a step is 4.5e-4 of the chain (~0.07 mrad of the circle's turn); the
+     * joints of parabolas through a circle turn by far less */
+    assert_true(worst_turn_smooth < 2e-4);
+}
+
 static void scene_xy(const gs_mesh *m, const gs_contact_pose *ps, gs_index nd, double x[2])
 {
     double X = m->xy[2 * nd] + (ps->u ? ps->u[2 * nd] : 0);
     double Y = m->xy[2 * nd + 1] + (ps->u ? ps->u[2 * nd + 1] : 0);
     x[0] = ps->c[0] + cos(ps->theta) * X - sin(ps->theta) * Y;
     x[1] = ps->c[1] + sin(ps->theta) * X + cos(ps->theta) * Y;
+}
+
+/* Whether node nd is a mid-side node of a quadratic mesh. */
+static bool is_mid_node(const gs_mesh *m, gs_index nd)
+{
+    for (gs_index q = 0; m->mid && q < 3 * m->n_tris; q++)
+        if (m->mid[q] == nd)
+            return true;
+    return false;
 }
 
 static double seg_dist(const double x[2], const double a[2], const double b[2])
@@ -435,11 +690,28 @@ typedef struct pair_case {
     double a;
     double gamma;   /* direction of the line of centres */
     int positions;
+    int order;      /* element order of both meshes (0 = 1) */
 } pair_case;
+
+static gs_mesh *mesh_order(const gs_gear_params *p, int order)
+{
+    if (order < 2)
+        return mesh_of(p, 0);
+    gs_gear_mesh_opts o;
+    gs_gear_mesh_opts_defaults(&o);
+    o.order = 2;
+    gs_mesh *m = NULL;
+    assert_int_equal(gs_gear_mesh(p, &o, &m, NULL), GS_OK);
+    return m;
+}
 
 static void run_pair(const pair_case *pc)
 {
-    gs_mesh *m[2] = {mesh_of(&pc->g[0], 0), mesh_of(&pc->g[1], 0)};
+    gs_mesh *m[2] = {mesh_order(&pc->g[0], pc->order), mesh_order(&pc->g[1], pc->order)};
+    /* order 2: the brute-force inside test below is of the polyline through
+     * corner and mid-side nodes, the gap of the parabolic edges; they may
+     * disagree within the chords' sagitta (~1 um here) */
+    const double sign_tol = pc->order == 2 ? 1e-5 : 1e-9;
     gs_pair_info info;
     gs_diag d;
     assert_int_equal(gs_pair_analyse(&pc->g[0], &pc->g[1], pc->a, &info, &d), GS_OK);
@@ -528,8 +800,14 @@ static void run_pair(const pair_case *pc)
             gs_contact_row row;
             assert_int_equal(gs_contact_eval(s, pose, cc, &row), GS_OK);
             assert_true(fabs(row.gap.g - cc->gap) <= 1e-15 + 1e-9 * fabs(cc->gap));
+            if (pc->order == 2) {
+                /* whole parabolic edges: corners at even window positions */
+                assert_int_equal(row.gap.kind, GS_GAP_PARABOLA);
+                for (int q = 0; q < cc->n_window; q++)
+                    assert_int_equal(is_mid_node(m[cc->master], cc->window[q]), q % 2 == 1);
+            }
             assert_true(fabs(cc->distance - dist) <= 1e-12);
-            if (dist > 1e-9) {
+            if (dist > sign_tol) {
                 sign_checks++;
                 assert_true(material ? row.gap.g < 0 : row.gap.g > 0);
             } else {
@@ -586,6 +864,27 @@ static void search_external(void **state)
     run_pair(&pc);
 }
 
+static void search_external_quad(void **state)
+{
+    (void)state;
+    pair_case pc = {.name = "external 20/30 m 2.5, order 2", .a = 62.5e-3, .gamma = 0.3,
+                    .positions = 6, .order = 2};
+    pc.g[0] = gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0);
+    pc.g[1] = gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0);
+    run_pair(&pc);
+}
+
+static void search_internal_quad(void **state)
+{
+    (void)state;
+    pair_case pc = {.name = "internal 24 in 72 m 2.5, order 2", .a = 60e-3, .gamma = -1.1,
+                    .positions = 6, .order = 2};
+    pc.g[0] = gear(GS_GEAR_EXTERNAL, 24, 2.5e-3, 0);
+    pc.g[1] = gear(GS_GEAR_INTERNAL, 72, 2.5e-3, 0);
+    pc.g[1].addendum_coef = 0.8;
+    run_pair(&pc);
+}
+
 static void search_internal(void **state)
 {
     (void)state;
@@ -616,12 +915,11 @@ static void search_high_ratio(void **state)
 
 /* The chained gradients of gs_contact_eval w.r.t. theta, c and du of every
  * node used, on candidates of the 20/30 pair with displacements. */
-static void chained_gradients(void **state)
+static void chained_gradients_order(int order)
 {
-    (void)state;
     gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0),
                            gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0)};
-    gs_mesh *m[2] = {mesh_of(&g[0], 0), mesh_of(&g[1], 0)};
+    gs_mesh *m[2] = {mesh_order(&g[0], order), mesh_order(&g[1], order)};
     gs_contact_search *s = NULL;
     assert_int_equal(gs_contact_search_new(m[0], &g[0], m[1], &g[1], NULL, &s, NULL), GS_OK);
     double *u[2];
@@ -682,7 +980,9 @@ static void chained_gradients(void **state)
                     u[b][2 * nd + comp] -= dl * hu;
                 if (r1.gap.segment != r0.gap.segment || r1.gap.n_master != r0.gap.n_master ||
                     (r1.gap.blend > 0) != (r0.gap.blend > 0) ||
-                    (r1.gap.blend < 1) != (r0.gap.blend < 1))
+                    (r1.gap.blend < 1) != (r0.gap.blend < 1) ||
+                    (r1.gap.xi <= 0.0) != (r0.gap.xi <= 0.0) ||
+                    (r1.gap.xi >= 1.0) != (r0.gap.xi >= 1.0))
                     skip = true;
                 v[sg] = r1.gap.g;
             }
@@ -710,10 +1010,10 @@ static void chained_gradients(void **state)
         wedges += r0.gap.kind != GS_GAP_LINE;
         worst = fmax(worst, err);
     }
-    print_message("# chained gradients (theta, c, du) vs central FD (du step 1e-6 m, theta step "
-                  "1e-6 m / 30 mm): %d candidates (%d with a wedge), %d skipped, max error %.1e "
-                  "(relative to 1, and to 50 mm for theta)\n",
-                  checked, wedges, skipped, worst);
+    print_message("# chained gradients, order %d (theta, c, du) vs central FD (du step 1e-6 m, "
+                  "theta step 1e-6 m / 30 mm): %d candidates (%d with a wedge or parabola), %d "
+                  "skipped, max error %.1e (relative to 1, and to 50 mm for theta)\n",
+                  order < 2 ? 1 : 2, checked, wedges, skipped, worst);
     assert_true(worst < 1e-6);
     assert_true(checked > 10);
     free(cs);
@@ -722,6 +1022,18 @@ static void chained_gradients(void **state)
     gs_contact_search_free(&s);
     gs_mesh_free(&m[0]);
     gs_mesh_free(&m[1]);
+}
+
+static void chained_gradients(void **state)
+{
+    (void)state;
+    chained_gradients_order(1);
+}
+
+static void chained_gradients_quad(void **state)
+{
+    (void)state;
+    chained_gradients_order(2);
 }
 
 static void search_errors(void **state)
@@ -821,6 +1133,12 @@ int main(void)
         cmocka_unit_test(search_internal),
         cmocka_unit_test(search_high_ratio),
         cmocka_unit_test(chained_gradients),
+        cmocka_unit_test(chained_gradients_quad),
+        cmocka_unit_test(search_external_quad),
+        cmocka_unit_test(search_internal_quad),
+        cmocka_unit_test(quad_zero_set_and_sign),
+        cmocka_unit_test(quad_gradients),
+        cmocka_unit_test(quad_continuity),
         cmocka_unit_test(search_errors),
         cmocka_unit_test(one_pass),
     };
