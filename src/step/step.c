@@ -18,6 +18,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "contact/contact_mesh.h"
 #include "models/mesh_common.h"
 #include "step_internal.h"
 
@@ -341,6 +342,86 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
     return err;
 }
 
+/* numerics.contact "closure_energy": the closure's rows close the gap, so
+ * their reactions do the work W = lambda^T G x in the step (the contact
+ * nodes' inelastic share at a contact onset, docs/CONTACT.md). It is given
+ * back, exactly, as a velocity update of the mesh's two gears (Laursen and
+ * Love's velocity update, here restricted to the rigid rotations): an
+ * impulse P along the reactions' moments v_k = sum_r lambda_r G_r,theta_k
+ * (equal and opposite along the contact normals, so no net force on the
+ * pair) changes theta'_k by P v_k / I_k, keeping every elastic velocity
+ * relative to its gear's frame and every position. With L_k the angular
+ * momenta after the step, the kinetic energy changes by
+ * a P^2 + b P, a = sum v_k^2 / (2 I_k), b = sum v_k L_k / I_k
+ * (T is quadratic in the speeds with a constant mass matrix: exact), and
+ * a P^2 + b P + W = 0 is solved for P: for W < 0 (energy lost) the
+ * positive root (the impulse pushes the teeth apart, like the reaction
+ * itself), for W > 0 the root of smaller size; when no root exists (the
+ * pair cannot give back W) the P that takes the most, the rest staying in
+ * contact_work. The update's energy is booked in contact_work with W, so
+ * the sum is the untaken rest (round-off otherwise) and the balance holds
+ * as before. */
+double gs_step_contact_return(gs_system *sys, const double *sol)
+{
+    if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
+        return 0.0;
+    double rest = 0.0;
+    for (int i = 0; i < sys->n_meshes; i++) {
+        gs_gmesh_rt *me = &sys->meshes[i];
+        if (!me->ops->contact)
+            continue;
+        const double *ct = sol + gs_sol_mesh_contact(sys, i);
+        double W = ct[4];
+        if (W == 0.0)
+            continue;
+        const gsi_contact_mesh *cm = me->contact;
+        int body[2] = {cm->body[0], cm->body[1]}, coord[2];
+        double L[2] = {0, 0}, Ik[2] = {0, 0}, v[2] = {ct[5], ct[6]}, a = 0.0, b = 0.0;
+        for (int k = 0; k < 2; k++) {
+            gs_body_rt *bd = &sys->bodies[body[k]];
+            coord[k] = bd->coord;
+            if (coord[k] < 0 || !(bd->inertia_eff > 0)) {
+                v[k] = 0.0;
+                continue;
+            }
+            Ik[k] = bd->inertia_eff;
+            L[k] = bd->ops->state_size ? bd->L : Ik[k] * sys->w[coord[k]];
+            a += 0.5 * v[k] * v[k] / Ik[k];
+            b += v[k] * L[k] / Ik[k];
+        }
+        double P = 0.0;
+        if (a > 0.0) {
+            double disc = b * b - 4.0 * a * W;
+            if (disc >= 0.0) /* the root of smaller size, without cancellation */
+                P = -2.0 * W / (b + copysign(sqrt(disc), b));
+            else
+                P = -b / (2.0 * a);
+        }
+        double dT = 0.0;
+        for (int k = 0; k < 2; k++) {
+            if (v[k] == 0.0 || P == 0.0)
+                continue;
+            gs_body_rt *bd = &sys->bodies[body[k]];
+            double dw = P * v[k] / Ik[k];
+            double dTk = dw * L[k] + 0.5 * Ik[k] * dw * dw;
+            dT += dTk;
+            sys->w[coord[k]] += dw;
+            if (bd->ops->state_size) {
+                if (bd->ops->spin)
+                    bd->ops->spin(bd, dw);
+                bd->T += dTk;
+                bd->L += Ik[k] * dw;
+            }
+        }
+        me->contact_work += dT;
+        rest += W + dT;
+    }
+    sys->contact_work = 0.0;
+    for (int i = 0; i < sys->n_meshes; i++)
+        sys->contact_work += sys->meshes[i].contact_work;
+    return rest;
+}
+
 /* The adaptive step (METHOD.md section 3: "reducing h adaptively when
  * penetration appears"). The contact solve watches the candidates without
  * a row: when its solution would push one deeper than
@@ -413,6 +494,8 @@ static gs_err serial_substep(gs_system *sys)
         return e;
     e = apply(sys, sol, true);
     gs_system_book_damping(sys);
+    if (e == GS_OK)
+        gs_step_contact_return(sys, sol);
     return e;
 }
 
