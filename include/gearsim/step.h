@@ -248,9 +248,10 @@ void gs_system_book_damping(gs_system *sys);
  * reactions in the step (sol's contact figures) back as a velocity update
  * of its gears' rotations along the reactions' moments (an impulse pair
  * along the contact normals), exactly, and book the update's energy in
- * contact_work beside that work. Every rank, same result; no-op for the
- * other schemes. Returns the energy it could not return (0 but when
- * removing energy is asked of a pair that cannot give it). */
+ * contact_work beside that work, carrying what cannot be given back yet
+ * to the next steps. Every rank, same result; no-op for the other
+ * schemes. Returns the contact work still booked (round-off but when
+ * removing energy is asked of a pair that cannot give it yet). */
 double gs_step_contact_return(gs_system *sys, const double *sol);
 /* True when some body keeps state of its own (elastic): then energies and
  * snapshots need the owners. */

@@ -354,13 +354,15 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
  * momenta after the step, the kinetic energy changes by
  * a P^2 + b P, a = sum v_k^2 / (2 I_k), b = sum v_k L_k / I_k
  * (T is quadratic in the speeds with a constant mass matrix: exact), and
- * a P^2 + b P + W = 0 is solved for P: for W < 0 (energy lost) the
- * positive root (the impulse pushes the teeth apart, like the reaction
- * itself), for W > 0 the root of smaller size; when no root exists (the
- * pair cannot give back W) the P that takes the most, the rest staying in
- * contact_work. The update's energy is booked in contact_work with W, so
- * the sum is the untaken rest (round-off otherwise) and the balance holds
- * as before. */
+ * a P^2 + b P + W = 0 is solved for P, the root of smaller size (the
+ * least change of the motion; the larger root reverses the approach of
+ * the two gears, a rigid bounce that skips the elastic impact). W is all
+ * the mesh's contact_work still booked, this step's reactions' work
+ * included: when no root exists (W > 0 and too little relative motion
+ * along the moments to take it, as in steady rolling) the P that takes
+ * the most, and the rest waits for the next steps. The update's energy is
+ * booked in contact_work too, so contact_work is what is still owed
+ * (round-off, or such a rest) and the balance holds as before. */
 double gs_step_contact_return(gs_system *sys, const double *sol)
 {
     if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
@@ -371,7 +373,10 @@ double gs_step_contact_return(gs_system *sys, const double *sol)
         if (!me->ops->contact)
             continue;
         const double *ct = sol + gs_sol_mesh_contact(sys, i);
-        double W = ct[4];
+        /* What is still booked: this step's work and what earlier steps
+         * could not give back (removing energy needs relative motion along
+         * the reactions' moments; in steady rolling there is almost none). */
+        double W = me->contact_work;
         if (W == 0.0)
             continue;
         const gsi_contact_mesh *cm = me->contact;
@@ -414,7 +419,7 @@ double gs_step_contact_return(gs_system *sys, const double *sol)
             }
         }
         me->contact_work += dT;
-        rest += W + dT;
+        rest += me->contact_work;
     }
     sys->contact_work = 0.0;
     for (int i = 0; i < sys->n_meshes; i++)

@@ -63,6 +63,7 @@ typedef struct drive_stats {
     double se_max, se_mean;        /* strain energy, J: max and mean after the ramp */
     double worst, scale;           /* largest |balance residual| and energy scale, J */
     double contact_work, work_in;  /* booked contact work and work in at the end, J */
+    double cw_max;                 /* largest |booked contact work| over the run, J */
     double wall;                   /* wall seconds */
 } drive_stats;
 
@@ -75,6 +76,7 @@ static drive_stats drive(const char *scheme, double h, int refine, double t_end)
     double t0 = gs_now();
     for (int i = 0; i < n; i++) {
         vt_step_balance(s, &e, &r.worst, &r.scale);
+        r.cw_max = fmax(r.cw_max, fabs(e.contact_work));
         double t = s->time;
         const gs_gmesh_rt *m = &s->meshes[0];
         if (t > 0.01) {
@@ -289,8 +291,10 @@ static void energy_drive(void **state)
     const double h = 1e-5, t_end = 0.04;
     drive_stats r = drive("closure_energy", h, 0, t_end);
     print_drive("closure_energy", 0, h, &r);
+    print_message("closure_energy: largest contact work still booked %.2e J (%.1e of the work in)\n", r.cw_max,
+                  r.cw_max / r.work_in);
     assert_true(r.worst < 1e-9 * r.scale);
-    assert_true(fabs(r.contact_work) < 1e-12 * r.work_in);
+    assert_true(r.cw_max < 1e-9 * r.work_in);
     assert_true(r.pen_max <= 0.033e-6);
     /* the mean force still carries the moment M0 / r_b (567.6 N) */
     double rb = 0.5 * 30 * 2.5e-3 * cos(20 * 3.14159265358979323846 / 180);
