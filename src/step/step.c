@@ -358,11 +358,52 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
  * least change of the motion; the larger root reverses the approach of
  * the two gears, a rigid bounce that skips the elastic impact). W is all
  * the mesh's contact_work still booked, this step's reactions' work
- * included: when no root exists (W > 0 and too little relative motion
- * along the moments to take it, as in steady rolling) the P that takes
- * the most, and the rest waits for the next steps. The update's energy is
- * booked in contact_work too, so contact_work is what is still owed
- * (round-off, or such a rest) and the balance holds as before. */
+ * included. When no root exists (W > 0, energy to take out, and too
+ * little relative motion along the moments to take it, as in steady
+ * rolling) the P that takes the most, and the rest is taken from the
+ * pair's rotation as a whole (speeds scaled alike); what even that cannot
+ * take waits for the next steps. The updates' energy is booked in
+ * contact_work too, so contact_work is what is still owed (round-off, or
+ * such a rest) and the balance holds as before. */
+/* closure_energy: change the speeds of the rotations coord[k] (bodies
+ * body[k], inertias Ik[k], angular momenta L[k], updated) by P d[k], P the
+ * root of smaller size of a P^2 + b P + W = 0 (the kinetic energy change
+ * -W: a = sum Ik d^2 / 2, b = sum d L), or, without a root, the P that
+ * takes the most; returns the kinetic energy change. */
+static double spin_pair(gs_system *sys, const int body[2], const int coord[2], const double Ik[2], double L[2],
+                        const double d[2], double W)
+{
+    double a = 0.0, b = 0.0, P = 0.0, dT = 0.0;
+    for (int k = 0; k < 2; k++) {
+        a += 0.5 * Ik[k] * d[k] * d[k];
+        b += d[k] * L[k];
+    }
+    if (!(a > 0.0) || W == 0.0)
+        return 0.0;
+    double disc = b * b - 4.0 * a * W;
+    if (disc >= 0.0) /* without cancellation */
+        P = -2.0 * W / (b + copysign(sqrt(disc), b));
+    else
+        P = -b / (2.0 * a);
+    for (int k = 0; k < 2; k++) {
+        if (d[k] == 0.0 || P == 0.0)
+            continue;
+        gs_body_rt *bd = &sys->bodies[body[k]];
+        double dw = P * d[k];
+        double dTk = dw * L[k] + 0.5 * Ik[k] * dw * dw;
+        dT += dTk;
+        sys->w[coord[k]] += dw;
+        L[k] += Ik[k] * dw;
+        if (bd->ops->state_size) {
+            if (bd->ops->spin)
+                bd->ops->spin(bd, dw);
+            bd->T += dTk;
+            bd->L = L[k];
+        }
+    }
+    return dT;
+}
+
 double gs_step_contact_return(gs_system *sys, const double *sol)
 {
     if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
@@ -370,55 +411,33 @@ double gs_step_contact_return(gs_system *sys, const double *sol)
     double rest = 0.0;
     for (int i = 0; i < sys->n_meshes; i++) {
         gs_gmesh_rt *me = &sys->meshes[i];
-        if (!me->ops->contact)
+        if (!me->ops->contact || me->contact_work == 0.0)
             continue;
         const double *ct = sol + gs_sol_mesh_contact(sys, i);
-        /* What is still booked: this step's work and what earlier steps
-         * could not give back (removing energy needs relative motion along
-         * the reactions' moments; in steady rolling there is almost none). */
-        double W = me->contact_work;
-        if (W == 0.0)
-            continue;
         const gsi_contact_mesh *cm = me->contact;
         int body[2] = {cm->body[0], cm->body[1]}, coord[2];
-        double L[2] = {0, 0}, Ik[2] = {0, 0}, v[2] = {ct[5], ct[6]}, a = 0.0, b = 0.0;
+        double L[2] = {0, 0}, Ik[2] = {0, 0}, d[2] = {0, 0}, r[2] = {0, 0};
         for (int k = 0; k < 2; k++) {
             gs_body_rt *bd = &sys->bodies[body[k]];
             coord[k] = bd->coord;
-            if (coord[k] < 0 || !(bd->inertia_eff > 0)) {
-                v[k] = 0.0;
+            if (coord[k] < 0 || !(bd->inertia_eff > 0))
                 continue;
-            }
             Ik[k] = bd->inertia_eff;
             L[k] = bd->ops->state_size ? bd->L : Ik[k] * sys->w[coord[k]];
-            a += 0.5 * v[k] * v[k] / Ik[k];
-            b += v[k] * L[k] / Ik[k];
+            d[k] = ct[5 + k] / Ik[k];
         }
-        double P = 0.0;
-        if (a > 0.0) {
-            double disc = b * b - 4.0 * a * W;
-            if (disc >= 0.0) /* the root of smaller size, without cancellation */
-                P = -2.0 * W / (b + copysign(sqrt(disc), b));
-            else
-                P = -b / (2.0 * a);
+        /* What is still booked (this step's work and any rest of earlier
+         * steps), along the reactions' moments. */
+        me->contact_work += spin_pair(sys, body, coord, Ik, L, d, me->contact_work);
+        /* A rest to take out (energy the rows made by pushing a penetration
+         * out, with too little relative motion along the moments to take
+         * it, as in steady rolling or at a release): from the pair's
+         * rotation as a whole, d proportional to the speeds. */
+        if (me->contact_work > 0.0) {
+            for (int k = 0; k < 2; k++)
+                r[k] = Ik[k] > 0 ? L[k] / Ik[k] : 0.0;
+            me->contact_work += spin_pair(sys, body, coord, Ik, L, r, me->contact_work);
         }
-        double dT = 0.0;
-        for (int k = 0; k < 2; k++) {
-            if (v[k] == 0.0 || P == 0.0)
-                continue;
-            gs_body_rt *bd = &sys->bodies[body[k]];
-            double dw = P * v[k] / Ik[k];
-            double dTk = dw * L[k] + 0.5 * Ik[k] * dw * dw;
-            dT += dTk;
-            sys->w[coord[k]] += dw;
-            if (bd->ops->state_size) {
-                if (bd->ops->spin)
-                    bd->ops->spin(bd, dw);
-                bd->T += dTk;
-                bd->L += Ik[k] * dw;
-            }
-        }
-        me->contact_work += dT;
         rest += me->contact_work;
     }
     sys->contact_work = 0.0;
