@@ -404,6 +404,15 @@ static double spin_pair(gs_system *sys, const int body[2], const int coord[2], c
     return dT;
 }
 
+/* True when coordinate c enters a kinematic (equality) row. */
+static bool in_eq_row(const gs_system *sys, int c)
+{
+    for (int a = 0; a < sys->n_eq; a++)
+        if (sys->eq_rows[(size_t)a * sys->n_coords + c] != 0.0)
+            return true;
+    return false;
+}
+
 double gs_step_contact_return(gs_system *sys, const double *sol)
 {
     if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
@@ -420,8 +429,8 @@ double gs_step_contact_return(gs_system *sys, const double *sol)
         for (int k = 0; k < 2; k++) {
             gs_body_rt *bd = &sys->bodies[body[k]];
             coord[k] = bd->coord;
-            if (coord[k] < 0 || !(bd->inertia_eff > 0))
-                continue;
+            if (coord[k] < 0 || !(bd->inertia_eff > 0) || in_eq_row(sys, coord[k]))
+                continue; /* held, or tied by a kinematic row the update would break */
             Ik[k] = bd->inertia_eff;
             L[k] = bd->ops->state_size ? bd->L : Ik[k] * sys->w[coord[k]];
             d[k] = ct[5 + k] / Ik[k];
