@@ -273,6 +273,10 @@ void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic);
 double gs_fe_body_damped(const gs_fe_body *b);
 /* I theta' + s . u' (body frame, about the axis; N m s). */
 double gs_fe_body_angular_momentum(const gs_fe_body *b);
+/* Add dw to the rotation speed (theta'), keeping the elastic velocities:
+ * a rigid spin increment of the whole body. Its kinetic energy changes by
+ * dw L + I dw^2 / 2 (L the angular momentum before, I the total inertia). */
+void gs_fe_body_spin(gs_fe_body *b, double dw);
 /* Nodal displacements and velocities (2 * n_nodes each, zero on fixed nodes;
  * either may be NULL). */
 void gs_fe_body_nodal(const gs_fe_body *b, double *u_nodes, double *v_nodes);

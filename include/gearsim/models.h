@@ -45,6 +45,11 @@ typedef struct gs_body_ops {
     /* Kinetic and potential energy of the body's own state (owner rank;
      * rigid bodies use the system's w, which every rank holds). */
     void (*energy)(const gs_system *sys, const gs_body_rt *b, double *T, double *V);
+    /* Add dw to the rotation speed of the body's own state on its owner
+     * (a rigid spin increment: the elastic velocities relative to the
+     * body's frame are kept; nothing on other ranks). The caller updates
+     * b->T and b->L. NULL: no own state (its speed is the system's w). */
+    void (*spin)(gs_body_rt *b, double dw);
     /* Internal state beyond the rigid coordinate, for snapshots: its size in
      * doubles (every rank, same value), save and load (owner rank). NULL
      * when the model has none. */

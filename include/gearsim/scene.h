@@ -32,7 +32,7 @@ typedef enum {
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1, GS_STIFF_CALIBRATED = 2 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
 /* numerics.contact: how contact rows treat the gap (docs/CONTACT.md). */
-typedef enum { GS_CONTACT_SEED = 0, GS_CONTACT_CLOSURE = 1 } gs_contact_scheme;
+typedef enum { GS_CONTACT_SEED = 0, GS_CONTACT_CLOSURE = 1, GS_CONTACT_CLOSURE_ENERGY = 2 } gs_contact_scheme;
 
 typedef struct gs_mesh_density {
     int flank;   /* elements along a flank */
@@ -127,7 +127,8 @@ typedef struct gs_scene {
     int adapt_levels;          /* numerics.adaptive: halvings of time_step allowed (0: fixed step) */
     double adapt_penetration;  /* numerics.adaptive.penetration_um, m: finer above it */
     int contact_scheme;        /* numerics.contact: GS_CONTACT_SEED (homogeneous rows) or
-                                * GS_CONTACT_CLOSURE (gap kept in the rows, work booked) */
+                                * GS_CONTACT_CLOSURE (gap kept in the rows, work booked) or
+                                * GS_CONTACT_CLOSURE_ENERGY (closure, its work returned) */
     double newton_tol;
     int max_newton;
     int telemetry_every;

@@ -27,6 +27,8 @@ struct gs_body_rt {
     double work_s;           /* seconds its owner spent in its interface and finish, summed */
     double D_step;           /* energy its own damping dissipated in the last step (owner
                               * report, booked by gs_system_book_damping) */
+    double L;                /* angular momentum of the body's own state about its axis
+                              * (owner report, like T; 0 without own state) */
 };
 
 struct gs_gmesh_rt {
@@ -202,8 +204,9 @@ gs_err gs_step_apply(gs_system *sys, const double *sol);
 gs_err gs_step_serial(gs_system *sys);
 /* Offsets in the solution. Per mesh contact figures: constraints with a
  * positive force, constraints imposed, deepest penetration, friction loss of
- * the step, work of the contact reactions in the step. */
-#define GS_SOL_CONTACT 5
+ * the step, work of the contact reactions in the step, and (closure) the
+ * reactions' moments on the coordinates of the mesh's gears 0 and 1. */
+#define GS_SOL_CONTACT 7
 static inline size_t gs_sol_mesh_force(const gs_system *s, int m) { return (size_t)(s->n_coords + 1 + m); }
 static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
 {
@@ -232,7 +235,7 @@ void gs_system_energy(const gs_system *sys, gs_energy *e);
 /* Owner side of the energy report: b->T, b->V, b->work_s and b->D_step of
  * this rank's bodies with own state into buf (GS_ENERGY_REPORT per body,
  * zeros elsewhere), for a sum over ranks. */
-#define GS_ENERGY_REPORT 4
+#define GS_ENERGY_REPORT 5
 void gs_system_energy_report(const gs_system *sys, double *buf);
 /* Adopt the summed report on every rank. */
 void gs_system_energy_adopt(gs_system *sys, const double *buf);
@@ -240,6 +243,16 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf);
  * so that every rank sums identically) as dissipated, after the step's
  * energy report has been adopted. */
 void gs_system_book_damping(gs_system *sys);
+/* numerics.contact "closure_energy" (docs/CONTACT.md): after the step's
+ * energy report has been adopted, give the work of each contact mesh's
+ * reactions in the step (sol's contact figures) back as a velocity update
+ * of its gears' rotations along the reactions' moments (an impulse pair
+ * along the contact normals), exactly, and book the update's energy in
+ * contact_work beside that work, carrying what cannot be given back yet
+ * to the next steps. Every rank, same result; no-op for the other
+ * schemes. Returns the contact work still booked (round-off but when
+ * removing energy is asked of a pair that cannot give it yet). */
+double gs_step_contact_return(gs_system *sys, const double *sol);
 /* True when some body keeps state of its own (elastic): then energies and
  * snapshots need the owners. */
 bool gs_system_has_body_state(const gs_system *sys);

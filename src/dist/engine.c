@@ -307,6 +307,8 @@ static gs_err dist_substep(gs_engine *e)
     tm->apply += t0 - t1;
     err = sync_energy(e, err);
     gs_system_book_damping(s);
+    if (err == GS_OK) /* numerics.contact closure_energy: every rank alike */
+        gs_step_contact_return(s, e->sol);
     tm->sync += gs_now() - t0;
     return err;
 }

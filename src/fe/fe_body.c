@@ -455,6 +455,17 @@ double gs_fe_body_angular_momentum(const gs_fe_body *b)
     return b->m->inertia_total * b->w[b->ne] + sw;
 }
 
+void gs_fe_body_spin(gs_fe_body *b, double dw)
+{
+    if (!b || b->held || b->in_step)
+        return;
+    b->w[b->ne] += dw;
+    /* The next right-hand side does not use theta' (K acts on the elastic
+     * unknowns); the kinetic energy does. */
+    if (b->next_valid)
+        b->next_T = gs_fe_body_kinetic(b);
+}
+
 double gs_fe_body_theta(const gs_fe_body *b)
 {
     return b ? b->q[b->ne] : 0.0;

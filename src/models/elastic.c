@@ -238,7 +238,15 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
     GS_TRY(gs_fe_body_end_step(el->body));
     b->D_step = gs_fe_body_damped(el->body) - damped;
     b->ops->energy(sys, b, &b->T, &b->V);
+    b->L = gs_fe_body_angular_momentum(el->body);
     return GS_OK;
+}
+
+static void elastic_spin(gs_body_rt *b, double dw)
+{
+    elastic *el = b->model;
+    if (el->body)
+        gs_fe_body_spin(el->body, dw);
 }
 
 static void elastic_energy(const gs_system *sys, const gs_body_rt *b, double *T, double *V)
@@ -318,6 +326,7 @@ const gs_body_ops gsi_body_elastic = {
     .interface = elastic_interface,
     .finish = elastic_finish,
     .energy = elastic_energy,
+    .spin = elastic_spin,
     .state_size = elastic_state_size,
     .save = elastic_save,
     .load = elastic_load,

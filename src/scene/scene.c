@@ -1208,9 +1208,9 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
         s->max_newton = (int)v;
         /* Contact treatment (docs/CONTACT.md, "Contact treatments"). */
-        static const char *const schemes[] = {"seed", "closure"};
+        static const char *const schemes[] = {"seed", "closure", "closure_energy"};
         int cs;
-        CHECK(enum_field(o, "contact", "numerics", "seed", schemes, 2, &cs, d));
+        CHECK(enum_field(o, "contact", "numerics", "seed", schemes, 3, &cs, d));
         s->contact_scheme = cs;
         json_object *ad;
         CHECK(gsi_json_object(o, "adaptive", "numerics", false, &ad, d));

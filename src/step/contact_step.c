@@ -29,7 +29,9 @@
  * the step, up to the linearisation. The reactions then do the work
  * lambda^T G x = -lambda^T g, booked per mesh as contact_work (never in the
  * residual). The rows are the seed's otherwise (the same gap functions,
- * tip corners included). */
+ * tip corners included). "closure_energy" solves the same rows and also
+ * reports the reactions' moments on each mesh's gears, along which
+ * gs_step_contact_return gives the work back as a velocity update. */
 #include <lapacke.h>
 #include <math.h>
 #include <stdio.h>
@@ -191,7 +193,7 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
 static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
 {
     gsi_contact_mesh *cm = sys->meshes[mi].contact;
-    bool closure = sys->scene->contact_scheme == GS_CONTACT_CLOSURE;
+    bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
     gs_contact_pose pose[2];
     for (int k = 0; k < 2; k++) {
         gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
@@ -547,7 +549,7 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
         ct[1] = s->n_rows - before;
         ct[2] = pen;
     }
-    bool closure = sys->scene->contact_scheme == GS_CONTACT_CLOSURE;
+    bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
     int passes = 0;
 again:;
     /* 2. Unknowns: coordinates, then the nodes that enter a row. */
@@ -735,8 +737,18 @@ again:;
             double gx = 0.0;
             for (int j = 0; j < N; j++)
                 gx += s->G[(size_t)r * N + j] * s->x[j];
-            sol[gs_sol_mesh_contact(sys, s->rows[r].mesh) + 1] += 1.0;
-            sol[gs_sol_mesh_contact(sys, s->rows[r].mesh) + 4] += s->lam_in[r] * gx;
+            double *ct = sol + gs_sol_mesh_contact(sys, s->rows[r].mesh);
+            ct[1] += 1.0;
+            ct[4] += s->lam_in[r] * gx;
+            /* closure_energy: the moments of the reactions on the mesh's two
+             * gears, the direction of the velocity update that returns
+             * ct[4] (gs_step_contact_return, src/step/step.c) */
+            const gsi_contact_mesh *cm = sys->meshes[s->rows[r].mesh].contact;
+            for (int k = 0; k < 2; k++) {
+                int c = sys->bodies[cm->body[k]].coord;
+                if (c >= 0)
+                    ct[5 + k] += s->lam_in[r] * s->G[(size_t)r * N + c];
+            }
         }
         if (s->lam_in[r] == 0.0)
             continue;

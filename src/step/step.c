@@ -18,6 +18,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "contact/contact_mesh.h"
 #include "models/mesh_common.h"
 #include "step_internal.h"
 
@@ -341,6 +342,119 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
     return err;
 }
 
+/* numerics.contact "closure_energy": the closure's rows close the gap, so
+ * their reactions do the work W = lambda^T G x in the step (the contact
+ * nodes' inelastic share at a contact onset, docs/CONTACT.md). It is given
+ * back, exactly, as a velocity update of the mesh's two gears (Laursen and
+ * Love's velocity update, here restricted to the rigid rotations): an
+ * impulse P along the reactions' moments v_k = sum_r lambda_r G_r,theta_k
+ * (equal and opposite along the contact normals, so no net force on the
+ * pair) changes theta'_k by P v_k / I_k, keeping every elastic velocity
+ * relative to its gear's frame and every position. With L_k the angular
+ * momenta after the step, the kinetic energy changes by
+ * a P^2 + b P, a = sum v_k^2 / (2 I_k), b = sum v_k L_k / I_k
+ * (T is quadratic in the speeds with a constant mass matrix: exact), and
+ * a P^2 + b P + W = 0 is solved for P, the root of smaller size (the
+ * least change of the motion; the larger root reverses the approach of
+ * the two gears, a rigid bounce that skips the elastic impact). W is all
+ * the mesh's contact_work still booked, this step's reactions' work
+ * included. When no root exists (W > 0, energy to take out, and too
+ * little relative motion along the moments to take it, as in steady
+ * rolling) the P that takes the most, and the rest is taken from the
+ * pair's rotation as a whole (speeds scaled alike); what even that cannot
+ * take waits for the next steps. The updates' energy is booked in
+ * contact_work too, so contact_work is what is still owed (round-off, or
+ * such a rest) and the balance holds as before. */
+/* closure_energy: change the speeds of the rotations coord[k] (bodies
+ * body[k], inertias Ik[k], angular momenta L[k], updated) by P d[k], P the
+ * root of smaller size of a P^2 + b P + W = 0 (the kinetic energy change
+ * -W: a = sum Ik d^2 / 2, b = sum d L), or, without a root, the P that
+ * takes the most; returns the kinetic energy change. */
+static double spin_pair(gs_system *sys, const int body[2], const int coord[2], const double Ik[2], double L[2],
+                        const double d[2], double W)
+{
+    double a = 0.0, b = 0.0, P = 0.0, dT = 0.0;
+    for (int k = 0; k < 2; k++) {
+        a += 0.5 * Ik[k] * d[k] * d[k];
+        b += d[k] * L[k];
+    }
+    if (!(a > 0.0) || W == 0.0)
+        return 0.0;
+    double disc = b * b - 4.0 * a * W;
+    if (disc >= 0.0) /* without cancellation */
+        P = -2.0 * W / (b + copysign(sqrt(disc), b));
+    else
+        P = -b / (2.0 * a);
+    for (int k = 0; k < 2; k++) {
+        if (d[k] == 0.0 || P == 0.0)
+            continue;
+        gs_body_rt *bd = &sys->bodies[body[k]];
+        double dw = P * d[k];
+        double dTk = dw * L[k] + 0.5 * Ik[k] * dw * dw;
+        dT += dTk;
+        sys->w[coord[k]] += dw;
+        L[k] += Ik[k] * dw;
+        if (bd->ops->state_size) {
+            if (bd->ops->spin)
+                bd->ops->spin(bd, dw);
+            bd->T += dTk;
+            bd->L = L[k];
+        }
+    }
+    return dT;
+}
+
+/* True when coordinate c enters a kinematic (equality) row. */
+static bool in_eq_row(const gs_system *sys, int c)
+{
+    for (int a = 0; a < sys->n_eq; a++)
+        if (sys->eq_rows[(size_t)a * sys->n_coords + c] != 0.0)
+            return true;
+    return false;
+}
+
+double gs_step_contact_return(gs_system *sys, const double *sol)
+{
+    if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
+        return 0.0;
+    double rest = 0.0;
+    for (int i = 0; i < sys->n_meshes; i++) {
+        gs_gmesh_rt *me = &sys->meshes[i];
+        if (!me->ops->contact || me->contact_work == 0.0)
+            continue;
+        const double *ct = sol + gs_sol_mesh_contact(sys, i);
+        const gsi_contact_mesh *cm = me->contact;
+        int body[2] = {cm->body[0], cm->body[1]}, coord[2];
+        double L[2] = {0, 0}, Ik[2] = {0, 0}, d[2] = {0, 0}, r[2] = {0, 0};
+        for (int k = 0; k < 2; k++) {
+            gs_body_rt *bd = &sys->bodies[body[k]];
+            coord[k] = bd->coord;
+            if (coord[k] < 0 || !(bd->inertia_eff > 0) || in_eq_row(sys, coord[k]))
+                continue; /* held, or tied by a kinematic row the update would break */
+            Ik[k] = bd->inertia_eff;
+            L[k] = bd->ops->state_size ? bd->L : Ik[k] * sys->w[coord[k]];
+            d[k] = ct[5 + k] / Ik[k];
+        }
+        /* What is still booked (this step's work and any rest of earlier
+         * steps), along the reactions' moments. */
+        me->contact_work += spin_pair(sys, body, coord, Ik, L, d, me->contact_work);
+        /* A rest to take out (energy the rows made by pushing a penetration
+         * out, with too little relative motion along the moments to take
+         * it, as in steady rolling or at a release): from the pair's
+         * rotation as a whole, d proportional to the speeds. */
+        if (me->contact_work > 0.0) {
+            for (int k = 0; k < 2; k++)
+                r[k] = Ik[k] > 0 ? L[k] / Ik[k] : 0.0;
+            me->contact_work += spin_pair(sys, body, coord, Ik, L, r, me->contact_work);
+        }
+        rest += me->contact_work;
+    }
+    sys->contact_work = 0.0;
+    for (int i = 0; i < sys->n_meshes; i++)
+        sys->contact_work += sys->meshes[i].contact_work;
+    return rest;
+}
+
 /* The adaptive step (METHOD.md section 3: "reducing h adaptively when
  * penetration appears"). The contact solve watches the candidates without
  * a row: when its solution would push one deeper than
@@ -413,6 +527,8 @@ static gs_err serial_substep(gs_system *sys)
         return e;
     e = apply(sys, sol, true);
     gs_system_book_damping(sys);
+    if (e == GS_OK)
+        gs_step_contact_return(sys, sol);
     return e;
 }
 

@@ -734,6 +734,7 @@ void gs_system_energy_report(const gs_system *sys, double *buf)
         o[1] = mine ? b->V : 0.0;
         o[2] = mine ? b->work_s : 0.0;
         o[3] = mine ? b->D_step : 0.0;
+        o[4] = mine ? b->L : 0.0;
     }
 }
 
@@ -748,6 +749,7 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf)
         b->V = o[1];
         b->work_s = o[2];
         b->D_step = o[3];
+        b->L = o[4];
     }
 }
 

@@ -7,7 +7,8 @@ the elastic pair and the free elastic gear (FE bodies owned by different
 ranks, energies reported by their owners) at -n 1, 2 and 3; elastic gears
 in contact (contact_impact) at -n 1 and 2, with the fixed step and with the
 adaptive step (substeps refused and taken again finer on every rank alike)
-and with the closure contact treatment (numerics.contact)."""
+and with the closure contact treatments (numerics.contact closure and
+closure_energy, whose velocity update needs the owners' angular momenta)."""
 import json
 import os
 import sys
@@ -19,7 +20,8 @@ from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_ranks: identical telemetry at 1 and 2 ranks")
 STEPS = {"pair": 4000, "planetary": 3000, "elastic_pair": 1500, "elastic_spin": 1500, "contact_impact": 1000,
-         "contact_impact+adaptive": 200, "contact_impact+quad": 300, "contact_impact+closure": 300}
+         "contact_impact+adaptive": 200, "contact_impact+quad": 300, "contact_impact+closure": 300,
+         "contact_impact+closure_energy": 300}
 
 
 def load_variant(name):
@@ -31,8 +33,8 @@ def load_variant(name):
         for b in scene["bodies"]:
             if b.get("model") == "elastic":
                 b["mesh"] = dict(b.get("mesh", {}), order=2)
-    if variant == "closure":
-        scene["numerics"] = dict(scene.get("numerics", {}), contact="closure")
+    if variant in ("closure", "closure_energy"):
+        scene["numerics"] = dict(scene.get("numerics", {}), contact=variant)
     if variant == "adaptive":
         scene["numerics"] = {"time_step": 1e-5, "adaptive": {"penetration_um": 1.0, "levels": 3}}
         scene["outputs"] = {"telemetry_every": 2}
@@ -82,6 +84,6 @@ for scene_name in ("pair", "planetary"):
     R.guard(f"{scene_name} at 1 and 2 ranks", compare, scene_name)
 for scene_name, n in (("elastic_pair", 2), ("elastic_pair", 3), ("elastic_spin", 2), ("contact_impact", 2),
                       ("contact_impact+adaptive", 2), ("contact_impact+quad", 2),
-                      ("contact_impact+closure", 2)):
+                      ("contact_impact+closure", 2), ("contact_impact+closure_energy", 2)):
     R.guard(f"{scene_name} at 1 and {n} ranks", compare, scene_name, n)
 R.finish()

@@ -496,6 +496,39 @@ static void nodal_roundtrip_and_hold(void **state)
     free(u2);
 }
 
+/* gs_fe_body_spin: a rigid spin increment dw changes theta' by dw, keeps
+ * the elastic velocities and positions, and changes the kinetic energy by
+ * exactly dw L + I dw^2 / 2 (L the angular momentum before, I the total
+ * inertia), also when taken right after a step (the cached next energy). */
+static void spin_increment(void **state)
+{
+    fixture *f = *state;
+    gs_fe_body *b = f->body;
+    set_wavy_state(f, 0.3, 40.0);
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0), GS_OK);
+    assert_int_equal(gs_fe_body_step(b, 0.5, NULL), GS_OK);
+    gs_fe_model_info info;
+    gs_fe_model_get_info(f->model, &info);
+    const double dws[3] = {0.7, -3.0, 1e-3};
+    for (int k = 0; k < 3; k++) {
+        double T0, V0, T1, V1, dw = dws[k];
+        gs_fe_body_energy(b, &T0, &V0);
+        double L = gs_fe_body_angular_momentum(b), om = gs_fe_body_omega(b), th = gs_fe_body_theta(b);
+        double *w0 = malloc((size_t)f->n * sizeof *w0);
+        memcpy(w0, gs_fe_body_w(b), (size_t)f->n * sizeof *w0);
+        gs_fe_body_spin(b, dw);
+        gs_fe_body_energy(b, &T1, &V1);
+        double want = dw * L + 0.5 * info.inertia_total * dw * dw;
+        print_message("spin %g rad/s: dT %.12e J, dw L + I dw^2/2 %.12e J\n", dw, T1 - T0, want);
+        assert_true(fabs((T1 - T0) - want) <= 1e-12 * T0);
+        assert_true(fabs(T1 - gs_fe_body_kinetic(b)) <= 1e-14 * T1);
+        assert_true(V1 == V0 && gs_fe_body_theta(b) == th);
+        assert_true(gs_fe_body_omega(b) == om + dw);
+        assert_memory_equal(gs_fe_body_w(b), w0, (size_t)f->ne * sizeof *w0);
+        free(w0);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -505,6 +538,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(cache_reuse_and_eviction, setup, teardown),
         cmocka_unit_test_setup_teardown(block_reuse_is_exact, setup, teardown),
         cmocka_unit_test_setup_teardown(nodal_roundtrip_and_hold, setup, teardown),
+        cmocka_unit_test_setup_teardown(spin_increment, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
