@@ -1,0 +1,232 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""Frequency response of the contact_drive pair (docs/MODAL.md "Frequency
+response of the elastic pair"): DTE rms and dynamic factor against the mesh
+frequency for the contact model and the lumped, calibrated and compliant
+meshes of the same pair, with the first torsional mesh mode of the FE model
+(gearsim-modal --fe) marked.
+
+    tests/bench/freq_response.py [--build build] [--work DIR] [--models contact,lumped,...]
+                                 [--extra F1,F2,..] [--plot docs/img/freq_response.png]
+                                 [--csv docs/freq_response.csv]
+
+Every point is one run of gearsim-sweep (its own settle and a whole number
+of mesh cycles measured), cached in WORK/points.csv: a rerun computes only
+the missing points, so the contact points can be run in the background
+(`nice`) and the plot redone afterwards; remove the cache after changing
+the default mesh or the contact step. Points: mesh frequencies 0.2 .. 2
+times the FE mode (--grid points, evenly spaced) plus a dense set within
++-12 % of it, plus --extra frequencies (Hz), e.g. to refine a peak.
+Settings: numerics.contact "closure", material damping 5 % at the FE mode
+frequency on both elastic gears (stiffness proportional), lumped /
+calibrated / compliant meshes with their default 5 % of their mesh mode;
+time step h = min(2.5 us, mesh period / 24); settle 5 ms; measure the
+whole mesh cycles in at least 2.5 ms (and at least 12 cycles).
+Peaks: the largest DTE rms refined by a parabola through it and its
+neighbours (in the mesh frequency).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+MODELS = ["contact", "lumped", "calibrated", "compliant"]
+Z_DRIVER = 30  # the wheel of contact_drive drives
+FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
+          "dynamic_factor", "balance_rel", "seconds"]
+
+
+def scene_for(model, mode_hz):
+    s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
+    s["outputs"] = {"telemetry_every": 100000}
+    s.setdefault("numerics", {})
+    s["numerics"]["contact"] = "closure"
+    if model == "contact":
+        for b in s["bodies"]:
+            b["material"] = {"damping_ratio": 0.05, "damping_hz": round(mode_hz, 1)}
+    else:
+        for b in s["bodies"]:
+            b["model"] = "rigid"
+        m = s["meshes"][0]
+        if model == "lumped":
+            m["model"] = "lumped"
+        elif model == "calibrated":
+            m["model"] = "lumped"
+            m["stiffness"] = {"type": "calibrated"}
+        else:
+            m["model"] = "compliant"
+        m["damping_ratio"] = 0.05
+    return s
+
+
+def fe_mode(build, positions):
+    exe = os.path.join(build, "src", "tools", "gearsim-modal")
+    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--json",
+                          os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def run_point(build, work, model, mode_hz, f):
+    path = os.path.join(work, "scene_%s.json" % model)
+    if not os.path.exists(path):
+        json.dump(scene_for(model, mode_hz), open(path, "w"))
+    h = min(2.5e-6, 1.0 / f / 24)
+    cycles = max(12, math.ceil(2.5e-3 * f))
+    measure = cycles / f
+    settle = 5e-3
+    rpm = f * 60.0 / Z_DRIVER
+    exe = os.path.join(build, "src", "tools", "gearsim-sweep")
+    import time
+    t0 = time.time()
+    r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
+                        "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("freq_response: %s at %.1f Hz failed: %s" % (model, f, r.stderr.strip()))
+    rows = list(csv.DictReader(r.stdout.splitlines()))
+    row = rows[0]
+    return {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
+            "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
+            "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
+            "seconds": time.time() - t0}
+
+
+def load_cache(path):
+    if not os.path.exists(path):
+        return []
+    with open(path) as fh:
+        out = []
+        for r in csv.DictReader(fh):
+            for k in FIELDS[1:]:
+                r[k] = float(r[k])
+            out.append(r)
+        return out
+
+
+def peak(pts):
+    """Mesh frequency of the largest DTE rms, refined by a parabola through
+    it and its neighbours (log-free, in Hz)."""
+    pts = sorted(pts, key=lambda r: r["mesh_hz"])
+    y = [r["dte_rms_um"] for r in pts]
+    i = max(range(len(y)), key=lambda k: y[k])
+    x = [r["mesh_hz"] for r in pts]
+    if 0 < i < len(y) - 1:
+        x0, x1, x2 = x[i - 1], x[i], x[i + 1]
+        y0, y1, y2 = y[i - 1], y[i], y[i + 1]
+        den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+        a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+        b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+        if a < 0:
+            return -b / (2 * a), y1
+    return x[i], y[i]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--work", default="/tmp/gearsim_freq_response")
+    ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--grid", type=int, default=10)
+    ap.add_argument("--dense", type=int, default=7)
+    ap.add_argument("--extra", default="")
+    ap.add_argument("--positions", type=int, default=12)
+    ap.add_argument("--mode-hz", type=float, default=0.0, help="skip the FE eigenproblem, use this mode")
+    ap.add_argument("--plot", default=None)
+    ap.add_argument("--csv", default=None)
+    ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    modefile = os.path.join(a.work, "fe_mode.json")
+    if a.mode_hz > 0:
+        mode = {"mean_hz": a.mode_hz}
+    elif os.path.exists(modefile):
+        mode = json.load(open(modefile))
+    else:
+        mode = fe_mode(a.build, a.positions)
+        json.dump(mode, open(modefile, "w"), indent=1)
+    f0 = mode["mean_hz"]
+    print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
+    freqs = [f0 * (0.2 + 1.8 * k / (a.grid - 1)) for k in range(a.grid)]
+    freqs += [f0 * (0.88 + 0.24 * k / (a.dense - 1)) for k in range(a.dense)]
+    freqs += [float(v) for v in a.extra.split(",") if v]
+    freqs = sorted(set(round(f, 1) for f in freqs))
+    cachefile = os.path.join(a.work, "points.csv")
+    cache = load_cache(cachefile)
+    have = {(r["model"], round(r["mesh_hz_target"], 1)) for r in cache}
+    models = [m for m in a.models.split(",") if m]
+    for m in models:
+        if m not in MODELS:
+            sys.exit("freq_response: unknown model '%s'" % m)
+    if not a.no_run:
+        # Cheap models first, the contact model last.
+        for m in sorted(models, key=lambda m: m == "contact"):
+            for f in freqs:
+                if (m, f) in have:
+                    continue
+                r = run_point(a.build, a.work, m, f0, f)
+                r["mesh_hz_target"] = f
+                cache.append(r)
+                have.add((m, f))
+                new = not os.path.exists(cachefile)
+                with open(cachefile, "a", newline="") as fh:
+                    w = csv.DictWriter(fh, fieldnames=FIELDS)
+                    if new:
+                        w.writeheader()
+                    w.writerow(r)
+                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s" %
+                      (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"]),
+                      flush=True)
+    peaks = {}
+    for m in MODELS:
+        pts = [r for r in cache if r["model"] == m]
+        if len(pts) >= 3:
+            peaks[m] = peak(pts)
+    if "calibrated" in peaks:
+        fc = peaks["calibrated"][0]
+    else:
+        fc = float("nan")
+    print("\n| model | DTE peak (Hz) | DTE rms at peak (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
+    print("|---|---|---|---|---|")
+    for m, (fp, yp) in peaks.items():
+        print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+    if a.csv:
+        with open(a.csv, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=FIELDS)
+            w.writeheader()
+            for r in sorted(cache, key=lambda r: (MODELS.index(r["model"]), r["mesh_hz"])):
+                w.writerow(r)
+    if a.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d"}
+        for m in MODELS:
+            pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
+            if not pts:
+                continue
+            x = [r["mesh_hz"] for r in pts]
+            ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
+            ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
+        for k in range(2):
+            ax[k].axvline(f0, color="m", ls="--", lw=1)
+            ax[k].grid(alpha=0.3)
+        ax[0].text(f0, ax[0].get_ylim()[1] * 0.95, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
+        ax[0].set_ylabel("DTE rms (um)")
+        ax[1].set_ylabel("dynamic factor (peak / mean force)")
+        ax[1].set_xlabel("mesh frequency (Hz)")
+        ax[0].legend()
+        ax[0].set_title("contact_drive: frequency response (20 N m, 5 % damping)")
+        fig.tight_layout()
+        fig.savefig(a.plot, dpi=110)
+        print("plot:", a.plot)
+
+
+if __name__ == "__main__":
+    main()
