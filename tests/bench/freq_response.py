@@ -17,9 +17,10 @@ the missing points, so the contact points can be run in the background
 the default mesh or the contact step. Points: mesh frequencies 0.2 .. 2
 times the FE mode (--grid points, evenly spaced) plus a dense set within
 +-12 % of it, plus --extra frequencies (Hz), e.g. to refine a peak.
-Settings: numerics.contact "closure", material damping 5 % at the FE mode
-frequency on both elastic gears (stiffness proportional), lumped /
-calibrated / compliant meshes with their default 5 % of their mesh mode;
+Settings: numerics.contact "closure", material damping (--damping, 5 %)
+at the FE mode frequency on both elastic gears (stiffness proportional),
+lumped / calibrated / compliant meshes with the same ratio of their mesh
+mode; each --work directory holds one damping's points;
 time step h = min(2.5 us, mesh period / 24); settle 5 ms; measure the
 whole mesh cycles in at least 2.5 ms (and at least 12 cycles).
 Peaks: the largest DTE rms refined by a parabola through it and its
@@ -41,14 +42,14 @@ FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measu
           "dynamic_factor", "balance_rel", "seconds"]
 
 
-def scene_for(model, mode_hz):
+def scene_for(model, mode_hz, zeta):
     s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
     s["outputs"] = {"telemetry_every": 100000}
     s.setdefault("numerics", {})
     s["numerics"]["contact"] = "closure"
     if model == "contact":
         for b in s["bodies"]:
-            b["material"] = {"damping_ratio": 0.05, "damping_hz": round(mode_hz, 1)}
+            b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
@@ -60,7 +61,7 @@ def scene_for(model, mode_hz):
             m["stiffness"] = {"type": "calibrated"}
         else:
             m["model"] = "compliant"
-        m["damping_ratio"] = 0.05
+        m["damping_ratio"] = zeta
     return s
 
 
@@ -72,10 +73,10 @@ def fe_mode(build, positions):
     return json.loads(out)
 
 
-def run_point(build, work, model, mode_hz, f):
+def run_point(build, work, model, mode_hz, f, zeta):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz), open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta), open(path, "w"))
     h = min(2.5e-6, 1.0 / f / 24)
     cycles = max(12, math.ceil(2.5e-3 * f))
     measure = cycles / f
@@ -137,6 +138,10 @@ def main():
     ap.add_argument("--extra", default="")
     ap.add_argument("--positions", type=int, default=12)
     ap.add_argument("--mode-hz", type=float, default=0.0, help="skip the FE eigenproblem, use this mode")
+    ap.add_argument("--damping", type=float, default=0.05,
+                    help="damping ratio (material at the FE mode; lumped meshes of their mesh mode)")
+    ap.add_argument("--grid-from", type=float, default=0.2, help="grid from this fraction of the mode")
+    ap.add_argument("--grid-to", type=float, default=2.0, help="grid to this fraction of the mode")
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
@@ -152,7 +157,7 @@ def main():
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
-    freqs = [f0 * (0.2 + 1.8 * k / (a.grid - 1)) for k in range(a.grid)]
+    freqs = [f0 * (a.grid_from + (a.grid_to - a.grid_from) * k / max(a.grid - 1, 1)) for k in range(a.grid)]
     freqs += [f0 * (0.88 + 0.24 * k / (a.dense - 1)) for k in range(a.dense)]
     freqs += [float(v) for v in a.extra.split(",") if v]
     freqs = sorted(set(round(f, 1) for f in freqs))
@@ -169,7 +174,7 @@ def main():
             for f in freqs:
                 if (m, f) in have:
                     continue
-                r = run_point(a.build, a.work, m, f0, f)
+                r = run_point(a.build, a.work, m, f0, f, a.damping)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -222,7 +227,7 @@ def main():
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
         ax[0].legend()
-        ax[0].set_title("contact_drive: frequency response (20 N m, 5 % damping)")
+        ax[0].set_title("contact_drive: frequency response (20 N m, %g %% damping)" % (100 * a.damping))
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
         print("plot:", a.plot)
