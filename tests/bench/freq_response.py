@@ -23,8 +23,8 @@ lumped / calibrated / compliant meshes with the same ratio of their mesh
 mode; each --work directory holds one damping's points;
 time step h = min(2.5 us, mesh period / 24); settle 5 ms; measure the
 whole mesh cycles in at least 2.5 ms (and at least 12 cycles).
-Peaks: the largest DTE rms refined by a parabola through it and its
-neighbours (in the mesh frequency).
+Peaks: every local maximum of the DTE rms above 1.5 times the median of
+its curve, refined by a parabola through it and its neighbours.
 """
 import argparse
 import csv
@@ -110,22 +110,43 @@ def load_cache(path):
         return out
 
 
-def peak(pts):
-    """Mesh frequency of the largest DTE rms, refined by a parabola through
-    it and its neighbours (log-free, in Hz)."""
-    pts = sorted(pts, key=lambda r: r["mesh_hz"])
-    y = [r["dte_rms_um"] for r in pts]
-    i = max(range(len(y)), key=lambda k: y[k])
-    x = [r["mesh_hz"] for r in pts]
+def parabola(x, y, i):
+    """Vertex of the parabola through points i-1, i, i+1 (x[i] at the ends)."""
     if 0 < i < len(y) - 1:
         x0, x1, x2 = x[i - 1], x[i], x[i + 1]
         y0, y1, y2 = y[i - 1], y[i], y[i + 1]
         den = (x0 - x1) * (x0 - x2) * (x1 - x2)
         a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
         b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
-        if a < 0:
-            return -b / (2 * a), y1
-    return x[i], y[i]
+        v = -b / (2 * a) if a < 0 else x1
+        if 0.5 * (x0 + x1) < v < 0.5 * (x1 + x2):
+            return v
+    return x[i]
+
+
+def peaks(pts):
+    """Local maxima of the DTE rms standing at least 25 % of their height
+    above the lower of the two valleys that separate them from higher
+    points (prominence), each (mesh frequency refined by a parabola, DTE
+    rms), largest first."""
+    pts = sorted(pts, key=lambda r: r["mesh_hz"])
+    x = [r["mesh_hz"] for r in pts]
+    y = [r["dte_rms_um"] for r in pts]
+    out = []
+    for i in range(len(y)):
+        if not ((i == 0 or y[i] > y[i - 1]) and (i == len(y) - 1 or y[i] >= y[i + 1])):
+            continue
+        lo = []
+        for rng in (range(i - 1, -1, -1), range(i + 1, len(y))):
+            m = y[i]
+            for j in rng:
+                if y[j] > y[i]:
+                    break
+                m = min(m, y[j])
+            lo.append(m)
+        if y[i] - max(lo) >= 0.25 * y[i]:
+            out.append((parabola(x, y, i), y[i]))
+    return sorted(out, key=lambda p: -p[1])
 
 
 def main():
@@ -187,19 +208,18 @@ def main():
                 print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s" %
                       (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"]),
                       flush=True)
-    peaks = {}
+    found = {}
     for m in MODELS:
         pts = [r for r in cache if r["model"] == m]
         if len(pts) >= 3:
-            peaks[m] = peak(pts)
-    if "calibrated" in peaks:
-        fc = peaks["calibrated"][0]
-    else:
-        fc = float("nan")
-    print("\n| model | DTE peak (Hz) | DTE rms at peak (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
+            found[m] = peaks(pts)
+    fc = found["calibrated"][0][0] if found.get("calibrated") else float("nan")
+    print("\nDTE rms peaks (local maxima, prominence >= 25 %; largest first)")
+    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
     print("|---|---|---|---|---|")
-    for m, (fp, yp) in peaks.items():
-        print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+    for m, lst in found.items():
+        for fp, yp in lst:
+            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
     if a.csv:
         with open(a.csv, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=FIELDS)
@@ -219,10 +239,12 @@ def main():
             x = [r["mesh_hz"] for r in pts]
             ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
             ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
+        ax[0].set_yscale("log")
+        ax[1].set_yscale("log")
         for k in range(2):
             ax[k].axvline(f0, color="m", ls="--", lw=1)
             ax[k].grid(alpha=0.3)
-        ax[0].text(f0, ax[0].get_ylim()[1] * 0.95, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
+        ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")

@@ -36,11 +36,11 @@
 #include "gearsim/fe_modes.h"
 #include "gearsim/geometry.h"
 #include "gearsim/stiffness.h"
+#include "scene_build.h"
 
 static gs_scene *scene(int coarse, double density)
 {
-    json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
-    assert_non_null(root);
+    json_object *root = vt_scene("contact_drive");
     json_object *bodies = json_object_object_get(root, "bodies");
     for (size_t i = 0; i < json_object_array_length(bodies); i++) {
         json_object *b = json_object_array_get_idx(bodies, i);
