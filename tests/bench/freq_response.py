@@ -42,7 +42,7 @@ FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measu
           "dynamic_factor", "balance_rel", "seconds"]
 
 
-def scene_for(model, mode_hz, zeta):
+def scene_for(model, mode_hz, zeta, order=1):
     s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
     s["outputs"] = {"telemetry_every": 100000}
     s.setdefault("numerics", {})
@@ -50,6 +50,8 @@ def scene_for(model, mode_hz, zeta):
     if model == "contact":
         for b in s["bodies"]:
             b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
+            if order != 1:
+                b["mesh"] = {"order": order}
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
@@ -65,18 +67,18 @@ def scene_for(model, mode_hz, zeta):
     return s
 
 
-def fe_mode(build, positions):
+def fe_mode(build, positions, order=1):
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
-    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--json",
+    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--order", str(order), "--json",
                           os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)
 
 
-def run_point(build, work, model, mode_hz, f, zeta):
+def run_point(build, work, model, mode_hz, f, zeta, order=1):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta), open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta, order), open(path, "w"))
     h = min(2.5e-6, 1.0 / f / 24)
     cycles = max(12, math.ceil(2.5e-3 * f))
     measure = cycles / f
@@ -163,6 +165,8 @@ def main():
                     help="damping ratio (material at the FE mode; lumped meshes of their mesh mode)")
     ap.add_argument("--grid-from", type=float, default=0.2, help="grid from this fraction of the mode")
     ap.add_argument("--grid-to", type=float, default=2.0, help="grid to this fraction of the mode")
+    ap.add_argument("--order", type=int, default=1,
+                    help="element order of the contact model's gears (and of the FE mode)")
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
@@ -174,7 +178,7 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.positions)
+        mode = fe_mode(a.build, a.positions, a.order)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
@@ -195,7 +199,7 @@ def main():
             for f in freqs:
                 if (m, f) in have:
                     continue
-                r = run_point(a.build, a.work, m, f0, f, a.damping)
+                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -241,9 +245,15 @@ def main():
             ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
         ax[0].set_yscale("log")
         ax[1].set_yscale("log")
+        fl = mode.get("lumped_mean_hz")
         for k in range(2):
             ax[k].axvline(f0, color="m", ls="--", lw=1)
+            if fl:
+                ax[k].axvline(fl, color="g", ls=":", lw=1)
             ax[k].grid(alpha=0.3)
+        if fl:
+            ax[0].text(fl, ax[0].get_ylim()[1] * 0.4, "closed form with k_t %.0f Hz " % fl, color="g", va="top",
+                       ha="right")
         ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
