@@ -42,8 +42,10 @@ FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measu
           "dynamic_factor", "balance_rel", "seconds"]
 
 
-def scene_for(model, mode_hz, zeta, order=1):
+def scene_for(model, mode_hz, zeta, order=1, torque=0.0):
     s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
+    if torque:
+        s["loads"][0]["moment"] = torque
     s["outputs"] = {"telemetry_every": 100000}
     s.setdefault("numerics", {})
     s["numerics"]["contact"] = "closure"
@@ -67,18 +69,18 @@ def scene_for(model, mode_hz, zeta, order=1):
     return s
 
 
-def fe_mode(build, positions, order=1):
+def fe_mode(build, positions, order=1, torque=0.0):
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
-    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--order", str(order), "--json",
+    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--order", str(order), "--torque", repr(torque), "--json",
                           os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)
 
 
-def run_point(build, work, model, mode_hz, f, zeta, order=1):
+def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order), open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta, order, torque), open(path, "w"))
     h = min(2.5e-6, 1.0 / f / 24)
     cycles = max(12, math.ceil(2.5e-3 * f))
     measure = cycles / f
@@ -167,6 +169,7 @@ def main():
     ap.add_argument("--grid-to", type=float, default=2.0, help="grid to this fraction of the mode")
     ap.add_argument("--order", type=int, default=1,
                     help="element order of the contact model's gears (and of the FE mode)")
+    ap.add_argument("--torque", type=float, default=0.0, help="moment on the wheel, N m (0: the scene's 20)")
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
@@ -178,7 +181,7 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.positions, a.order)
+        mode = fe_mode(a.build, a.positions, a.order, a.torque)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
@@ -199,7 +202,7 @@ def main():
             for f in freqs:
                 if (m, f) in have:
                     continue
-                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order)
+                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -259,7 +262,7 @@ def main():
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
         ax[0].legend()
-        ax[0].set_title("contact_drive: frequency response (20 N m, %g %% damping)" % (100 * a.damping))
+        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping)" % (a.torque or 20, 100 * a.damping))
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
         print("plot:", a.plot)
