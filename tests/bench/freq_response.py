@@ -7,8 +7,16 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
 (gearsim-modal --fe) marked.
 
     tests/bench/freq_response.py [--build build] [--work DIR] [--models contact,lumped,...]
-                                 [--extra F1,F2,..] [--plot docs/img/freq_response.png]
+                                 [--torque T] [--damping Z] [--order 1|2] [--grid N]
+                                 [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
+                                 [--no-run] [--plot docs/img/freq_response.png]
                                  [--csv docs/freq_response.csv]
+
+The figures of docs/MODAL.md: the defaults (20 N m, 5 %) plus
+--extra 6000,6500,6800,7000,7150,7450,7600,7800,8250,8400,8550,9400,9700;
+--damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
+--grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
+then --grid 10 (0.2 to 2), each in its own --work directory.
 
 Every point is one run of gearsim-sweep (its own settle and a whole number
 of mesh cycles measured), cached in WORK/points.csv: a rerun computes only
