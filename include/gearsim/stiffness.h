@@ -155,6 +155,17 @@ int gs_stiffness_run_done(const gs_stiffness_run *run);
 int gs_stiffness_run_positions(const gs_stiffness_run *run);
 gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_diag *d);
 void gs_stiffness_run_free(gs_stiffness_run **run);
+/* The contact rows of the last load case solved by gs_stiffness_next (with
+ * the tangent option that is a second load: run with tangent 0 to get the
+ * rows at T), for the FE mesh modes (include/gearsim/fe_modes.h): *rows the
+ * rows (gear indices in them are the mesh's gears 0 and 1), *force their
+ * forces (N, >= 0; > 0: active) at the deformed position; returns their
+ * number (0 before the first position). Valid until the next call on run. */
+struct gs_contact_row;
+int gs_stiffness_run_rows(const gs_stiffness_run *run, const struct gs_contact_row **rows,
+                          const double **force);
+/* The FE mesh of the driver (k = 0) or the driven gear (k = 1). */
+const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k);
 
 /* Free the arrays of a result and zero it; safe on a zeroed result. */
 void gs_stiffness_result_clear(gs_stiffness_result *r);

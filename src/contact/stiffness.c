@@ -883,6 +883,21 @@ void gs_stiffness_run_free(gs_stiffness_run **run)
 int gs_stiffness_run_done(const gs_stiffness_run *run) { return run ? run->next : 0; }
 int gs_stiffness_run_positions(const gs_stiffness_run *run) { return run ? run->o.positions : 0; }
 
+int gs_stiffness_run_rows(const gs_stiffness_run *run, const gs_contact_row **rows,
+                          const double **force)
+{
+    if (!run || run->next == 0)
+        return 0;
+    *rows = run->w.row;
+    *force = run->w.x;
+    return run->out.pt[run->next - 1].rows;
+}
+
+const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k)
+{
+    return run && (k == 0 || k == 1) ? run->w.b[k].mesh : NULL;
+}
+
 gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness_opts *opt,
                           gs_stiffness_run **run, gs_diag *d)
 {

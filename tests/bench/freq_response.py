@@ -1,0 +1,280 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""Frequency response of the contact_drive pair (docs/MODAL.md "Frequency
+response of the elastic pair"): DTE rms and dynamic factor against the mesh
+frequency for the contact model and the lumped, calibrated and compliant
+meshes of the same pair, with the first torsional mesh mode of the FE model
+(gearsim-modal --fe) marked.
+
+    tests/bench/freq_response.py [--build build] [--work DIR] [--models contact,lumped,...]
+                                 [--torque T] [--damping Z] [--order 1|2] [--grid N]
+                                 [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
+                                 [--no-run] [--plot docs/img/freq_response.png]
+                                 [--csv docs/freq_response.csv]
+
+The figures of docs/MODAL.md: the defaults (20 N m, 5 %) plus
+--extra 6000,6500,6800,7000,7150,7450,7600,7800,8250,8400,8550,9400,9700;
+--damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
+--grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
+then --grid 10 (0.2 to 2), each in its own --work directory.
+
+Every point is one run of gearsim-sweep (its own settle and a whole number
+of mesh cycles measured), cached in WORK/points.csv: a rerun computes only
+the missing points, so the contact points can be run in the background
+(`nice`) and the plot redone afterwards; remove the cache after changing
+the default mesh or the contact step. Points: mesh frequencies 0.2 .. 2
+times the FE mode (--grid points, evenly spaced) plus a dense set within
++-12 % of it, plus --extra frequencies (Hz), e.g. to refine a peak.
+Settings: numerics.contact "closure", material damping (--damping, 5 %)
+at the FE mode frequency on both elastic gears (stiffness proportional),
+lumped / calibrated / compliant meshes with the same ratio of their mesh
+mode; each --work directory holds one damping's points;
+time step h = min(2.5 us, mesh period / 24); settle 5 ms; measure the
+whole mesh cycles in at least 2.5 ms (and at least 12 cycles).
+Peaks: every local maximum of the DTE rms above 1.5 times the median of
+its curve, refined by a parabola through it and its neighbours.
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+MODELS = ["contact", "lumped", "calibrated", "compliant"]
+Z_DRIVER = 30  # the wheel of contact_drive drives
+FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
+          "dynamic_factor", "balance_rel", "seconds"]
+
+
+def scene_for(model, mode_hz, zeta, order=1, torque=0.0):
+    s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
+    if torque:
+        s["loads"][0]["moment"] = torque
+    s["outputs"] = {"telemetry_every": 100000}
+    s.setdefault("numerics", {})
+    s["numerics"]["contact"] = "closure"
+    if model == "contact":
+        for b in s["bodies"]:
+            b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
+            if order != 1:
+                b["mesh"] = {"order": order}
+    else:
+        for b in s["bodies"]:
+            b["model"] = "rigid"
+        m = s["meshes"][0]
+        if model == "lumped":
+            m["model"] = "lumped"
+        elif model == "calibrated":
+            m["model"] = "lumped"
+            m["stiffness"] = {"type": "calibrated"}
+        else:
+            m["model"] = "compliant"
+        m["damping_ratio"] = zeta
+    return s
+
+
+def fe_mode(build, positions, order=1, torque=0.0):
+    exe = os.path.join(build, "src", "tools", "gearsim-modal")
+    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--order", str(order), "--torque", repr(torque), "--json",
+                          os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0):
+    path = os.path.join(work, "scene_%s.json" % model)
+    if not os.path.exists(path):
+        json.dump(scene_for(model, mode_hz, zeta, order, torque), open(path, "w"))
+    h = min(2.5e-6, 1.0 / f / 24)
+    cycles = max(12, math.ceil(2.5e-3 * f))
+    measure = cycles / f
+    settle = 5e-3
+    rpm = f * 60.0 / Z_DRIVER
+    exe = os.path.join(build, "src", "tools", "gearsim-sweep")
+    import time
+    t0 = time.time()
+    r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
+                        "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("freq_response: %s at %.1f Hz failed: %s" % (model, f, r.stderr.strip()))
+    rows = list(csv.DictReader(r.stdout.splitlines()))
+    row = rows[0]
+    return {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
+            "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
+            "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
+            "seconds": time.time() - t0}
+
+
+def load_cache(path):
+    if not os.path.exists(path):
+        return []
+    with open(path) as fh:
+        out = []
+        for r in csv.DictReader(fh):
+            for k in FIELDS[1:]:
+                r[k] = float(r[k])
+            out.append(r)
+        return out
+
+
+def parabola(x, y, i):
+    """Vertex of the parabola through points i-1, i, i+1 (x[i] at the ends)."""
+    if 0 < i < len(y) - 1:
+        x0, x1, x2 = x[i - 1], x[i], x[i + 1]
+        y0, y1, y2 = y[i - 1], y[i], y[i + 1]
+        den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+        a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+        b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+        v = -b / (2 * a) if a < 0 else x1
+        if 0.5 * (x0 + x1) < v < 0.5 * (x1 + x2):
+            return v
+    return x[i]
+
+
+def peaks(pts):
+    """Local maxima of the DTE rms standing at least 25 % of their height
+    above the lower of the two valleys that separate them from higher
+    points (prominence), each (mesh frequency refined by a parabola, DTE
+    rms), largest first."""
+    pts = sorted(pts, key=lambda r: r["mesh_hz"])
+    x = [r["mesh_hz"] for r in pts]
+    y = [r["dte_rms_um"] for r in pts]
+    out = []
+    for i in range(len(y)):
+        if not ((i == 0 or y[i] > y[i - 1]) and (i == len(y) - 1 or y[i] >= y[i + 1])):
+            continue
+        lo = []
+        for rng in (range(i - 1, -1, -1), range(i + 1, len(y))):
+            m = y[i]
+            for j in rng:
+                if y[j] > y[i]:
+                    break
+                m = min(m, y[j])
+            lo.append(m)
+        if y[i] - max(lo) >= 0.25 * y[i]:
+            out.append((parabola(x, y, i), y[i]))
+    return sorted(out, key=lambda p: -p[1])
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--build", default=os.path.join(ROOT, "build"))
+    ap.add_argument("--work", default="/tmp/gearsim_freq_response")
+    ap.add_argument("--models", default=",".join(MODELS))
+    ap.add_argument("--grid", type=int, default=10)
+    ap.add_argument("--dense", type=int, default=7)
+    ap.add_argument("--extra", default="")
+    ap.add_argument("--positions", type=int, default=12)
+    ap.add_argument("--mode-hz", type=float, default=0.0, help="skip the FE eigenproblem, use this mode")
+    ap.add_argument("--damping", type=float, default=0.05,
+                    help="damping ratio (material at the FE mode; lumped meshes of their mesh mode)")
+    ap.add_argument("--grid-from", type=float, default=0.2, help="grid from this fraction of the mode")
+    ap.add_argument("--grid-to", type=float, default=2.0, help="grid to this fraction of the mode")
+    ap.add_argument("--order", type=int, default=1,
+                    help="element order of the contact model's gears (and of the FE mode)")
+    ap.add_argument("--torque", type=float, default=0.0, help="moment on the wheel, N m (0: the scene's 20)")
+    ap.add_argument("--plot", default=None)
+    ap.add_argument("--csv", default=None)
+    ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
+    a = ap.parse_args()
+    os.makedirs(a.work, exist_ok=True)
+    modefile = os.path.join(a.work, "fe_mode.json")
+    if a.mode_hz > 0:
+        mode = {"mean_hz": a.mode_hz}
+    elif os.path.exists(modefile):
+        mode = json.load(open(modefile))
+    else:
+        mode = fe_mode(a.build, a.positions, a.order, a.torque)
+        json.dump(mode, open(modefile, "w"), indent=1)
+    f0 = mode["mean_hz"]
+    print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
+    freqs = [f0 * (a.grid_from + (a.grid_to - a.grid_from) * k / max(a.grid - 1, 1)) for k in range(a.grid)]
+    freqs += [f0 * (0.88 + 0.24 * k / (a.dense - 1)) for k in range(a.dense)]
+    freqs += [float(v) for v in a.extra.split(",") if v]
+    freqs = sorted(set(round(f, 1) for f in freqs))
+    cachefile = os.path.join(a.work, "points.csv")
+    cache = load_cache(cachefile)
+    have = {(r["model"], round(r["mesh_hz_target"], 1)) for r in cache}
+    models = [m for m in a.models.split(",") if m]
+    for m in models:
+        if m not in MODELS:
+            sys.exit("freq_response: unknown model '%s'" % m)
+    if not a.no_run:
+        # Cheap models first, the contact model last.
+        for m in sorted(models, key=lambda m: m == "contact"):
+            for f in freqs:
+                if (m, f) in have:
+                    continue
+                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque)
+                r["mesh_hz_target"] = f
+                cache.append(r)
+                have.add((m, f))
+                new = not os.path.exists(cachefile)
+                with open(cachefile, "a", newline="") as fh:
+                    w = csv.DictWriter(fh, fieldnames=FIELDS)
+                    if new:
+                        w.writeheader()
+                    w.writerow(r)
+                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s" %
+                      (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"]),
+                      flush=True)
+    found = {}
+    for m in MODELS:
+        pts = [r for r in cache if r["model"] == m]
+        if len(pts) >= 3:
+            found[m] = peaks(pts)
+    fc = found["calibrated"][0][0] if found.get("calibrated") else float("nan")
+    print("\nDTE rms peaks (local maxima, prominence >= 25 %; largest first)")
+    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
+    print("|---|---|---|---|---|")
+    for m, lst in found.items():
+        for fp, yp in lst:
+            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+    if a.csv:
+        with open(a.csv, "w", newline="") as fh:
+            w = csv.DictWriter(fh, fieldnames=FIELDS)
+            w.writeheader()
+            for r in sorted(cache, key=lambda r: (MODELS.index(r["model"]), r["mesh_hz"])):
+                w.writerow(r)
+    if a.plot:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d"}
+        for m in MODELS:
+            pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
+            if not pts:
+                continue
+            x = [r["mesh_hz"] for r in pts]
+            ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
+            ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
+        ax[0].set_yscale("log")
+        ax[1].set_yscale("log")
+        fl = mode.get("lumped_mean_hz")
+        for k in range(2):
+            ax[k].axvline(f0, color="m", ls="--", lw=1)
+            if fl:
+                ax[k].axvline(fl, color="g", ls=":", lw=1)
+            ax[k].grid(alpha=0.3)
+        if fl:
+            ax[0].text(fl, ax[0].get_ylim()[1] * 0.4, "closed form with k_t %.0f Hz " % fl, color="g", va="top",
+                       ha="right")
+        ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
+        ax[0].set_ylabel("DTE rms (um)")
+        ax[1].set_ylabel("dynamic factor (peak / mean force)")
+        ax[1].set_xlabel("mesh frequency (Hz)")
+        ax[0].legend()
+        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping)" % (a.torque or 20, 100 * a.damping))
+        fig.tight_layout()
+        fig.savefig(a.plot, dpi=110)
+        print("plot:", a.plot)
+
+
+if __name__ == "__main__":
+    main()
