@@ -16,7 +16,6 @@
  * whose equality multiplier is -delta. Solved with the Goldfarb-Idnani QP;
  * then the gaps are re-evaluated at the deformed position and the step
  * repeats until delta settles (twice below 1e-7 of the elastic rotation). */
-#define _POSIX_C_SOURCE 200809L
 #include <hdf5.h>
 #include <json-c/json.h>
 #include <math.h>
@@ -35,6 +34,9 @@
 #include "io/h5attr.h"
 #include "gearsim/util.h"
 
+/* Compliance columns per back substitution (bounds the dense work to
+ * STIFF_BATCH free-dof vectors). */
+#define STIFF_BATCH 32
 /* Automatic near-field depth, in modules. */
 #define GS_NF_DEPTH 0.8
 /* A contact point within this many modules of a tip circle is a corner contact. */
@@ -92,15 +94,20 @@ typedef struct sbody {
     gs_index **yi;        /* capd: its pattern (factor positions, ascending) */
     double **yv;          /* capd: its values */
     double *G;            /* capd x capd: Gram matrix of the cached dofs */
+    double **col;         /* capd: compliance column of each cached dof at the boundary dofs
+                           * (the first ncol; ncol = 0 while the displacements come from
+                           * one back substitution per linearisation) */
+    int ncol;
+    long nback;           /* back substitutions for displacements so far */
     double *fd;           /* capd: scratch, the force on each cached dof */
-    double *z;            /* ne: dense work in factor space (zero between uses) */
+    double *z;            /* max(ne, 2 nb): dense work (zero between uses) */
     double *u;            /* 2 n_nodes: current displacement */
     double c[2];          /* axis */
     double *xy_ref;       /* 2 n_nodes: the perfect gear's nodes (NULL: not modified) */
     double t_mesh;        /* CPU s: meshing and the FE model */
     double t_factor;      /* CPU s: factorisation of K */
     double t_columns;     /* CPU s: compliance columns (half columns and Gram entries) */
-    double t_solves;      /* CPU s: back substitutions for the displacements */
+    double t_solves;      /* CPU s: the displacements (back substitutions or column sums) */
     long columns;         /* compliance columns cached (dofs) */
 } sbody;
 
@@ -112,8 +119,11 @@ static void sbody_free(sbody *b)
     }
     free(b->slot);
     free(b->ynz);
+    for (int j = 0; j < b->ncol; j++)
+        free(b->col[j]);
     free(b->yi);
     free(b->yv);
+    free(b->col);
     free(b->G);
     free(b->fd);
     free(b->z);
@@ -174,7 +184,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
     b->bdof = malloc((size_t)(2 * b->nb) * sizeof *b->bdof);
     b->slot = malloc((size_t)(2 * b->nb) * sizeof *b->slot);
     b->u = gs_calloc((size_t)(2 * n), sizeof *b->u);
-    b->z = gs_calloc((size_t)gs_fe_static_size(b->fs) + 1, sizeof *b->z);
+    b->z = gs_calloc((size_t)gs_fe_static_size(b->fs) + (size_t)(2 * b->nb) + 1, sizeof *b->z);
     if (!b->bpos || !b->bdof || !b->slot || !b->u || !b->z)
         return GS_ENOMEM;
     for (gs_index j = 0; j < 2 * b->nb; j++)
@@ -208,8 +218,11 @@ static gs_err sbody_grow(sbody *b, int n)
     double *fd = realloc(b->fd, cn * sizeof *fd);
     if (fd)
         b->fd = fd;
+    double **col = realloc(b->col, cn * sizeof *col);
+    if (col)
+        b->col = col;
     double *G = malloc(cn * cn * sizeof *G);
-    if (!ynz || !yi || !yv || !fd || !G) {
+    if (!ynz || !yi || !yv || !fd || !col || !G) {
         free(G);
         return GS_ENOMEM;
     }
@@ -218,6 +231,40 @@ static gs_err sbody_grow(sbody *b, int n)
     free(b->G);
     b->G = G;
     b->capd = c;
+    return GS_OK;
+}
+
+/* The boundary-dof columns of the cached dofs b->ncol.. (for the
+ * displacements the search needs): back substitutions of their half
+ * columns, in batches (one multi-right-hand-side solve each). */
+static gs_err sbody_columns(sbody *b)
+{
+    size_t ne = (size_t)gs_fe_static_size(b->fs), len = (size_t)(2 * b->nb);
+    for (int d0 = b->ncol; d0 < b->nd; d0 += STIFF_BATCH) {
+        int k = b->nd - d0 < STIFF_BATCH ? b->nd - d0 : STIFF_BATCH;
+        double *Z = gs_calloc((size_t)k * ne + 1, sizeof *Z);
+        double *out = malloc((size_t)k * len * sizeof *out + 1);
+        if (!Z || !out) {
+            free(Z);
+            free(out);
+            return GS_ENOMEM;
+        }
+        for (int j = 0; j < k; j++)
+            for (gs_index q = 0; q < b->ynz[d0 + j]; q++)
+                Z[(size_t)j * ne + (size_t)b->yi[d0 + j][q]] = b->yv[d0 + j][q];
+        gs_err e = gs_fe_static_back(b->fs, k, Z, 2 * b->nb, b->bdof, out);
+        for (int j = 0; j < k && e == GS_OK; j++) {
+            b->col[d0 + j] = malloc(len * sizeof *out);
+            if (!b->col[d0 + j])
+                e = GS_ENOMEM;
+            else
+                memcpy(b->col[d0 + j], out + (size_t)j * len, len * sizeof *out);
+            b->ncol = d0 + j + 1;
+        }
+        free(Z);
+        free(out);
+        GS_TRY(e);
+    }
     return GS_OK;
 }
 
@@ -269,26 +316,60 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
         for (gs_index q = 0; q < b->ynz[d]; q++)
             b->z[b->yi[d][q]] = 0.0;
     }
+    if (b->ncol > 0)
+        GS_TRY(sbody_columns(b));
     b->columns += b->nd - nd0;
     b->t_columns += cpu_now() - t0;
     return GS_OK;
 }
 
-/* The boundary displacements from the forces f_d on the cached dofs
- * (b->fd): u = K^{-1} f = P^T L^{-T} (sum_d f_d y_d). */
+/* The boundary displacements u = C f from the forces f_d on the cached
+ * dofs (b->fd). Two ways with the same result: one back substitution of
+ * sum_d f_d y_d (its cost is one pass over L per linearisation), or the
+ * sum of the cached dofs' boundary columns (a batched back substitution
+ * per new dof, then nearly free per linearisation). The first is used
+ * until the back substitutions outnumber half the cached dofs (many
+ * linearisations per new contact dof, as with the near-field fixed point),
+ * then the columns of all cached dofs are computed and used from there on:
+ * never more than about twice the cheaper way's cost. */
 static gs_err sbody_displace(sbody *b)
 {
     double t0 = cpu_now();
-    for (int d = 0; d < b->nd; d++) {
-        double f = b->fd[d];
-        if (f != 0.0)
-            for (gs_index q = 0; q < b->ynz[d]; q++)
-                b->z[b->yi[d][q]] += f * b->yv[d][q];
+    size_t len = (size_t)(2 * b->nb);
+    if (b->ncol == 0 && 2 * b->nback >= b->nd) {
+        double t1 = cpu_now();
+        GS_TRY(sbody_columns(b));
+        b->t_columns += cpu_now() - t1;
+        t0 += cpu_now() - t1;
     }
-    gs_err e = gs_fe_static_back(b->fs, b->z, b->u);
-    memset(b->z, 0, (size_t)gs_fe_static_size(b->fs) * sizeof *b->z);
+    double *v = b->z + (size_t)gs_fe_static_size(b->fs);
+    if (b->ncol > 0) {
+        memset(v, 0, len * sizeof *v);
+        for (int d = 0; d < b->nd; d++) {
+            double f = b->fd[d];
+            if (f != 0.0)
+                for (size_t q = 0; q < len; q++)
+                    v[q] += f * b->col[d][q];
+        }
+    } else {
+        for (int d = 0; d < b->nd; d++) {
+            double f = b->fd[d];
+            if (f != 0.0)
+                for (gs_index q = 0; q < b->ynz[d]; q++)
+                    b->z[b->yi[d][q]] += f * b->yv[d][q];
+        }
+        gs_err e = gs_fe_static_back(b->fs, 1, b->z, 2 * b->nb, b->bdof, v);
+        memset(b->z, 0, (size_t)gs_fe_static_size(b->fs) * sizeof *b->z);
+        GS_TRY(e);
+        b->nback++;
+    }
+    for (gs_index q = 0; q < b->nb; q++) {
+        gs_index node = b->mesh->boundary[q];
+        b->u[2 * node] = v[2 * q];
+        b->u[2 * node + 1] = v[2 * q + 1];
+    }
     b->t_solves += cpu_now() - t0;
-    return e;
+    return GS_OK;
 }
 
 /* Tooth of a node of a gear from its polar angle (tooth t centred at 2 pi t / z). */

@@ -318,26 +318,33 @@ gs_err gs_fe_static_half_column(gs_fe_static *s, gs_index dof, gs_index *nnz,
     return GS_OK;
 }
 
-gs_err gs_fe_static_back(gs_fe_static *s, const double *z, double *u_nodes)
+gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_rows,
+                         const gs_index *rows, double *out)
 {
-    if (!s || !z || !u_nodes)
+    if (!s || nrhs < 0 || n_rows < 0 || (nrhs > 0 && (!z || !out)) || (n_rows > 0 && !rows))
         return GS_EINVAL;
     const gs_fe_model *m = s->m;
-    memset(u_nodes, 0, 2 * (size_t)m->n_nodes * sizeof *u_nodes);
-    if (m->ne == 0)
+    for (gs_index i = 0; i < n_rows; i++)
+        if (rows[i] < 0 || rows[i] >= 2 * m->n_nodes)
+            return GS_EINVAL;
+    memset(out, 0, (size_t)nrhs * (size_t)n_rows * sizeof *out);
+    if (m->ne == 0 || nrhs == 0 || n_rows == 0)
         return GS_OK;
-    cholmod_dense Z = {.nrow = (size_t)m->ne, .ncol = 1, .nzmax = (size_t)m->ne, .d = (size_t)m->ne,
+    size_t ne = (size_t)m->ne;
+    cholmod_dense Z = {.nrow = ne, .ncol = (size_t)nrhs, .nzmax = ne * (size_t)nrhs, .d = ne,
                        .x = (void *)z, .xtype = CHOLMOD_REAL, .dtype = CHOLMOD_DOUBLE};
-    /* solve2 keeps the solution and workspace between calls (no allocation
-     * and first-touch of 2 ne doubles per back substitution). */
+    /* solve2 keeps the solution and workspace between calls. */
     if (!cholmod_l_solve2(CHOLMOD_Lt, s->L, &Z, NULL, &s->bw, NULL, &s->by, &s->be, &s->c) ||
         !cholmod_l_solve2(CHOLMOD_Pt, s->L, s->bw, NULL, &s->bx, NULL, &s->by, &s->be, &s->c))
         return GS_ENOMEM;
-    s->solves++;
-    const double *xx = s->bx->x;
-    for (gs_index q = 0; q < m->n_free_nodes; q++) {
-        u_nodes[2 * m->free_node[q]] = xx[2 * q];
-        u_nodes[2 * m->free_node[q] + 1] = xx[2 * q + 1];
+    s->solves += nrhs;
+    for (int j = 0; j < nrhs; j++) {
+        const double *x = (const double *)s->bx->x + (size_t)j * s->bx->d;
+        double *o = out + (size_t)j * (size_t)n_rows;
+        for (gs_index i = 0; i < n_rows; i++) {
+            gs_index q = m->dof[rows[i]];
+            o[i] = q >= 0 ? x[q] : 0.0;
+        }
     }
     return GS_OK;
 }

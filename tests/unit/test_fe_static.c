@@ -87,8 +87,12 @@ static void half_columns_give_the_compliance(void **state)
         for (gs_index q = 0; q < ne; q++)
             z[q] += fj * y[(size_t)j * (size_t)ne + (size_t)q];
     }
+    gs_index *all = malloc(nn * sizeof *all);
+    assert_non_null(all);
+    for (size_t i = 0; i < nn; i++)
+        all[i] = (gs_index)i;
     long s0 = gs_fe_static_solves(s);
-    assert_int_equal(gs_fe_static_back(s, z, u1), GS_OK);
+    assert_int_equal(gs_fe_static_back(s, 1, z, (gs_index)nn, all, u1), GS_OK);
     assert_int_equal(gs_fe_static_solves(s), s0 + 1);
     assert_int_equal(gs_fe_static_solve(s, 1, f, u0), GS_OK);
     double umax = 0.0;
@@ -99,6 +103,14 @@ static void half_columns_give_the_compliance(void **state)
         assert_true(fabs(u1[i] - u0[i]) <= 1e-10 * umax);
     /* the clamped nodes (x = 0) do not move */
     assert_true(u1[gs_fe_dof_node(0, 0)] == 0.0 && u1[gs_fe_dof_node(0, 1)] == 0.0);
+    /* Batched: the back substitutions of the half columns are the columns
+     * of K^{-1}, here at the chosen dofs. */
+    double Cb[4 * N * N];
+    assert_int_equal(gs_fe_static_back(s, 2 * N, y, 2 * N, dofs, Cb), GS_OK);
+    assert_int_equal(gs_fe_static_solves(s), s0 + 2 + 2 * N); /* + the full solve */
+    for (int i = 0; i < 4 * N * N; i++)
+        assert_true(fabs(Cb[i] - C[i]) <= 1e-10 * cmax);
+    free(all);
     free(z);
     free(f);
     free(u0);
@@ -127,8 +139,12 @@ static void fixed_dofs_and_errors(void **state)
     assert_int_equal(gs_fe_static_half_column(NULL, 0, &nz, &idx, &val), GS_EINVAL);
     assert_int_equal(gs_fe_static_half_column(s, 0, NULL, &idx, &val), GS_EINVAL);
     double z[4] = {0};
-    assert_int_equal(gs_fe_static_back(s, NULL, z), GS_EINVAL);
-    assert_int_equal(gs_fe_static_back(NULL, z, z), GS_EINVAL);
+    gs_index bad = 2 * mesh->n_nodes;
+    assert_int_equal(gs_fe_static_back(s, 1, NULL, 1, &bad, z), GS_EINVAL);
+    assert_int_equal(gs_fe_static_back(NULL, 1, z, 1, &bad, z), GS_EINVAL);
+    double *zz = calloc((size_t)gs_fe_static_size(s), sizeof *zz);
+    assert_int_equal(gs_fe_static_back(s, 1, zz, 1, &bad, z), GS_EINVAL);
+    free(zz);
     assert_int_equal(gs_fe_static_size(NULL), 0);
     gs_fe_static_free(&s);
     gs_fe_model_free(&m);
