@@ -199,6 +199,16 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
     return GS_OK;
 }
 
+/* Reallocate array p to count elements; return GS_ENOMEM from the calling
+ * function on failure (p is then unchanged). */
+#define GROW(p, count)                                         \
+    do {                                                       \
+        void *q_ = realloc((p), (count) * sizeof *(p));        \
+        if (!q_)                                               \
+            return GS_ENOMEM;                                  \
+        (p) = q_;                                              \
+    } while (0)
+
 /* Grow the cache of body b to hold n dofs. */
 static gs_err sbody_grow(sbody *b, int n)
 {
@@ -206,26 +216,14 @@ static gs_err sbody_grow(sbody *b, int n)
         return GS_OK;
     int c = n > 2 * b->capd ? n : 2 * b->capd;
     size_t cn = (size_t)c;
-    gs_index *ynz = realloc(b->ynz, cn * sizeof *ynz);
-    if (ynz)
-        b->ynz = ynz;
-    gs_index **yi = realloc(b->yi, cn * sizeof *yi);
-    if (yi)
-        b->yi = yi;
-    double **yv = realloc(b->yv, cn * sizeof *yv);
-    if (yv)
-        b->yv = yv;
-    double *fd = realloc(b->fd, cn * sizeof *fd);
-    if (fd)
-        b->fd = fd;
-    double **col = realloc(b->col, cn * sizeof *col);
-    if (col)
-        b->col = col;
+    GROW(b->ynz, cn);
+    GROW(b->yi, cn);
+    GROW(b->yv, cn);
+    GROW(b->fd, cn);
+    GROW(b->col, cn);
     double *G = malloc(cn * cn * sizeof *G);
-    if (!ynz || !yi || !yv || !fd || !col || !G) {
-        free(G);
+    if (!G)
         return GS_ENOMEM;
-    }
     for (int i = 0; i < b->nd; i++)
         memcpy(G + (size_t)i * cn, b->G + (size_t)i * (size_t)b->capd, (size_t)b->nd * sizeof *G);
     free(b->G);
@@ -452,13 +450,6 @@ static gs_err work_reserve(work *w, int n)
         return GS_OK;
     int c = n > 2 * w->cap ? n : 2 * w->cap;
     size_t cn = (size_t)c;
-#define GROW(p, count)                                         \
-    do {                                                       \
-        void *q_ = realloc((p), (count) * sizeof *(p));        \
-        if (!q_)                                               \
-            return GS_ENOMEM;                                  \
-        (p) = q_;                                              \
-    } while (0)
     GROW(w->row, cn);
     GROW(w->cand, cn);
     GROW(w->H, cn * cn);
@@ -472,7 +463,6 @@ static gs_err work_reserve(work *w, int n)
     GROW(w->teeth, cn);
     for (int k = 0; k < 2; k++)
         GROW(w->rd[k], cn);
-#undef GROW
     w->cap = c;
     return GS_OK;
 }

@@ -173,19 +173,23 @@ gs_err gs_fe_static_solve(gs_fe_static *s, int nrhs, const double *f_nodes, doub
     return GS_OK;
 }
 
+/* All n dofs of d in the model's range 0 .. 2 n_nodes - 1. */
+static bool dofs_ok(const gs_fe_model *m, gs_index n, const gs_index *d)
+{
+    for (gs_index i = 0; i < n; i++)
+        if (d[i] < 0 || d[i] >= 2 * m->n_nodes)
+            return false;
+    return true;
+}
+
 gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_index n_rows,
                             const gs_index *rows, double *out)
 {
     if (!s || n < 0 || n_rows < 0 || (n > 0 && (!cols || !out)) || (n_rows > 0 && !rows))
         return GS_EINVAL;
     const gs_fe_model *m = s->m;
-    gs_index ndof = 2 * m->n_nodes;
-    for (int j = 0; j < n; j++)
-        if (cols[j] < 0 || cols[j] >= ndof)
-            return GS_EINVAL;
-    for (gs_index i = 0; i < n_rows; i++)
-        if (rows[i] < 0 || rows[i] >= ndof)
-            return GS_EINVAL;
+    if (!dofs_ok(m, n, cols) || !dofs_ok(m, n_rows, rows))
+        return GS_EINVAL;
     memset(out, 0, (size_t)n * (size_t)n_rows * sizeof *out);
     if (m->ne == 0 || n == 0 || n_rows == 0)
         return GS_OK;
@@ -324,9 +328,8 @@ gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_
     if (!s || nrhs < 0 || n_rows < 0 || (nrhs > 0 && (!z || !out)) || (n_rows > 0 && !rows))
         return GS_EINVAL;
     const gs_fe_model *m = s->m;
-    for (gs_index i = 0; i < n_rows; i++)
-        if (rows[i] < 0 || rows[i] >= 2 * m->n_nodes)
-            return GS_EINVAL;
+    if (!dofs_ok(m, n_rows, rows))
+        return GS_EINVAL;
     memset(out, 0, (size_t)nrhs * (size_t)n_rows * sizeof *out);
     if (m->ne == 0 || nrhs == 0 || n_rows == 0)
         return GS_OK;
