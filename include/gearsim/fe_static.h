@@ -39,6 +39,27 @@ gs_err gs_fe_static_solve(gs_fe_static *s, int nrhs, const double *f_nodes, doub
 gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_index n_rows,
                             const gs_index *rows, double *out);
 
+/* Half columns of the compliance, for the few-columns-of-a-large-body case
+ * (the quasi-static contact of docs/STIFFNESS.md). With K = P^T L L^T P
+ * (the sparse Cholesky factor, fill-reducing permutation P), the half
+ * column of dof j is y_j = L^{-1} P e_j, sparse (the elimination-tree
+ * ancestors of j's pivot: a few per cent of L's rows, where a solve touches
+ * all of L), and (K^{-1})_{ij} = y_i . y_j. gs_fe_static_size is the
+ * length of these vectors (free dofs); half_column returns y_j's pattern
+ * (factor positions, ascending) and values in *idx, *val (nnz of them;
+ * owned by s, valid until the next call; nnz = 0 for a fixed node's dof).
+ * gs_fe_static_back completes nrhs solves from their forward halves: for
+ * each dense z_j (nrhs consecutive blocks of gs_fe_static_size entries,
+ * e.g. y_d, giving the column K^{-1} e_d, or sum_d f_d y_d, giving
+ * K^{-1} f) u_j = P^T L^{-T} z_j, written at the n_rows dofs `rows`
+ * (gs_fe_dof_node numbering; fixed: 0) to out[j * n_rows + i]; counted as
+ * nrhs solves. Errors: GS_EINVAL (NULL, a dof out of range), GS_ENOMEM. */
+gs_index gs_fe_static_size(const gs_fe_static *s);
+gs_err gs_fe_static_half_column(gs_fe_static *s, gs_index dof, gs_index *nnz,
+                                const gs_index **idx, const double **val);
+gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_rows,
+                         const gs_index *rows, double *out);
+
 /* Right-hand sides solved so far (one per column and per solved load case). */
 long gs_fe_static_solves(const gs_fe_static *s);
 

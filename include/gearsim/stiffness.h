@@ -128,6 +128,15 @@ typedef struct gs_stiffness_result {
     double frac_multi;    /* fraction of positions with 2 or more pairs in contact */
     long solves;          /* right-hand sides solved (both bodies) */
     double seconds;       /* wall time of the analysis */
+    /* The cost split, CPU seconds of the process (both bodies): meshing and
+     * FE models, factorisations of K, compliance among the contact dofs
+     * (half columns and their Gram entries, computed when a contact row
+     * first needs a node and cached across positions), the back
+     * substitutions for the displacements (one per body and linearisation),
+     * and the rest (contact search, gaps, QPs, near field) = cpu_seconds
+     * minus the four. columns: contact dofs whose compliance was computed. */
+    double cpu_seconds, cpu_mesh, cpu_factor, cpu_columns, cpu_solves, cpu_contact;
+    long columns;
 } gs_stiffness_result;
 
 /* Analyse mesh mesh_index of scene sc (o may be NULL: defaults). out is

@@ -22,6 +22,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "gearsim/contact.h"
 #include "gearsim/fe.h"
@@ -33,10 +34,22 @@
 #include "io/h5attr.h"
 #include "gearsim/util.h"
 
+/* Compliance columns per back substitution (bounds the dense work to
+ * STIFF_BATCH free-dof vectors). */
+#define STIFF_BATCH 32
 /* Automatic near-field depth, in modules. */
 #define GS_NF_DEPTH 0.8
 /* A contact point within this many modules of a tip circle is a corner contact. */
 #define GS_NF_CORNER 0.02
+
+/* CPU seconds of the process (the cost split of the result: CPU time is
+ * the comparable figure on a shared machine). */
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
 {
@@ -62,8 +75,11 @@ void gs_stiffness_result_clear(gs_stiffness_result *r)
     memset(r, 0, sizeof *r);
 }
 
-/* One elastic body: mesh, model, factor, and the compliance columns of its
- * boundary nodes restricted to the boundary dofs. */
+/* One elastic body: mesh, model, factor, and the compliance among the
+ * boundary dofs that contact rows have needed so far (a cache across
+ * linearisations and roll positions): their half columns y_d
+ * (gs_fe_static_half_column) and the Gram matrix G_de = y_d . y_e =
+ * (K^{-1})_de. */
 typedef struct sbody {
     const gs_scene_body *sb;
     gs_mesh *mesh;
@@ -72,24 +88,49 @@ typedef struct sbody {
     gs_index nb;          /* boundary nodes */
     gs_index *bpos;       /* n_nodes: position on the boundary loop, or -1 */
     gs_index *bdof;       /* 2 nb: boundary dofs (gs_fe_dof_node) */
-    double **col;         /* 2 nb: column of boundary dof j restricted to the boundary dofs */
-    double *u;            /* 2 n_nodes: current displacement (boundary nodes only) */
-    double *v;            /* scratch 2 nb */
+    int *slot;            /* 2 nb: cache slot of boundary dof j, or -1 */
+    int nd, capd;         /* cached dofs, capacity */
+    gs_index *ynz;        /* capd: nonzeros of each half column */
+    gs_index **yi;        /* capd: its pattern (factor positions, ascending) */
+    double **yv;          /* capd: its values */
+    double *G;            /* capd x capd: Gram matrix of the cached dofs */
+    double **col;         /* capd: compliance column of each cached dof at the boundary dofs
+                           * (the first ncol; ncol = 0 while the displacements come from
+                           * one back substitution per linearisation) */
+    int ncol;
+    long nback;           /* back substitutions for displacements so far */
+    double *fd;           /* capd: scratch, the force on each cached dof */
+    double *z;            /* max(ne, 2 nb): dense work (zero between uses) */
+    double *u;            /* 2 n_nodes: current displacement */
     double c[2];          /* axis */
     double *xy_ref;       /* 2 n_nodes: the perfect gear's nodes (NULL: not modified) */
+    double t_mesh;        /* CPU s: meshing and the FE model */
+    double t_factor;      /* CPU s: factorisation of K */
+    double t_columns;     /* CPU s: compliance columns (half columns and Gram entries) */
+    double t_solves;      /* CPU s: the displacements (back substitutions or column sums) */
+    long columns;         /* compliance columns cached (dofs) */
 } sbody;
 
 static void sbody_free(sbody *b)
 {
-    if (b->col)
-        for (gs_index j = 0; j < 2 * b->nb; j++)
-            free(b->col[j]);
+    for (int j = 0; j < b->nd; j++) {
+        free(b->yi[j]);
+        free(b->yv[j]);
+    }
+    free(b->slot);
+    free(b->ynz);
+    for (int j = 0; j < b->ncol; j++)
+        free(b->col[j]);
+    free(b->yi);
+    free(b->yv);
     free(b->col);
+    free(b->G);
+    free(b->fd);
+    free(b->z);
     free(b->bpos);
     free(b->bdof);
     free(b->xy_ref);
     free(b->u);
-    free(b->v);
     gs_fe_static_free(&b->fs);
     gs_fe_model_free(&b->model);
     gs_mesh_free(&b->mesh);
@@ -108,6 +149,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
         sbo.mesh.order = order;
     gs_diag md;
     gs_diag_clear(&md);
+    double t0 = cpu_now();
     gs_err e = gs_scene_gear_mesh_refined(&sbo, refine, &b->mesh, &md);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
@@ -128,8 +170,11 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
             return gs_diag_set(d, e, field, "cannot mesh the perfect '%s'", b->sb->name);
     }
     e = gs_fe_model_new(b->mesh, &b->sb->material, b->sb->gear.face_width_m, 0.0, &b->model);
+    double t1 = cpu_now();
     if (e == GS_OK)
         e = gs_fe_static_new(b->model, &b->fs);
+    b->t_mesh = t1 - t0;
+    b->t_factor = cpu_now() - t1;
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "static finite element model of '%s' failed: %s",
                            b->sb->name, gs_strerror(e));
@@ -137,11 +182,13 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
     b->nb = b->mesh->n_boundary;
     b->bpos = malloc((size_t)n * sizeof *b->bpos);
     b->bdof = malloc((size_t)(2 * b->nb) * sizeof *b->bdof);
-    b->col = gs_calloc((size_t)(2 * b->nb), sizeof *b->col);
+    b->slot = malloc((size_t)(2 * b->nb) * sizeof *b->slot);
     b->u = gs_calloc((size_t)(2 * n), sizeof *b->u);
-    b->v = gs_calloc((size_t)(2 * b->nb), sizeof *b->v);
-    if (!b->bpos || !b->bdof || !b->col || !b->u || !b->v)
+    b->z = gs_calloc((size_t)gs_fe_static_size(b->fs) + (size_t)(2 * b->nb) + 1, sizeof *b->z);
+    if (!b->bpos || !b->bdof || !b->slot || !b->u || !b->z)
         return GS_ENOMEM;
+    for (gs_index j = 0; j < 2 * b->nb; j++)
+        b->slot[j] = -1;
     for (gs_index i = 0; i < n; i++)
         b->bpos[i] = -1;
     for (gs_index k = 0; k < b->nb; k++) {
@@ -152,53 +199,175 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
     return GS_OK;
 }
 
-/* Make sure the columns of the listed nodes (mesh numbering) are cached. */
-static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
+/* Reallocate array p to count elements; return GS_ENOMEM from the calling
+ * function on failure (p is then unchanged). */
+#define GROW(p, count)                                         \
+    do {                                                       \
+        void *q_ = realloc((p), (count) * sizeof *(p));        \
+        if (!q_)                                               \
+            return GS_ENOMEM;                                  \
+        (p) = q_;                                              \
+    } while (0)
+
+/* Grow the cache of body b to hold n dofs. */
+static gs_err sbody_grow(sbody *b, int n)
 {
-    gs_index *miss = malloc((size_t)(2 * n + 1) * sizeof *miss);
-    if (!miss)
+    if (n <= b->capd)
+        return GS_OK;
+    int c = n > 2 * b->capd ? n : 2 * b->capd;
+    size_t cn = (size_t)c;
+    GROW(b->ynz, cn);
+    GROW(b->yi, cn);
+    GROW(b->yv, cn);
+    GROW(b->fd, cn);
+    GROW(b->col, cn);
+    double *G = malloc(cn * cn * sizeof *G);
+    if (!G)
         return GS_ENOMEM;
-    int nm = 0;
-    for (int i = 0; i < n; i++) {
-        gs_index k = b->bpos[nodes[i]];
-        if (k < 0) {
-            free(miss);
-            return GS_EINTERNAL;
-        }
-        if (b->col[2 * k])
-            continue;
-        bool dup = false;
-        for (int j = 0; j < nm && !dup; j++)
-            dup = miss[j] == b->bdof[2 * k];
-        if (dup)
-            continue;
-        miss[nm++] = b->bdof[2 * k];
-        miss[nm++] = b->bdof[2 * k + 1];
-    }
-    gs_err e = GS_OK;
-    if (nm > 0) {
-        size_t len = (size_t)(2 * b->nb);
-        double *out = malloc((size_t)nm * len * sizeof *out);
-        if (!out) {
-            free(miss);
+    for (int i = 0; i < b->nd; i++)
+        memcpy(G + (size_t)i * cn, b->G + (size_t)i * (size_t)b->capd, (size_t)b->nd * sizeof *G);
+    free(b->G);
+    b->G = G;
+    b->capd = c;
+    return GS_OK;
+}
+
+/* The boundary-dof columns of the cached dofs b->ncol.. (for the
+ * displacements the search needs): back substitutions of their half
+ * columns, in batches (one multi-right-hand-side solve each). */
+static gs_err sbody_columns(sbody *b)
+{
+    size_t ne = (size_t)gs_fe_static_size(b->fs), len = (size_t)(2 * b->nb);
+    for (int d0 = b->ncol; d0 < b->nd; d0 += STIFF_BATCH) {
+        int k = b->nd - d0 < STIFF_BATCH ? b->nd - d0 : STIFF_BATCH;
+        double *Z = gs_calloc((size_t)k * ne + 1, sizeof *Z);
+        double *out = malloc((size_t)k * len * sizeof *out + 1);
+        if (!Z || !out) {
+            free(Z);
+            free(out);
             return GS_ENOMEM;
         }
-        e = gs_fe_static_columns(b->fs, nm, miss, 2 * b->nb, b->bdof, out);
-        for (int j = 0; j < nm && e == GS_OK; j++) {
-            gs_index k = b->bpos[miss[j] / 2];
-            int comp = (int)(miss[j] % 2);
-            double *c = malloc(len * sizeof *c);
-            if (!c) {
+        for (int j = 0; j < k; j++)
+            for (gs_index q = 0; q < b->ynz[d0 + j]; q++)
+                Z[(size_t)j * ne + (size_t)b->yi[d0 + j][q]] = b->yv[d0 + j][q];
+        gs_err e = gs_fe_static_back(b->fs, k, Z, 2 * b->nb, b->bdof, out);
+        for (int j = 0; j < k && e == GS_OK; j++) {
+            b->col[d0 + j] = malloc(len * sizeof *out);
+            if (!b->col[d0 + j])
                 e = GS_ENOMEM;
-                break;
-            }
-            memcpy(c, out + (size_t)j * len, len * sizeof *c);
-            b->col[2 * k + comp] = c;
+            else
+                memcpy(b->col[d0 + j], out + (size_t)j * len, len * sizeof *out);
+            b->ncol = d0 + j + 1;
         }
+        free(Z);
         free(out);
+        GS_TRY(e);
     }
-    free(miss);
-    return e;
+    return GS_OK;
+}
+
+/* Make sure the compliance among the dofs of the listed nodes (mesh
+ * numbering, boundary nodes) and every dof cached before is known: the
+ * half column of each new dof, and its Gram entries with all cached dofs
+ * (one scatter of the new half column, one gather per cached one). */
+static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
+{
+    double t0 = cpu_now();
+    int nd0 = b->nd;
+    for (int i = 0; i < n; i++) {
+        gs_index k = b->bpos[nodes[i]];
+        if (k < 0)
+            return GS_EINTERNAL;
+        for (int comp = 0; comp < 2; comp++) {
+            if (b->slot[2 * k + comp] >= 0)
+                continue;
+            GS_TRY(sbody_grow(b, b->nd + 1));
+            gs_index nz;
+            const gs_index *idx;
+            const double *val;
+            GS_TRY(gs_fe_static_half_column(b->fs, b->bdof[2 * k + comp], &nz, &idx, &val));
+            int d = b->nd;
+            b->yi[d] = malloc(((size_t)nz + 1) * sizeof *b->yi[d]);
+            b->yv[d] = malloc(((size_t)nz + 1) * sizeof *b->yv[d]);
+            if (!b->yi[d] || !b->yv[d]) {
+                free(b->yi[d]);
+                free(b->yv[d]);
+                return GS_ENOMEM;
+            }
+            memcpy(b->yi[d], idx, (size_t)nz * sizeof *idx);
+            memcpy(b->yv[d], val, (size_t)nz * sizeof *val);
+            b->ynz[d] = nz;
+            b->slot[2 * k + comp] = d;
+            b->nd++;
+        }
+    }
+    size_t cap = (size_t)b->capd;
+    for (int d = nd0; d < b->nd; d++) {
+        for (gs_index q = 0; q < b->ynz[d]; q++)
+            b->z[b->yi[d][q]] = b->yv[d][q];
+        for (int e = 0; e <= d; e++) {
+            double sum = 0.0;
+            for (gs_index q = 0; q < b->ynz[e]; q++)
+                sum += b->yv[e][q] * b->z[b->yi[e][q]];
+            b->G[(size_t)d * cap + (size_t)e] = b->G[(size_t)e * cap + (size_t)d] = sum;
+        }
+        for (gs_index q = 0; q < b->ynz[d]; q++)
+            b->z[b->yi[d][q]] = 0.0;
+    }
+    if (b->ncol > 0)
+        GS_TRY(sbody_columns(b));
+    b->columns += b->nd - nd0;
+    b->t_columns += cpu_now() - t0;
+    return GS_OK;
+}
+
+/* The boundary displacements u = C f from the forces f_d on the cached
+ * dofs (b->fd). Two ways with the same result: one back substitution of
+ * sum_d f_d y_d (its cost is one pass over L per linearisation), or the
+ * sum of the cached dofs' boundary columns (a batched back substitution
+ * per new dof, then nearly free per linearisation). The first is used
+ * until the back substitutions outnumber half the cached dofs (many
+ * linearisations per new contact dof, as with the near-field fixed point),
+ * then the columns of all cached dofs are computed and used from there on:
+ * never more than about twice the cheaper way's cost. */
+static gs_err sbody_displace(sbody *b)
+{
+    double t0 = cpu_now();
+    size_t len = (size_t)(2 * b->nb);
+    if (b->ncol == 0 && 2 * b->nback >= b->nd) {
+        double t1 = cpu_now();
+        GS_TRY(sbody_columns(b));
+        b->t_columns += cpu_now() - t1;
+        t0 += cpu_now() - t1;
+    }
+    double *v = b->z + (size_t)gs_fe_static_size(b->fs);
+    if (b->ncol > 0) {
+        memset(v, 0, len * sizeof *v);
+        for (int d = 0; d < b->nd; d++) {
+            double f = b->fd[d];
+            if (f != 0.0)
+                for (size_t q = 0; q < len; q++)
+                    v[q] += f * b->col[d][q];
+        }
+    } else {
+        for (int d = 0; d < b->nd; d++) {
+            double f = b->fd[d];
+            if (f != 0.0)
+                for (gs_index q = 0; q < b->ynz[d]; q++)
+                    b->z[b->yi[d][q]] += f * b->yv[d][q];
+        }
+        gs_err e = gs_fe_static_back(b->fs, 1, b->z, 2 * b->nb, b->bdof, v);
+        memset(b->z, 0, (size_t)gs_fe_static_size(b->fs) * sizeof *b->z);
+        GS_TRY(e);
+        b->nback++;
+    }
+    for (gs_index q = 0; q < b->nb; q++) {
+        gs_index node = b->mesh->boundary[q];
+        b->u[2 * node] = v[2 * q];
+        b->u[2 * node + 1] = v[2 * q + 1];
+    }
+    b->t_solves += cpu_now() - t0;
+    return GS_OK;
 }
 
 /* Tooth of a node of a gear from its polar angle (tooth t centred at 2 pi t / z). */
@@ -208,6 +377,13 @@ static int node_tooth(const gs_mesh *m, int z, gs_index node)
     long t = lround(ang / (2.0 * GS_PI / z));
     return (int)(((t % z) + z) % z);
 }
+
+/* The dofs of one contact row in one body: cache slots and dg/du. */
+typedef struct rowdofs {
+    int m;                /* nodes (the dofs are 2 m) */
+    int slot[8];
+    double g[8];
+} rowdofs;
 
 /* Working state of one analysis. */
 typedef struct work {
@@ -220,7 +396,9 @@ typedef struct work {
     int cap;
     gs_contact_row *row;
     const gs_contact_candidate **cand;
-    double *H, *cvec, *x, *lam_in, *Gm, *gz, *V[2], *gbar, *a;
+    double *H, *cvec, *x, *lam_in, *Gm, *gz, *gbar, *a;
+    rowdofs *rd[2];        /* per row and body: its dofs' cache slots and dg/du */
+    int (*teeth)[2];       /* per row: tooth pair of its candidate (cand_teeth) */
     int n_prev;            /* 1 when the last linearisation changed delta by little */
     gs_qp *qp;
     int qp_n;
@@ -247,11 +425,12 @@ static void work_free(work *w)
 {
     for (int k = 0; k < 2; k++) {
         sbody_free(&w->b[k]);
-        free(w->V[k]);
+        free(w->rd[k]);
     }
     gs_contact_search_free(&w->search);
     free(w->row);
     free(w->cand);
+    free(w->teeth);
     free(w->H);
     free(w->cvec);
     free(w->x);
@@ -271,13 +450,6 @@ static gs_err work_reserve(work *w, int n)
         return GS_OK;
     int c = n > 2 * w->cap ? n : 2 * w->cap;
     size_t cn = (size_t)c;
-#define GROW(p, count)                                         \
-    do {                                                       \
-        void *q_ = realloc((p), (count) * sizeof *(p));        \
-        if (!q_)                                               \
-            return GS_ENOMEM;                                  \
-        (p) = q_;                                              \
-    } while (0)
     GROW(w->row, cn);
     GROW(w->cand, cn);
     GROW(w->H, cn * cn);
@@ -288,9 +460,9 @@ static gs_err work_reserve(work *w, int n)
     GROW(w->gz, cn);
     GROW(w->gbar, cn);
     GROW(w->a, cn);
+    GROW(w->teeth, cn);
     for (int k = 0; k < 2; k++)
-        GROW(w->V[k], cn * (size_t)(2 * w->b[k].nb));
-#undef GROW
+        GROW(w->rd[k], cn);
     w->cap = c;
     return GS_OK;
 }
@@ -303,6 +475,17 @@ static void set_poses(const work *w, double delta, gs_contact_pose pose[2])
         pose[s].c[1] = w->b[k].c[1];
         pose[s].theta = w->theta0[k] + (k == 0 ? delta : 0.0);
         pose[s].u = w->b[k].u;
+    }
+}
+
+/* Tooth pair (driver tooth, driven tooth) of a candidate. */
+static void cand_teeth(const work *w, const gs_contact_candidate *c, int tooth[2])
+{
+    gs_index mnode = c->window[c->n_window / 2];
+    for (int k = 0; k < 2; k++) {
+        const sbody *b = &w->b[k];
+        tooth[k] = c->slave == w->si[k] ? c->slave_tooth
+                                        : node_tooth(b->mesh, b->sb->gear.teeth, mnode);
     }
 }
 
@@ -330,6 +513,7 @@ static gs_err collect(work *w, double delta, int *nr, double *gmin)
             lo = r.gap.g;
         w->row[n] = r;
         w->cand[n] = &cand[j];
+        cand_teeth(w, &cand[j], w->teeth[n]);
         n++;
     }
     *nr = n;
@@ -351,23 +535,11 @@ static int row_nodes(const work *w, const gs_contact_row *r, int k, gs_index *no
     return n;
 }
 
-/* Tooth pair (driver tooth, driven tooth) of a candidate. */
-static void cand_teeth(const work *w, const gs_contact_candidate *c, int tooth[2])
-{
-    gs_index mnode = c->window[c->n_window / 2];
-    for (int k = 0; k < 2; k++) {
-        const sbody *b = &w->b[k];
-        tooth[k] = c->slave == w->si[k] ? c->slave_tooth
-                                        : node_tooth(b->mesh, b->sb->gear.teeth, mnode);
-    }
-}
-
 /* Near-field correction of the compliance of row i: c of its tooth pair
  * from the previous linearisation (0 when none). */
 static double nf_compliance(const work *w, int i)
 {
-    int t[2];
-    cand_teeth(w, w->cand[i], t);
+    const int *t = w->teeth[i];
     for (int p = 0; p < w->n_pc; p++)
         if (w->pc[p].tooth[0] == t[0] && w->pc[p].tooth[1] == t[1])
             return w->pc[p].c;
@@ -426,10 +598,9 @@ static void nearfield_refresh(work *w, int nr)
     for (int p = 0; p < w->n_pc; p++) {
         double lam = 0.0;
         for (int i = 0; i < nr; i++) {
-            int t[2];
             if (w->x[i] <= 0.0)
                 continue;
-            cand_teeth(w, w->cand[i], t);
+            const int *t = w->teeth[i];
             if (t[0] == w->pc[p].tooth[0] && t[1] == w->pc[p].tooth[1])
                 lam += w->x[i];
         }
@@ -462,8 +633,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         double l = w->x[i];
         if (l <= 0.0)
             continue;
-        int t[2];
-        cand_teeth(w, w->cand[i], t);
+        const int *t = w->teeth[i];
         int p = 0;
         while (p < ng && (g[p].tooth[0] != t[0] || g[p].tooth[1] != t[1]))
             p++;
@@ -565,8 +735,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
                     bs += gg[t][0] * b->u[2 * nd[t]] + gg[t][1] * b->u[2 * nd[t] + 1];
                 }
                 aq += l * bq;
-                int t[2];
-                cand_teeth(w, w->cand[i], t);
+                const int *t = w->teeth[i];
                 if (t[0] == g[p].tooth[0] && t[1] == g[p].tooth[1])
                     as += l * bs;
             }
@@ -633,39 +802,36 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
             }
             GS_TRY(sbody_need(&w->b[k], nn, nodes));
         }
-        /* V_k[:, j] = C_k B_kj^T on the boundary dofs; W = sum_k B_k V_k. */
+        /* W = sum_k B_k C_k B_k^T from the cached compliance among the
+         * rows' dofs: row i of body k is sum_t g_it . u(node_it). */
         size_t n = (size_t)nr;
         memset(w->H, 0, n * n * sizeof *w->H);
         for (int k = 0; k < 2; k++) {
             sbody *b = &w->b[k];
-            size_t len = (size_t)(2 * b->nb);
-            for (int j = 0; j < nr; j++) {
-                double *vj = w->V[k] + (size_t)j * len;
-                memset(vj, 0, len * sizeof *vj);
-                gs_index nd[4];
-                double gg[4][2];
-                int m = row_nodes(w, &w->row[j], k, nd, gg);
-                for (int t = 0; t < m; t++) {
-                    gs_index p = b->bpos[nd[t]];
-                    const double *c0 = b->col[2 * p], *c1 = b->col[2 * p + 1];
-                    for (size_t q = 0; q < len; q++)
-                        vj[q] += c0[q] * gg[t][0] + c1[q] * gg[t][1];
-                }
-            }
+            rowdofs *rd = w->rd[k];
             for (int i = 0; i < nr; i++) {
                 gs_index nd[4];
                 double gg[4][2];
-                int m = row_nodes(w, &w->row[i], k, nd, gg);
-                for (int j = 0; j <= i; j++) {
-                    const double *vj = w->V[k] + (size_t)j * len;
-                    double s = 0.0;
-                    for (int t = 0; t < m; t++) {
-                        gs_index p = b->bpos[nd[t]];
-                        s += gg[t][0] * vj[2 * p] + gg[t][1] * vj[2 * p + 1];
+                rd[i].m = row_nodes(w, &w->row[i], k, nd, gg);
+                for (int t = 0; t < rd[i].m; t++)
+                    for (int c = 0; c < 2; c++) {
+                        rd[i].slot[2 * t + c] = b->slot[2 * b->bpos[nd[t]] + c];
+                        rd[i].g[2 * t + c] = gg[t][c];
                     }
-                    w->H[(size_t)i * n + (size_t)j] += s;
-                }
             }
+            size_t cap = (size_t)b->capd;
+            for (int i = 0; i < nr; i++)
+                for (int j = 0; j <= i; j++) {
+                    double sum = 0.0;
+                    for (int p = 0; p < 2 * rd[i].m; p++) {
+                        const double *Gp = b->G + (size_t)rd[i].slot[p] * cap;
+                        double sp = 0.0;
+                        for (int q = 0; q < 2 * rd[j].m; q++)
+                            sp += Gp[rd[j].slot[q]] * rd[j].g[q];
+                        sum += rd[i].g[p] * sp;
+                    }
+                    w->H[(size_t)i * n + (size_t)j] += sum;
+                }
         }
         if (w->nf && w->n_pc > 0) {
             /* The pair's extra compliance on its rows' block (rank one). */
@@ -673,11 +839,9 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
                 double ci = nf_compliance(w, i);
                 if (ci == 0.0)
                     continue;
-                int ti[2];
-                cand_teeth(w, w->cand[i], ti);
+                const int *ti = w->teeth[i];
                 for (int j = 0; j <= i; j++) {
-                    int tj[2];
-                    cand_teeth(w, w->cand[j], tj);
+                    const int *tj = w->teeth[j];
                     if (ti[0] == tj[0] && ti[1] == tj[1])
                         w->H[(size_t)i * n + (size_t)j] += ci;
                 }
@@ -726,24 +890,18 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
             return gs_diag_set(d, qe, "meshes", "static contact QP failed (%d rows): %s", nr,
                                gs_strerror(qe));
         double dnew = -lam_eq;
-        /* Displacements of the boundary nodes. */
+        /* Displacements: u_k = C_k B_k^T lambda. */
         for (int k = 0; k < 2; k++) {
             sbody *b = &w->b[k];
-            size_t len = (size_t)(2 * b->nb);
-            memset(b->v, 0, len * sizeof *b->v);
+            memset(b->fd, 0, (size_t)b->nd * sizeof *b->fd);
             for (int j = 0; j < nr; j++) {
                 double l = w->x[j];
                 if (l <= 0.0)
                     continue;
-                const double *vj = w->V[k] + (size_t)j * len;
-                for (size_t q = 0; q < len; q++)
-                    b->v[q] += l * vj[q];
+                for (int q = 0; q < 2 * w->rd[k][j].m; q++)
+                    b->fd[w->rd[k][j].slot[q]] += l * w->rd[k][j].g[q];
             }
-            for (gs_index q = 0; q < b->nb; q++) {
-                gs_index node = b->mesh->boundary[q];
-                b->u[2 * node] = b->v[2 * q];
-                b->u[2 * node + 1] = b->v[2 * q + 1];
-            }
+            GS_TRY(sbody_displace(b));
         }
         /* Settled when delta changed by less than 1e-7 of the elastic
          * rotation twice in a row. The active set is not a criterion: the
@@ -801,8 +959,7 @@ static void pairs_of(const work *w, int nr, double F, gs_stiffness_point *pt)
         double l = w->x[i];
         if (l <= 0.0)
             continue;
-        int tooth[2];
-        cand_teeth(w, w->cand[i], tooth);
+        const int *tooth = w->teeth[i];
         double f = -l * w->a[i] * w->sgn / w->rb;
         int j = 0;
         while (j < na && (acc[j].tooth[0] != tooth[0] || acc[j].tooth[1] != tooth[1]))
@@ -858,7 +1015,7 @@ struct gs_stiffness_run {
     gs_stiffness_opts o;
     work w;
     double *uT[2];          /* displacements at T (central tangent) */
-    double T, F, bmm, pitch, thB_first, ratio, t_start;
+    double T, F, bmm, pitch, thB_first, ratio, t_start, cpu_start;
     int next;               /* next roll position */
     gs_stiffness_result out;
 };
@@ -938,6 +1095,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (!r)
         return GS_ENOMEM;
     r->t_start = gs_now();
+    r->cpu_start = cpu_now();
     r->sc = sc;
     r->o = o;
     const gs_scene_mesh *sm = r->sm = &sc->meshes[mesh_index];
@@ -1231,6 +1389,18 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
     out->frac_multi = (double)multi / o.positions;
     out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
     out->seconds = gs_now() - r->t_start;
+    out->cpu_seconds = cpu_now() - r->cpu_start;
+    out->columns = 0;
+    out->cpu_mesh = out->cpu_factor = out->cpu_columns = out->cpu_solves = 0.0;
+    for (int k = 0; k < 2; k++) {
+        out->columns += w.b[k].columns;
+        out->cpu_mesh += w.b[k].t_mesh;
+        out->cpu_factor += w.b[k].t_factor;
+        out->cpu_columns += w.b[k].t_columns;
+        out->cpu_solves += w.b[k].t_solves;
+    }
+    out->cpu_contact = out->cpu_seconds - out->cpu_mesh - out->cpu_factor - out->cpu_columns -
+                       out->cpu_solves;
 #undef w
     gs_stiffness_run_free(run);
     return GS_OK;
@@ -1434,5 +1604,15 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(o, "modified", json_object_new_boolean(r->modified));
     json_object_object_add(o, "fraction_multi_pair", json_num(r->frac_multi));
     json_object_object_add(o, "seconds", json_num(r->seconds));
+    json_object_object_add(o, "solves", json_object_new_int64(r->solves));
+    json_object_object_add(o, "columns", json_object_new_int64(r->columns));
+    json_object *tm = json_object_new_object();
+    json_object_object_add(tm, "cpu_s", json_num(r->cpu_seconds));
+    json_object_object_add(tm, "mesh_s", json_num(r->cpu_mesh));
+    json_object_object_add(tm, "factor_s", json_num(r->cpu_factor));
+    json_object_object_add(tm, "columns_s", json_num(r->cpu_columns));
+    json_object_object_add(tm, "solves_s", json_num(r->cpu_solves));
+    json_object_object_add(tm, "contact_s", json_num(r->cpu_contact));
+    json_object_object_add(o, "cpu", tm);
     return o;
 }

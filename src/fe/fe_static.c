@@ -16,6 +16,15 @@ struct gs_fe_static {
     cholmod_common c;
     cholmod_factor *L;
     long solves;
+    /* Half columns (gs_fe_static_half_column): */
+    SuiteSparse_long *iperm; /* ne: factor position of free dof q */
+    SuiteSparse_long *sup;   /* ne: supernode of factor column k */
+    double *x;               /* ne: dense work, zero between calls */
+    unsigned char *mark;     /* nsuper: supernode queued */
+    SuiteSparse_long *heap;  /* nsuper: pending supernodes (min-heap) */
+    gs_index *hidx;          /* ne: pattern of the last half column */
+    double *hval;            /* ne: its values */
+    cholmod_dense *bw, *bx, *by, *be; /* gs_fe_static_back: reused solution and workspace */
 };
 
 void gs_fe_static_free(gs_fe_static **ps)
@@ -25,6 +34,17 @@ void gs_fe_static_free(gs_fe_static **ps)
     gs_fe_static *s = *ps;
     if (s->L)
         cholmod_l_free_factor(&s->L, &s->c);
+    free(s->iperm);
+    free(s->sup);
+    free(s->x);
+    free(s->mark);
+    free(s->heap);
+    free(s->hidx);
+    free(s->hval);
+    cholmod_l_free_dense(&s->bw, &s->c);
+    cholmod_l_free_dense(&s->bx, &s->c);
+    cholmod_l_free_dense(&s->by, &s->c);
+    cholmod_l_free_dense(&s->be, &s->c);
     cholmod_l_finish(&s->c);
     free(s);
     *ps = NULL;
@@ -41,6 +61,9 @@ gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
     s->m = m;
     cholmod_l_start(&s->c);
     s->c.print = 0;
+    /* Supernodal LL' always (also for small K): the half columns walk its
+     * supernodes. */
+    s->c.supernodal = CHOLMOD_SUPERNODAL;
     if (m->ne == 0) {
         *out = s;
         return GS_OK;
@@ -65,6 +88,28 @@ gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
     if (cholmod_l_rcond(s->L, &s->c) < 1e-13) {
         err = GS_ESINGULAR;
         goto fail;
+    }
+    if (!s->L->is_super || !s->L->is_ll) {
+        err = GS_EINTERNAL;
+        goto fail;
+    }
+    {
+        size_t ne = (size_t)m->ne, ns = s->L->nsuper;
+        s->iperm = malloc(ne * sizeof *s->iperm);
+        s->sup = malloc(ne * sizeof *s->sup);
+        s->x = calloc(ne, sizeof *s->x);
+        s->mark = calloc(ns, 1);
+        s->heap = malloc(ns * sizeof *s->heap);
+        s->hidx = malloc(ne * sizeof *s->hidx);
+        s->hval = malloc(ne * sizeof *s->hval);
+        if (!s->iperm || !s->sup || !s->x || !s->mark || !s->heap || !s->hidx || !s->hval)
+            goto fail;
+        const SuiteSparse_long *perm = s->L->Perm, *super = s->L->super;
+        for (size_t k = 0; k < ne; k++)
+            s->iperm[perm[k]] = (SuiteSparse_long)k;
+        for (size_t q = 0; q < ns; q++)
+            for (SuiteSparse_long k = super[q]; k < super[q + 1]; k++)
+                s->sup[k] = (SuiteSparse_long)q;
     }
     *out = s;
     return GS_OK;
@@ -128,19 +173,23 @@ gs_err gs_fe_static_solve(gs_fe_static *s, int nrhs, const double *f_nodes, doub
     return GS_OK;
 }
 
+/* All n dofs of d in the model's range 0 .. 2 n_nodes - 1. */
+static bool dofs_ok(const gs_fe_model *m, gs_index n, const gs_index *d)
+{
+    for (gs_index i = 0; i < n; i++)
+        if (d[i] < 0 || d[i] >= 2 * m->n_nodes)
+            return false;
+    return true;
+}
+
 gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_index n_rows,
                             const gs_index *rows, double *out)
 {
     if (!s || n < 0 || n_rows < 0 || (n > 0 && (!cols || !out)) || (n_rows > 0 && !rows))
         return GS_EINVAL;
     const gs_fe_model *m = s->m;
-    gs_index ndof = 2 * m->n_nodes;
-    for (int j = 0; j < n; j++)
-        if (cols[j] < 0 || cols[j] >= ndof)
-            return GS_EINVAL;
-    for (gs_index i = 0; i < n_rows; i++)
-        if (rows[i] < 0 || rows[i] >= ndof)
-            return GS_EINVAL;
+    if (!dofs_ok(m, n, cols) || !dofs_ok(m, n_rows, rows))
+        return GS_EINVAL;
     memset(out, 0, (size_t)n * (size_t)n_rows * sizeof *out);
     if (m->ne == 0 || n == 0 || n_rows == 0)
         return GS_OK;
@@ -182,4 +231,123 @@ gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_ind
     }
     free(job);
     return err;
+}
+
+gs_index gs_fe_static_size(const gs_fe_static *s)
+{
+    return s ? s->m->ne : 0;
+}
+
+static void heap_push(SuiteSparse_long *h, size_t *n, SuiteSparse_long v)
+{
+    size_t i = (*n)++;
+    while (i > 0 && h[(i - 1) / 2] > v) {
+        h[i] = h[(i - 1) / 2];
+        i = (i - 1) / 2;
+    }
+    h[i] = v;
+}
+
+static SuiteSparse_long heap_pop(SuiteSparse_long *h, size_t *n)
+{
+    SuiteSparse_long top = h[0], v = h[--(*n)];
+    size_t i = 0;
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= *n)
+            break;
+        if (c + 1 < *n && h[c + 1] < h[c])
+            c++;
+        if (h[c] >= v)
+            break;
+        h[i] = h[c];
+        i = c;
+    }
+    if (*n > 0)
+        h[i] = v;
+    return top;
+}
+
+gs_err gs_fe_static_half_column(gs_fe_static *s, gs_index dof, gs_index *nnz,
+                                const gs_index **idx, const double **val)
+{
+    if (!s || !nnz || !idx || !val)
+        return GS_EINVAL;
+    const gs_fe_model *m = s->m;
+    if (dof < 0 || dof >= 2 * m->n_nodes)
+        return GS_EINVAL;
+    *nnz = 0;
+    *idx = s->hidx;
+    *val = s->hval;
+    if (m->ne == 0 || m->dof[dof] < 0)
+        return GS_OK;
+    /* Forward substitution L y = P e_dof over the supernodes it reaches (the
+     * ancestors of the unit's column), in increasing order. */
+    const cholmod_factor *L = s->L;
+    const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+    const double *Lx = L->x;
+    double *x = s->x;
+    SuiteSparse_long k0 = s->iperm[m->dof[dof]];
+    x[k0] = 1.0;
+    size_t nh = 0;
+    heap_push(s->heap, &nh, s->sup[k0]);
+    s->mark[s->sup[k0]] = 1;
+    gs_index n = 0;
+    while (nh > 0) {
+        SuiteSparse_long q = heap_pop(s->heap, &nh);
+        s->mark[q] = 0;
+        SuiteSparse_long nc = super[q + 1] - super[q], nr = pi[q + 1] - pi[q];
+        const SuiteSparse_long *rows = Ls + pi[q];
+        const double *lq = Lx + px[q];
+        for (SuiteSparse_long c = 0; c < nc; c++) {
+            SuiteSparse_long j = super[q] + c;
+            double xj = x[j] / lq[c + c * nr];
+            x[j] = xj;
+            if (xj != 0.0)
+                for (SuiteSparse_long r = c + 1; r < nr; r++)
+                    x[rows[r]] -= lq[r + c * nr] * xj;
+            s->hidx[n] = (gs_index)j;
+            s->hval[n++] = xj;
+            x[j] = 0.0;
+        }
+        for (SuiteSparse_long r = nc; r < nr; r++) {
+            SuiteSparse_long t = s->sup[rows[r]];
+            if (!s->mark[t]) {
+                s->mark[t] = 1;
+                heap_push(s->heap, &nh, t);
+            }
+        }
+    }
+    *nnz = n;
+    return GS_OK;
+}
+
+gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_rows,
+                         const gs_index *rows, double *out)
+{
+    if (!s || nrhs < 0 || n_rows < 0 || (nrhs > 0 && (!z || !out)) || (n_rows > 0 && !rows))
+        return GS_EINVAL;
+    const gs_fe_model *m = s->m;
+    if (!dofs_ok(m, n_rows, rows))
+        return GS_EINVAL;
+    memset(out, 0, (size_t)nrhs * (size_t)n_rows * sizeof *out);
+    if (m->ne == 0 || nrhs == 0 || n_rows == 0)
+        return GS_OK;
+    size_t ne = (size_t)m->ne;
+    cholmod_dense Z = {.nrow = ne, .ncol = (size_t)nrhs, .nzmax = ne * (size_t)nrhs, .d = ne,
+                       .x = (void *)z, .xtype = CHOLMOD_REAL, .dtype = CHOLMOD_DOUBLE};
+    /* solve2 keeps the solution and workspace between calls. */
+    if (!cholmod_l_solve2(CHOLMOD_Lt, s->L, &Z, NULL, &s->bw, NULL, &s->by, &s->be, &s->c) ||
+        !cholmod_l_solve2(CHOLMOD_Pt, s->L, s->bw, NULL, &s->bx, NULL, &s->by, &s->be, &s->c))
+        return GS_ENOMEM;
+    s->solves += nrhs;
+    for (int j = 0; j < nrhs; j++) {
+        const double *x = (const double *)s->bx->x + (size_t)j * s->bx->d;
+        double *o = out + (size_t)j * (size_t)n_rows;
+        for (gs_index i = 0; i < n_rows; i++) {
+            gs_index q = m->dof[rows[i]];
+            o[i] = q >= 0 ? x[q] : 0.0;
+        }
+    }
+    return GS_OK;
 }

@@ -95,6 +95,11 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
                r->te_loaded_max - r->te_loaded_min);
     printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
            r->solves);
+    printf("CPU %.3f s: mesh and FE models %.3f, factorisation %.3f, %ld columns %.3f, "
+           "%ld solves %.3f, contact %.3f (%.4f s per position)\n",
+           r->cpu_seconds, r->cpu_mesh, r->cpu_factor, r->columns, r->cpu_columns, r->solves,
+           r->cpu_solves, r->cpu_contact,
+           r->positions > 0 ? r->cpu_seconds / r->positions : 0.0);
 }
 
 int main(int argc, char **argv)

@@ -100,6 +100,7 @@ def compare(pair_dir, tool, refine=None, extra=()):
         return sum(v) / len(v) if v else float("nan")
 
     summ = dict(refine=g["refine"], nodes=g["nodes"], seconds=g["seconds"], positions=n,
+                cpu=g.get("cpu"),
                 max_abs_err_k=max(abs(x["err_k"]) for x in rows),
                 min_err_k=min(x["err_k"] for x in rows),
                 max_err_k=max(x["err_k"] for x in rows),
