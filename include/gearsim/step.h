@@ -102,6 +102,10 @@ typedef struct gs_step_plan {
     int *n_dof;
     size_t *rec_off, *sol_off;
     size_t rec_size, sol_size;
+    /* Per body with a mesh: the search pass that last listed each mesh
+     * node (duplicates are dropped as the nodes come), and its count. */
+    uint32_t **seen;
+    uint32_t pass;
 } gs_step_plan;
 
 /* Energy bookkeeping (J).
