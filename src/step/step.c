@@ -23,9 +23,11 @@
 
 /* Bodies that give their record in two phases (models.h): the free part
  * first, then only the compliance entries the solve reads. */
-static bool two_phase(const gs_body_rt *b)
+static bool two_phase(const gs_system *sys, const gs_body_rt *b)
 {
-    return b->ops->interface_free && b->ops->compliance;
+    /* Without contact meshes the solve reads every entry (the coordinates'):
+     * the whole records in one exchange. */
+    return sys->n_contact > 0 && b->ops->interface_free && b->ops->compliance;
 }
 
 /* Records of the bodies this rank owns (every body when `all`); the
@@ -60,7 +62,7 @@ static void records(gs_system *sys, double *rec, bool all)
             continue;
         }
         double t0 = gs_now();
-        if (two_phase(b))
+        if (two_phase(sys, b))
             b->ops->interface_free(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         else
             b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
@@ -74,7 +76,7 @@ static void free_part(const gs_system *sys, int i, size_t *off, size_t *len)
 {
     const gs_step_plan *p = &sys->plan;
     size_t nd = (size_t)p->n_dof[i], c = nd * nd;
-    *off = two_phase(&sys->bodies[i]) ? c : 0;
+    *off = two_phase(sys, &sys->bodies[i]) ? c : 0;
     *len = c + nd + 2 * (size_t)p->n_nodes[i] - *off;
 }
 
@@ -106,7 +108,7 @@ void gs_step_free_pack(const gs_system *sys, double *rec, double *buf, bool unpa
 bool gs_step_two_phase(const gs_system *sys)
 {
     for (int i = 0; i < sys->n_bodies; i++)
-        if (two_phase(&sys->bodies[i]) && sys->plan.n_dof[i] > 0)
+        if (two_phase(sys, &sys->bodies[i]) && sys->plan.n_dof[i] > 0)
             return true;
     return false;
 }
@@ -134,7 +136,7 @@ gs_err gs_step_select(gs_system *sys, const double *rec, int *mask)
     for (int i = 0; i < sys->n_bodies; i++) {
         size_t nd = (size_t)p->n_dof[i];
         /* A two-phase body that could not begin its step says so in d0[0]. */
-        if (nd > 0 && two_phase(&sys->bodies[i]) && !isfinite(rec[p->rec_off[i] + nd * nd]))
+        if (nd > 0 && two_phase(sys, &sys->bodies[i]) && !isfinite(rec[p->rec_off[i] + nd * nd]))
             return GS_ESINGULAR;
     }
     if (sys->n_contact > 0)
@@ -151,7 +153,7 @@ size_t gs_step_compliance_size(const gs_system *sys, const int *mask)
         size_t k = 0;
         for (int a = 0; a < sys->plan.n_dof[i]; a++)
             k += mask[a] != 0;
-        if (two_phase(&sys->bodies[i]))
+        if (two_phase(sys, &sys->bodies[i]))
             n += k * k;
         mask += sys->plan.n_dof[i];
     }
@@ -183,7 +185,7 @@ static gs_err compliance(gs_system *sys, const int *mask, double *buf, double *r
         int nd = p->n_dof[i];
         int k = selected(sys, i, mask, sel);
         mask += nd;
-        if (!two_phase(b))
+        if (!two_phase(sys, b))
             continue;
         size_t kk = (size_t)k * (size_t)k;
         if (rec) { /* rank 0: into the record's C block */
