@@ -243,6 +243,15 @@ gs_err gs_fe_body_increment(gs_fe_body *b, int n, const gs_index *dofs, double *
  * solves). Errors: GS_EINVAL, GS_ESTATE (no time step), GS_ENOMEM. */
 gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C);
 
+/* The sub-block of that block at the k positions sel[0..k) of the dof list
+ * (C: k x k, column-major): the same entries, bit for bit. The columns of
+ * all n dofs are cached first, as gs_fe_body_compliance does, so that the
+ * cache and its batched solves do not depend on the selection (the
+ * two-phase step record: the solver names the rows it reads). Errors: as
+ * gs_fe_body_compliance, GS_EINVAL for a position outside 0..n-1. */
+gs_err gs_fe_body_compliance_sub(gs_fe_body *b, int n, const gs_index *dofs, int k, const int *sel,
+                                 double *C);
+
 /* Add the response to generalised interface forces f (n values, N or N m,
  * body frame, at the midpoint) on `dofs`: dq += A^{-1} E f, from the cached
  * columns (computed if missing). May be called several times in a step; the

@@ -38,6 +38,16 @@ typedef struct gs_body_ops {
      * displacements (2 n_nodes, body frame) into rec. A failure is reported
      * as a non-finite C[0]. */
     void (*interface)(const gs_system *sys, gs_body_rt *b, double h, double *rec);
+    /* The same record in two phases (both NULL: interface() only). The
+     * step solver reads only the compliance entries of the unknowns its
+     * rows touch, known once the free increments and node positions are
+     * (gs_step_select). interface_free: as interface() without C (rec's C
+     * block left untouched), a failure reported as a non-finite d0[0].
+     * compliance: then the k x k sub-block C[sel, sel] (column-major) of the
+     * plan dofs sel[0..k) (ascending), bit for bit the entries interface()
+     * writes; a failure as a non-finite Cs[0]. */
+    void (*interface_free)(const gs_system *sys, gs_body_rt *b, double h, double *rec);
+    void (*compliance)(const gs_system *sys, gs_body_rt *b, int k, const int *sel, double *Cs);
     /* Owner rank, after the solve: complete the body's own step under the
      * interface forces f (n_dof, same order). NULL: nothing to do (a rigid
      * body's state is the system's q, w). */

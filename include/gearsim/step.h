@@ -104,6 +104,10 @@ typedef struct gs_step_plan {
     int *n_dof;
     size_t *rec_off, *sol_off;
     size_t rec_size, sol_size;
+    /* Per body with a mesh: the search pass that last listed each mesh
+     * node (duplicates are dropped as the nodes come), and its count. */
+    uint32_t **seen;
+    uint32_t pass;
 } gs_step_plan;
 
 /* Energy bookkeeping (J).
@@ -152,6 +156,9 @@ struct gs_system {
     void *solver;            /* rank 0 scratch of the contact solve (src/step/contact_step.c) */
     double *buf;             /* records and solution of gs_step_serial */
     size_t buf_cap;
+    int *rec_mask, *rec_sel; /* two-phase record scratch (gs_step_select, gs_step_compliance) */
+    double *rec_cbuf;        /* gs_step_serial's packed compliance blocks */
+    size_t cap_mask, cap_sel, cap_cbuf;
     gs_diag diag;            /* why the last step was refused (gs_system_check); empty otherwise */
 };
 
@@ -182,6 +189,17 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  *                     end of a step of h (gs_step_refine instead when the
  *                     solve answered GS_EREFINE)
  *
+ * Two-phase record (bodies with interface_free and compliance, models.h:
+ * the elastic gears): gs_step_records writes their free part only (d0,
+ * node displacements); the free parts go to rank 0 (gs_step_free_pack),
+ * rank 0 finds the step's rows and names the dofs whose compliance entries
+ * the solve reads (gs_step_select, a mask over the plan dofs, bodies in
+ * order), every rank takes that mask, the owners write those sub-blocks
+ * (gs_step_compliance, packed k x k per two-phase body, zeros for the
+ * others' so that a sum over ranks assembles them), and rank 0 places them
+ * into its records (gs_step_compliance_unpack) before gs_step_solve. The
+ * solution is bit for bit that of the whole blocks (docs/PERFORMANCE.md).
+ *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,
  * n_rows, penetration, friction loss, contact work), then the bodies' interface forces
@@ -199,6 +217,23 @@ void gs_step_refine(gs_system *sys);
  * answers GS_EREFINE; its other errors end the step. */
 gs_err gs_step_whole(gs_system *sys, gs_err (*substep)(void *ctx), void *ctx);
 void gs_step_records(gs_system *sys, double *rec);
+/* True when some body with interface dofs records in two phases. */
+bool gs_step_two_phase(const gs_system *sys);
+/* Phase one: its size in doubles, and the records' free parts into buf
+ * (or, with unpack, from buf into the records). */
+size_t gs_step_free_size(const gs_system *sys);
+void gs_step_free_pack(const gs_system *sys, double *rec, double *buf, bool unpack);
+/* The mask: its size in ints (the plan dofs and one spare slot, free for
+ * the caller), the system's scratch for it (NULL when out of memory). */
+size_t gs_step_mask_size(const gs_system *sys);
+int *gs_step_mask(gs_system *sys);
+/* Rank 0, after phase one: the rows of the step and the mask. */
+gs_err gs_step_select(gs_system *sys, const double *rec, int *mask);
+/* Phase two: its size in doubles for that mask, the own bodies' packed
+ * sub-blocks into buf, and (rank 0) from buf into the records. */
+size_t gs_step_compliance_size(const gs_system *sys, const int *mask);
+gs_err gs_step_compliance(gs_system *sys, const int *mask, double *buf);
+gs_err gs_step_compliance_unpack(gs_system *sys, const int *mask, const double *buf, double *rec);
 gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol);
 gs_err gs_step_apply(gs_system *sys, const double *sol);
 gs_err gs_step_serial(gs_system *sys);

@@ -1,6 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * The replicated engine (see include/gearsim/engine.h). */
 #include <json-c/json.h>
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -18,6 +19,10 @@ struct gs_engine {
     void *hook_user;
     double *rec, *sol;
     size_t rec_n, sol_n;    /* capacities */
+    double *pk;             /* two-phase record: free parts, then compliance sub-blocks, packed */
+    size_t pk_n;
+    int *mask;              /* the plan dofs whose compliance the solve reads, then the status */
+    size_t mask_n;
     double *ebuf;           /* 2 per body: energy reports */
     double **field;         /* per body with fields (rank 0): u (2n) then vm (n) */
     int64_t field_step;     /* step of the fields held, -1 none */
@@ -53,7 +58,11 @@ static void unload(gs_engine *e)
     free(e->rec);
     free(e->sol);
     free(e->ebuf);
-    e->rec = e->sol = e->ebuf = NULL;
+    free(e->pk);
+    free(e->mask);
+    e->rec = e->sol = e->ebuf = e->pk = NULL;
+    e->mask = NULL;
+    e->pk_n = e->mask_n = 0;
 }
 
 /* Owners report the energies of bodies with their own state; every rank
@@ -243,6 +252,14 @@ static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
 /* One distributed step: records reduced to rank 0 (each rank fills only its
  * own bodies, the others are exact zeros, so the sum is exact and the result
  * independent of the rank count), solve there, broadcast, apply. */
+static bool grow_pk(gs_engine *e, size_t n)
+{
+    double *r = gs_grow(e->pk, &e->pk_n, n, sizeof(double));
+    if (r)
+        e->pk = r;
+    return r != NULL;
+}
+
 static gs_err reserve(gs_engine *e)
 {
     const gs_step_plan *p = &e->sys->plan;
@@ -254,8 +271,75 @@ static gs_err reserve(gs_engine *e)
     if (!r)
         return GS_ENOMEM;
     e->sol = r;
+    if (gs_step_two_phase(e->sys)) {
+        int *m = gs_grow(e->mask, &e->mask_n, gs_step_mask_size(e->sys), sizeof(int));
+        if (!m)
+            return GS_ENOMEM;
+        e->mask = m;
+        if (e->size > 1 && !grow_pk(e, gs_step_free_size(e->sys)))
+            return GS_ENOMEM;
+    }
     return GS_OK;
 }
+
+/* Sum the packed buffer (n doubles) over the ranks into rank 0's. */
+static void reduce_pk(gs_engine *e, size_t n)
+{
+    if (e->rank == 0)
+        MPI_Reduce(MPI_IN_PLACE, e->pk, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+    else
+        MPI_Reduce(e->pk, NULL, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+}
+
+/* The two-phase record (step.h) after phase one's records: their free
+ * parts to rank 0, the rows and the mask there, the mask to every rank,
+ * the selected compliance sub-blocks from their owners to rank 0's
+ * records. Collective; returns the selection's verdict on every rank, and
+ * in *root a failure of rank 0 alone (it goes out with the solution). */
+static gs_err two_phase(gs_engine *e, gs_err *root)
+{
+    *root = GS_OK;
+    gs_system *s = e->sys;
+    gs_step_timing *tm = &e->timing;
+    double t0 = gs_now(), t1;
+    if (e->size > 1) {
+        size_t n = gs_step_free_size(s);
+        gs_step_free_pack(s, e->rec, e->pk, false);
+        reduce_pk(e, n);
+        if (e->rank == 0)
+            gs_step_free_pack(s, e->rec, e->pk, true);
+    }
+    t1 = gs_now();
+    tm->reduce += t1 - t0;
+    size_t nm = gs_step_mask_size(s);
+    if (e->rank == 0)
+        e->mask[nm - 1] = (int)gs_step_select(s, e->rec, e->mask);
+    t0 = gs_now();
+    tm->solve += t0 - t1;
+    if (e->size > 1)
+        MPI_Bcast(e->mask, (int)nm, MPI_INT, 0, e->comm);
+    t1 = gs_now();
+    tm->bcast += t1 - t0;
+    gs_err err = (gs_err)e->mask[nm - 1];
+    if (err != GS_OK)
+        return err;
+    size_t nc = gs_step_compliance_size(s, e->mask);
+    if (!grow_pk(e, nc))
+        MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
+    if (gs_step_compliance(s, e->mask, e->pk) != GS_OK)
+        for (size_t k = 0; k < nc; k++) /* out of memory: the solve refuses NaN */
+            e->pk[k] = NAN;
+    t0 = gs_now();
+    tm->records += t0 - t1;
+    if (e->size > 1)
+        reduce_pk(e, nc);
+    if (e->rank == 0)
+        *root = gs_step_compliance_unpack(s, e->mask, e->pk, e->rec);
+    tm->reduce += gs_now() - t0;
+    return GS_OK;
+}
+
+static gs_err two_phase(gs_engine *e, gs_err *root);
 
 static gs_err dist_substep(gs_engine *e)
 {
@@ -281,7 +365,10 @@ static gs_err dist_substep(gs_engine *e)
     gs_step_records(s, e->rec);
     t0 = gs_now();
     tm->records += t0 - t1;
-    if (e->size > 1) {
+    /* Elastic gears record in two phases (step.h); the others' records go
+     * to rank 0 whole. */
+    bool two = gs_step_two_phase(s);
+    if (e->size > 1 && !two) {
         if (e->rank == 0)
             MPI_Reduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
         else
@@ -289,8 +376,13 @@ static gs_err dist_substep(gs_engine *e)
     }
     t1 = gs_now();
     tm->reduce += t1 - t0;
+    gs_err perr = GS_OK;
+    if (two) {
+        GS_TRY(two_phase(e, &perr));
+        t1 = gs_now();
+    }
     if (e->rank == 0) {
-        err = gs_step_solve(s, e->rec, e->sol);
+        err = perr != GS_OK ? perr : gs_step_solve(s, e->rec, e->sol);
         e->sol[n] = (double)err;
     }
     t0 = gs_now();

@@ -127,6 +127,10 @@ struct gs_fe_body {
     double *blk_C;
     size_t cap_blk_q, cap_blk_C;
     bool blk_valid;
+    /* Scratch of a compliance or apply request: resolved indices of its
+     * dofs, of the selected ones, and their positions in the last block. */
+    gs_index *req_q, *req_sel, *req_old;
+    size_t cap_req_q, cap_req_sel, cap_req_old;
 
     gs_fe_stats st;
 };
@@ -171,6 +175,9 @@ void gs_fe_body_free(gs_fe_body **pb)
     free(b->blk_q);
     free(b->blk_pos);
     free(b->blk_C);
+    free(b->req_q);
+    free(b->req_sel);
+    free(b->req_old);
     free(b->next_r);
     free(b);
     *pb = NULL;
@@ -880,20 +887,16 @@ gs_err gs_fe_body_increment(gs_fe_body *b, int n, const gs_index *dofs, double *
     return GS_OK;
 }
 
-/* The columns of dofs (resolve_all), each of them cached, in a new array
- * that the caller frees. */
+/* The columns of dofs (resolve_all), each of them cached; their indices
+ * in the body's request scratch (valid until the next request). */
 static gs_err cached_columns(gs_fe_body *b, int n, const gs_index *dofs, gs_index **out)
 {
-    gs_index *qi = gs_calloc((size_t)n, sizeof *qi);
+    gs_index *qi = gs_grow(b->req_q, &b->cap_req_q, (size_t)(n ? n : 1), sizeof *qi);
     if (!qi)
         return GS_ENOMEM;
-    gs_err e = resolve_all(b, n, dofs, qi);
-    if (e == GS_OK)
-        e = cache_ensure(b, n, qi);
-    if (e != GS_OK) {
-        free(qi);
-        return e;
-    }
+    b->req_q = qi;
+    GS_TRY(resolve_all(b, n, dofs, qi));
+    GS_TRY(cache_ensure(b, n, qi));
     *out = qi;
     return GS_OK;
 }
@@ -951,14 +954,11 @@ static void block_forget(gs_fe_body *b)
     b->blk_valid = false;
 }
 
-gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C)
+/* The compliance block C (n x n, column-major) of the resolved indices
+ * qi, from the last block where it has the entries, else from the cached
+ * columns; kept as the last block. */
+static gs_err block_of(gs_fe_body *b, int n, const gs_index *qi, double *C)
 {
-    if (!b || n < 0 || (n > 0 && (!dofs || !C)))
-        return GS_EINVAL;
-    if (!b->have_step)
-        return GS_ESTATE;
-    gs_index *qi;
-    GS_TRY(cached_columns(b, n, dofs, &qi));
     const gs_index ne = b->ne;
     const double is = b->held ? 0.0 : 1.0 / b->sigma;
     /* Positions in the last block (-1: not there); an unchanged list of
@@ -969,13 +969,17 @@ gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double 
     if (same) {
         memcpy(C, b->blk_C, (size_t)n * (size_t)n * sizeof *C);
         b->st.block_reused += (uint64_t)n * (uint64_t)n;
-        free(qi);
         return GS_OK;
     }
-    gs_index *old = b->blk_valid ? gs_calloc((size_t)n, sizeof *old) : NULL;
-    if (old)
-        for (int k = 0; k < n; k++)
-            old[k] = qi[k] >= 0 ? b->blk_pos[qi[k]] : -1;
+    gs_index *old = NULL;
+    if (b->blk_valid) {
+        old = gs_grow(b->req_old, &b->cap_req_old, (size_t)(n ? n : 1), sizeof *old);
+        if (old) {
+            b->req_old = old;
+            for (int k = 0; k < n; k++)
+                old[k] = qi[k] >= 0 ? b->blk_pos[qi[k]] : -1;
+        }
+    }
     const gs_index np = b->blk_n;
     uint64_t reused = 0;
     /* Entries symmetrised as (a_ij + a_ji) / 2: G is symmetric only up to
@@ -1002,10 +1006,40 @@ gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double 
         }
     }
     b->st.block_reused += reused;
-    free(old);
     block_keep(b, n, qi, C);
-    free(qi);
     return GS_OK;
+}
+
+gs_err gs_fe_body_compliance(gs_fe_body *b, int n, const gs_index *dofs, double *C)
+{
+    if (!b || n < 0 || (n > 0 && (!dofs || !C)))
+        return GS_EINVAL;
+    if (!b->have_step)
+        return GS_ESTATE;
+    gs_index *qi;
+    GS_TRY(cached_columns(b, n, dofs, &qi));
+    return block_of(b, n, qi, C);
+}
+
+gs_err gs_fe_body_compliance_sub(gs_fe_body *b, int n, const gs_index *dofs, int k, const int *sel,
+                                 double *C)
+{
+    if (!b || n < 0 || k < 0 || k > n || (n > 0 && !dofs) || (k > 0 && (!sel || !C)))
+        return GS_EINVAL;
+    if (!b->have_step)
+        return GS_ESTATE;
+    for (int a = 0; a < k; a++)
+        if (sel[a] < 0 || sel[a] >= n)
+            return GS_EINVAL;
+    gs_index *qi;
+    GS_TRY(cached_columns(b, n, dofs, &qi));
+    gs_index *qs = gs_grow(b->req_sel, &b->cap_req_sel, (size_t)(k ? k : 1), sizeof *qs);
+    if (!qs)
+        return GS_ENOMEM;
+    b->req_sel = qs;
+    for (int a = 0; a < k; a++)
+        qs[a] = qi[sel[a]];
+    return block_of(b, k, qs, C);
 }
 
 static gs_err touch(gs_fe_body *b, gs_index i, double f)
@@ -1080,7 +1114,6 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
     }
     if (ng > 0)
         axpy_group(b->delta, ne, ng, fs, cols);
-    free(qi);
     if (e != GS_OK)
         return e;
     if (!b->held) {

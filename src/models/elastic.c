@@ -178,47 +178,73 @@ static gs_err interface_dofs(const gs_system *sys, const gs_body_rt *b, elastic 
     return GS_OK;
 }
 
-static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+/* Begin the body's step and write d0 and the nodes' displacements into rec
+ * (its C block untouched); the number of interface dofs in *n. */
+static gs_err interface_begin(const gs_system *sys, gs_body_rt *b, double h, double *rec, int *n)
 {
     elastic *el = b->model;
     double M = 0, c = 0;
+    *n = 0;
     if (b->coord >= 0)
         gs_system_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
     if (el->begun) /* the previous global solve failed: start again */
         gs_fe_body_cancel_step(el->body);
     el->begun = false;
-    gs_err e = GS_OK;
     if (h != el->h || c != el->c) {
-        e = gs_fe_body_set_step(el->body, h, c);
-        if (e == GS_OK) {
-            el->h = h;
-            el->c = c;
-        } else {
-            el->h = 0;
+        gs_err e = gs_fe_body_set_step(el->body, h, c);
+        el->h = e == GS_OK ? h : 0;
+        if (e != GS_OK)
+            return e;
+        el->c = c;
+    }
+    GS_TRY(gs_fe_body_begin_step(el->body, M, NULL));
+    el->begun = true;
+    GS_TRY(interface_dofs(sys, b, el, n));
+    if (*n == 0)
+        return GS_OK;
+    GS_TRY(gs_fe_body_increment(el->body, *n, el->dofs, rec + (size_t)*n * *n));
+    /* Current displacements of the nodes (body frame). */
+    const double *q = gs_fe_body_q(el->body);
+    const gs_step_plan *p = &sys->plan;
+    double *u = rec + (size_t)*n * *n + *n;
+    for (int j = 0; j < p->n_nodes[b->index]; j++)
+        for (int comp = 0; comp < 2; comp++) {
+            gs_index k = gs_fe_model_dof(el->model, p->nodes[b->index][j], comp);
+            u[2 * j + comp] = k >= 0 ? q[k] : 0.0;
         }
-    }
-    if (e == GS_OK)
-        e = gs_fe_body_begin_step(el->body, M, NULL);
-    el->begun = e == GS_OK;
+    return GS_OK;
+}
+
+static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+{
+    elastic *el = b->model;
     int n = 0;
-    if (e == GS_OK)
-        e = interface_dofs(sys, b, el, &n);
-    if (e == GS_OK && n > 0) {
+    gs_err e = interface_begin(sys, b, h, rec, &n);
+    if (e == GS_OK && n > 0)
         e = gs_fe_body_compliance(el->body, n, el->dofs, rec);
-        if (e == GS_OK)
-            e = gs_fe_body_increment(el->body, n, el->dofs, rec + (size_t)n * n);
-        /* Current displacements of the nodes (body frame). */
-        const double *q = gs_fe_body_q(el->body);
-        const gs_step_plan *p = &sys->plan;
-        double *u = rec + (size_t)n * n + n;
-        for (int j = 0; e == GS_OK && j < p->n_nodes[b->index]; j++)
-            for (int comp = 0; comp < 2; comp++) {
-                gs_index k = gs_fe_model_dof(el->model, p->nodes[b->index][j], comp);
-                u[2 * j + comp] = k >= 0 ? q[k] : 0.0;
-            }
-    }
     if (e != GS_OK || (n > 0 && !(rec[0] > 0)))
         rec[0] = NAN;
+}
+
+static void elastic_interface_free(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+{
+    int n = 0;
+    gs_err e = interface_begin(sys, b, h, rec, &n);
+    int nd = sys->plan.n_dof[b->index];
+    if (e != GS_OK && nd > 0)
+        rec[(size_t)nd * nd] = NAN;
+}
+
+static void elastic_compliance(const gs_system *sys, gs_body_rt *b, int k, const int *sel, double *Cs)
+{
+    elastic *el = b->model;
+    int n = sys->plan.n_dof[b->index];
+    if (k == 0)
+        return;
+    /* The dofs are still those of interface_free() (the plan has not changed). */
+    gs_err e = el->begun ? gs_fe_body_compliance_sub(el->body, n, el->dofs, k, sel, Cs) : GS_ESTATE;
+    if (e != GS_OK || !(Cs[0] > 0))
+        Cs[0] = NAN;
 }
 
 static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *f)
@@ -324,6 +350,8 @@ const gs_body_ops gsi_body_elastic = {
     .init = elastic_init,
     .destroy = elastic_destroy,
     .interface = elastic_interface,
+    .interface_free = elastic_interface_free,
+    .compliance = elastic_compliance,
     .finish = elastic_finish,
     .energy = elastic_energy,
     .spin = elastic_spin,

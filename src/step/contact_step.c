@@ -72,6 +72,12 @@ typedef struct solver {
     size_t cap[11];      /* capacities of the eleven arrays above, in that order of reserve() */
     gs_qp *qp;
     int qp_n, qp_eq, qp_in;
+    /* Two-phase record: gsi_contact_select found the rows (and these
+     * per-mesh contact figures: rows, penetration) for the solve that
+     * follows. */
+    bool rows_ready;
+    double *mct;
+    size_t cap_mct;
 } solver;
 
 void gsi_contact_free(gs_system *sys)
@@ -93,6 +99,7 @@ void gsi_contact_free(gs_system *sys)
     free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
     free(s->inc);
+    free(s->mct);
     gs_qp_free(&s->qp);
     free(s);
     sys->solver = NULL;
@@ -504,11 +511,15 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
     return GS_OK;
 }
 
-gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
+/* The solve, or with mask (gsi_contact_select) only its rows and
+ * unknowns: the compliance entries the solve will read. */
+static gs_err contact_solve(gs_system *sys, const double *rec, double *sol, int *mask)
 {
     solver *s = get_solver(sys);
     if (!s)
         return GS_ENOMEM;
+    bool ready = s->rows_ready && !mask;
+    s->rows_ready = false;
     const gs_step_plan *p = &sys->plan;
     int n = sys->n_coords, nb = sys->n_bodies;
     /* 0. Records: sanity, and the nodes' current displacements. */
@@ -520,9 +531,9 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
         if (nd > maxdof)
             maxdof = nd;
         const double *r = rec + p->rec_off[i];
-        if (nd > 0 && (!(r[0] > 0) || !isfinite(r[0])))
+        if (!mask && nd > 0 && (!(r[0] > 0) || !isfinite(r[0])))
             return GS_ESINGULAR;
-        if (p->n_nodes[i] == 0)
+        if (p->n_nodes[i] == 0 || ready)
             continue;
         const gs_mesh *m = sys->bodies[i].ops->mesh(&sys->bodies[i]);
         if (!s->u[i]) {
@@ -536,18 +547,28 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
             s->u[i][2 * p->nodes[i][k] + 1] = u[2 * k + 1];
         }
     }
-    /* 1. Rows. */
-    s->n_rows = 0;
-    s->n_watch = 0;
+    /* 1. Rows (found by the selection of this step when ready). */
+    if (!grow(&s->mct, &s->cap_mct, 2 * (size_t)sys->n_meshes + 1))
+        return GS_ENOMEM;
+    if (!ready) {
+        s->n_rows = 0;
+        s->n_watch = 0;
+    }
     for (int mi = 0; mi < sys->n_meshes; mi++) {
         if (!sys->meshes[mi].ops->contact)
             continue;
         double pen;
         int before = s->n_rows;
-        GS_TRY(collect_rows(sys, s, mi, rec, &pen));
+        if (!ready) {
+            GS_TRY(collect_rows(sys, s, mi, rec, &pen));
+            s->mct[2 * mi] = s->n_rows - before;
+            s->mct[2 * mi + 1] = pen;
+        }
+        if (!sol)
+            continue;
         double *ct = sol + gs_sol_mesh_contact(sys, mi);
-        ct[1] = s->n_rows - before;
-        ct[2] = pen;
+        ct[1] = s->mct[2 * mi];
+        ct[2] = s->mct[2 * mi + 1];
     }
     bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
     int passes = 0;
@@ -585,6 +606,18 @@ again:;
                     *u = N++;
             }
         }
+    }
+    if (mask) {
+        /* The entries step 3 reads: the unknowns' (C[0] too, the record's
+         * health); with closure every one (its increments read whole
+         * columns, and promoted rows add unknowns). */
+        for (size_t a = 0; a < total_dof; a++)
+            mask[a] = closure || unk[a] >= 0;
+        for (int i = 0; i < nb; i++)
+            if (p->n_dof[i] > 0)
+                mask[base[i]] = 1;
+        s->rows_ready = true;
+        return GS_OK;
     }
     int ne = sys->n_eq, ni = s->n_rows;
     GS_TRY(reserve(s, N, ne, ni, maxdof));
@@ -766,4 +799,14 @@ again:;
             sol[p->sol_off[i] + a] = u >= 0 ? s->f[u] : 0.0;
         }
     return GS_OK;
+}
+
+gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
+{
+    return contact_solve(sys, rec, sol, NULL);
+}
+
+gs_err gsi_contact_select(gs_system *sys, const double *rec, int *mask)
+{
+    return contact_solve(sys, rec, NULL, mask);
 }

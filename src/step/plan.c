@@ -16,8 +16,12 @@ void gsi_plan_free(gs_step_plan *p, int n_bodies)
 {
     for (int i = 0; p->nodes && i < n_bodies; i++)
         free(p->nodes[i]);
+    for (int i = 0; p->seen && i < n_bodies; i++)
+        free(p->seen[i]);
     free(p->nodes);
+    free(p->seen);
     p->nodes = NULL;
+    p->seen = NULL;
     free(p->n_nodes);
     free(p->cap_nodes);
     free(p->n_dof);
@@ -38,13 +42,22 @@ gs_err gsi_plan_new(gs_system *sys)
     p->nodes = gs_calloc(nb, sizeof(gs_index *));
     p->rec_off = gs_calloc(nb, sizeof(size_t));
     p->sol_off = gs_calloc(nb, sizeof(size_t));
-    if (!p->n_nodes || !p->cap_nodes || !p->n_dof || !p->nodes || !p->rec_off || !p->sol_off)
+    p->seen = gs_calloc(nb, sizeof(uint32_t *));
+    if (!p->n_nodes || !p->cap_nodes || !p->n_dof || !p->nodes || !p->rec_off || !p->sol_off || !p->seen)
         return GS_ENOMEM;
     return GS_OK;
 }
 
 static gs_err add_node(gs_step_plan *p, int body, gs_index node)
 {
+    /* A node already listed in this pass: nothing to add (every window
+     * names its master nodes again). */
+    uint32_t *seen = p->seen[body];
+    if (seen) {
+        if (seen[node] == p->pass)
+            return GS_OK;
+        seen[node] = p->pass;
+    }
     gs_index *nn = gs_grow(p->nodes[body], &p->cap_nodes[body], (size_t)p->n_nodes[body] + 1,
                            sizeof(gs_index));
     if (!nn)
@@ -58,6 +71,21 @@ static int cmp_index(const void *a, const void *b)
 {
     gs_index x = *(const gs_index *)a, y = *(const gs_index *)b;
     return (x > y) - (x < y);
+}
+
+/* Ascending order of n distinct nodes: insertion sort, close to linear on
+ * the lists the search makes (tooth after tooth, nodes mostly in order). */
+static void sort_unique(gs_index *v, int n)
+{
+    for (int j = 1; j < n; j++) {
+        gs_index x = v[j];
+        int k = j;
+        while (k > 0 && v[k - 1] > x) {
+            v[k] = v[k - 1];
+            k--;
+        }
+        v[k] = x;
+    }
 }
 
 int gsi_plan_find(const gs_step_plan *p, int body, gs_index node)
@@ -103,6 +131,24 @@ gs_err gs_step_prepare(gs_system *sys)
     gs_step_plan *p = &sys->plan;
     for (int i = 0; i < sys->n_bodies; i++)
         p->n_nodes[i] = 0;
+    bool wrapped = ++p->pass == 0;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        /* Marks for the nodes of bodies with a mesh (made once, after the
+         * bodies are built; all cleared when the pass count wraps). */
+        const gs_body_rt *b = &sys->bodies[i];
+        const gs_mesh *m = b->ops && b->ops->mesh ? b->ops->mesh(b) : NULL;
+        if (!m)
+            continue;
+        if (!p->seen[i]) {
+            p->seen[i] = gs_calloc((size_t)m->n_nodes + 1, sizeof(uint32_t));
+            if (!p->seen[i])
+                return GS_ENOMEM;
+        } else if (wrapped) {
+            memset(p->seen[i], 0, ((size_t)m->n_nodes + 1) * sizeof(uint32_t));
+        }
+    }
+    if (wrapped)
+        p->pass = 1;
     for (int i = 0; i < sys->n_meshes; i++)
         if (sys->meshes[i].ops->contact)
             GS_TRY(search(sys, &sys->meshes[i]));
@@ -113,7 +159,10 @@ gs_err gs_step_prepare(gs_system *sys)
         if (n > 1) {
             /* Sorted and unique, so that every rank lays the record out alike
              * and the solve can look nodes up by bisection. */
-            qsort(p->nodes[i], (size_t)n, sizeof(gs_index), cmp_index);
+            if (p->seen[i])
+                sort_unique(p->nodes[i], n);
+            else
+                qsort(p->nodes[i], (size_t)n, sizeof(gs_index), cmp_index);
             int k = 1;
             for (int j = 1; j < n; j++)
                 if (p->nodes[i][j] != p->nodes[i][k - 1])

@@ -22,12 +22,22 @@
 #include "models/mesh_common.h"
 #include "step_internal.h"
 
+/* Bodies that give their record in two phases (models.h): the free part
+ * first, then only the compliance entries the solve reads. */
+static bool two_phase(const gs_system *sys, const gs_body_rt *b)
+{
+    /* Without contact meshes the solve reads every entry (the coordinates'):
+     * the whole records in one exchange. */
+    return sys->n_contact > 0 && b->ops->interface_free && b->ops->compliance;
+}
+
 /* Records of the bodies this rank owns (every body when `all`); the
- * others' blocks are zero so that a sum over ranks assembles them. */
+ * others' blocks are zero so that a sum over ranks assembles them. A
+ * two-phase body writes its free part only (gs_step_compliance follows). */
 static void records(gs_system *sys, double *rec, bool all)
 {
     /* Zero every block but those an elastic body of this rank overwrites
-     * whole (compliance, free increment, node displacements): megabytes per
+     * (compliance, free increment, node displacements): megabytes per
      * step for a planetary train in contact. */
     const gs_step_plan *p = &sys->plan;
     size_t end = 0;
@@ -53,9 +63,157 @@ static void records(gs_system *sys, double *rec, bool all)
             continue;
         }
         double t0 = gs_now();
-        b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+        if (two_phase(sys, b))
+            b->ops->interface_free(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+        else
+            b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         b->work_s += gs_now() - t0;
     }
+}
+
+/* The part of body i's record that travels in phase one: offset in its
+ * record and length (the free part of a two-phase body, else all). */
+static void free_part(const gs_system *sys, int i, size_t *off, size_t *len)
+{
+    const gs_step_plan *p = &sys->plan;
+    size_t nd = (size_t)p->n_dof[i], c = nd * nd;
+    *off = two_phase(sys, &sys->bodies[i]) ? c : 0;
+    *len = c + nd + 2 * (size_t)p->n_nodes[i] - *off;
+}
+
+size_t gs_step_free_size(const gs_system *sys)
+{
+    size_t n = 0;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        size_t off, len;
+        free_part(sys, i, &off, &len);
+        n += len;
+    }
+    return n ? n : 1;
+}
+
+void gs_step_free_pack(const gs_system *sys, double *rec, double *buf, bool unpack)
+{
+    for (int i = 0; i < sys->n_bodies; i++) {
+        size_t off, len;
+        free_part(sys, i, &off, &len);
+        double *r = rec + sys->plan.rec_off[i] + off;
+        if (unpack)
+            memcpy(r, buf, len * sizeof(double));
+        else
+            memcpy(buf, r, len * sizeof(double));
+        buf += len;
+    }
+}
+
+bool gs_step_two_phase(const gs_system *sys)
+{
+    for (int i = 0; i < sys->n_bodies; i++)
+        if (two_phase(sys, &sys->bodies[i]) && sys->plan.n_dof[i] > 0)
+            return true;
+    return false;
+}
+
+int *gs_step_mask(gs_system *sys)
+{
+    int *m = gs_grow(sys->rec_mask, &sys->cap_mask, gs_step_mask_size(sys), sizeof(int));
+    if (m)
+        sys->rec_mask = m;
+    return m;
+}
+
+size_t gs_step_mask_size(const gs_system *sys)
+{
+    size_t n = 0;
+    for (int i = 0; i < sys->n_bodies; i++)
+        n += (size_t)sys->plan.n_dof[i];
+    return n + 1;
+}
+
+gs_err gs_step_select(gs_system *sys, const double *rec, int *mask)
+{
+    const gs_step_plan *p = &sys->plan;
+    size_t total = gs_step_mask_size(sys) - 1;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        size_t nd = (size_t)p->n_dof[i];
+        /* A two-phase body that could not begin its step says so in d0[0]. */
+        if (nd > 0 && two_phase(sys, &sys->bodies[i]) && !isfinite(rec[p->rec_off[i] + nd * nd]))
+            return GS_ESINGULAR;
+    }
+    if (sys->n_contact > 0)
+        return gsi_contact_select(sys, rec, mask);
+    for (size_t a = 0; a < total; a++)
+        mask[a] = 1;
+    return GS_OK;
+}
+
+size_t gs_step_compliance_size(const gs_system *sys, const int *mask)
+{
+    size_t n = 0;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        size_t k = 0;
+        for (int a = 0; a < sys->plan.n_dof[i]; a++)
+            k += mask[a] != 0;
+        if (two_phase(sys, &sys->bodies[i]))
+            n += k * k;
+        mask += sys->plan.n_dof[i];
+    }
+    return n ? n : 1;
+}
+
+/* The selected dofs of body i (mask at its plan dofs) into sel; their count. */
+static int selected(const gs_system *sys, int i, const int *mask, int *sel)
+{
+    int k = 0;
+    for (int a = 0; a < sys->plan.n_dof[i]; a++)
+        if (mask[a])
+            sel[k++] = a;
+    return k;
+}
+
+static gs_err compliance(gs_system *sys, const int *mask, double *buf, double *rec, bool all)
+{
+    const gs_step_plan *p = &sys->plan;
+    int maxdof = 1;
+    for (int i = 0; i < sys->n_bodies; i++)
+        maxdof = p->n_dof[i] > maxdof ? p->n_dof[i] : maxdof;
+    int *sel = gs_grow(sys->rec_sel, &sys->cap_sel, (size_t)maxdof, sizeof(int));
+    if (!sel)
+        return GS_ENOMEM;
+    sys->rec_sel = sel;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        gs_body_rt *b = &sys->bodies[i];
+        int nd = p->n_dof[i];
+        int k = selected(sys, i, mask, sel);
+        mask += nd;
+        if (!two_phase(sys, b))
+            continue;
+        size_t kk = (size_t)k * (size_t)k;
+        if (rec) { /* rank 0: into the record's C block */
+            double *C = rec + p->rec_off[i];
+            for (int c = 0; c < k; c++)
+                for (int r = 0; r < k; r++)
+                    C[(size_t)sel[c] * nd + sel[r]] = buf[r + (size_t)c * k];
+        } else if (all || b->owner == sys->rank) {
+            double t0 = gs_now();
+            b->ops->compliance(sys, b, k, sel, buf);
+            b->work_s += gs_now() - t0;
+        } else {
+            memset(buf, 0, kk * sizeof(double));
+        }
+        buf += kk;
+    }
+    return GS_OK;
+}
+
+gs_err gs_step_compliance(gs_system *sys, const int *mask, double *buf)
+{
+    return compliance(sys, mask, buf, NULL, false);
+}
+
+gs_err gs_step_compliance_unpack(gs_system *sys, const int *mask, const double *buf, double *rec)
+{
+    return compliance(sys, mask, (double *)buf, rec, false);
 }
 
 void gs_step_records(gs_system *sys, double *rec)
@@ -522,7 +680,22 @@ static gs_err serial_substep(gs_system *sys)
     double *rec = sys->buf, *sol = rec + sys->plan.rec_size;
     /* In one process this rank plays every owner. */
     records(sys, rec, true);
-    gs_err e = gs_step_solve(sys, rec, sol);
+    gs_err e = GS_OK;
+    if (gs_step_two_phase(sys)) {
+        int *mask = gs_step_mask(sys);
+        e = mask ? gs_step_select(sys, rec, mask) : GS_ENOMEM;
+        double *cb = NULL;
+        if (e == GS_OK) {
+            cb = gs_grow(sys->rec_cbuf, &sys->cap_cbuf, gs_step_compliance_size(sys, mask), sizeof(double));
+            if (cb)
+                sys->rec_cbuf = cb;
+            e = cb ? compliance(sys, mask, cb, NULL, true) : GS_ENOMEM;
+        }
+        if (e == GS_OK)
+            e = compliance(sys, mask, cb, rec, true);
+    }
+    if (e == GS_OK)
+        e = gs_step_solve(sys, rec, sol);
     if (e != GS_OK)
         return e;
     e = apply(sys, sol, true);

@@ -7,6 +7,11 @@
 
 /* Rank 0: the step with contact meshes, a QP (src/step/contact_step.c). */
 gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol);
+/* Rank 0, before the solve, from the free part of the records (d0, node
+ * displacements): the rows of the step, kept for the solve that follows,
+ * and mask (one per plan dof, bodies in order) set where the solve reads
+ * that dof's compliance entries. */
+gs_err gsi_contact_select(gs_system *sys, const double *rec, int *mask);
 /* The discrete-gradient forces g (n_coords) of the meshes that have a force
  * (lumped, compliant, impact, kinematic) over the increment dq, their
  * approximate Jacobian J (n x n, row-major), each one's force along its

@@ -35,6 +35,9 @@ void gs_system_free(gs_system **ps)
     gsi_contact_free(s);
     gsi_plan_free(&s->plan, s->n_bodies);
     free(s->buf);
+    free(s->rec_mask);
+    free(s->rec_sel);
+    free(s->rec_cbuf);
     free(s->bodies);
     free(s->meshes);
     free(s->eq_rows);

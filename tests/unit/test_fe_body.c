@@ -386,6 +386,40 @@ static void cache_reuse_and_eviction(void **state)
  * back-substitution (four columns per pass) must give the same state bit
  * for bit as one column at a time, on a body with the same columns (the
  * columns themselves depend on which nodes were solved for together). */
+/* A sub-block (two-phase step record) holds the whole block's entries bit
+ * for bit, whatever block the body kept before (none, another selection,
+ * the whole list), and the cache fills the columns of the whole list. */
+static void compliance_sub_is_exact(void **state)
+{
+    fixture *f = *state;
+    gs_fe_body *b = f->body;
+    set_wavy_state(f, 0.1, 30.0);
+    gs_index d[9] = {GS_FE_DOF_THETA, gs_fe_dof_node(40, 0), gs_fe_dof_node(40, 1), gs_fe_dof_node(41, 0),
+                     gs_fe_dof_node(41, 1), gs_fe_dof_node(50, 0), gs_fe_dof_node(50, 1), gs_fe_dof_node(0, 0),
+                     gs_fe_dof_node(52, 1)};
+    int s1[4] = {0, 2, 5, 8}, s2[5] = {0, 1, 2, 6, 8}, bad[1] = {9};
+    double C[81], S[25];
+    gs_fe_stats st;
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0.5), GS_OK);
+    assert_int_equal(gs_fe_body_compliance_sub(b, 9, d, 4, s1, S), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.cache_misses, 4); /* nodes 40, 41, 50, 52: 41 unselected too */
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0.5), GS_OK); /* forget the kept block */
+    assert_int_equal(gs_fe_body_compliance(b, 9, d, C), GS_OK);
+    for (int round = 0; round < 3; round++) {
+        /* after the whole block, after s1, after s2 (the kept block differs) */
+        const int *sel = round == 1 ? s2 : s1;
+        int k = round == 1 ? 5 : 4;
+        assert_int_equal(gs_fe_body_compliance_sub(b, 9, d, k, sel, S), GS_OK);
+        for (int j = 0; j < k; j++)
+            for (int i = 0; i < k; i++)
+                assert_memory_equal(&S[i + j * k], &C[sel[i] + sel[j] * 9], sizeof(double));
+    }
+    assert_true(S[0] > 0);
+    assert_int_equal(gs_fe_body_compliance_sub(b, 9, d, 1, bad, S), GS_EINVAL);
+    assert_int_equal(gs_fe_body_compliance_sub(b, 9, d, 10, s1, S), GS_EINVAL);
+}
+
 static void block_reuse_is_exact(void **state)
 {
     fixture *f = *state;
@@ -537,6 +571,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(condensation_matches_dense, setup, teardown),
         cmocka_unit_test_setup_teardown(cache_reuse_and_eviction, setup, teardown),
         cmocka_unit_test_setup_teardown(block_reuse_is_exact, setup, teardown),
+        cmocka_unit_test_setup_teardown(compliance_sub_is_exact, setup, teardown),
         cmocka_unit_test_setup_teardown(nodal_roundtrip_and_hold, setup, teardown),
         cmocka_unit_test_setup_teardown(spin_increment, setup, teardown),
     };
