@@ -19,16 +19,17 @@ static inline json_object *vt_scene(const char *name)
     return root;
 }
 
-/* The builtin scene `name` with every gear meshed with linear triangles
+/* vt_pin_linear: every gear of a scene tree meshed with linear triangles
  * (mesh.order 1 and the linear default counts; a train's gears through
  * train.mesh). For the long dynamic runs whose figures were measured on the
  * linear mesh and which need some elastic gear, not the default quadratic
  * one (about 12 times the cost per contact step, docs/PERFORMANCE.md); the
  * default mesh's dynamics are checked in test_elastic_train (free spin),
- * test_fe_dynamic, test_calibrated, test_ranks and test_resume. */
-static inline json_object *vt_scene_linear(const char *name)
+ * test_fe_dynamic, test_calibrated, test_ranks and test_resume.
+ * vt_scene_linear: the builtin scene `name` so pinned. */
+static inline void vt_pin_linear(json_object *root)
 {
-    json_object *root = vt_scene(name), *bs, *tr;
+    json_object *bs, *tr;
     if (json_object_object_get_ex(root, "train", &tr)) {
         json_object *m = json_object_new_object();
         json_object_object_add(m, "order", json_object_new_int(1));
@@ -45,6 +46,12 @@ static inline json_object *vt_scene_linear(const char *name)
             }
             json_object_object_add(m, "order", json_object_new_int(1));
         }
+}
+
+static inline json_object *vt_scene_linear(const char *name)
+{
+    json_object *root = vt_scene(name);
+    vt_pin_linear(root);
     return root;
 }
 
