@@ -99,9 +99,16 @@ typedef struct gs_gear_mesh_opts {
                       * curved boundary edges (scene mesh.order) */
 } gs_gear_mesh_opts;
 
-/* flank 8, across 4, rim 3 (the scene's defaults), refine 0, grading 2,
- * order 1. */
+/* The default mesh (the scene's): quadratic elements (order 2) with the
+ * default counts of that order, refine 0. */
 void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o);
+
+/* The default counts of element order `order` (1 or 2; anything else: the
+ * default order), refine 0. The one table of default counts (gear_mesh.c):
+ * order 2 {flank 8, across 4, rim 2, grading 3} (38 060 unknowns for the
+ * 20/30 pair of docs/CONVERGENCE.md), order 1 {flank 8, across 4, rim 3,
+ * grading 2} (the linear default before order 2 was: 11 224 unknowns). */
+void gs_gear_mesh_opts_for_order(gs_gear_mesh_opts *o, int order);
 
 /* Mesh the elastic part of a gear: for an external gear the region between
  * the hub circle and the toothed outline, for an internal gear between the

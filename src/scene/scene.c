@@ -8,6 +8,7 @@
 
 #include <json-c/json.h>
 
+#include "gearsim/mesh.h"
 #include "gearsim/scene.h"
 #include "gearsim/util.h"
 #include "scene/jsonstrict.h"
@@ -182,6 +183,15 @@ double gs_scene_estimate_bytes(const gs_scene *s, int *largest)
     return bytes;
 }
 
+/* The mesher's default counts of element order `order` (0: the default
+ * order): include/gearsim/mesh.h, the one table of them. */
+static void mesh_density_defaults(gs_mesh_density *m, int order)
+{
+    gs_gear_mesh_opts o;
+    gs_gear_mesh_opts_for_order(&o, order);
+    *m = (gs_mesh_density){o.flank, o.across, o.rim, o.refine, o.grading, o.order};
+}
+
 static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
 {
     static const char *const types[] = {"gear", "carrier"};
@@ -198,7 +208,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     b->type = (gs_body_type)t;
     b->model = (gs_body_model)m;
     b->material = gs_material_steel();
-    b->mesh = (gs_mesh_density){8, 4, 3, 0, 2.0, 1};
+    mesh_density_defaults(&b->mesh, 0);
     b->pitch_error_tooth = -1;
     double x;
     b->mass_given = json_object_object_get_ex(o, "mass", NULL);
@@ -276,17 +286,19 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         int64_t v;
         gsi_path(mp, sizeof mp, path, "mesh");
         GS_TRY(gsi_json_only(md, mp, meshdens_keys, d));
-        GS_TRY(gsi_json_int(md, "flank", mp, 1, 256, false, 8, &v, d));
+        /* the order first: the counts not given are that order's defaults */
+        GS_TRY(gsi_json_int(md, "order", mp, 1, 2, false, b->mesh.order, &v, d));
+        mesh_density_defaults(&b->mesh, (int)v);
+        const gs_mesh_density def = b->mesh;
+        GS_TRY(gsi_json_int(md, "flank", mp, 1, 256, false, def.flank, &v, d));
         b->mesh.flank = (int)v;
-        GS_TRY(gsi_json_int(md, "across", mp, 1, 128, false, 4, &v, d));
+        GS_TRY(gsi_json_int(md, "across", mp, 1, 128, false, def.across, &v, d));
         b->mesh.across = (int)v;
-        GS_TRY(gsi_json_int(md, "rim", mp, 1, 128, false, 3, &v, d));
+        GS_TRY(gsi_json_int(md, "rim", mp, 1, 128, false, def.rim, &v, d));
         b->mesh.rim = (int)v;
-        GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, 0, &v, d));
+        GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, def.refine, &v, d));
         b->mesh.refine = (int)v;
-        GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, 2.0, &b->mesh.grading, d));
-        GS_TRY(gsi_json_int(md, "order", mp, 1, 2, false, 1, &v, d));
-        b->mesh.order = (int)v;
+        GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, def.grading, &b->mesh.grading, d));
     }
     json_object *pe;
     GS_TRY(gsi_json_object(o, "pitch_error", path, false, &pe, d));

@@ -7,8 +7,9 @@
  * adds on top). At -n k the floor is the largest sum of bare solves over
  * the gears one rank owns.
  *
- * For contact_drive (the 30/20 pair) and planetary_contact (five elastic
- * gears, six contact meshes) at their scene step: a warm-up (the ramp, the
+ * For contact_drive (the 30/20 pair; on its default quadratic mesh and
+ * again with linear triangles, mesh.order 1) and planetary_contact (five
+ * elastic gears, six contact meshes) at their scene step: a warm-up (the ramp, the
  * first teeth into mesh), then a timed chunk through the engine, as the
  * daemon steps it, and the rank-0 breakdown (docs/PERFORMANCE.md, "Cost
  * per step").
@@ -57,7 +58,27 @@ static double user_now(void)
 typedef struct bcase {
     const char *scene;
     int warm, steps;
+    int order; /* element order forced on the elastic gears; 0: the scene's (default 2) */
 } bcase;
+
+/* Set mesh.order of every elastic body of a parsed scene. */
+static void force_order(json_object *root, int order)
+{
+    json_object *bodies, *model, *mesh;
+    if (order <= 0 || !json_object_object_get_ex(root, "bodies", &bodies))
+        return;
+    for (size_t i = 0; i < json_object_array_length(bodies); i++) {
+        json_object *b = json_object_array_get_idx(bodies, i);
+        if (!json_object_object_get_ex(b, "model", &model) ||
+            strcmp(json_object_get_string(model), "elastic") != 0)
+            continue;
+        if (!json_object_object_get_ex(b, "mesh", &mesh)) {
+            mesh = json_object_new_object();
+            json_object_object_add(b, "mesh", mesh);
+        }
+        json_object_object_add(mesh, "order", json_object_new_int(order));
+    }
+}
 
 /* Seconds per bare solve on a fresh factor of body i's model at the scene's
  * step (the same mesh, material and step matrix as its owner's): wall
@@ -131,6 +152,7 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     json_object *out = json_object_new_object();
     json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
     json_object_object_add(root, "outputs", out);
+    force_order(root, c->order);
     const char *txt = json_object_to_json_string(root);
     gs_diag d;
     if (gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL) != GS_OK) {
@@ -160,8 +182,8 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     /* The floor: bare solves, timed here on rank 0 while the other ranks
      * idle (they poll with sleeps), summed per owning rank. */
     double floor_rank[64] = {0}, cfloor_rank[64] = {0}, ufloor_rank[64] = {0}, floor_all = 0;
-    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up\n", c->scene, size, sys->h, c->steps,
-           c->warm);
+    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d\n", c->scene, size, sys->h,
+           c->steps, c->warm, sys->scene->bodies[0].mesh.order);
     printf("%-10s %5s %9s %12s %12s\n", "gear", "rank", "unknowns", "solve (ms)", "CPU (ms)");
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
@@ -200,9 +222,9 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     double ifl = interleaved_floor(sys, 0, 1000);
     printf("rank 0's gears solved in turn (CPU ms per round) %.4f: CPU ratio against it %.2f\n", 1e3 * ifl,
            cpu / ifl);
-    printf("RESULT scene %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
+    printf("RESULT scene %s order %d ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
            "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
-           c->scene, size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
+           c->scene, sys->scene->bodies[0].mesh.order, size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
            1e3 * floor_all);
     fflush(stdout);
     gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
@@ -224,8 +246,9 @@ int main(int argc, char **argv)
     } else {
         bool quick = argc > 1 && strcmp(argv[1], "quick") == 0;
         const bcase cases[] = {
-            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000},
-            {"planetary_contact", quick ? 200 : 1000, quick ? 200 : 800},
+            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 0},
+            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 1}, /* linear triangles */
+            {"planetary_contact", quick ? 200 : 1000, quick ? 200 : 800, 0},
         };
         const char *thr = getenv("OPENBLAS_NUM_THREADS");
         printf("# bench_cost: cost per step against one bare solve per gear; OPENBLAS_NUM_THREADS=%s\n",

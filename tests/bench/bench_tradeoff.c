@@ -23,6 +23,10 @@
  * and the errors of speed, dte, force and mesh against the richest run (contact,
  * finest setting). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
+ * argv[2] (optional): a comma-separated list of levels; only those rows at
+ * refine 0 run, the errors then against the last row run (a partial table:
+ * e.g. "calibrated,contact" after a change of the default mesh). Every row
+ * is also printed to stderr as it completes.
  * Wall times are ratios in one run on one machine; rerun to compare. */
 #include <json-c/json.h>
 #include <math.h>
@@ -166,9 +170,20 @@ static double rel(double a, double ref)
     return ref != 0 ? fabs(a - ref) / fabs(ref) : fabs(a);
 }
 
+/* Is `level` one of the comma-separated names of `list`? */
+static int level_listed(const char *list, const char *level)
+{
+    size_t n = strlen(level);
+    for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL)
+        if (!strncmp(p, level, n) && (p[n] == ',' || p[n] == '\0'))
+            return 1;
+    return 0;
+}
+
 int main(int argc, char **argv)
 {
     const char *csv = argc > 1 ? argv[1] : "tradeoff.csv";
+    const char *only = argc > 2 ? argv[2] : NULL;
     FILE *f = fopen(csv, "w");
     if (!f) {
         perror(csv);
@@ -215,12 +230,19 @@ int main(int argc, char **argv)
     for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
         const struct set *st = &sets[k];
         result res[32];
+        int last = st->n - 1;
         for (int i = 0; i < st->n; i++) {
+            res[i].ok = 0;
+            if (only && (st->s[i].refine != 0 || !level_listed(only, st->s[i].level)))
+                continue;
             res[i] = run(&st->s[i], st->duration, st->out, st->in, st->ratio);
-            fprintf(stderr, "# %s %s h %g refine %d: %s\n", st->s[i].scene, st->s[i].level, st->s[i].h,
-                    st->s[i].refine, res[i].ok ? "done" : "failed");
+            last = i;
+            fprintf(stderr, "# %s %s h %g refine %d: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
+                    "balance %.1e mesh %.4e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
+                    res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio, res[i].dte,
+                    res[i].force, res[i].balance, res[i].mesh);
         }
-        const result *ref = &res[st->n - 1];
+        const result *ref = &res[last];
         printf("\n## %s\n\nreference: the last row (richest model, finest setting); closed-form output speed "
                "%.4f rad/s\n\n", st->title, st->speed_expect);
         printf("| level | h (s) | refine | wall s per sim. s | output speed (rad/s) | ratio error | DTE rms (m) | "
@@ -230,6 +252,8 @@ int main(int argc, char **argv)
         for (int i = 0; i < st->n; i++) {
             const spec *s = &st->s[i];
             const result *r = &res[i];
+            if (only && (s->refine != 0 || !level_listed(only, s->level)))
+                continue;
             if (!r->ok) {
                 printf("| %s | %g | %d | failed | | | | | | | | | | |\n", s->level, s->h, s->refine);
                 continue;

@@ -22,12 +22,14 @@ static inline gs_gear_params gear(gs_gear_kind kind, int z, double m, double x)
     return p;
 }
 
-/* The default mesh of p at the given refinement; fails the test with the
- * diagnostic on error. */
+/* The default linear mesh (order 1, its default counts) of p at the given
+ * refinement; fails the test with the diagnostic on error. The unit tests
+ * of the mesher's layout and of the contact search on straight edges use
+ * it; the quadratic default mesh is tested in test_fe_quad.c. */
 static inline gs_mesh *mesh_of(const gs_gear_params *p, int refine)
 {
     gs_gear_mesh_opts o;
-    gs_gear_mesh_opts_defaults(&o);
+    gs_gear_mesh_opts_for_order(&o, 1);
     o.refine = refine;
     gs_mesh *m = NULL;
     gs_diag d;

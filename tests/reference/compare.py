@@ -78,15 +78,30 @@ def run_gearsim(tool, scene, positions, refine=None, extra=()):
     return json.loads(r.stdout)
 
 
-def compare(pair_dir, tool, refine=None, extra=()):
+def compare(pair_dir, tool, refine=None, extra=(), mesh=None):
     """gearsim against the reference of pair_dir: dict with per-position rows
-    and the summary figures (errors as fractions)."""
+    and the summary figures (errors as fractions). mesh: a scene mesh object
+    (e.g. {"order": 1}: the linear default) given to every gear of a copy of
+    the scene."""
     ref = load_reference(pair_dir)
     n = len(ref)
     for j, r in enumerate(ref):
         if abs(r["roll"] - j / n) > 1e-6:
             raise RuntimeError("reference rolls are not j/%d (row %d: %g)" % (n, j, r["roll"]))
-    g = run_gearsim(tool, os.path.join(pair_dir, "scene.json"), n, refine, extra)
+    scene = os.path.join(pair_dir, "scene.json")
+    if mesh is not None:
+        import tempfile
+        sc = json.load(open(scene))
+        for b in sc["bodies"]:
+            b["mesh"] = dict(mesh)
+        with tempfile.NamedTemporaryFile("w", suffix=".json", delete=False) as f:
+            json.dump(sc, f)
+        try:
+            g = run_gearsim(tool, f.name, n, refine, extra)
+        finally:
+            os.unlink(f.name)
+    else:
+        g = run_gearsim(tool, scene, n, refine, extra)
     rows = []
     for r, p in zip(ref, g["points"]):
         if abs(p["roll"] - r["roll"]) > 1e-5:

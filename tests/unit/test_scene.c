@@ -10,6 +10,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "gearsim/mesh.h"
 #include "gearsim/scene.h"
 
 static void builtins_parse(void **state)
@@ -132,6 +133,55 @@ static void train_expands(void **state)
     assert_null(s);
 }
 
+/* The mesh density of an elastic gear: without "mesh" the mesher's default
+ * (quadratic, gs_gear_mesh_opts_defaults); a given order brings that order's
+ * default counts (gs_gear_mesh_opts_for_order), given counts override them. */
+static void mesh_defaults(void **state)
+{
+    (void)state;
+    const char *mesh[] = {"", ",\"mesh\":{\"order\":1}", ",\"mesh\":{\"order\":2}",
+                          ",\"mesh\":{\"order\":1,\"rim\":5}", ",\"mesh\":{\"flank\":6}"};
+    for (int c = 0; c < 5; c++) {
+        char t[1024];
+        snprintf(t, sizeof t,
+                 "{\"name\":\"m\",\"bodies\":[{\"name\":\"g\",\"type\":\"gear\",\"teeth\":20,"
+                 "\"module_mm\":2,\"model\":\"elastic\"%s}],\"joints\":[{\"body\":\"g\","
+                 "\"type\":\"fixed_axis\"}],\"initial\":{\"g\":{\"omega\":1}}}",
+                 mesh[c]);
+        gs_scene *s;
+        gs_diag d;
+        gs_err e = gs_scene_parse(t, strlen(t), &s, &d);
+        if (e)
+            print_error("case %d: %s: %s\n", c, d.field, d.message);
+        assert_int_equal(e, GS_OK);
+        const gs_mesh_density *m = &s->bodies[0].mesh;
+        gs_gear_mesh_opts o;
+        if (c == 0 || c == 4)
+            gs_gear_mesh_opts_defaults(&o);
+        else
+            gs_gear_mesh_opts_for_order(&o, c == 2 ? 2 : 1);
+        if (c == 3)
+            o.rim = 5;
+        if (c == 4)
+            o.flank = 6;
+        print_message("mesh case %d: order %d flank %d across %d rim %d grading %g\n", c, m->order,
+                      m->flank, m->across, m->rim, m->grading);
+        assert_int_equal(m->order, c == 1 || c == 3 ? 1 : 2);
+        assert_int_equal(m->order, o.order);
+        assert_int_equal(m->flank, o.flank);
+        assert_int_equal(m->across, o.across);
+        assert_int_equal(m->rim, o.rim);
+        assert_int_equal(m->refine, 0);
+        assert_true(m->grading == o.grading);
+        gs_scene_free(&s);
+    }
+    /* the two orders' defaults differ (the linear default keeps its counts) */
+    gs_gear_mesh_opts a, b;
+    gs_gear_mesh_opts_for_order(&a, 1);
+    gs_gear_mesh_opts_for_order(&b, 2);
+    assert_true(a.rim != b.rim || a.grading != b.grading);
+}
+
 static void not_json(void **state)
 {
     (void)state;
@@ -151,6 +201,7 @@ int main(void)
         cmocka_unit_test(builtins_parse),
         cmocka_unit_test(bad_values_name_the_field),
         cmocka_unit_test(train_expands),
+        cmocka_unit_test(mesh_defaults),
         cmocka_unit_test(not_json),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -19,6 +19,42 @@ static inline json_object *vt_scene(const char *name)
     return root;
 }
 
+/* vt_pin_linear: every gear of a scene tree meshed with linear triangles
+ * (mesh.order 1 and the linear default counts; a train's gears through
+ * train.mesh). For the long dynamic runs whose figures were measured on the
+ * linear mesh and which need some elastic gear, not the default quadratic
+ * one (about 12 times the cost per contact step, docs/PERFORMANCE.md); the
+ * default mesh's dynamics are checked in test_elastic_train (free spin),
+ * test_fe_dynamic, test_calibrated, test_ranks and test_resume.
+ * vt_scene_linear: the builtin scene `name` so pinned. */
+static inline void vt_pin_linear(json_object *root)
+{
+    json_object *bs, *tr;
+    if (json_object_object_get_ex(root, "train", &tr)) {
+        json_object *m = json_object_new_object();
+        json_object_object_add(m, "order", json_object_new_int(1));
+        json_object_object_add(tr, "mesh", m);
+    }
+    if (json_object_object_get_ex(root, "bodies", &bs))
+        for (size_t i = 0; i < json_object_array_length(bs); i++) {
+            json_object *b = json_object_array_get_idx(bs, i), *t, *m;
+            if (json_object_object_get_ex(b, "type", &t) && strcmp(json_object_get_string(t), "gear") != 0)
+                continue;
+            if (!json_object_object_get_ex(b, "mesh", &m)) {
+                m = json_object_new_object();
+                json_object_object_add(b, "mesh", m);
+            }
+            json_object_object_add(m, "order", json_object_new_int(1));
+        }
+}
+
+static inline json_object *vt_scene_linear(const char *name)
+{
+    json_object *root = vt_scene(name);
+    vt_pin_linear(root);
+    return root;
+}
+
 /* Parse and build the system on one rank; consumes root. Fails the test
  * with the diagnostic on any error. */
 static inline gs_system *vt_system(json_object *root)

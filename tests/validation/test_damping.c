@@ -27,6 +27,7 @@
 
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "scene_build.h"
 
 #define MESH_HZ 9230.0 /* first torsional mesh mode of contact_drive, ~5.8e4 rad/s */
 
@@ -48,6 +49,7 @@ static gs_system *build(double zeta)
         }
         json_object_object_add(json_object_array_get_idx(bs, i), "material", mat);
     }
+    vt_pin_linear(root); /* linear triangles: figures measured on them (scene_build.h) */
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc;
     gs_diag d;

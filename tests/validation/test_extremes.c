@@ -170,6 +170,7 @@ static json_object *scene_of(const xcase *c)
             json_object_object_add(i1, "speed_rpm", json_object_new_double(-c->rpm * z0 / z1));
         }
     }
+    vt_pin_linear(root); /* linear triangles: the extremes were measured on them (scene_build.h) */
     return root;
 }
 
