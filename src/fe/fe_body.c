@@ -793,9 +793,23 @@ static gs_err cache_slot(gs_fe_body *b, gs_index *slot)
     return GS_OK;
 }
 
-/* Solve for the G columns of the nodes in `nodes` (n <= BATCH_NODES) into
- * their slots. */
-static gs_err cache_fill(gs_fe_body *b, int n, const gs_index *nodes, const gs_index *slots)
+/* The first free node of the fixed group of BATCH_NODES consecutive free
+ * nodes that holds `node`, and the group's size. */
+static gs_index group_of(const gs_fe_body *b, gs_index node, int *size)
+{
+    gs_index g0 = node - node % BATCH_NODES, left = b->m->n_free_nodes - g0;
+    *size = left < BATCH_NODES ? (int)left : BATCH_NODES;
+    return g0;
+}
+
+/* Solve for the G columns of the whole group starting at free node g0 and
+ * copy those of nodes[0..n) (members of that group) into their slots. The
+ * right-hand sides of a solve are always the same group in the same order,
+ * whichever of its nodes are missing: a multi-column solve (BLAS blocks)
+ * rounds each column according to the batch it is in, and a column must
+ * not depend on the history of requests, or a restored body (empty cache)
+ * would continue with other bits than the body it was saved from. */
+static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *nodes, const gs_index *slots)
 {
     const gs_index ne = b->ne;
     if (!b->bb || b->bb->ncol != (size_t)(2 * BATCH_NODES)) {
@@ -804,66 +818,72 @@ static gs_err cache_fill(gs_fe_body *b, int n, const gs_index *nodes, const gs_i
         if (!b->bb)
             return GS_ENOMEM;
     }
+    int gn;
+    group_of(b, g0, &gn);
     double *B = b->bb->x;
-    b->bb->ncol = (size_t)(2 * n);
-    for (int k = 0; k < n; k++) {
-        B[2 * nodes[k] + (size_t)(2 * k) * ne] = 1.0;
-        B[2 * nodes[k] + 1 + (size_t)(2 * k + 1) * ne] = 1.0;
+    b->bb->ncol = (size_t)(2 * gn);
+    for (int k = 0; k < gn; k++) {
+        B[2 * (g0 + k) + (size_t)(2 * k) * ne] = 1.0;
+        B[2 * (g0 + k) + 1 + (size_t)(2 * k + 1) * ne] = 1.0;
     }
     int ok = cholmod_l_solve2(CHOLMOD_A, b->L, b->bb, NULL, &b->bx, NULL, &b->by, &b->be, &b->cc);
-    for (int k = 0; k < n; k++) {
-        B[2 * nodes[k] + (size_t)(2 * k) * ne] = 0.0;
-        B[2 * nodes[k] + 1 + (size_t)(2 * k + 1) * ne] = 0.0;
+    for (int k = 0; k < gn; k++) {
+        B[2 * (g0 + k) + (size_t)(2 * k) * ne] = 0.0;
+        B[2 * (g0 + k) + 1 + (size_t)(2 * k + 1) * ne] = 0.0;
     }
     b->bb->ncol = 2 * BATCH_NODES;
     if (!ok)
         return GS_ENOMEM;
-    b->st.solves += (uint64_t)(2 * n);
+    b->st.solves += (uint64_t)(2 * gn);
     const double *X = b->bx->x;
     for (int k = 0; k < n; k++)
-        memcpy(b->cols + (size_t)slots[k] * 2 * ne, X + (size_t)(2 * k) * ne,
+        memcpy(b->cols + (size_t)slots[k] * 2 * ne, X + (size_t)(2 * (nodes[k] - g0)) * ne,
                2 * (size_t)ne * sizeof *X);
     return GS_OK;
 }
 
-/* Make sure every elastic dof in qi[0..n) has its node's columns cached. */
+/* Make sure every elastic dof in qi[0..n) has its node's columns cached.
+ * Missing nodes are gathered while they stay in one group (cache_fill). */
 static gs_err cache_ensure(gs_fe_body *b, int n, const gs_index *qi)
 {
     b->request = b->clock;
-    gs_index nodes[BATCH_NODES], slots[BATCH_NODES];
+    gs_index nodes[BATCH_NODES], slots[BATCH_NODES], g0 = -1;
     int nb = 0;
-    for (int k = 0; k < n; k++) {
-        if (qi[k] < 0 || qi[k] >= b->ne)
-            continue;
-        gs_index node = qi[k] / 2, s = b->slot_of[node];
-        if (s >= 0) {
-            if (b->stamp[s] <= b->request)
-                b->st.cache_hits++;
-            b->stamp[s] = ++b->clock;
-            continue;
+    for (int k = 0; k <= n; k++) {
+        gs_index node = -1, s = -1, g = -1;
+        if (k < n) {
+            if (qi[k] < 0 || qi[k] >= b->ne)
+                continue;
+            node = qi[k] / 2;
+            s = b->slot_of[node];
+            if (s >= 0) {
+                if (b->stamp[s] <= b->request)
+                    b->st.cache_hits++;
+                b->stamp[s] = ++b->clock;
+                continue;
+            }
+            int gn;
+            g = group_of(b, node, &gn);
         }
-        GS_TRY(cache_slot(b, &s));
-        b->slot_of[node] = s;
-        b->node_of[s] = node;
-        b->stamp[s] = ++b->clock;
-        b->st.cache_misses++;
-        nodes[nb] = node;
-        slots[nb] = s;
-        if (++nb == BATCH_NODES) {
-            gs_err e = cache_fill(b, nb, nodes, slots);
+        if (nb > 0 && g != g0) { /* a new group (or the end): solve the pending one */
+            gs_err e = cache_fill(b, g0, nb, nodes, slots);
             if (e != GS_OK) {
                 cache_clear(b);
                 return e;
             }
             nb = 0;
         }
-    }
-    if (nb > 0) {
-        gs_err e = cache_fill(b, nb, nodes, slots);
-        if (e != GS_OK) {
-            cache_clear(b);
-            return e;
-        }
+        if (k == n)
+            break;
+        GS_TRY(cache_slot(b, &s));
+        b->slot_of[node] = s;
+        b->node_of[s] = node;
+        b->stamp[s] = ++b->clock;
+        b->st.cache_misses++;
+        g0 = g;
+        nodes[nb] = node;
+        slots[nb] = s;
+        nb++;
     }
     return GS_OK;
 }
