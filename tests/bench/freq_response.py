@@ -60,8 +60,7 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0):
     if model == "contact":
         for b in s["bodies"]:
             b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
-            if order != 1:
-                b["mesh"] = {"order": order}
+            b["mesh"] = {"order": order}
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
