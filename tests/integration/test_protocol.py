@@ -284,6 +284,7 @@ def online():
         # 1e9 steps: a rigid train at -n 2 now runs at hundreds of thousands
         # of steps per second (docs/MODAL.md), so the advance must not end
         # during these calls.
+        t_adv0 = time.monotonic()
         r, rid = call(probe, "advance", {"steps": 1000000000}, what="advance 1e9 steps")
         time.sleep(0.3)
         call(probe, "status", what="status (running)")
@@ -306,6 +307,7 @@ def online():
         r, _ = call(probe, "cancel")
         R.check("cancel: cancelled true", (r or {}).get("result", {}).get("cancelled") is True, r)
         done = wait_done(probe, rid)
+        t_adv1 = time.monotonic()
         R.check("done after cancel: cancelled true", done.get("cancelled") is True, done)
         # Heartbeats are timed by their arrival here: not while this probe
         # works through the telemetry of the fast advance above.
@@ -313,10 +315,14 @@ def online():
         idx = [i for i, (_, p, _) in enumerate(probe.events)
                if p and p.get("type") == "progress" and p.get("parent_id") == rid]
         R.check("progress events tagged with the advance id", len(idx) >= 1, len(idx))
-        if len(idx) >= 2:
-            span = probe.event_times[idx[-1]] - probe.event_times[idx[0]]
-            rate = (len(idx) - 1) / span if span > 0 else float("inf")
-            R.check(f"progress at most 10 per second ({len(idx)} in {span:.2f} s)", rate <= 11.0, rate)
+        # The daemon spaces progress events by at least 0.1 s, so over the
+        # advance's whole life (from before the request to the done event's
+        # arrival, an upper bound of the daemon's run) at most 10 per second
+        # plus the first. Arrival times of single events are not used: a busy
+        # machine delivers queued events in bursts.
+        life = t_adv1 - t_adv0
+        R.check(f"progress at most 10 per second ({len(idx)} in an advance of {life:.2f} s)",
+                len(idx) - 1 <= 10.0 * life + 1.0, (len(idx), life))
         fr = [probe.events[i][1]["fraction"] for i in idx]
         R.check("progress fraction does not decrease", all(b >= a for a, b in zip(fr, fr[1:])), fr)
         r, _ = call(probe, "cancel", what="cancel (nothing running)")
