@@ -19,6 +19,17 @@ static inline json_object *vt_scene(const char *name)
     return root;
 }
 
+/* The mesh object of scene body b, added empty when the body has none. */
+static inline json_object *vt_body_mesh(json_object *b)
+{
+    json_object *m;
+    if (!json_object_object_get_ex(b, "mesh", &m)) {
+        m = json_object_new_object();
+        json_object_object_add(b, "mesh", m);
+    }
+    return m;
+}
+
 /* vt_pin_linear: every gear of a scene tree meshed with linear triangles
  * (mesh.order 1 and the linear default counts; a train's gears through
  * train.mesh). For the long dynamic runs whose figures were measured on the
@@ -37,14 +48,10 @@ static inline void vt_pin_linear(json_object *root)
     }
     if (json_object_object_get_ex(root, "bodies", &bs))
         for (size_t i = 0; i < json_object_array_length(bs); i++) {
-            json_object *b = json_object_array_get_idx(bs, i), *t, *m;
+            json_object *b = json_object_array_get_idx(bs, i), *t;
             if (json_object_object_get_ex(b, "type", &t) && strcmp(json_object_get_string(t), "gear") != 0)
                 continue;
-            if (!json_object_object_get_ex(b, "mesh", &m)) {
-                m = json_object_new_object();
-                json_object_object_add(b, "mesh", m);
-            }
-            json_object_object_add(m, "order", json_object_new_int(1));
+            json_object_object_add(vt_body_mesh(b), "order", json_object_new_int(1));
         }
 }
 
@@ -55,9 +62,8 @@ static inline json_object *vt_scene_linear(const char *name)
     return root;
 }
 
-/* Parse and build the system on one rank; consumes root. Fails the test
- * with the diagnostic on any error. */
-static inline gs_system *vt_system(json_object *root)
+/* Parse the scene; consumes root. Fails the test with the diagnostic. */
+static inline gs_scene *vt_scene_parse(json_object *root)
 {
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc;
@@ -67,8 +73,17 @@ static inline gs_system *vt_system(json_object *root)
         print_error("scene: %s: %s\n", d.field, d.message);
     assert_int_equal(e, GS_OK);
     json_object_put(root);
+    return sc;
+}
+
+/* Parse and build the system on one rank; consumes root. Fails the test
+ * with the diagnostic on any error. */
+static inline gs_system *vt_system(json_object *root)
+{
+    gs_scene *sc = vt_scene_parse(root);
+    gs_diag d;
     gs_system *sys;
-    e = gs_system_new(sc, 0, 1, &sys, &d);
+    gs_err e = gs_system_new(sc, 0, 1, &sys, &d);
     if (e != GS_OK)
         print_error("system: %s: %s\n", d.field, d.message);
     assert_int_equal(e, GS_OK);

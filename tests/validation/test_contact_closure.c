@@ -57,11 +57,7 @@ static gs_system *build(const char *builtin, const char *scheme, double h, int r
         json_object *bs = json_object_object_get(root, "bodies");
         for (size_t i = 0; i < json_object_array_length(bs); i++) {
             /* into the mesh object of vt_scene_linear (keeps order 1) */
-            json_object *b = json_object_array_get_idx(bs, i), *m;
-            if (!json_object_object_get_ex(b, "mesh", &m)) {
-                m = json_object_new_object();
-                json_object_object_add(b, "mesh", m);
-            }
+            json_object *m = vt_body_mesh(json_object_array_get_idx(bs, i));
             json_object_object_add(m, "refine", json_object_new_int(refine));
             if (g_order == 2)
                 json_object_object_add(m, "order", json_object_new_int(2));

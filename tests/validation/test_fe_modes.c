@@ -59,15 +59,7 @@ static gs_scene *scene(int coarse, double density)
         json_object_object_add(mat, "density", json_object_new_double(density));
         json_object_object_add(b, "material", mat);
     }
-    const char *txt = json_object_to_json_string(root);
-    gs_scene *sc;
-    gs_diag d;
-    gs_err e = gs_scene_parse(txt, strlen(txt), &sc, &d);
-    if (e != GS_OK)
-        print_error("scene: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    json_object_put(root);
-    return sc;
+    return vt_scene_parse(root);
 }
 
 static gs_fe_modes_result analyse(const gs_scene *sc, int positions)
