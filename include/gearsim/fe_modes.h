@@ -11,7 +11,8 @@
  * coupled at the loaded static contact of the quasi-static analysis
  * (include/gearsim/stiffness.h) at each roll position: the rows that carry
  * force there, linearised at the deformed position (G q = 0: the contact
- * constraint of the dynamic model held closed). Modes:
+ * constraint of the dynamic model held closed), each row made conjugate to
+ * the rolling (gs_fe_modes_conjugate_row). Modes:
  *
  *     K q = w^2 M q,   G q = 0,
  *
@@ -55,6 +56,8 @@ typedef struct gs_fe_modes_point {
                                      * constrained space (G q = 0 holds to round-off) */
     double k_tan;                   /* tangent mesh stiffness here, N/m (central difference, 10 %) */
     double lumped_hz;               /* sqrt(k_tan (rb1^2/I1 + rb2^2/I2)) / 2 pi */
+    double lever_departure;         /* largest |departure| of gs_fe_modes_conjugate_row over
+                                     * the rows held (relative, before the correction) */
 } gs_fe_modes_point;
 
 typedef struct gs_fe_modes_result {
@@ -80,10 +83,29 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
                            gs_fe_modes_result *out, gs_diag *d);
 void gs_fe_modes_result_clear(gs_fe_modes_result *r);
 
+/* Make one contact row's rigid part conjugate to the rolling of the pair.
+ * The exact involute pair rolls freely: a row's lever arms dg/dtheta are
+ * -+ rb of each gear (the normal on the line of action), so the rolling
+ * theta = (1 / rb0, sigma / rb1) (sigma = -1 external, +1 internal: the
+ * opposite of the sign of a0 a1) leaves every gap closed. On the discretised
+ * flanks the normal at a loaded node departs from the line of action (the
+ * parabolic edges' normals and the tip corners: up to 0.5 % of the lever arm
+ * on the default order-2 mesh of contact_drive, two rows' lever ratios up to
+ * 1.6 % apart), and two rows held closed
+ * whose lever ratios differ then lock the rolling through the teeth's
+ * elasticity: a spurious mode of 17-144 Hz with the whole kinetic energy in
+ * the rotations (docs/MODAL.md). The correction gives both lever arms the
+ * mean of their relative departures from the base radii:
+ * eps = a0 / rb0 + sigma a1 / rb1, a0 -= eps rb0 / 2, a1 -= sigma eps rb1 / 2
+ * (then a0 / rb0 + sigma a1 / rb1 = 0). Returns |eps| / (|a0| / rb0 + |a1| / rb1)
+ * (the relative departure before the correction; 0 when the lever arms
+ * are zero). */
+double gs_fe_modes_conjugate_row(double dg_dtheta[2], const double rb[2]);
+
 /* The result as JSON (gearsim-modal --fe --json): positions, modes,
  * nodes, unknowns, inertia, base_radius_mm, torque_nm, mean_hz, min_hz,
  * max_hz, k_tan_mean, lumped_mean_hz, seconds, points[] (roll, rows, hz[],
- * rotation[], residual[], k_tan, lumped_hz). */
+ * rotation[], residual[], k_tan, lumped_hz, lever_departure). */
 struct json_object;
 struct json_object *gs_fe_modes_json(const gs_fe_modes_result *r);
 

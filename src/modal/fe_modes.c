@@ -49,6 +49,7 @@ typedef struct ctx {
     mbody b[2];
     gs_index n;          /* global unknowns: u0, theta0, u1, theta1 */
     double c;            /* shift */
+    double rb[2];        /* base radii (the rolling of gs_fe_modes_conjugate_row) */
     cholmod_common cc;
     cholmod_dense *B;    /* scratch right-hand side (ne of the larger body) */
 } ctx;
@@ -187,18 +188,35 @@ static gs_err body_factor(ctx *x, int k)
     return b->schur > 0.0 ? GS_OK : GS_ESINGULAR;
 }
 
-/* The constraint rows G (nr x n, row-major) of the active contact rows. */
-static int build_G(const ctx *x, const gs_contact_row *rows, const double *force, int nr, double fmin, double *G)
+double gs_fe_modes_conjugate_row(double a[2], const double rb[2])
+{
+    double sigma = a[0] * a[1] > 0.0 ? -1.0 : 1.0;
+    double scale = fabs(a[0]) / rb[0] + fabs(a[1]) / rb[1];
+    if (!(scale > 0.0))
+        return 0.0;
+    double eps = a[0] / rb[0] + sigma * a[1] / rb[1];
+    a[0] -= 0.5 * eps * rb[0];
+    a[1] -= 0.5 * sigma * eps * rb[1];
+    return fabs(eps) / scale;
+}
+
+/* The constraint rows G (nr x n, row-major) of the active contact rows, each
+ * conjugate to the rolling; *dep the largest departure corrected. */
+static int build_G(const ctx *x, const gs_contact_row *rows, const double *force, int nr, double fmin, double *G,
+                   double *dep)
 {
     int m = 0;
+    *dep = 0.0;
     for (int i = 0; i < nr; i++) {
         if (!(force[i] > fmin))
             continue;
         double *g = G + (size_t)m * (size_t)x->n;
         memset(g, 0, (size_t)x->n * sizeof *g);
         const gs_contact_row *r = &rows[i];
+        double a[2] = {r->dg_dtheta[0], r->dg_dtheta[1]};
+        *dep = fmax(*dep, gs_fe_modes_conjugate_row(a, x->rb));
         for (int k = 0; k < 2; k++)
-            g[x->b[k].off + x->b[k].ne] += r->dg_dtheta[k];
+            g[x->b[k].off + x->b[k].ne] += a[k];
         for (int t = 0; t < r->n_nodes; t++) {
             const mbody *b = &x->b[r->body[t]];
             for (int comp = 0; comp < 2; comp++) {
@@ -330,7 +348,7 @@ static gs_err position_modes(ctx *x, const double *G, int m, int steps, int want
     int got = 0;
     for (int l = ns - 1; l >= 0 && got < want; l--) {
         double w2 = 1.0 / dd[l] - x->c;
-        if (!(dd[l] > 0.0) || w2 < 1e-4 * x->c) /* the rigid rotation, 0 Hz to round-off */
+        if (!(dd[l] > 0.0) || w2 < 1e-8 * x->c) /* the rigid rotation, 0 Hz to round-off (rows conjugate) */
             continue;
         /* Ritz vector y = Q Y[:, l]; its residual on the constrained space
          * and its rotation share. */
@@ -435,6 +453,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
         out->nodes[k] = mk->n_nodes;
         out->inertia[k] = x.b[k].inertia;
         out->base_radius[k] = gs_gear_base_radius(&sc->bodies[sm->gear[k]].gear);
+        x.rb[k] = out->base_radius[k];
     }
     if (e != GS_OK)
         goto done;
@@ -477,7 +496,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
         G = g2;
         gs_fe_modes_point *pt = &out->pt[j];
         pt->roll = tan.pt[j].roll;
-        pt->rows = build_G(&x, rows, force, nr, 1e-9 * tan.force_n, G);
+        pt->rows = build_G(&x, rows, force, nr, 1e-9 * tan.force_n, G, &pt->lever_departure);
         e = position_modes(&x, G, pt->rows, o.lanczos, o.modes, pt);
         if (e != GS_OK) {
             gs_diag_set(d, e, "meshes", "eigenproblem at roll %.3f failed", pt->roll);
@@ -551,6 +570,7 @@ json_object *gs_fe_modes_json(const gs_fe_modes_result *r)
         json_object_object_add(q, "residual", res);
         json_object_object_add(q, "k_tan", num(p->k_tan));
         json_object_object_add(q, "lumped_hz", num(p->lumped_hz));
+        json_object_object_add(q, "lever_departure", num(p->lever_departure));
         json_object_array_add(pts, q);
     }
     json_object_object_add(o, "points", pts);

@@ -11,14 +11,21 @@
  *  - the scaling law w ~ 1 / sqrt(rho): four times the density on both gears
  *    halves every frequency (the static contact does not depend on rho) to
  *    1e-8;
- *  - on the default mesh: the first mode is a rigid-rotation mode (share of
+ *  - on the linear mesh (refine 0): the first mode is a rigid-rotation mode (share of
  *    kinetic energy in I theta^2 / 2 above 0.9), its residual on the
  *    constrained space below 1e-8, and it lies within [1.00, 1.15] times
  *    the closed form of two inertias on a spring, w^2 = k_t (rb1^2/I1 +
  *    rb2^2/I2), with the tangent stiffness of the same position (measured
  *    +5 % to +10 %: most of a gear's inertia sits in its rim and teeth, on
  *    the contact's side of the web's torsion that the static stiffness
- *    includes). */
+ *    includes);
+ *  - the same on the default quadratic mesh (order 2) at four positions,
+ *    roll 0.75 included, where the rows held closed lock the rolling unless
+ *    they are made conjugate to it (a spurious 144 Hz mode before,
+ *    gs_fe_modes_conjugate_row), and the rolling is then a 0 Hz mode;
+ *  - gs_fe_modes_conjugate_row on made-up lever arms of an external and an
+ *    internal pair: the rolling leaves the row at zero, both lever arms get
+ *    the mean relative departure. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -38,11 +45,12 @@
 #include "gearsim/stiffness.h"
 #include "scene_build.h"
 
-static gs_scene *scene(int coarse, double density)
+static gs_scene *scene(int coarse, double density, int order)
 {
     /* linear triangles (mesh.order 1): the figures of docs/MODAL.md were
-     * measured on them and the dense comparison needs a small problem */
-    json_object *root = vt_scene_linear("contact_drive");
+     * measured on them and the dense comparison needs a small problem;
+     * order 2: the default mesh */
+    json_object *root = order == 1 ? vt_scene_linear("contact_drive") : vt_scene("contact_drive");
     json_object *bodies = json_object_object_get(root, "bodies");
     for (size_t i = 0; i < json_object_array_length(bodies); i++) {
         json_object *b = json_object_array_get_idx(bodies, i);
@@ -84,8 +92,10 @@ static void dense_modes(const gs_scene *sc, gs_stiffness_run *run, double hz[2])
 {
     gs_fe_model *m[2];
     gs_index ne[2], off[2];
+    double rb[2];
     for (int k = 0; k < 2; k++) {
         const gs_scene_body *sb = &sc->bodies[sc->meshes[0].gear[k]];
+        rb[k] = gs_gear_base_radius(&sb->gear);
         double rh = gs_gear_hub_radius(&sb->gear);
         double core = 0.5 * GS_PI * sb->material.density * sb->gear.face_width_m * rh * rh * rh * rh;
         assert_int_equal(gs_fe_model_new(gs_stiffness_run_mesh(run, k), &sb->material, sb->gear.face_width_m,
@@ -122,8 +132,10 @@ static void dense_modes(const gs_scene *sc, gs_stiffness_run *run, double hz[2])
         if (!(force[i] > 1e-9 * 568.0))
             continue;
         double *g = Gt + (size_t)a * n;
+        double lever[2] = {rows[i].dg_dtheta[0], rows[i].dg_dtheta[1]};
+        gs_fe_modes_conjugate_row(lever, rb);
         for (int k = 0; k < 2; k++)
-            g[off[k] + ne[k]] += rows[i].dg_dtheta[k];
+            g[off[k] + ne[k]] += lever[k];
         for (int t = 0; t < rows[i].n_nodes; t++)
             for (int c = 0; c < 2; c++) {
                 gs_index q = gs_fe_model_dof(m[rows[i].body[t]], rows[i].node[t], c);
@@ -161,7 +173,7 @@ static void dense_modes(const gs_scene *sc, gs_stiffness_run *run, double hz[2])
 static void test_dense(void **state)
 {
     (void)state;
-    gs_scene *sc = scene(1, 7850.0);
+    gs_scene *sc = scene(1, 7850.0, 1);
     gs_fe_modes_result r = analyse(sc, 3);
     gs_stiffness_opts so;
     gs_stiffness_opts_defaults(&so);
@@ -189,7 +201,7 @@ static void test_dense(void **state)
 static void test_density_scaling(void **state)
 {
     (void)state;
-    gs_scene *a = scene(1, 7850.0), *b = scene(1, 4 * 7850.0);
+    gs_scene *a = scene(1, 7850.0, 1), *b = scene(1, 4 * 7850.0, 1);
     gs_fe_modes_result ra = analyse(a, 2), rb = analyse(b, 2);
     for (int j = 0; j < 2; j++)
         for (int k = 0; k < 2; k++) {
@@ -204,16 +216,17 @@ static void test_density_scaling(void **state)
     gs_scene_free(&b);
 }
 
-static void test_closed_form(void **state)
+static void closed_form(int order)
 {
-    (void)state;
-    gs_scene *sc = scene(0, 7850.0);
+    gs_scene *sc = scene(0, 7850.0, order);
     gs_fe_modes_result r = analyse(sc, 4);
+    printf("# order %d: %ld unknowns\n", order, (long)r.unknowns);
     for (int j = 0; j < r.positions; j++) {
         const gs_fe_modes_point *p = &r.pt[j];
         double ratio = p->hz[0] / p->lumped_hz;
-        printf("# roll %.3f: FE %.1f Hz (rotation %.4f, residual %.1e, %d rows), closed form %.1f Hz, ratio %.4f\n",
-               p->roll, p->hz[0], p->rotation[0], p->residual[0], p->rows, p->lumped_hz, ratio);
+        printf("# roll %.3f: FE %.1f Hz (rotation %.4f, residual %.1e, %d rows, lever departure %.2e), closed form "
+               "%.1f Hz, ratio %.4f\n",
+               p->roll, p->hz[0], p->rotation[0], p->residual[0], p->rows, p->lever_departure, p->lumped_hz, ratio);
         assert_true(p->rotation[0] > 0.9);
         assert_true(p->residual[0] < 1e-8);
         assert_true(ratio >= 1.0 && ratio <= 1.15);
@@ -224,12 +237,48 @@ static void test_closed_form(void **state)
     gs_scene_free(&sc);
 }
 
+static void test_closed_form(void **state)
+{
+    (void)state;
+    closed_form(1);
+}
+
+static void test_closed_form_order2(void **state)
+{
+    (void)state;
+    closed_form(2);
+}
+
+static void test_conjugate_row(void **state)
+{
+    (void)state;
+    const double rb[2] = {0.035, 0.0235};
+    /* external: both lever arms of one sign, rolling (1/rb0, -1/rb1) */
+    double a[2] = {-rb[0] * 1.01, -rb[1] * 0.99};
+    double dep = gs_fe_modes_conjugate_row(a, rb);
+    assert_true(fabs(dep - 0.01) < 1e-12);
+    assert_true(fabs(a[0] / rb[0] - a[1] / rb[1]) < 1e-15);
+    assert_true(fabs(a[0] + rb[0]) < 1e-15 && fabs(a[1] + rb[1]) < 1e-15);
+    /* internal: opposite signs, rolling (1/rb0, 1/rb1) */
+    double b[2] = {-rb[0] * 1.02, rb[1] * 1.00};
+    dep = gs_fe_modes_conjugate_row(b, rb);
+    assert_true(fabs(dep - 0.02 / 2.02) < 1e-12);
+    assert_true(fabs(b[0] / rb[0] + b[1] / rb[1]) < 1e-15);
+    assert_true(fabs(b[0] + 1.01 * rb[0]) < 1e-15 && fabs(b[1] - 1.01 * rb[1]) < 1e-15);
+    /* already conjugate: unchanged */
+    double c[2] = {-rb[0], -rb[1]};
+    assert_true(gs_fe_modes_conjugate_row(c, rb) == 0.0);
+    assert_true(c[0] == -rb[0] && c[1] == -rb[1]);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_dense),
         cmocka_unit_test(test_density_scaling),
         cmocka_unit_test(test_closed_form),
+        cmocka_unit_test(test_closed_form_order2),
+        cmocka_unit_test(test_conjugate_row),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
