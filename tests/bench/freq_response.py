@@ -9,10 +9,20 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
     tests/bench/freq_response.py [--build build] [--work DIR] [--models contact,lumped,...]
                                  [--torque T] [--damping Z] [--order 1|2] [--grid N]
                                  [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
-                                 [--no-run] [--plot docs/img/freq_response.png]
+                                 [--contact closure_energy|closure|seed] [--coarse]
+                                 [--settle S] [--min-measure S] [--min-cycles N]
+                                 [--quick] [--no-run] [--plot docs/img/freq_response.png]
                                  [--csv docs/freq_response.csv]
 
-The figures of docs/MODAL.md: the defaults (20 N m, 5 %) plus
+The order-2 figures of docs/MODAL.md (default mesh, closure_energy):
+--order 2 --torque 80 --damping 0.12 --grid 10 --dense 0 --settle 0.002
+--min-measure 0.0012 for the lumped models, the contact model on the
+points around the mode (--models contact --grid 7 --grid-from 0.82
+--grid-to 1.18). --quick (the meson benchmark): order 1, the coarse mesh
+(flank 2, across 1, rim 1), 80 N m, 12 %, 7 points from 0.7 to 1.3 times
+the mode, settle 2 ms (minutes of CPU).
+
+The order-1 figures of docs/MODAL.md (contact "closure"): the defaults (20 N m, 5 %) plus
 --extra 6000,6500,6800,7000,7150,7450,7600,7800,8250,8400,8550,9400,9700;
 --damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
 --grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
@@ -25,7 +35,7 @@ the missing points, so the contact points can be run in the background
 the default mesh or the contact step. Points: mesh frequencies 0.2 .. 2
 times the FE mode (--grid points, evenly spaced) plus a dense set within
 +-12 % of it, plus --extra frequencies (Hz), e.g. to refine a peak.
-Settings: numerics.contact "closure", material damping (--damping, 5 %)
+Settings: numerics.contact (--contact, default "closure_energy"), material damping (--damping, 5 %)
 at the FE mode frequency on both elastic gears (stiffness proportional),
 lumped / calibrated / compliant meshes with the same ratio of their mesh
 mode; each --work directory holds one damping's points;
@@ -47,20 +57,21 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 MODELS = ["contact", "lumped", "calibrated", "compliant"]
 Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
-          "dynamic_factor", "balance_rel", "seconds"]
+          "dynamic_factor", "balance_rel", "seconds", "cpu_seconds"]
+COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
 
 
-def scene_for(model, mode_hz, zeta, order=1, torque=0.0):
+def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False):
     s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
     if torque:
         s["loads"][0]["moment"] = torque
     s["outputs"] = {"telemetry_every": 100000}
     s.setdefault("numerics", {})
-    s["numerics"]["contact"] = "closure"
+    s["numerics"]["contact"] = contact
     if model == "contact":
         for b in s["bodies"]:
             b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
-            b["mesh"] = {"order": order}
+            b["mesh"] = dict(COARSE, order=order) if coarse else {"order": order}
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
@@ -76,29 +87,35 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0):
     return s
 
 
-def fe_mode(build, positions, order=1, torque=0.0):
+def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False):
+    """The FE mode of the contact model's own gears (its mesh as scene_for
+    writes it; the damping does not enter)."""
+    path = os.path.join(work, "scene_fe.json")
+    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse), open(path, "w"))
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
-    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--order", str(order), "--torque", repr(torque), "--json",
-                          os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")],
+    out = subprocess.run([exe, "--fe", "--positions", str(positions), "--torque", repr(torque), "--json", path],
                          check=True, capture_output=True, text=True).stdout
     return json.loads(out)
 
 
-def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0):
+def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False,
+              settle=5e-3, min_measure=2.5e-3, min_cycles=12):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order, torque), open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse), open(path, "w"))
     h = min(2.5e-6, 1.0 / f / 24)
-    cycles = max(12, math.ceil(2.5e-3 * f))
+    cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
-    settle = 5e-3
     rpm = f * 60.0 / Z_DRIVER
     exe = os.path.join(build, "src", "tools", "gearsim-sweep")
+    import resource
     import time
     t0 = time.time()
+    c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
                         "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
                        capture_output=True, text=True)
+    c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         sys.exit("freq_response: %s at %.1f Hz failed: %s" % (model, f, r.stderr.strip()))
     rows = list(csv.DictReader(r.stdout.splitlines()))
@@ -106,7 +123,8 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0):
     return {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
             "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
             "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
-            "seconds": time.time() - t0}
+            "seconds": time.time() - t0,
+            "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
 
 
 def load_cache(path):
@@ -116,7 +134,7 @@ def load_cache(path):
         out = []
         for r in csv.DictReader(fh):
             for k in FIELDS[1:]:
-                r[k] = float(r[k])
+                r[k] = float(r[k]) if r.get(k) not in (None, "") else float("nan")
             out.append(r)
         return out
 
@@ -168,6 +186,7 @@ def main():
     ap.add_argument("--grid", type=int, default=10)
     ap.add_argument("--dense", type=int, default=7)
     ap.add_argument("--extra", default="")
+    ap.add_argument("--extra-rel", default="", help="more points, as fractions of the FE mode")
     ap.add_argument("--positions", type=int, default=12)
     ap.add_argument("--mode-hz", type=float, default=0.0, help="skip the FE eigenproblem, use this mode")
     ap.add_argument("--damping", type=float, default=0.05,
@@ -177,10 +196,24 @@ def main():
     ap.add_argument("--order", type=int, default=1,
                     help="element order of the contact model's gears (and of the FE mode)")
     ap.add_argument("--torque", type=float, default=0.0, help="moment on the wheel, N m (0: the scene's 20)")
+    ap.add_argument("--contact", default="closure_energy", help="numerics.contact of the scenes")
+    ap.add_argument("--coarse", action="store_true", help="the contact model on the coarse mesh (flank 2, across 1, rim 1)")
+    ap.add_argument("--settle", type=float, default=5e-3, help="settling time per point, s")
+    ap.add_argument("--min-measure", type=float, default=2.5e-3, help="measured at least this long, s")
+    ap.add_argument("--min-cycles", type=int, default=12, help="measured at least this many mesh cycles")
+    ap.add_argument("--quick", action="store_true",
+                    help="order 1, coarse mesh, 80 N m, 12 %%, 7 points 0.7-1.3, 4 positions, settle 2 ms")
+    ap.add_argument("--peaks-json", default=None, help="write the peaks and the FE mode to this file")
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
     a = ap.parse_args()
+    if a.quick:
+        a.order, a.coarse, a.torque, a.damping = 1, True, 80.0, 0.12
+        a.grid, a.grid_from, a.grid_to, a.dense, a.positions = 7, 0.7, 1.3, 0, 4
+        a.settle, a.min_measure = 2e-3, 1.2e-3
+        if a.work == ap.get_default("work"):
+            a.work = "/tmp/gearsim_freq_response_quick"
     os.makedirs(a.work, exist_ok=True)
     modefile = os.path.join(a.work, "fe_mode.json")
     if a.mode_hz > 0:
@@ -188,13 +221,14 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.positions, a.order, a.torque)
+        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
     freqs = [f0 * (a.grid_from + (a.grid_to - a.grid_from) * k / max(a.grid - 1, 1)) for k in range(a.grid)]
-    freqs += [f0 * (0.88 + 0.24 * k / (a.dense - 1)) for k in range(a.dense)]
+    freqs += [f0 * (0.88 + 0.24 * k / (a.dense - 1)) for k in range(a.dense) if a.dense > 1]
     freqs += [float(v) for v in a.extra.split(",") if v]
+    freqs += [f0 * float(v) for v in a.extra_rel.split(",") if v]
     freqs = sorted(set(round(f, 1) for f in freqs))
     cachefile = os.path.join(a.work, "points.csv")
     cache = load_cache(cachefile)
@@ -209,7 +243,8 @@ def main():
             for f in freqs:
                 if (m, f) in have:
                     continue
-                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque)
+                r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque, a.contact, a.coarse, a.settle,
+                              a.min_measure, a.min_cycles)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -219,8 +254,9 @@ def main():
                     if new:
                         w.writeheader()
                     w.writerow(r)
-                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s" %
-                      (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"]),
+                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s (%.1f s CPU)" %
+                      (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"],
+                       r["cpu_seconds"]),
                       flush=True)
     found = {}
     for m in MODELS:
@@ -234,6 +270,10 @@ def main():
     for m, lst in found.items():
         for fp, yp in lst:
             print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+    if a.peaks_json:
+        json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"),
+                   "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
+                  open(a.peaks_json, "w"), indent=1)
     if a.csv:
         with open(a.csv, "w", newline="") as fh:
             w = csv.DictWriter(fh, fieldnames=FIELDS)
@@ -258,6 +298,8 @@ def main():
         fl = mode.get("lumped_mean_hz")
         for k in range(2):
             ax[k].axvline(f0, color="m", ls="--", lw=1)
+            if fc == fc:
+                ax[k].axvline(fc, color="c", ls="-.", lw=1)
             if fl:
                 ax[k].axvline(fl, color="g", ls=":", lw=1)
             ax[k].grid(alpha=0.3)
@@ -265,11 +307,14 @@ def main():
             ax[0].text(fl, ax[0].get_ylim()[1] * 0.4, "closed form with k_t %.0f Hz " % fl, color="g", va="top",
                        ha="right")
         ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
+        if fc == fc:
+            ax[0].text(fc, ax[0].get_ylim()[1] * 0.15, "calibrated peak %.0f Hz " % fc, color="c", va="top", ha="right")
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
         ax[0].legend()
-        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping)" % (a.torque or 20, 100 * a.damping))
+        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
+                        (a.torque or 20, 100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
         print("plot:", a.plot)
