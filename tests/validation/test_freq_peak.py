@@ -20,6 +20,7 @@ GEARSIM_FREQ_KEEP=DIR keeps the work directory (points.csv, fe_mode.json)."""
 import csv
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -68,4 +69,6 @@ if pts:
             tgt == sorted(tgt), tgt)
     R.note("dynamic factor %.2f - %.2f" % (min(float(p["dynamic_factor"]) for p in pts),
                                           max(float(p["dynamic_factor"]) for p in pts)))
+if not os.environ.get("GEARSIM_FREQ_KEEP"):
+    shutil.rmtree(work, ignore_errors=True)
 R.finish()
