@@ -399,11 +399,12 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
             return gs_diag_set(d, GS_ERANGE, field, "a lumped mesh takes pitch errors as the pitch_errors_um table");
         }
     }
-    /* The tangent-calibrated law only: in lumped_force (rectangular wave,
-     * secant table) the modulated phase let Newton stagnate at that law's
-     * residual floor, the cancellation in (f1^2 - f0^2) / (2 ds) (a hard
-     * start of the validation pair failed; docs/GEOMETRY.md). */
-    if (gsi_mesh_has_runout(m) && sm->stiffness_type == GS_STIFF_CALIBRATED && !sm->calibrate_secant) {
+    /* Every lumped law: the rectangular wave and the secant table (lumped_force)
+     * were left unmodulated while their quotient (f1^2 - f0^2) / (2 ds) lost
+     * precision and Newton stalled (docs/GEOMETRY.md); with the same-flank
+     * quotient (f0 + f1) / 2 they carry it over 2 revolutions
+     * (test_tooth_errors). */
+    if (gsi_mesh_has_runout(m)) {
         lumped_pm *pm = gs_calloc(1, sizeof *pm);
         m->contact = pm; /* freed by lumped_destroy */
         if (!pm || !(pm->cbar = gs_calloc((size_t)sys->n_coords, sizeof(double))))
