@@ -943,6 +943,37 @@ static void lumped_tooth_errors(void **state)
     }
 }
 
+/* The planetary_runout train (source tree root) on rigid teeth with lumped
+ * meshes: the rectangular wave (calibration NULL) or calibrated from the FE
+ * model with that law on linear triangles (for the calibration's speed). */
+static json_object *runout_train_lumped(const char *root, const char *calibration)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/deploy/scenes/planetary_runout.json", root);
+    json_object *tree = json_object_from_file(path);
+    assert_non_null(tree);
+    if (calibration)
+        vt_pin_linear(tree);
+    json_object *bodies = json_object_object_get(tree, "bodies");
+    for (size_t i = 0; i < json_object_array_length(bodies); i++) {
+        json_object *b = json_object_array_get_idx(bodies, i), *t;
+        if (json_object_object_get_ex(b, "teeth", &t))
+            json_object_object_add(b, "model", json_object_new_string("rigid"));
+    }
+    json_object *meshes = json_object_object_get(tree, "meshes");
+    for (size_t i = 0; i < json_object_array_length(meshes); i++) {
+        json_object *m = json_object_array_get_idx(meshes, i);
+        json_object_object_add(m, "model", json_object_new_string("lumped"));
+        if (calibration) {
+            json_object *st = json_object_new_object();
+            json_object_object_add(st, "type", json_object_new_string("calibrated"));
+            json_object_object_add(st, "calibration", json_object_new_string(calibration));
+            json_object_object_add(m, "stiffness", st);
+        }
+    }
+    return tree;
+}
+
 /* The planetary_runout train on rigid teeth with lumped meshes: the sun's
  * run-out enters the three sun-planet meshes (angles in the carrier's
  * frame) and no other; a driven run keeps the energy balance. */
@@ -954,20 +985,7 @@ static void lumped_planetary_runout(void **state)
         print_message("GEARSIM_SOURCE_ROOT not set: planetary run-out not checked\n");
         return;
     }
-    char path[1024];
-    snprintf(path, sizeof path, "%s/deploy/scenes/planetary_runout.json", root);
-    json_object *tree = json_object_from_file(path);
-    assert_non_null(tree);
-    json_object *bodies = json_object_object_get(tree, "bodies");
-    for (size_t i = 0; i < json_object_array_length(bodies); i++) {
-        json_object *b = json_object_array_get_idx(bodies, i), *t;
-        if (json_object_object_get_ex(b, "teeth", &t))
-            json_object_object_add(b, "model", json_object_new_string("rigid"));
-    }
-    json_object *meshes = json_object_object_get(tree, "meshes");
-    for (size_t i = 0; i < json_object_array_length(meshes); i++)
-        json_object_object_add(json_object_array_get_idx(meshes, i), "model", json_object_new_string("lumped"));
-    gs_system *s = vt_system(tree);
+    gs_system *s = vt_system(runout_train_lumped(root, NULL));
     int with = 0;
     for (int i = 0; i < s->n_meshes; i++) {
         const char *g0 = s->scene->bodies[s->scene->meshes[i].gear[0]].name;
@@ -1008,26 +1026,7 @@ static void calibrated_planetary_runout(void **state)
     }
     static const char *const laws[] = {"tangent", "secant"};
     for (int l = 0; l < 2; l++) {
-        char path[1024];
-        snprintf(path, sizeof path, "%s/deploy/scenes/planetary_runout.json", root);
-        json_object *tree = json_object_from_file(path);
-        assert_non_null(tree);
-        vt_pin_linear(tree);
-        json_object *bodies = json_object_object_get(tree, "bodies");
-        for (size_t i = 0; i < json_object_array_length(bodies); i++) {
-            json_object *b = json_object_array_get_idx(bodies, i), *t;
-            if (json_object_object_get_ex(b, "teeth", &t))
-                json_object_object_add(b, "model", json_object_new_string("rigid"));
-        }
-        json_object *meshes = json_object_object_get(tree, "meshes");
-        for (size_t i = 0; i < json_object_array_length(meshes); i++) {
-            json_object *m = json_object_array_get_idx(meshes, i), *st = json_object_new_object();
-            json_object_object_add(m, "model", json_object_new_string("lumped"));
-            json_object_object_add(st, "type", json_object_new_string("calibrated"));
-            json_object_object_add(st, "calibration", json_object_new_string(laws[l]));
-            json_object_object_add(m, "stiffness", st);
-        }
-        gs_system *s = vt_system(tree);
+        gs_system *s = vt_system(runout_train_lumped(root, laws[l]));
         double worst = 0, scale = 0, iters = 0;
         gs_energy e;
         for (int i = 0; i < 2000; i++) {
