@@ -125,6 +125,11 @@ def main():
         j = advise_json("planetary", "--target", "dte=0.2", "--table", sch)
         R.check("and in the JSON choice", j.get("choice", {}).get("scheme") == "closure_energy", j)
 
+    # 4c. The outputs' longer names (dte_rms, peak_force, mesh_order, output_speed).
+    e1, e2 = advise_json("contact_drive", "--target", "dte_rms=0.2"), advise_json("contact_drive", "--target", "dte=0.2")
+    R.check("dte_rms is the dte output", e1.get("choice") == e2.get("choice") and e1.get("targets") == {"dte": 0.2},
+            (e1, e2))
+
     # 5. Errors.
     r = advise("contact_drive", "--target", "stress=0.1")
     R.check("unknown output: exit 2, names the known outputs",
