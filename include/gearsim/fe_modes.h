@@ -42,6 +42,8 @@ typedef struct gs_fe_modes_opts {
     int order;        /* 0 (default): the scene's element order; else 1 or 2 */
     double torque_nm; /* as gs_stiffness_opts (0: the scene's load on gear 0 of the mesh) */
     int lanczos;      /* Lanczos steps (default 60) */
+    double phase;     /* start of the roll in driver pitches beyond the scene angle, as
+                       * gs_stiffness_opts (default 0) */
 } gs_fe_modes_opts;
 
 void gs_fe_modes_opts_defaults(gs_fe_modes_opts *o);

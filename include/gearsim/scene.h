@@ -89,6 +89,10 @@ typedef struct gs_scene_mesh {
     int calibrate_secant;      /* calibrated: 1 the secant law k = F / TE ("calibration":
                                 * "secant"), 0 (default, "tangent") the tangent stiffness
                                 * about the static TE at the load */
+    int calibrate_modal;       /* calibrated: 1 ("calibration": "modal") the tangent law with
+                                * k scaled per position to the FE pair's own first torsional
+                                * mesh mode (include/gearsim/fe_modes.h), delta_0 kept at the
+                                * static TE */
     double damping;            /* N s/m; < 0 means "from damping_ratio" */
     double damping_ratio;
     double backlash;           /* m along the line of action */

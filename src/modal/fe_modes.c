@@ -430,6 +430,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
     so.refine = o.refine;
     so.order = o.order;
     so.torque_nm = o.torque_nm;
+    so.phase = o.phase;
     so.driver = 0;
     /* The tangent stiffness of each position (central difference at T). */
     gs_stiffness_result tan;

@@ -19,6 +19,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gearsim/fe_modes.h"
 #include "gearsim/modification.h"
 #include "gearsim/stiffness.h"
 #include "gearsim/step.h"
@@ -214,6 +215,54 @@ static void lumped_destroy(gs_gmesh_rt *m)
 /* Relative load step of the tangent calibration's central difference. */
 #define CAL_TANGENT_STEP 0.05
 
+/* The modal calibration's factor per position (*out, r->positions
+ * entries): (f_FE / f_2)^2, f_FE the first torsional mesh mode of the FE
+ * pair's own eigenproblem at the loaded static contact of that position
+ * (src/modal/fe_modes.c: the first mode whose kinetic energy is mostly in
+ * the rigid rotations), f_2 the two-inertia closed form with that
+ * analysis's tangent stiffness. The static mesh stiffness is measured hub
+ * to hub; in the vibration most of a gear's inertia (rim and teeth) sits
+ * on the contact's side of the web's torsional compliance, so the spring
+ * between the moving masses is stiffer (5-10 % in frequency on the
+ * validation pair, docs/MODAL.md): k_t times the factor puts the lumped
+ * model's mesh mode at the FE one. Driver 0 only (the modal analysis loads
+ * gear 0 of the mesh). */
+static gs_err modal_factors(const gs_scene *sc, int mesh, int driver, double phase, const gs_stiffness_result *r,
+                            double **out, gs_diag *d)
+{
+    *out = NULL;
+    if (driver != 0)
+        return gs_diag_set(d, GS_ERANGE, "calibration",
+                           "the modal calibration needs the external gear first in the mesh's 'gears'");
+    gs_fe_modes_opts mo;
+    gs_fe_modes_opts_defaults(&mo);
+    mo.positions = r->positions;
+    mo.modes = 4;
+    mo.torque_nm = r->torque_nm;
+    mo.phase = phase;
+    gs_fe_modes_result fm;
+    GS_TRY(gs_fe_modes_analyse(sc, mesh, &mo, &fm, d));
+    double *f = gs_calloc((size_t)r->positions, sizeof(double));
+    gs_err e = f ? GS_OK : GS_ENOMEM;
+    for (int j = 0; e == GS_OK && j < r->positions; j++) {
+        const gs_fe_modes_point *p = &fm.pt[j];
+        double hz = 0;
+        for (int i = 0; i < fm.modes && hz == 0; i++)
+            if (p->rotation[i] > 0.5)
+                hz = p->hz[i];
+        if (fabs(p->roll - r->pt[j].roll) > 1e-9 || !(hz > 0) || !(p->lumped_hz > 0))
+            e = gs_diag_set(d, GS_ERANGE, "positions", "no torsional mesh mode at roll %.3f", r->pt[j].roll);
+        else
+            f[j] = (hz / p->lumped_hz) * (hz / p->lumped_hz);
+    }
+    gs_fe_modes_result_clear(&fm);
+    if (e != GS_OK)
+        free(f);
+    else
+        *out = f;
+    return e;
+}
+
 /* Mesh stiffness over one cycle from the quasi-static FE analysis of the
  * pair (src/contact/stiffness.c) at the scene's load F on the driver: the
  * gear whose teeth count the mesh phase, so one driver pitch is one cycle.
@@ -238,6 +287,14 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     int tangent = !sm->calibrate_secant;
     o.tangent = tangent;
     o.tangent_step = tangent ? CAL_TANGENT_STEP : 0.0;
+    /* Entries at the middles of n equal intervals from the start, (j + 1/2) / n
+     * of a cycle: the start then lies inside an interval of the piecewise-linear
+     * table, not on a node, where the exact quotient (k(p1) - k(p0)) / (p1 -
+     * p0) jumps between the two slopes as the step's phase increment changes
+     * sign. From rest (increments near 0) with a potential already loaded
+     * there (run-out, an initial deflection), Newton found no root across that
+     * jump (planetary_runout failed at step 0). */
+    o.phase = 0.5 / o.positions;
     gs_stiffness_result r;
     char field[64];
     snprintf(field, sizeof field, "meshes[%d].stiffness", m->index);
@@ -269,15 +326,22 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
         sc = &clean;
     }
     gs_err e = gs_stiffness_analyse(sc, m->index, &o, &r, &sd);
+    double *modal = NULL;
+    if (e == GS_OK && sm->calibrate_modal) {
+        e = modal_factors(sc, m->index, o.driver, o.phase, &r, &modal, &sd);
+        if (e != GS_OK)
+            gs_stiffness_result_clear(&r);
+    }
     free(bodies);
     if (e != GS_OK)
-        return gs_diag_set(d, e, field, "calibration by the quasi-static FE analysis failed: %s (%s)",
-                           sd.message, sd.field);
+        return gs_diag_set(d, e, field, "calibration by the %s FE analysis failed: %s (%s)",
+                           sm->calibrate_modal ? "modal" : "quasi-static", sd.message, sd.field);
     m->k_table = gs_calloc((size_t)r.positions, sizeof(double));
     if (tangent)
         m->d0_table = gs_calloc((size_t)r.positions, sizeof(double));
     if (!m->k_table || (tangent && !m->d0_table)) {
         gs_stiffness_result_clear(&r);
+        free(modal);
         return GS_ENOMEM;
     }
     m->n_table = r.positions;
@@ -294,9 +358,10 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
         }
         m->k_table[j] = ks;
         if (tangent) {
-            double kt = r.pt[j].k_tan * r.face_width_mm * 1e6;
+            double kt = r.pt[j].k_tan * r.face_width_mm * 1e6 * (modal ? modal[j] : 1.0);
             if (!(kt > 0) || !isfinite(kt)) {
                 gs_stiffness_result_clear(&r);
+                free(modal);
                 return gs_diag_set(d, GS_ERANGE, field, "the calibration gave no tangent stiffness at roll %.3f",
                                    r.pt[j].roll);
             }
@@ -309,13 +374,15 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
         sum += m->k_table[j];
         if (!(m->k_table[j] > 0) || !isfinite(m->k_table[j])) {
             gs_stiffness_result_clear(&r);
+            free(modal);
             return gs_diag_set(d, GS_ERANGE, field, "the calibration gave no stiffness at roll %.3f", r.pt[j].roll);
         }
     }
-    m->phase0 = lumped_phase(sys, m, sys->q);
     m->phase_dir = r.torque_nm < 0 ? -1.0 : 1.0;
+    m->phase0 = lumped_phase(sys, m, sys->q) + m->phase_dir * o.phase;
     m->k_single = m->k_double = sum / r.positions; /* the mean, for the damping estimate */
     gs_stiffness_result_clear(&r);
+    free(modal);
     return GS_OK;
 }
 
@@ -332,11 +399,12 @@ static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
             return gs_diag_set(d, GS_ERANGE, field, "a lumped mesh takes pitch errors as the pitch_errors_um table");
         }
     }
-    /* The tangent-calibrated law only: in lumped_force (rectangular wave,
-     * secant table) the modulated phase let Newton stagnate at that law's
-     * residual floor, the cancellation in (f1^2 - f0^2) / (2 ds) (a hard
-     * start of the validation pair failed; docs/GEOMETRY.md). */
-    if (gsi_mesh_has_runout(m) && sm->stiffness_type == GS_STIFF_CALIBRATED && !sm->calibrate_secant) {
+    /* Every lumped law: the rectangular wave and the secant table (lumped_force)
+     * were left unmodulated while their quotient (f1^2 - f0^2) / (2 ds) lost
+     * precision and Newton stalled (docs/GEOMETRY.md); with the same-flank
+     * quotient (f0 + f1) / 2 they carry it over 2 revolutions
+     * (test_tooth_errors). */
+    if (gsi_mesh_has_runout(m)) {
         lumped_pm *pm = gs_calloc(1, sizeof *pm);
         m->contact = pm; /* freed by lumped_destroy */
         if (!pm || !(pm->cbar = gs_calloc((size_t)sys->n_coords, sizeof(double))))

@@ -606,10 +606,11 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
                 int64_t np;
                 GS_TRY(gsi_json_int(st, "positions", p, 4, 720, false, 24, &np, d));
                 m->calibrate_positions = (int)np;
-                static const char *const claws[] = {"tangent", "secant"};
+                static const char *const claws[] = {"tangent", "secant", "modal"};
                 int cl;
-                GS_TRY(enum_field(st, "calibration", p, "tangent", claws, 2, &cl, d));
-                m->calibrate_secant = cl;
+                GS_TRY(enum_field(st, "calibration", p, "tangent", claws, 3, &cl, d));
+                m->calibrate_secant = cl == 1;
+                m->calibrate_modal = cl == 2;
             } else if (json_object_object_get_ex(st, "calibration", NULL)) {
                 char q[256];
                 gsi_path(q, sizeof q, p, "calibration");

@@ -24,9 +24,13 @@
  * finest setting). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
  * argv[2] (optional): a comma-separated list of levels; only those rows at
- * refine 0 run, the errors then against the last row run (a partial table:
- * e.g. "calibrated,contact" after a change of the default mesh). Every row
- * is also printed to stderr as it completes.
+ * refine 0 run (`LEVEL:R`: the level's rows at refine R), the errors then
+ * against the last row run (a partial table: e.g. "calibrated,contact" after
+ * a change of the default mesh; "" for every row). argv[3] (optional): one
+ * scene (contact_drive or planetary_contact). Every row is also printed to
+ * stderr as it completes. The elastic levels: `contact` steps with
+ * numerics.contact "closure_energy", `contact_seed` and `adaptive` with the
+ * seed's scheme (CSV column `scheme`).
  * Wall times are ratios in one run on one machine; rerun to compare. */
 #include <json-c/json.h>
 #include <math.h>
@@ -43,6 +47,19 @@ typedef struct spec {
     int refine;
 } spec;
 
+/* The contact scheme (numerics.contact) of a level's elastic rows:
+ * `contact` steps with the energy-exact closure, `contact_seed` and
+ * `adaptive` with the seed's scheme (the adaptive step's threshold is on
+ * the seed's penetration); "" for the rigid-gear levels. */
+static const char *scheme_of(const char *level)
+{
+    if (!strcmp(level, "contact"))
+        return "closure_energy";
+    if (!strcmp(level, "contact_seed") || !strcmp(level, "adaptive"))
+        return "seed";
+    return "";
+}
+
 typedef struct result {
     double cost, speed, ratio, dte, force, balance, mesh;
     int ok;
@@ -57,7 +74,7 @@ static gs_system *build(const spec *s)
     const char *lv = s->level;
     /* adaptive: elastic gears in contact with numerics.adaptive (1 um, two
      * halvings of the row's h) */
-    bool adaptive = !strcmp(lv, "adaptive"), contact = adaptive || !strcmp(lv, "contact");
+    bool adaptive = !strcmp(lv, "adaptive"), contact = *scheme_of(lv) != '\0';
     json_object *bs = json_object_object_get(root, "bodies"), *ms = json_object_object_get(root, "meshes");
     for (size_t i = 0; i < json_object_array_length(bs); i++) {
         json_object *b = json_object_array_get_idx(bs, i), *t;
@@ -87,6 +104,8 @@ static gs_system *build(const spec *s)
     }
     json_object *num = json_object_object_get(root, "numerics");
     json_object_object_add(num, "time_step", json_object_new_double(s->h));
+    if (contact)
+        json_object_object_add(num, "contact", json_object_new_string(scheme_of(lv)));
     if (adaptive) {
         json_object *ad = json_object_new_object();
         json_object_object_add(ad, "penetration_um", json_object_new_double(1.0));
@@ -170,26 +189,38 @@ static double rel(double a, double ref)
     return ref != 0 ? fabs(a - ref) / fabs(ref) : fabs(a);
 }
 
-/* Is `level` one of the comma-separated names of `list`? */
-static int level_listed(const char *list, const char *level)
+/* Is the row in the comma-separated list `list`? An entry `LEVEL` names
+ * the level's rows at refine 0, `LEVEL:R` those at refine R. */
+static int row_listed(const char *list, const spec *s)
 {
-    size_t n = strlen(level);
-    for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL)
-        if (!strncmp(p, level, n) && (p[n] == ',' || p[n] == '\0'))
+    size_t n = strlen(s->level);
+    for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL) {
+        if (strncmp(p, s->level, n))
+            continue;
+        if ((p[n] == ',' || p[n] == '\0') && s->refine == 0)
             return 1;
+        if (p[n] == ':' && atoi(p + n + 1) == s->refine)
+            return 1;
+    }
     return 0;
+}
+
+/* Is the row skipped: not in the level list, or of another scene? */
+static int skipped(const char *only, const char *scene, const spec *s)
+{
+    return (only && *only && !row_listed(only, s)) || (scene && strcmp(scene, s->scene));
 }
 
 int main(int argc, char **argv)
 {
     const char *csv = argc > 1 ? argv[1] : "tradeoff.csv";
-    const char *only = argc > 2 ? argv[2] : NULL;
+    const char *only = argc > 2 ? argv[2] : NULL, *scene = argc > 3 ? argv[3] : NULL;
     FILE *f = fopen(csv, "w");
     if (!f) {
         perror(csv);
         return 1;
     }
-    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh\n");
+    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh,scheme\n");
     const spec pair[] = {
         {"contact_drive", "kinematic", 1e-4, 0},  {"contact_drive", "kinematic", 1e-5, 0},
         {"contact_drive", "kinematic", 1e-6, 0},  {"contact_drive", "impact", 1e-4, 0},
@@ -198,8 +229,10 @@ int main(int argc, char **argv)
         {"contact_drive", "lumped", 1e-6, 0},     {"contact_drive", "calibrated", 1e-4, 0},
         {"contact_drive", "calibrated", 1e-5, 0}, {"contact_drive", "calibrated", 1e-6, 0},
         {"contact_drive", "compliant", 1e-4, 0},  {"contact_drive", "compliant", 1e-5, 0},
-        {"contact_drive", "compliant", 1e-6, 0},  {"contact_drive", "adaptive", 2e-5, 0},   {"contact_drive", "adaptive", 1e-5, 0},
-        {"contact_drive", "contact", 2e-5, 0},    {"contact_drive", "contact", 1e-5, 0},
+        {"contact_drive", "compliant", 1e-6, 0},  {"contact_drive", "adaptive", 2e-5, 0},
+        {"contact_drive", "adaptive", 1e-5, 0},   {"contact_drive", "contact_seed", 2e-5, 0},
+        {"contact_drive", "contact_seed", 1e-5, 0}, {"contact_drive", "contact", 2e-5, 0},
+        {"contact_drive", "contact", 1e-5, 0},    {"contact_drive", "contact", 5e-6, 0},
         {"contact_drive", "contact", 1e-5, 1},    {"contact_drive", "contact", 5e-6, 1},
     };
     const spec plan[] = {
@@ -210,6 +243,7 @@ int main(int argc, char **argv)
         {"planetary_contact", "calibrated", 1e-6, 0}, {"planetary_contact", "compliant", 1e-4, 0},
         {"planetary_contact", "compliant", 1e-5, 0},  {"planetary_contact", "compliant", 1e-6, 0},
         {"planetary_contact", "adaptive", 2e-5, 0},   {"planetary_contact", "adaptive", 1e-5, 0},
+        {"planetary_contact", "contact_seed", 2e-5, 0}, {"planetary_contact", "contact_seed", 1e-5, 0},
         {"planetary_contact", "contact", 2e-5, 0},
         {"planetary_contact", "contact", 1e-5, 0},    {"planetary_contact", "contact", 5e-6, 0},
     };
@@ -230,18 +264,21 @@ int main(int argc, char **argv)
     for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {
         const struct set *st = &sets[k];
         result res[32];
-        int last = st->n - 1;
+        int last = st->n - 1, ran = 0;
         for (int i = 0; i < st->n; i++) {
             res[i].ok = 0;
-            if (only && (st->s[i].refine != 0 || !level_listed(only, st->s[i].level)))
+            if (skipped(only, scene, &st->s[i]))
                 continue;
             res[i] = run(&st->s[i], st->duration, st->out, st->in, st->ratio);
             last = i;
+            ran++;
             fprintf(stderr, "# %s %s h %g refine %d: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
                     "balance %.1e mesh %.4e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
                     res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio, res[i].dte,
                     res[i].force, res[i].balance, res[i].mesh);
         }
+        if (!ran)
+            continue;
         const result *ref = &res[last];
         printf("\n## %s\n\nreference: the last row (richest model, finest setting); closed-form output speed "
                "%.4f rad/s\n\n", st->title, st->speed_expect);
@@ -252,7 +289,7 @@ int main(int argc, char **argv)
         for (int i = 0; i < st->n; i++) {
             const spec *s = &st->s[i];
             const result *r = &res[i];
-            if (only && (s->refine != 0 || !level_listed(only, s->level)))
+            if (skipped(only, scene, s))
                 continue;
             if (!r->ok) {
                 printf("| %s | %g | %d | failed | | | | | | | | | | |\n", s->level, s->h, s->refine);
@@ -263,8 +300,9 @@ int main(int argc, char **argv)
             printf("| %s | %g | %d | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
                    s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es,
                    ed, ef, em);
-            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g\n", s->scene, s->level,
-                    s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed, ef, em);
+            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s\n", s->scene, s->level,
+                    s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed, ef, em,
+                    scheme_of(s->level));
         }
     }
     fclose(f);

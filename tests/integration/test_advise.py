@@ -110,6 +110,26 @@ def main():
         R.check("extra level chosen from a table with an extra column",
                 e.get("choice", {}).get("level") == "compliant", e)
 
+        # 4b. The elastic rows' contact scheme (column `scheme`, tables since
+        # issue 15): the advice says which numerics.contact was measured.
+        sch = os.path.join(tmp, "scheme.csv")
+        with open(sch, "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields + ["scheme"])
+            w.writeheader()
+            for row in rows:
+                w.writerow(dict(row, scheme="closure_energy" if row["level"] == "contact" else ""))
+        t = advise("planetary", "--target", "dte=0.2", "--table", sch)
+        R.check("a contact row's scheme is named in the advice", t.returncode == 0 and
+                'advice: contact, time step 2e-05 s, refine 0, numerics.contact "closure_energy"' in t.stdout,
+                t.stdout + t.stderr)
+        j = advise_json("planetary", "--target", "dte=0.2", "--table", sch)
+        R.check("and in the JSON choice", j.get("choice", {}).get("scheme") == "closure_energy", j)
+
+    # 4c. The outputs' longer names (dte_rms, peak_force, mesh_order, output_speed).
+    e1, e2 = advise_json("contact_drive", "--target", "dte_rms=0.2"), advise_json("contact_drive", "--target", "dte=0.2")
+    R.check("dte_rms is the dte output", e1.get("choice") == e2.get("choice") and e1.get("targets") == {"dte": 0.2},
+            (e1, e2))
+
     # 5. Errors.
     r = advise("contact_drive", "--target", "stress=0.1")
     R.check("unknown output: exit 2, names the known outputs",

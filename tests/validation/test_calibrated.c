@@ -16,13 +16,18 @@
  *  - the mean dynamic TE of the two runs, the same quantity (line-of-action
  *    deflection less the FE backlash closing and contact penetration),
  *    agree within 10%;
- *  - the first torsional mesh mode, lumped closed form against the dominant
- *    frequency of the FE run (mesh velocity and DTE), within 3% (issue 8);
+ *  - the first torsional mesh mode against the dominant frequency of the FE
+ *    run (mesh velocity and DTE; the FE run with numerics.contact
+ *    "closure_energy"): the modal calibration (k_t scaled per position to
+ *    the FE pair's own eigenproblem, delta_0 keeping the static TE) within
+ *    3% in closed form (issue 8) and 5% in its own run, keeping the mean TE
+ *    within 1%; the tangent calibration below it (the web's compliance in
+ *    the static stiffness) by less than 15%;
  *  - the secant calibration, run alongside, is printed for comparison;
  * and the wall-time ratio of the two runs is printed, not asserted: speed is
  * the benchmarks' business (bench_tradeoff, docs/PERFORMANCE.md).
- * On linear triangles (mesh.order 1); the default quadratic mesh under
- * GEARSIM_LONG=1 (its mesh-mode check fails today: see the case). */
+ * On the default quadratic mesh; linear triangles (mesh.order 1) under
+ * GEARSIM_LONG=1. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -151,11 +156,18 @@ static double unwarp(double f, double h)
  * "tangent", "secant" or NULL (the default). */
 /* Element order of the elastic gears (and of the calibration): 1 pins
  * linear triangles, 2 is the default mesh. */
-static int g_order = 1;
+static int g_order = 2;
 
 static json_object *drive_scene(void)
 {
-    return g_order == 1 ? vt_scene_linear("contact_drive") : vt_scene("contact_drive");
+    json_object *root = g_order == 1 ? vt_scene_linear("contact_drive") : vt_scene("contact_drive");
+    /* The FE run with the energy-exact closure (docs/CONTACT.md): the seed's
+     * scheme drops the gap, and its micrometre penetrations and tooth
+     * impacts pull the run's spectral peak below the FE pair's own mesh
+     * mode (7.9 kHz against 9.3 kHz on the default mesh). */
+    json_object_object_add(json_object_object_get(root, "numerics"), "contact",
+                           json_object_new_string("closure_energy"));
+    return root;
 }
 
 static gs_system *lumped_calibrated(const char *calibration)
@@ -200,6 +212,8 @@ static void calibrated_run(void)
     print_message("element order %d\n", g_order);
     gs_system *lum = lumped_calibrated(NULL); /* the default: tangent */
     gs_system *sec = lumped_calibrated("secant");
+    gs_system *mod = lumped_calibrated("modal");
+    const gs_gmesh_rt *gmod = &mod->meshes[0];
     const gs_gmesh_rt *gm = &lum->meshes[0], *gsec = &sec->meshes[0];
     double kmin, kmax, dmin, dmax, smin, smax;
     assert_non_null(gm->d0_table);
@@ -207,6 +221,12 @@ static void calibrated_run(void)
     double kmean = table_stats(gm->k_table, gm->n_table, &kmin, &kmax);
     double d0mean = table_stats(gm->d0_table, gm->n_table, &dmin, &dmax);
     double ksec = table_stats(gsec->k_table, gsec->n_table, &smin, &smax);
+    double mmin, mmax, mdmin, mdmax;
+    double kmod = table_stats(gmod->k_table, gmod->n_table, &mmin, &mmax);
+    double d0mod = table_stats(gmod->d0_table, gmod->n_table, &mdmin, &mdmax);
+    print_message("calibrated modal stiffness: min/mean/max %.4g / %.4g / %.4g N/m (tangent x %.4f in the mean); "
+                  "offset delta_0 min/mean/max %.4g / %.4g / %.4g m\n", mmin, kmod, mmax, kmod / kmean, mdmin, d0mod,
+                  mdmax);
     print_message("calibrated tangent stiffness: %d positions, min/mean/max %.4g / %.4g / %.4g N/m; offset "
                   "delta_0 min/mean/max %.4g / %.4g / %.4g m\n", gm->n_table, kmin, kmean, kmax, dmin, d0mean, dmax);
     print_message("calibrated secant stiffness: min/mean/max %.4g / %.4g / %.4g N/m\n", smin, ksec, smax);
@@ -240,6 +260,7 @@ static void calibrated_run(void)
 
     run_out a = run(lum, n, tail);
     run_out c = run(sec, n, tail);
+    run_out md = run(mod, n, tail);
     run_out b = run(fe, n, tail);
     double expect = 20.0 * (20.0 / 30.0) / 0.3;
     print_message("lumped calibrated: speed %.5f rad/s (%.2e), mean deflection %.4e m, balance %.2e of %.2e J, "
@@ -255,6 +276,11 @@ static void calibrated_run(void)
     assert_true(fabs(b.speed / expect - 1) < 1e-2);
     assert_true(a.residual < 1e-11 * a.scale);
     assert_true(fabs(fabs(a.defl) / te - 1) < 0.10);
+    /* the modal calibration keeps the static TE under the load */
+    print_message("modal calibration: mean dynamic TE %.4e m, %+.2f%% against the FE static TE; balance %.2e of "
+                  "%.2e J\n", md.defl, 100 * (fabs(md.defl) / te - 1), md.residual, md.scale);
+    assert_true(fabs(fabs(md.defl) / te - 1) < 0.01);
+    assert_true(md.residual < 1e-11 * md.scale);
 
     /* (1) Mean dynamic transmission error, the same quantity from both runs:
      * s - s_ref = rb1 theta1 + rb2 theta2 from the exact-ratio placement
@@ -292,7 +318,8 @@ static void calibrated_run(void)
         inv_f += fe->meshes[0].a[c] * fe->meshes[0].a[c] / fe->bodies[i].inertia_eff;
     }
     double f_lum = sqrt(kmean * inv_l) / (2 * M_PI), f_tan = sqrt(ktan * inv_f) / (2 * M_PI);
-    double f_sec = sqrt(ksec * inv_l) / (2 * M_PI);
+    double f_sec = sqrt(ksec * inv_l) / (2 * M_PI), f_mod = sqrt(kmod * inv_l) / (2 * M_PI);
+    double f_mod_run = unwarp(dominant_frequency(md.vel, tail, mod->h, 4000, 14000), mod->h);
     double fd_fe = dominant_frequency(b.vel, tail, fe->h, 4000, 14000);
     double fd_fe_dte = dominant_frequency(b.dte, tail, fe->h, 4000, 14000);
     double f_fe = unwarp(fd_fe, fe->h), f_fe_dte = unwarp(fd_fe_dte, fe->h);
@@ -305,8 +332,23 @@ static void calibrated_run(void)
                   "/ %+.2f%%; secant %+.2f%% / %+.2f%%)\n", 100 * (f_lum / f_fe - 1), 100 * (f_lum / f_fe_dte - 1),
                   100 * (f_lum_run / f_fe - 1), 100 * (f_lum_run / f_fe_dte - 1), 100 * (f_sec / f_fe - 1),
                   100 * (f_sec / f_fe_dte - 1));
-    assert_true(fabs(f_lum / f_fe - 1) < 0.03);
-    assert_true(fabs(f_lum / f_fe_dte - 1) < 0.03);
+    print_message("mesh mode, modal calibration: closed form %.0f Hz, its run %.0f Hz: %+.2f%% / %+.2f%% against the "
+                  "FE run (bars 3%% / 5%%)\n", f_mod, f_mod_run, 100 * (f_mod / f_fe - 1), 100 * (f_mod_run / f_fe - 1));
+    /* The FE run's two estimates of its mode agree. */
+    assert_true(fabs(f_fe / f_fe_dte - 1) < 0.02);
+    /* Issue 8's check, met by the modal calibration: the lumped mesh mode in
+     * closed form (the mean stiffness) within 3% of the FE run's; the
+     * lumped run's own spectral peak within 5% (issue 15's bar for the
+     * lumped peak: the estimator of a parametrically excited comb moves
+     * 1-1.5% between a closed form and its own run, measured -2.2% / -3.5%
+     * on the default mesh). */
+    assert_true(fabs(f_mod / f_fe - 1) < 0.03);
+    assert_true(fabs(f_mod_run / f_fe - 1) < 0.05);
+    /* The tangent (static, hub-to-hub) calibration lies below: the web's
+     * torsional compliance is in k_t, while in the vibration most of the
+     * inertia sits on the contact's side of it (docs/STIFFNESS.md). Measured
+     * -6 to -10%; the bar keeps the sign and the size. */
+    assert_true(f_lum < f_fe && f_lum > 0.85 * f_fe);
 
     /* (3) Speed-up, same process: printed; asserted only far below the
      * measured ratio (timings on a shared machine are noisy). */
@@ -318,38 +360,40 @@ static void calibrated_run(void)
     free(b.vel);
     free(c.dte);
     free(c.vel);
+    free(md.dte);
+    free(md.vel);
+    gs_system_free(&mod);
     gs_system_free(&sec);
     gs_system_free(&lum);
     gs_system_free(&fe);
 }
 
-/* Linear triangles (vt_scene_linear): the bars were set on them. */
+/* Linear triangles (vt_scene_linear), GEARSIM_LONG=1 only: the mesh the
+ * first bars were set on. */
 static void calibrated_against_fe(void **state)
 {
     (void)state;
     g_order = 1;
     calibrated_run();
+    g_order = 2;
 }
 
-/* The default quadratic mesh, GEARSIM_LONG=1 only (the FE run takes ~4
- * minutes): measured 2026-11-25, every bar holds except the mesh mode,
- * lumped closed form 8491 Hz against the FE run's 7879 Hz (+7.8 %, bar 3 %;
- * docs/STIFFNESS.md "Calibrated lumped meshes"), so this case fails today. */
+/* The default quadratic mesh (about 80 CPU seconds: the FE run's 6000
+ * steps and the modal calibration's 24 eigenproblems). */
 static void calibrated_against_fe_default(void **state)
 {
     (void)state;
     g_order = 2;
     calibrated_run();
-    g_order = 1;
 }
 
 int main(void)
 {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(calibrated_against_fe),
+        cmocka_unit_test(calibrated_against_fe_default),
     };
     const struct CMUnitTest long_tests[] = {
-        cmocka_unit_test(calibrated_against_fe_default),
+        cmocka_unit_test(calibrated_against_fe),
     };
     const char *lg = getenv("GEARSIM_LONG");
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
