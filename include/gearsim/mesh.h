@@ -97,6 +97,16 @@ typedef struct gs_gear_mesh_opts {
                       * under the teeth (smallest at the root); 1 = uniform; 1..8 */
     int order;       /* element order: 1 linear (CST), 2 quadratic 6-node triangles with
                       * curved boundary edges (scene mesh.order) */
+    /* Local refinement (docs/GEOMETRY.md "Local refinement"; 0 = none): the
+     * fine_teeth tooth sectors centred on tooth fine_centre are meshed
+     * fine_refine levels finer than `refine` (rim band under them included),
+     * the coarse sectors next to them take the fine node count on the shared
+     * side, and the rings under them start fine and halve their extra density
+     * ring by ring: a conforming mesh. For the quasi-static analysis, which
+     * centres them on the teeth in contact. */
+    int fine_teeth;  /* 0..z (scene mesh.fine_teeth) */
+    int fine_refine; /* 1..4 when fine_teeth > 0, else 0 (scene mesh.fine_refine) */
+    int fine_centre; /* tooth the fine teeth are centred on (taken modulo z) */
 } gs_gear_mesh_opts;
 
 /* The default mesh (the scene's): quadratic elements (order 2) with the
