@@ -65,6 +65,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->order = 0;
     o->nearfield = 0;
     o->nearfield_depth_mm = 0.0;
+    o->fine = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -172,8 +173,8 @@ static void fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffne
     centre[1] = contact_tooth(&B->gear, cB, cA, A->gear.kind == GS_GEAR_INTERNAL, thB);
 }
 
-static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine_centre, sbody *b,
-                         gs_diag *d)
+static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine,
+                         int fine_centre, sbody *b, gs_diag *d)
 {
     char field[64];
     snprintf(field, sizeof field, "bodies[%d]", bi);
@@ -182,7 +183,13 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int 
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
     gs_scene_body_centre(sc, bi, b->c);
     gs_scene_body sbo = *b->sb; /* the scene's body with the analysis' element order */
-    if (order > 0)
+    if (fine) { /* the `fine` setting: local refinement on the teeth in contact */
+        gs_gear_mesh_opts fo;
+        gs_gear_mesh_opts_fine(&fo);
+        sbo.mesh = (gs_mesh_density){fo.flank, fo.across, fo.rim, fo.refine, fo.grading,
+                                     fo.order, fo.fine_teeth, fo.fine_refine, 0};
+        refine = -1;
+    } else if (order > 0)
         sbo.mesh.order = order;
     sbo.mesh.fine_centre = fine_centre;
     gs_diag md;
@@ -1124,6 +1131,11 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         o.max_iter = 12;
     if (o.cycles < 1 || o.cycles > 10000)
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
+    if (o.fine != 0 && o.fine != 1)
+        return gs_diag_set(d, GS_ERANGE, "fine", "fine must be 0 or 1");
+    if (o.fine && (o.refine >= 0 || o.order > 0))
+        return gs_diag_set(d, GS_EINVAL, "fine",
+                           "the fine setting is a mesh of its own: not with refine or order");
     if (o.nearfield != 0 && o.nearfield != 1)
         return gs_diag_set(d, GS_ERANGE, "nearfield", "nearfield must be 0 or 1");
     if (!(o.nearfield_depth_mm >= 0.0 && o.nearfield_depth_mm <= 100.0))
@@ -1149,7 +1161,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (sc->bodies[bidx[0]].type == GS_BODY_GEAR && sc->bodies[bidx[1]].type == GS_BODY_GEAR)
         fine_centres(sc, bidx, &o, fc);
     for (int k = 0; k < 2 && e == GS_OK; k++)
-        e = sbody_init(sc, bidx[k], o.refine, o.order, fc[k], &w.b[k], d);
+        e = sbody_init(sc, bidx[k], o.refine, o.order, o.fine, fc[k], &w.b[k], d);
     if (e != GS_OK)
         goto done;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;
