@@ -693,7 +693,7 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, int nc_lo, i
     /* The sector sides are shared with the neighbours: the lower one is the
      * exact mirror image of the upper one at its count (nested gradings, so
      * the same node of a coarse and a fine side has the same position). */
-    for (int side = 0; side < 2; side++) {
+    for (int side = 1; side >= 0; side--) { /* the upper side first (node order) */
         int c = side ? nc_hi : nc_lo;
         gs_index *ids = side ? sr_hi : sr_lo;
         for (int j = 0; j <= c; j++)
