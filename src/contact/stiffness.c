@@ -173,6 +173,8 @@ static void fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffne
     centre[1] = contact_tooth(&B->gear, cB, cA, A->gear.kind == GS_GEAR_INTERNAL, thB);
 }
 
+/* fine: 0, or the number of teeth of the `fine` setting (its mesh replaces
+ * the scene's density) */
 static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine,
                          int fine_centre, sbody *b, gs_diag *d)
 {
@@ -187,7 +189,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int 
         gs_gear_mesh_opts fo;
         gs_gear_mesh_opts_fine(&fo);
         sbo.mesh = (gs_mesh_density){fo.flank, fo.across, fo.rim, fo.refine, fo.grading,
-                                     fo.order, fo.fine_teeth, fo.fine_refine, 0};
+                                     fo.order, fine, fo.fine_refine, 0};
         refine = -1;
     } else if (order > 0)
         sbo.mesh.order = order;
@@ -1161,7 +1163,9 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (sc->bodies[bidx[0]].type == GS_BODY_GEAR && sc->bodies[bidx[1]].type == GS_BODY_GEAR)
         fine_centres(sc, bidx, &o, fc);
     for (int k = 0; k < 2 && e == GS_OK; k++)
-        e = sbody_init(sc, bidx[k], o.refine, o.order, o.fine, fc[k], &w.b[k], d);
+        e = sbody_init(sc, bidx[k], o.refine, o.order,
+                       o.fine ? 2 + o.cycles : 0, /* the teeth in contact over the cycles */
+                       fc[k], &w.b[k], d);
     if (e != GS_OK)
         goto done;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;

@@ -11,6 +11,9 @@ Asserted (bars measured when written, in the comments; each can fail):
 * k and TE within BAR_FINE of the reference's Richardson limit at every
   position (issue 14's 1 %), the cycle and single-contact means within
   BAR_FINE_MEAN;
+* the fine teeth follow the contact: over two mesh cycles (--cycles 2,
+  cycles + 2 fine teeth) k at rolls 0 and 1, and at 0.5 and 1.5 (the same
+  contact, one tooth on) agree within BAR_PERIODIC;
 * the setting is local: fewer than FRACTION_OF_R2 of the unknowns of the
   uniform refine 2 of the default counts (606 304), the cheapest uniform
   level near this accuracy (1.8 % off at the transitions,
@@ -30,6 +33,7 @@ BAR_FINE = 0.01        # |k error|, |TE error| per position (30/20: 0.90%, 0.89%
 BAR_FINE_MEAN = 0.005  # |cycle mean|, |single-contact mean| k error (+0.23%, +0.11%; +0.20%, +0.07%)
 UNKNOWNS_R2 = 606304   # uniform order 2 refine 2 of the default counts, 20/30 pair
 FRACTION_OF_R2 = 0.5   # the fine setting: 247 520 unknowns (0.41)
+BAR_PERIODIC = 0.003   # |k(roll + 1) / k(roll) - 1| over two cycles (0.03%, 0.13%)
 
 failures = []
 
@@ -63,6 +67,19 @@ def main():
             check(unknowns < FRACTION_OF_R2 * UNKNOWNS_R2,
                   "fine setting: %d unknowns < %.1f x %d (uniform refine 2)"
                   % (unknowns, FRACTION_OF_R2, UNKNOWNS_R2))
+    # two cycles: the loaded teeth one pitch on are as finely meshed
+    import json
+    import subprocess
+    scene = os.path.join(SRC, "tests", "reference", "stiffness_30_20", "scene.json")
+    out = subprocess.run([tool, scene, "--fine", "--cycles", "2", "--positions", "4",
+                          "--no-tangent", "--json"], capture_output=True, text=True)
+    check(out.returncode == 0, "gearsim-stiffness --fine --cycles 2 runs (%s)" % out.stderr.strip())
+    if out.returncode == 0:
+        k = [p["k"] for p in json.loads(out.stdout)["points"]]
+        for a, b in ((0, 2), (1, 3)):
+            check(abs(k[b] / k[a] - 1) < BAR_PERIODIC,
+                  "two cycles: k(roll %.1f) %.4f vs k(roll %.1f) %.4f within %.1f%%"
+                  % (0.5 * a, k[a], 0.5 * b, k[b], 100 * BAR_PERIODIC))
     if failures:
         print("%d check(s) failed" % len(failures))
         return 1
