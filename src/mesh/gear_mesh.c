@@ -26,7 +26,10 @@
  * the root (where teeth touch and bend); the rings grow geometrically away
  * from the teeth. Poor elements are then smoothed (interior nodes only).
  * Refinement multiplies every count by
- * 2^refine with all boundary nodes of the coarser mesh kept (nested). */
+ * 2^refine with all boundary nodes of the coarser mesh kept (nested).
+ * Local refinement (fine_teeth) builds some sectors from finer plans, graded
+ * one level per tooth, the coarser of two neighbours taking the finer one's
+ * count on their shared side, and splits the rings' intervals under them. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -48,6 +48,18 @@ def reference_checks(ref, min_positions, est_bar, shape_ratio):
             (ratio > shape_ratio, "reference k max/min > %.2f (%.3f)" % (shape_ratio, ratio))]
 
 
+def checker():
+    """(check, failures) for a validation test: check(cond, what) prints
+    ok/FAIL and what, and collects the failed ones in the list failures."""
+    failures = []
+
+    def check(cond, what):
+        print("%s: %s" % ("ok" if cond else "FAIL", what))
+        if not cond:
+            failures.append(what)
+    return check, failures
+
+
 def open_checked(pair_dir, build, min_positions, est_bar, shape_ratio, check):
     """The tool and the reference of a pair, the reference's own checks passed
     to check(cond, what) (the validation tests' common start)."""

@@ -35,13 +35,7 @@ UNKNOWNS_R2 = 606304   # uniform order 2 refine 2 of the default counts, 20/30 p
 FRACTION_OF_R2 = 0.5   # the fine setting: 247 520 unknowns (0.41)
 BAR_PERIODIC = 0.003   # |k(roll + 1) / k(roll) - 1| over two cycles (0.03%, 0.13%)
 
-failures = []
-
-
-def check(cond, what):
-    print("%s: %s" % ("ok" if cond else "FAIL", what))
-    if not cond:
-        failures.append(what)
+check, failures = compare.checker()
 
 
 def main():
