@@ -594,11 +594,11 @@ static void side_counts(const nodes_t *nd, const gs_index *top, const gs_index *
 /* One tooth sector at the plan's refinement; its sides (the space centre
  * lines) get nc_lo and nc_hi elements: pl->nband, or a finer neighbour's
  * count (a transition sector next to locally refined teeth). */
-static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, int nc_lo, int nc_hi,
-                           sector_t *s)
+static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, const plan_t *pt, int nc_lo,
+                           int nc_hi, sector_t *s)
 {
-    const int nf = pl->nf, na = pl->na, nr = pl->nr, ns = pl->ns;
-    const int ntip = pl->ntip, nrb = pl->nrb, nsb = pl->ns, nc = pl->nband;
+    const int nf = pt->nf, na = pt->na, nr = pl->nr, ns = pl->ns;
+    const int ntip = pt->ntip, nrb = pl->nrb, nsb = pl->ns, nc = pl->nband;
     const int ncm = nc_lo > nc_hi ? nc_lo : nc_hi;
     const double hp = g->half_pitch, R0 = pl->R0, rb = g->rb;
     gs_index *fl_lo = NULL, *fl_hi = NULL, *tip = NULL, *chord = NULL, *rbot = NULL;
@@ -1137,14 +1137,17 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         free(pl);
         return e;
     }
-    /* Local refinement: `fine_teeth` teeth centred on `fine_centre` are
-     * meshed from a plan `fine_refine` levels finer; the teeth beside them
-     * step down one level per tooth to the base (graded), and of two
-     * neighbouring sectors the coarser takes the finer one's node count on
-     * their shared side (a 2:1 transition inside the coarser sector). */
+    /* Local refinement: the teeth of the `fine_teeth` sectors centred on
+     * `fine_centre` (the T blocks, whose flanks carry the contact) are
+     * meshed from a plan `fine_refine` levels finer, their bodies (rim band,
+     * fillets) one level less; the sectors beside them step down one more
+     * level per tooth to the base (graded), and of two neighbouring sectors
+     * the coarser takes the finer one's node count on their shared side (a
+     * 2:1 transition inside the coarser sector). */
     const int z = g.z;
     const int nfine = o->fine_teeth > z ? z : o->fine_teeth;
     const int nlev = nfine > 0 ? o->fine_refine + 1 : 1;
+
     const int c0 = nfine > 0 ? ((o->fine_centre - (nfine - 1) / 2) % z + z) % z : 0;
     plan_t *plv[5] = {pl, NULL, NULL, NULL, NULL};
     for (int lv = 1; lv < nlev; lv++) {
@@ -1168,14 +1171,19 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         int off = ((k - c0) % z + z) % z, dist = 0;
         if (off >= nfine)
             dist = off - (nfine - 1) < z - off ? off - (nfine - 1) : z - off;
-        lev[k] = nlev - 1 - dist > 0 ? nlev - 1 - dist : 0;
+        /* body level (rim band, fillets, sector sides); the fine teeth's
+         * own tooth (the T block, whose flanks carry the contact) one
+         * level above their body: lev + 100 marks them */
+        lev[k] = nlev - 2 - dist > 0 ? nlev - 2 - dist : 0;
+        if (dist == 0)
+            lev[k] += 100;
     }
     /* Size guard before allocating: triangles per sector ~ 2 (na nf + (na +
      * 2 ns) nr), plus the rings (bounded by a few times the band's). */
     {
         double tot = 0.0;
         for (int k = 0; k < z; k++) {
-            const plan_t *pk = plv[lev[k]];
+            const plan_t *pk = plv[lev[k] % 100 + lev[k] / 100];
             tot += 2.0 * ((double)pk->na * pk->nf + (double)(pk->na + 2 * pk->ns) * pk->nr) * 4.0;
         }
         if (tot > (double)(1 << 26)) {
@@ -1188,10 +1196,10 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     }
     /* Sector variants: 4 per level, bit 0 / bit 1 set when the left / right
      * neighbour is one level finer. */
-    sector_t sec[20];
+    sector_t sec[40];
     memset(sec, 0, sizeof sec);
-    signed char *where[20] = {NULL}; /* -1 left side, +1 right side, 0 other */
-    int *side_pos[20] = {NULL};      /* position on that side */
+    signed char *where[40] = {NULL}; /* -1 left side, +1 right side, 0 other */
+    int *side_pos[40] = {NULL};      /* position on that side */
     nodes_t nd = {0};
     tris_t tr = {0};
     rings_t rp = {0};
@@ -1209,15 +1217,16 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         int side_max = 0;
         n0 = 0;
         for (int k = 0; k < z; k++) {
-            int lk = lev[k], fl = lev[(k + z - 1) % z] > lk, fh = lev[(k + 1) % z] > lk;
-            int v = 4 * lk + fl + 2 * fh;
+            int lk = lev[k] % 100, up = lev[k] / 100;
+            int fl = lev[(k + z - 1) % z] % 100 > lk, fh = lev[(k + 1) % z] % 100 > lk;
+            int v = 4 * lk + fl + 2 * fh + 20 * up;
             var[k] = v;
             sector_t *sv = &sec[v];
             if (!sv->nd.n) {
                 const plan_t *pv = plv[lk];
                 int nclo = fl ? plv[lk + 1]->nband : pv->nband;
                 int nchi = fh ? plv[lk + 1]->nband : pv->nband;
-                e = build_sector(&g, pv, nclo, nchi, sv);
+                e = build_sector(&g, pv, plv[lk + up], nclo, nchi, sv);
                 if (e != GS_OK)
                     goto fail;
                 e = GS_ENOMEM;
@@ -1330,7 +1339,7 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
                         double a = -GS_PI / z + 2.0 * GS_PI * q / nb0;
                         double am = a + GS_PI / nb0;
                         long tk = lround(am * z / (2.0 * GS_PI));
-                        int lk = lev[(int)((tk % z + z) % z)] - sub_all;
+                        int lk = lev[(int)((tk % z + z) % z)] % 100 - sub_all;
                         int f = lk > 0 ? 1 << lk : 1;
                         for (int i = 0; i < f; i++, cnt++) {
                             if (!pass)
@@ -1412,7 +1421,7 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     m = NULL;
 fail:
     gs_mesh_free(&m);
-    for (int v = 0; v < 20; v++) {
+    for (int v = 0; v < 40; v++) {
         sector_free(&sec[v]);
         free(where[v]);
         free(side_pos[v]);
