@@ -98,9 +98,10 @@ typedef struct gs_gear_mesh_opts {
     int order;       /* element order: 1 linear (CST), 2 quadratic 6-node triangles with
                       * curved boundary edges (scene mesh.order) */
     /* Local refinement (docs/GEOMETRY.md "Local refinement"; 0 = none): the
-     * fine_teeth tooth sectors centred on tooth fine_centre are meshed
-     * fine_refine levels finer than `refine` (rim band under them included),
-     * the coarse sectors next to them take the fine node count on the shared
+     * teeth of the fine_teeth sectors centred on tooth fine_centre are meshed
+     * fine_refine levels finer than `refine` (rim band and fillets under
+     * them one level less, the sectors beside them graded one level per tooth),
+     * the coarser of two neighbouring sectors takes the finer node count on the shared
      * side, and the rings under them start fine and halve their extra density
      * ring by ring: a conforming mesh. For the quasi-static analysis, which
      * centres them on the teeth in contact. */
@@ -123,7 +124,8 @@ void gs_gear_mesh_opts_for_order(gs_gear_mesh_opts *o, int order);
 /* The `fine` setting of the quasi-static analysis (gearsim-stiffness --fine;
  * docs/CONVERGENCE.md "Local refinement and the fine setting"): order 2
  * {flank 8, across 4, rim 1, grading 3}, the 3 teeth centred on fine_centre
- * (the analysis puts it on the teeth in contact) 3 levels finer. The
+ * (the analysis puts it on the teeth in contact) 3 levels finer (their rim
+ * band and fillets 2). The
  * cheapest local setting measured within 1 % of the CalculiX reference at
  * every roll position of the 20/30 pair. */
 void gs_gear_mesh_opts_fine(gs_gear_mesh_opts *o);
