@@ -68,7 +68,8 @@ typedef struct gs_stiffness_opts {
                         * mm (at most one module); 0 (default): 0.8 module */
     int fine;          /* 0 (default): the scene's mesh; 1: both gears on the `fine` setting
                         * (gs_gear_mesh_opts_fine: teeth in contact locally refined, cycles + 2
-                        * of them; replaces the scene's mesh density, refine and order) */
+                        * of them rounded up to odd; replaces the scene's mesh density, refine
+                        * and order) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

@@ -1164,7 +1164,8 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         fine_centres(sc, bidx, &o, fc);
     for (int k = 0; k < 2 && e == GS_OK; k++)
         e = sbody_init(sc, bidx[k], o.refine, o.order,
-                       o.fine ? 2 + o.cycles : 0, /* the teeth in contact over the cycles */
+                       /* the teeth in contact over the cycles, an odd count (centred) */
+                       o.fine ? o.cycles + 2 + (o.cycles % 2 == 0) : 0,
                        fc[k], &w.b[k], d);
     if (e != GS_OK)
         goto done;
