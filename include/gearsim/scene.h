@@ -41,6 +41,9 @@ typedef struct gs_mesh_density {
     int refine;  /* uniform refinements: counts times 2^refine */
     double grading; /* largest / smallest element size across a tooth */
     int order;   /* element order: 1 linear, 2 quadratic (curved 6-node triangles) */
+    int fine_teeth;  /* local refinement: teeth meshed finer (0: none; quasi-static analysis) */
+    int fine_refine; /* levels finer than `refine` on those teeth */
+    int fine_centre; /* tooth they are centred on (not a scene field: set by the analysis) */
 } gs_mesh_density;
 
 typedef struct gs_scene_body {

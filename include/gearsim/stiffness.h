@@ -66,6 +66,10 @@ typedef struct gs_stiffness_opts {
                         * "Near-field correction") */
     double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,
                         * mm (at most one module); 0 (default): 0.8 module */
+    int fine;          /* 0 (default): the scene's mesh; 1: both gears on the `fine` setting
+                        * (gs_gear_mesh_opts_fine: teeth in contact locally refined, cycles + 2
+                        * of them rounded up to odd; replaces the scene's mesh density, refine
+                        * and order) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

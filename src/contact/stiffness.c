@@ -65,6 +65,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->order = 0;
     o->nearfield = 0;
     o->nearfield_depth_mm = 0.0;
+    o->fine = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -136,7 +137,46 @@ static void sbody_free(sbody *b)
     gs_mesh_free(&b->mesh);
 }
 
-static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbody *b, gs_diag *d)
+/* The tooth of gear `g` (centre c, turned by theta) nearest the line of
+ * centres towards the other gear (centre co): where it meets that gear. */
+static int contact_tooth(const gs_gear_params *g, const double c[2], const double co[2],
+                         bool other_internal, double theta)
+{
+    double phic = atan2(co[1] - c[1], co[0] - c[0]) + (other_internal ? GS_PI : 0.0);
+    long t = lround((phic - theta) / (2.0 * GS_PI / g->teeth));
+    return (int)((t % g->teeth + g->teeth) % g->teeth);
+}
+
+static double default_torque(const gs_scene *sc, int body, double rb, double b_m);
+
+/* Local refinement (mesh.fine_teeth): centre the fine teeth of both gears
+ * on the teeth in contact halfway through the roll range (docs/GEOMETRY.md
+ * "Local refinement"), the rotations those of gs_stiffness_next. */
+static void fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffness_opts *o,
+                         int centre[2])
+{
+    const gs_scene_body *A = &sc->bodies[bidx[0]], *B = &sc->bodies[bidx[1]];
+    double cA[2], cB[2];
+    gs_scene_body_centre(sc, bidx[0], cA);
+    gs_scene_body_centre(sc, bidx[1], cB);
+    double rb = gs_gear_base_radius(&A->gear);
+    double bw = fmin(A->gear.face_width_m, B->gear.face_width_m);
+    double T = o->torque_nm != 0.0 ? o->torque_nm : default_torque(sc, bidx[0], rb, bw);
+    double sgn = T > 0 ? 1.0 : -1.0, pitch = 2.0 * GS_PI / A->gear.teeth, roll = 0.5 * o->cycles;
+    double ratio = (double)A->gear.teeth / B->gear.teeth *
+                   (A->gear.kind == GS_GEAR_INTERNAL || B->gear.kind == GS_GEAR_INTERNAL ? 1.0 : -1.0);
+    double thB0 = gs_pair_mesh_phase(&A->gear, cA, A->angle0 + sgn * o->phase * pitch, &B->gear, cB,
+                                     B->angle0);
+    double thA = A->angle0 + sgn * (o->phase + roll) * pitch;
+    double thB = gs_pair_mesh_phase(&A->gear, cA, thA, &B->gear, cB, thB0 + ratio * sgn * roll * pitch);
+    centre[0] = contact_tooth(&A->gear, cA, cB, B->gear.kind == GS_GEAR_INTERNAL, thA);
+    centre[1] = contact_tooth(&B->gear, cB, cA, A->gear.kind == GS_GEAR_INTERNAL, thB);
+}
+
+/* fine: 0, or the number of teeth of the `fine` setting (its mesh replaces
+ * the scene's density) */
+static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine,
+                         int fine_centre, sbody *b, gs_diag *d)
 {
     char field[64];
     snprintf(field, sizeof field, "bodies[%d]", bi);
@@ -145,8 +185,15 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, sbod
         return gs_diag_set(d, GS_ERANGE, field, "'%s' is not a gear", b->sb->name);
     gs_scene_body_centre(sc, bi, b->c);
     gs_scene_body sbo = *b->sb; /* the scene's body with the analysis' element order */
-    if (order > 0)
+    if (fine) { /* the `fine` setting: local refinement on the teeth in contact */
+        gs_gear_mesh_opts fo;
+        gs_gear_mesh_opts_fine(&fo);
+        sbo.mesh = (gs_mesh_density){fo.flank, fo.across, fo.rim, fo.refine, fo.grading,
+                                     fo.order, fine, fo.fine_refine, 0};
+        refine = -1;
+    } else if (order > 0)
         sbo.mesh.order = order;
+    sbo.mesh.fine_centre = fine_centre;
     gs_diag md;
     gs_diag_clear(&md);
     double t0 = cpu_now();
@@ -1086,6 +1133,11 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         o.max_iter = 12;
     if (o.cycles < 1 || o.cycles > 10000)
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
+    if (o.fine != 0 && o.fine != 1)
+        return gs_diag_set(d, GS_ERANGE, "fine", "fine must be 0 or 1");
+    if (o.fine && (o.refine >= 0 || o.order > 0))
+        return gs_diag_set(d, GS_EINVAL, "fine",
+                           "the fine setting is a mesh of its own: not with refine or order");
     if (o.nearfield != 0 && o.nearfield != 1)
         return gs_diag_set(d, GS_ERANGE, "nearfield", "nearfield must be 0 or 1");
     if (!(o.nearfield_depth_mm >= 0.0 && o.nearfield_depth_mm <= 100.0))
@@ -1107,8 +1159,14 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     int bidx[2] = {sm->gear[o.driver], sm->gear[1 - o.driver]};
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
+    int fc[2] = {0, 0};
+    if (sc->bodies[bidx[0]].type == GS_BODY_GEAR && sc->bodies[bidx[1]].type == GS_BODY_GEAR)
+        fine_centres(sc, bidx, &o, fc);
     for (int k = 0; k < 2 && e == GS_OK; k++)
-        e = sbody_init(sc, bidx[k], o.refine, o.order, &w.b[k], d);
+        e = sbody_init(sc, bidx[k], o.refine, o.order,
+                       /* the teeth in contact over the cycles, an odd count (centred) */
+                       o.fine ? o.cycles + 2 + (o.cycles % 2 == 0) : 0,
+                       fc[k], &w.b[k], d);
     if (e != GS_OK)
         goto done;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;

@@ -26,7 +26,10 @@
  * the root (where teeth touch and bend); the rings grow geometrically away
  * from the teeth. Poor elements are then smoothed (interior nodes only).
  * Refinement multiplies every count by
- * 2^refine with all boundary nodes of the coarser mesh kept (nested). */
+ * 2^refine with all boundary nodes of the coarser mesh kept (nested).
+ * Local refinement (fine_teeth) builds some sectors from finer plans, graded
+ * one level per tooth, the coarser of two neighbours taking the finer one's
+ * count on their shared side, and splits the rings' intervals under them. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -296,7 +299,8 @@ out:
 typedef struct {
     nodes_t nd;
     tris_t tr;
-    int nside;              /* nodes on each sector side (rim + 1) */
+    int nleft, nright;      /* nodes on each sector side (rim + 1 at the sector's refinement,
+                             * or at its fine neighbour's: local refinement) */
     gs_index *left, *right; /* sector sides from R0 to the space centre */
     int nbot;
     gs_index *bottom;       /* R0 arc from -pi/z to +pi/z */
@@ -556,16 +560,52 @@ static void ramp_counts(int nrow, int n0, int n1, int *cnt)
     cnt[nrow] = n1;
 }
 
-static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
+/* Row counts of an S block (meshed sideways, from the R/S interface, nr
+ * elements, to the sector side, nside elements): each row about as many
+ * elements as its length asks for, at most halving or doubling from one row
+ * to the next. */
+static void side_counts(const nodes_t *nd, const gs_index *top, const gs_index *bot, int ns, int nr,
+                        int nc, int nside, int *cS)
 {
-    const int nf = pl->nf, na = pl->na, nr = pl->nr, ns = pl->ns;
-    const int ntip = pl->ntip, nrb = pl->nrb, nsb = pl->ns, nc = pl->nband;
+    double l0 = hypot(nd->xy[2 * top[0]] - nd->xy[2 * bot[0]],
+                      nd->xy[2 * top[0] + 1] - nd->xy[2 * bot[0] + 1]);
+    int lo = nc < nside ? nc : nside, hi = nr > nside ? nr : nside;
+    for (int k = 0; k <= ns; k++) {
+        double lk = hypot(nd->xy[2 * top[k]] - nd->xy[2 * bot[k]],
+                          nd->xy[2 * top[k] + 1] - nd->xy[2 * bot[k] + 1]);
+        int c = (int)lround(nr * lk / l0);
+        if (nside > nc) /* a finer side: blend towards its density */
+            c = (int)lround(c * pow((double)nside / nc, (double)k / ns));
+        cS[k] = c < lo ? lo : c > hi ? hi : c;
+    }
+    cS[0] = nr;
+    cS[ns] = nside;
+    for (int k = 1; k < ns; k++)
+        if (cS[k] < (cS[k - 1] + 1) / 2)
+            cS[k] = (cS[k - 1] + 1) / 2;
+    for (int k = ns - 1; k >= 1; k--) {
+        if (cS[k] > 2 * cS[k + 1])
+            cS[k] = 2 * cS[k + 1];
+        if (nside > nc && cS[k] < (cS[k + 1] + 1) / 2)
+            cS[k] = (cS[k + 1] + 1) / 2;
+    }
+}
+
+/* One tooth sector at the plan's refinement; its sides (the space centre
+ * lines) get nc_lo and nc_hi elements: pl->nband, or a finer neighbour's
+ * count (a transition sector next to locally refined teeth). */
+static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, const plan_t *pt, int nc_lo,
+                           int nc_hi, sector_t *s)
+{
+    const int nf = pt->nf, na = pt->na, nr = pl->nr, ns = pl->ns;
+    const int ntip = pt->ntip, nrb = pl->nrb, nsb = pl->ns, nc = pl->nband;
+    const int ncm = nc_lo > nc_hi ? nc_lo : nc_hi;
     const double hp = g->half_pitch, R0 = pl->R0, rb = g->rb;
     gs_index *fl_lo = NULL, *fl_hi = NULL, *tip = NULL, *chord = NULL, *rbot = NULL;
     gs_index *rl = NULL, *rr = NULL, *stop_hi = NULL, *stop_lo = NULL, *sbot_hi = NULL,
              *sbot_lo = NULL, *sr_hi = NULL, *sr_lo = NULL;
     double *fa = NULL, *fr = NULL, *fi = NULL;
-    int *cT = NULL, *cR = NULL, *cS = NULL;
+    int *cT = NULL, *cR = NULL, *cS = NULL, *cS2 = NULL;
     NEW_ARR(fl_lo, nf + 1);
     NEW_ARR(fl_hi, nf + 1);
     NEW_ARR(tip, ntip + 1);
@@ -577,21 +617,20 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
     NEW_ARR(stop_lo, ns + 1);
     NEW_ARR(sbot_hi, nsb + 1);
     NEW_ARR(sbot_lo, nsb + 1);
-    NEW_ARR(sr_hi, nc + 1);
-    NEW_ARR(sr_lo, nc + 1);
+    NEW_ARR(sr_hi, nc_hi + 1);
+    NEW_ARR(sr_lo, nc_lo + 1);
     NEW_ARR(fa, na + 1);
-    NEW_ARR(fr, nr + 1);
+    NEW_ARR(fr, (nr > ncm ? nr : ncm) + 1);
     NEW_ARR(fi, nr + 1);
     NEW_ARR(cT, nf + 1);
     NEW_ARR(cR, nr + 1);
     NEW_ARR(cS, ns + 1);
+    NEW_ARR(cS2, ns + 1);
     for (int i = 0; i <= na; i++)
         fa[i] = grade_both((double)i / na, pl->grading);
     /* fr: the radial line at the space centre, graded towards the root;
      * fi: the R/S interface, `nband` graded layers up to about the root
      * circle, then equal steps up the fillet's height to the form point. */
-    for (int j = 0; j <= nc; j++)
-        fr[j] = grade_top((double)j / nc, pl->grading);
     for (int j = 0; j <= nr; j++)
         fi[j] = j <= pl->nband ? pl->fband * grade_top((double)j / pl->nband, pl->grading)
                                : pl->fband + (1.0 - pl->fband) * (j - pl->nband) / (nr - pl->nband);
@@ -654,14 +693,23 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
         ADD(stop_hi[k], P[0], P[1], tag);
         ADD(stop_lo[k], P[0], -P[1], tag);
     }
-    if (line_nodes(&s->nd, sbot_hi[nsb], stop_hi[ns], nc, fr, sr_hi) ||
-        line_nodes(&s->nd, sbot_lo[nsb], stop_lo[ns], nc, fr, sr_lo))
-        goto nomem;
-    /* The sector sides are shared with the neighbours: make them exact
-     * mirror images of each other. */
-    for (int j = 0; j <= nc; j++) {
-        s->nd.xy[2 * sr_lo[j]] = s->nd.xy[2 * sr_hi[j]];
-        s->nd.xy[2 * sr_lo[j] + 1] = -s->nd.xy[2 * sr_hi[j] + 1];
+    /* The sector sides are shared with the neighbours: the lower one is the
+     * exact mirror image of the upper one at its count (nested gradings, so
+     * the same node of a coarse and a fine side has the same position). */
+    for (int side = 1; side >= 0; side--) { /* the upper side first (node order) */
+        int c = side ? nc_hi : nc_lo;
+        gs_index *ids = side ? sr_hi : sr_lo;
+        for (int j = 0; j <= c; j++)
+            fr[j] = grade_top((double)j / c, pl->grading);
+        if (line_nodes(&s->nd, side ? sbot_hi[nsb] : sbot_lo[nsb], side ? stop_hi[ns] : stop_lo[ns],
+                       c, fr, ids))
+            goto nomem;
+        double ax = s->nd.xy[2 * sbot_hi[nsb]], ay = s->nd.xy[2 * sbot_hi[nsb] + 1];
+        double bx = s->nd.xy[2 * stop_hi[ns]], by = s->nd.xy[2 * stop_hi[ns] + 1];
+        for (int j = 1; j < c; j++) {
+            s->nd.xy[2 * ids[j]] = ax + fr[j] * (bx - ax);
+            s->nd.xy[2 * ids[j] + 1] = (side ? 1.0 : -1.0) * (ay + fr[j] * (by - ay));
+        }
     }
     /* Row counts: the tooth narrows to its tip, keep elements about as wide
      * as at its base; R and S go from the band circle's spacing to their
@@ -684,39 +732,23 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
     ramp_counts(nr, nrb, na, cR);
     /* S is meshed "sideways": its rows run from the band circle up to the
      * fillet and root, from the R/S interface (nr elements) to the space
-     * centre line (`rim` elements), each with about as many elements as its
-     * length asks for. So a tall fillet beside a thin band needs no thin
-     * layers near the root. */
-    {
-        double l0 = hypot(s->nd.xy[2 * stop_hi[0]] - s->nd.xy[2 * sbot_hi[0]],
-                          s->nd.xy[2 * stop_hi[0] + 1] - s->nd.xy[2 * sbot_hi[0] + 1]);
-        for (int k = 0; k <= ns; k++) {
-            double lk = hypot(s->nd.xy[2 * stop_hi[k]] - s->nd.xy[2 * sbot_hi[k]],
-                              s->nd.xy[2 * stop_hi[k] + 1] - s->nd.xy[2 * sbot_hi[k] + 1]);
-            int c = (int)lround(nr * lk / l0);
-            cS[k] = c < nc ? nc : c > nr ? nr : c;
-        }
-        cS[0] = nr;
-        cS[ns] = nc;
-        /* at most halve or double from one row to the next (end rows fixed) */
-        for (int k = 1; k < ns; k++)
-            if (cS[k] < (cS[k - 1] + 1) / 2)
-                cS[k] = (cS[k - 1] + 1) / 2;
-        for (int k = ns - 1; k >= 1; k--)
-            if (cS[k] > 2 * cS[k + 1])
-                cS[k] = 2 * cS[k + 1];
-    }
+     * centre line (`rim` layers, or a fine neighbour's), each with about as
+     * many elements as its length asks for. So a tall fillet beside a thin
+     * band needs no thin layers near the root. */
+    side_counts(&s->nd, stop_hi, sbot_hi, ns, nr, nc, nc_hi, cS);
+    side_counts(&s->nd, stop_hi, sbot_hi, ns, nr, nc, nc_lo, cS2); /* mirror images */
     if (layered_block(&s->nd, &s->tr, nf, cT, chord, tip, fl_lo, fl_hi) ||
         layered_block(&s->nd, &s->tr, nr, cR, rbot, chord, rl, rr) ||
         layered_block(&s->nd, &s->tr, ns, cS, rr, sr_hi, sbot_hi, stop_hi) ||
-        layered_block(&s->nd, &s->tr, ns, cS, rl, sr_lo, sbot_lo, stop_lo))
+        layered_block(&s->nd, &s->tr, ns, cS2, rl, sr_lo, sbot_lo, stop_lo))
         goto nomem;
     /* Lists for assembly. */
-    s->nside = nc + 1;
-    NEW_ARR(s->left, nc + 1);
-    NEW_ARR(s->right, nc + 1);
-    memcpy(s->left, sr_lo, (size_t)(nc + 1) * sizeof *sr_lo);
-    memcpy(s->right, sr_hi, (size_t)(nc + 1) * sizeof *sr_hi);
+    s->nleft = nc_lo + 1;
+    s->nright = nc_hi + 1;
+    NEW_ARR(s->left, nc_lo + 1);
+    NEW_ARR(s->right, nc_hi + 1);
+    memcpy(s->left, sr_lo, (size_t)(nc_lo + 1) * sizeof *sr_lo);
+    memcpy(s->right, sr_hi, (size_t)(nc_hi + 1) * sizeof *sr_hi);
     s->nbot = 2 * nsb + nrb + 1;
     NEW_ARR(s->bottom, s->nbot);
     {
@@ -772,6 +804,7 @@ static gs_err build_sector(const gs_gear_geom *g, const plan_t *pl, sector_t *s)
     free(cT);
     free(cR);
     free(cS);
+    free(cS2);
     return e;
 }
 
@@ -1023,6 +1056,14 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o)
     gs_gear_mesh_opts_for_order(o, GS_MESH_DEFAULT_ORDER);
 }
 
+/* Chosen by measurement against the CalculiX reference (docs/CONVERGENCE.md
+ * "Local refinement and the fine setting"). */
+void gs_gear_mesh_opts_fine(gs_gear_mesh_opts *o)
+{
+    *o = (gs_gear_mesh_opts){.flank = 8, .across = 4, .rim = 1, .refine = 0, .grading = 3.0,
+                             .order = 2, .fine_teeth = 3, .fine_refine = 3, .fine_centre = 0};
+}
+
 static gs_err check_opts(const gs_gear_mesh_opts *o, gs_diag *d)
 {
     if (o->flank < 1 || o->flank > 1000)
@@ -1040,6 +1081,21 @@ static gs_err check_opts(const gs_gear_mesh_opts *o, gs_diag *d)
         return gs_diag_set(d, GS_ERANGE, "mesh.grading", "grading: 1 to 8 (got %g)", o->grading);
     if (o->order != 1 && o->order != 2)
         return gs_diag_set(d, GS_ERANGE, "mesh.order", "element order: 1 or 2 (got %d)", o->order);
+    if (o->fine_teeth < 0 || o->fine_teeth > 5000)
+        return gs_diag_set(d, GS_ERANGE, "mesh.fine_teeth",
+                           "locally refined teeth: 0 (none) to the number of teeth (got %d)",
+                           o->fine_teeth);
+    if (o->fine_teeth > 0 && (o->fine_refine < 1 || o->fine_refine > 4))
+        return gs_diag_set(d, GS_ERANGE, "mesh.fine_refine",
+                           "refinement of the fine teeth: 1 to 4 levels (got %d)", o->fine_refine);
+    if (o->fine_teeth == 0 && o->fine_refine != 0)
+        return gs_diag_set(d, GS_ERANGE, "mesh.fine_refine",
+                           "fine_refine %d without fine_teeth: say how many teeth to refine",
+                           o->fine_refine);
+    if (o->refine + o->fine_refine > 8)
+        return gs_diag_set(d, GS_ERANGE, "mesh.fine_refine",
+                           "refine + fine_refine must not exceed 8 (got %d + %d)", o->refine,
+                           o->fine_refine);
     return GS_OK;
 }
 
@@ -1081,122 +1137,227 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
         free(pl);
         return e;
     }
+    /* Local refinement: the teeth of the `fine_teeth` sectors centred on
+     * `fine_centre` (the T blocks, whose flanks carry the contact) are
+     * meshed from a plan `fine_refine` levels finer, their bodies (rim band,
+     * fillets) one level less; the sectors beside them step down one more
+     * level per tooth to the base (graded), and of two neighbouring sectors
+     * the coarser takes the finer one's node count on their shared side (a
+     * 2:1 transition inside the coarser sector). */
+    const int z = g.z;
+    const int nfine = o->fine_teeth > z ? z : o->fine_teeth;
+    const int nlev = nfine > 0 ? o->fine_refine + 1 : 1;
+
+    const int c0 = nfine > 0 ? ((o->fine_centre - (nfine - 1) / 2) % z + z) % z : 0;
+    plan_t *plv[5] = {pl, NULL, NULL, NULL, NULL};
+    for (int lv = 1; lv < nlev; lv++) {
+        gs_gear_mesh_opts of = *o;
+        of.refine = o->refine + lv;
+        plv[lv] = malloc(sizeof *plv[lv]);
+        e = plv[lv] ? make_plan(&g, &of, plv[lv], d) : GS_ENOMEM;
+        if (e != GS_OK) {
+            for (int q = 0; q <= lv; q++)
+                free(plv[q]);
+            return e;
+        }
+    }
+    int *lev = malloc((size_t)z * sizeof *lev);
+    if (!lev) {
+        for (int q = 0; q < nlev; q++)
+            free(plv[q]);
+        return GS_ENOMEM;
+    }
+    for (int k = 0; k < z; k++) {
+        int off = ((k - c0) % z + z) % z, dist = 0;
+        if (off >= nfine)
+            dist = off - (nfine - 1) < z - off ? off - (nfine - 1) : z - off;
+        /* body level (rim band, fillets, sector sides); the fine teeth's
+         * own tooth (the T block, whose flanks carry the contact) one
+         * level above their body: lev + 100 marks them */
+        lev[k] = nlev - 2 - dist > 0 ? nlev - 2 - dist : 0;
+        if (dist == 0)
+            lev[k] += 100;
+    }
     /* Size guard before allocating: triangles per sector ~ 2 (na nf + (na +
      * 2 ns) nr), plus the rings (bounded by a few times the band's). */
     {
-        double per = 2.0 * ((double)pl->na * pl->nf + (double)(pl->na + 2 * pl->ns) * pl->nr);
-        if (per * g.z * 4.0 > (double)(1 << 26)) {
-            free(pl);
-            return gs_diag_set(d, GS_ETOOBIG, "refine",
-                               "the mesh would have about %.3g triangles (limit %d)",
-                               per * g.z * 4.0, 1 << 26);
+        double tot = 0.0;
+        for (int k = 0; k < z; k++) {
+            const plan_t *pk = plv[lev[k] % 100 + lev[k] / 100];
+            tot += 2.0 * ((double)pk->na * pk->nf + (double)(pk->na + 2 * pk->ns) * pk->nr) * 4.0;
+        }
+        if (tot > (double)(1 << 26)) {
+            for (int q = 0; q < nlev; q++)
+                free(plv[q]);
+            free(lev);
+            return gs_diag_set(d, GS_ETOOBIG, nlev > 1 ? "mesh.fine_refine" : "refine",
+                               "the mesh would have about %.3g triangles (limit %d)", tot, 1 << 26);
         }
     }
-    sector_t sec;
-    memset(&sec, 0, sizeof sec);
+    /* Sector variants: 4 per level, bit 0 / bit 1 set when the left / right
+     * neighbour is one level finer. */
+    sector_t sec[40];
+    memset(sec, 0, sizeof sec);
+    signed char *where[40] = {NULL}; /* -1 left side, +1 right side, 0 other */
+    int *side_pos[40] = {NULL};      /* position on that side */
     nodes_t nd = {0};
     tris_t tr = {0};
     rings_t rp = {0};
     gs_mesh *m = NULL;
     gs_index *map = NULL, *first_left = NULL, *prev_right = NULL, *ring0 = NULL, *ringA = NULL,
              *ringB = NULL;
-    signed char *where = NULL; /* -1 left side, +1 right side, 0 other; pos in side_pos */
-    int *side_pos = NULL;
-    e = build_sector(&g, pl, &sec);
-    if (e != GS_OK)
-        goto fail;
+    int *var = NULL;
+    gs_index n0 = 0;
     e = GS_ENOMEM;
-    const int z = g.z;
-    const gs_index nl = sec.nd.n;
-    map = malloc((size_t)nl * sizeof *map);
-    where = calloc((size_t)nl, 1);
-    side_pos = calloc((size_t)nl, sizeof *side_pos);
-    first_left = malloc((size_t)sec.nside * sizeof *first_left);
-    prev_right = malloc((size_t)sec.nside * sizeof *prev_right);
-    if (!map || !where || !side_pos || !first_left || !prev_right)
+    var = malloc((size_t)z * sizeof *var);
+    if (!var)
         goto fail;
-    for (int j = 0; j < sec.nside; j++) {
-        where[sec.left[j]] = -1;
-        side_pos[sec.left[j]] = j;
-        where[sec.right[j]] = 1;
-        side_pos[sec.right[j]] = j;
-    }
-    m = gs_calloc(1, sizeof *m);
-    if (!m)
-        goto fail;
-    m->n_teeth = z;
-    m->flank_ptr = malloc((size_t)(2 * z + 1) * sizeof *m->flank_ptr);
-    m->flank_nodes = malloc((size_t)(2 * z) * sec.nflank * sizeof *m->flank_nodes);
-    m->n_boundary = (gs_index)z * (sec.nbnd - 1);
-    m->boundary = malloc((size_t)m->n_boundary * sizeof *m->boundary);
-    gs_index n0 = (gs_index)z * (sec.nbot - 1);
-    ring0 = malloc((size_t)n0 * sizeof *ring0);
-    if (!m->flank_ptr || !m->flank_nodes || !m->boundary || !ring0)
-        goto fail;
-    for (int k = 0; k < z; k++) {
-        double ang = 2.0 * GS_PI * k / z, c = cos(ang), sn = sin(ang);
-        for (gs_index l = 0; l < nl; l++) {
-            if (where[l] == -1 && k > 0) {
-                map[l] = prev_right[side_pos[l]];
-                continue;
+    {
+        gs_index nl_max = 0, f_tot = 0, b_tot = 0;
+        int side_max = 0;
+        n0 = 0;
+        for (int k = 0; k < z; k++) {
+            int lk = lev[k] % 100, up = lev[k] / 100;
+            int fl = lev[(k + z - 1) % z] % 100 > lk, fh = lev[(k + 1) % z] % 100 > lk;
+            int v = 4 * lk + fl + 2 * fh + 20 * up;
+            var[k] = v;
+            sector_t *sv = &sec[v];
+            if (!sv->nd.n) {
+                const plan_t *pv = plv[lk];
+                int nclo = fl ? plv[lk + 1]->nband : pv->nband;
+                int nchi = fh ? plv[lk + 1]->nband : pv->nband;
+                e = build_sector(&g, pv, plv[lk + up], nclo, nchi, sv);
+                if (e != GS_OK)
+                    goto fail;
+                e = GS_ENOMEM;
+                where[v] = calloc((size_t)sv->nd.n, 1);
+                side_pos[v] = calloc((size_t)sv->nd.n, sizeof *side_pos[0]);
+                if (!where[v] || !side_pos[v])
+                    goto fail;
+                for (int j = 0; j < sv->nleft; j++) {
+                    where[v][sv->left[j]] = -1;
+                    side_pos[v][sv->left[j]] = j;
+                }
+                for (int j = 0; j < sv->nright; j++) {
+                    where[v][sv->right[j]] = 1;
+                    side_pos[v][sv->right[j]] = j;
+                }
             }
-            if (where[l] == 1 && k == z - 1) {
-                map[l] = first_left[side_pos[l]];
-                continue;
-            }
-            double x = sec.nd.xy[2 * l], y = sec.nd.xy[2 * l + 1];
-            map[l] = node_add(&nd, c * x - sn * y, sn * x + c * y, sec.nd.tag[l]);
-            if (map[l] < 0)
-                goto fail;
+            nl_max = sv->nd.n > nl_max ? sv->nd.n : nl_max;
+            side_max = sv->nleft > side_max ? sv->nleft : side_max;
+            side_max = sv->nright > side_max ? sv->nright : side_max;
+            f_tot += 2 * sv->nflank;
+            b_tot += sv->nbnd - 1;
+            n0 += sv->nbot - 1;
         }
-        for (int j = 0; j < sec.nside; j++) {
+        map = malloc((size_t)nl_max * sizeof *map);
+        first_left = malloc((size_t)side_max * sizeof *first_left);
+        prev_right = malloc((size_t)side_max * sizeof *prev_right);
+        m = gs_calloc(1, sizeof *m);
+        if (!map || !first_left || !prev_right || !m)
+            goto fail;
+        m->n_teeth = z;
+        m->flank_ptr = malloc((size_t)(2 * z + 1) * sizeof *m->flank_ptr);
+        m->flank_nodes = malloc((size_t)f_tot * sizeof *m->flank_nodes);
+        m->n_boundary = b_tot;
+        m->boundary = malloc((size_t)m->n_boundary * sizeof *m->boundary);
+        ring0 = malloc((size_t)n0 * sizeof *ring0);
+        if (!m->flank_ptr || !m->flank_nodes || !m->boundary || !ring0)
+            goto fail;
+    }
+    {
+        gs_index fpos = 0, bpos = 0, rpos = 0;
+        m->flank_ptr[0] = 0;
+        for (int k = 0; k < z; k++) {
+            const sector_t *sv = &sec[var[k]];
+            const signed char *wh = where[var[k]];
+            const int *sp = side_pos[var[k]];
+            const gs_index nl = sv->nd.n;
+            double ang = 2.0 * GS_PI * k / z, c = cos(ang), sn = sin(ang);
+            for (gs_index l = 0; l < nl; l++) {
+                if (wh[l] == -1 && k > 0) {
+                    map[l] = prev_right[sp[l]];
+                    continue;
+                }
+                if (wh[l] == 1 && k == z - 1) {
+                    map[l] = first_left[sp[l]];
+                    continue;
+                }
+                double x = sv->nd.xy[2 * l], y = sv->nd.xy[2 * l + 1];
+                map[l] = node_add(&nd, c * x - sn * y, sn * x + c * y, sv->nd.tag[l]);
+                if (map[l] < 0)
+                    goto fail;
+            }
             if (k == 0)
-                first_left[j] = map[sec.left[j]];
-            prev_right[j] = map[sec.right[j]];
+                for (int j = 0; j < sv->nleft; j++)
+                    first_left[j] = map[sv->left[j]];
+            for (int j = 0; j < sv->nright; j++)
+                prev_right[j] = map[sv->right[j]];
+            for (gs_index t = 0; t < sv->tr.n; t++)
+                if (tri_add(&tr, map[sv->tr.t[3 * t]], map[sv->tr.t[3 * t + 1]],
+                            map[sv->tr.t[3 * t + 2]]))
+                    goto fail;
+            /* s = 0 is the clockwise flank for an external gear, the
+             * counter-clockwise one for a ring (viewer inside the ring). */
+            const gs_index *f0 = g.internal ? sv->flank_ccw : sv->flank_cw;
+            const gs_index *f1 = g.internal ? sv->flank_cw : sv->flank_ccw;
+            for (int q = 0; q < sv->nflank; q++)
+                m->flank_nodes[fpos + q] = map[f0[q]];
+            m->flank_ptr[2 * k + 1] = fpos += sv->nflank;
+            for (int q = 0; q < sv->nflank; q++)
+                m->flank_nodes[fpos + q] = map[f1[q]];
+            m->flank_ptr[2 * k + 2] = fpos += sv->nflank;
+            for (int q = 0; q + 1 < sv->nbnd; q++)
+                m->boundary[bpos++] = map[sv->bnd[q]];
+            for (int q = 0; q + 1 < sv->nbot; q++)
+                ring0[rpos++] = map[sv->bottom[q]];
         }
-        for (gs_index t = 0; t < sec.tr.n; t++)
-            if (tri_add(&tr, map[sec.tr.t[3 * t]], map[sec.tr.t[3 * t + 1]], map[sec.tr.t[3 * t + 2]]))
-                goto fail;
-        /* s = 0 is the clockwise flank for an external gear, the
-         * counter-clockwise one for a ring (viewer inside the ring). */
-        const gs_index *f0 = g.internal ? sec.flank_ccw : sec.flank_cw;
-        const gs_index *f1 = g.internal ? sec.flank_cw : sec.flank_ccw;
-        for (int q = 0; q < sec.nflank; q++) {
-            m->flank_nodes[(2 * k) * sec.nflank + q] = map[f0[q]];
-            m->flank_nodes[(2 * k + 1) * sec.nflank + q] = map[f1[q]];
-        }
-        for (int q = 0; q + 1 < sec.nbnd; q++)
-            m->boundary[(gs_index)k * (sec.nbnd - 1) + q] = map[sec.bnd[q]];
-        for (int q = 0; q + 1 < sec.nbot; q++)
-            ring0[(gs_index)k * (sec.nbot - 1) + q] = map[sec.bottom[q]];
     }
-    for (int t = 0; t <= 2 * z; t++)
-        m->flank_ptr[t] = (gs_index)t * sec.nflank;
     /* Rings from the band circle to the hub / outer rim. */
     {
         const int L = 1 << o->refine;
-        gs_index n0_base = n0 / L;
+        gs_index n0_base = (gs_index)z * (2 * pl->ns + pl->nrb) / L;
         /* the band circle's spacing is about its layer's thickness */
         double h0 = 2.0 * GS_PI * pl->R0 / (double)n0_base;
         if (plan_rings(&g, pl->R0, n0_base, h0, &rp))
             goto fail;
+        /* Under locally refined teeth the rings start finer and halve
+         * their extra density ring by ring down to the base's. */
         gs_index nA = n0;
         ringA = ring0;
         ring0 = NULL;
+        int sub_all = 0;
         for (int k = 0; k + 1 < rp.n; k++) {
             for (int sub = 1; sub <= L; sub++) {
                 double R = rp.R[k] + (rp.R[k + 1] - rp.R[k]) * sub / L;
-                gs_index nB = (sub == L ? rp.N[k + 1] : rp.N[k]) * L;
-                ringB = malloc((size_t)nB * sizeof *ringB);
-                if (!ringB)
-                    goto fail;
-                int last = k + 2 == rp.n && sub == L;
-                for (gs_index q = 0; q < nB; q++) {
-                    double a = -GS_PI / z + 2.0 * GS_PI * q / nB;
-                    ringB[q] = node_add(&nd, R * cos(a), R * sin(a),
-                                        last ? GS_NODE_CORE : GS_NODE_INTERIOR);
-                    if (ringB[q] < 0)
-                        goto fail;
+                gs_index nb0 = (sub == L ? rp.N[k + 1] : rp.N[k]) * L;
+                sub_all++;
+                gs_index nB = 0;
+                for (int pass = 0; pass < 2; pass++) {
+                    gs_index cnt = 0;
+                    for (gs_index q = 0; q < nb0; q++) {
+                        double a = -GS_PI / z + 2.0 * GS_PI * q / nb0;
+                        double am = a + GS_PI / nb0;
+                        long tk = lround(am * z / (2.0 * GS_PI));
+                        int lk = lev[(int)((tk % z + z) % z)] % 100 - sub_all;
+                        int f = lk > 0 ? 1 << lk : 1;
+                        for (int i = 0; i < f; i++, cnt++) {
+                            if (!pass)
+                                continue;
+                            double ai = a + 2.0 * GS_PI * i / ((double)nb0 * f);
+                            int last = k + 2 == rp.n && sub == L;
+                            ringB[cnt] = node_add(&nd, R * cos(ai), R * sin(ai),
+                                                  last ? GS_NODE_CORE : GS_NODE_INTERIOR);
+                            if (ringB[cnt] < 0)
+                                goto fail;
+                        }
+                    }
+                    if (!pass) {
+                        nB = cnt;
+                        ringB = malloc((size_t)nB * sizeof *ringB);
+                        if (!ringB)
+                            goto fail;
+                    }
                 }
                 if (zipper(&nd, &tr, ringA, nA, ringB, nB, !g.internal))
                     goto fail;
@@ -1260,20 +1421,25 @@ gs_err gs_gear_mesh(const gs_gear_params *p, const gs_gear_mesh_opts *o, gs_mesh
     m = NULL;
 fail:
     gs_mesh_free(&m);
-    sector_free(&sec);
+    for (int v = 0; v < 40; v++) {
+        sector_free(&sec[v]);
+        free(where[v]);
+        free(side_pos[v]);
+    }
     free(nd.xy);
     free(nd.tag);
     free(tr.t);
     free(rp.R);
     free(rp.N);
     free(map);
-    free(where);
-    free(side_pos);
+    free(var);
     free(first_left);
     free(prev_right);
     free(ring0);
     free(ringA);
     free(ringB);
-    free(pl);
+    for (int q = 0; q < nlev; q++)
+        free(plv[q]);
+    free(lev);
     return e;
 }

@@ -88,6 +88,8 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
     const gs_scene_body *sb = &sys->scene->bodies[b->index];
     char field[160];
     snprintf(field, sizeof field, "bodies[%d].mesh", b->index);
+    if (sb->mesh.fine_teeth > 0)
+        snprintf(field, sizeof field, "bodies[%d].mesh.fine_teeth", b->index);
     if (sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "only gears can be elastic");
     elastic *el = gs_calloc(1, sizeof *el);

@@ -47,6 +47,14 @@ const gs_gmesh_ops *gs_gmesh_ops_find(const char *name)
 
 gs_err gs_scene_gear_mesh(const gs_scene_body *sb, gs_mesh **out, gs_diag *d)
 {
+    if (sb->mesh.fine_teeth > 0) {
+        /* every tooth comes round in a dynamic model: a mesh fine on a few
+         * teeth only is for the quasi-static analysis */
+        *out = NULL;
+        return gs_diag_set(d, GS_EINVAL, "mesh.fine_teeth",
+                           "mesh.fine_teeth (local refinement) is for the quasi-static stiffness "
+                           "analysis only: in a dynamic model every tooth comes round; use refine");
+    }
     return gs_scene_gear_mesh_refined(sb, -1, out, d);
 }
 
@@ -60,6 +68,9 @@ gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, gs_mesh *
     o.refine = refine >= 0 ? refine : sb->mesh.refine;
     o.grading = sb->mesh.grading;
     o.order = sb->mesh.order;
+    o.fine_teeth = sb->mesh.fine_teeth;
+    o.fine_refine = sb->mesh.fine_refine;
+    o.fine_centre = sb->mesh.fine_centre;
     return gs_gear_mesh(&sb->gear, &o, out, d);
 }
 

@@ -35,7 +35,8 @@ static gs_err material_ratio(json_object *mat, const char *mp, gs_material *m, g
 
 static const char *const material_keys[] = {"E", "nu", "density", "plane", "damping_s", "damping_m",
                                             "damping_ratio", "damping_hz", NULL};
-static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", "order", NULL};
+static const char *const meshdens_keys[] = {"flank", "across", "rim", "refine", "grading", "order",
+                                             "fine_teeth", "fine_refine", NULL};
 static const char *const joint_keys[] = {"body", "type", "centre_mm", "carrier", "radius_mm",
                                          "angle_deg", "pin_error_um", "stiffness", "damping",
                                          "torsional_stiffness", "torsional_damping", "bearing_stiffness",
@@ -160,7 +161,9 @@ double gs_scene_body_unknowns(const gs_scene_body *b)
         return 0.0;
     const gs_mesh_density *m = &b->mesh;
     /* a quadratic mesh has about four times the nodes of the linear one */
-    return 2.0 * b->gear.teeth * 1.5 * (m->flank + m->rim) * (2.0 * m->across + 2.0) *
+    /* locally refined teeth count 4^fine_refine times */
+    double teeth = b->gear.teeth + (m->fine_teeth > 0 ? m->fine_teeth * (ldexp(1.0, 2 * m->fine_refine) - 1.0) : 0.0);
+    return 2.0 * teeth * 1.5 * (m->flank + m->rim) * (2.0 * m->across + 2.0) *
            ldexp(1.0, 2 * m->refine) * (m->order == 2 ? 4.0 : 1.0);
 }
 
@@ -189,7 +192,7 @@ static void mesh_density_defaults(gs_mesh_density *m, int order)
 {
     gs_gear_mesh_opts o;
     gs_gear_mesh_opts_for_order(&o, order);
-    *m = (gs_mesh_density){o.flank, o.across, o.rim, o.refine, o.grading, o.order};
+    *m = (gs_mesh_density){o.flank, o.across, o.rim, o.refine, o.grading, o.order, 0, 0, 0};
 }
 
 static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
@@ -299,6 +302,21 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
         GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, def.refine, &v, d));
         b->mesh.refine = (int)v;
         GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, def.grading, &b->mesh.grading, d));
+        /* local refinement (quasi-static analysis only; docs/GEOMETRY.md) */
+        GS_TRY(gsi_json_int(md, "fine_teeth", mp, 0, g->teeth, false, 0, &v, d));
+        b->mesh.fine_teeth = (int)v;
+        GS_TRY(gsi_json_int(md, "fine_refine", mp, 0, 4, false, b->mesh.fine_teeth ? 2 : 0, &v, d));
+        b->mesh.fine_refine = (int)v;
+        {
+            char fp[300];
+            gsi_path(fp, sizeof fp, mp, "fine_refine");
+            if (b->mesh.fine_teeth > 0 && b->mesh.fine_refine == 0)
+                return gs_diag_set(d, GS_ERANGE, fp, "1 to 4 levels when fine_teeth is set");
+            if (b->mesh.fine_teeth == 0 && b->mesh.fine_refine > 0)
+                return gs_diag_set(d, GS_ERANGE, fp,
+                                   "fine_refine %d without fine_teeth: say how many teeth to refine",
+                                   b->mesh.fine_refine);
+        }
     }
     json_object *pe;
     GS_TRY(gsi_json_object(o, "pitch_error", path, false, &pe, d));

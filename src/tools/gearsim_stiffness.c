@@ -5,7 +5,7 @@
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
- *                     [--nearfield] [--nearfield-depth MM]
+ *                     [--nearfield] [--nearfield-depth MM] [--fine]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -16,7 +16,9 @@
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. --nearfield adds the
  * near-field (Hertz) correction of the contact compliance, --nearfield-depth
- * sets its depth (mm; default 0.8 module; implies --nearfield). Exit status 0 on success, 1 on bad usage, 2 on an
+ * sets its depth (mm; default 0.8 module; implies --nearfield). --fine meshes
+ * both gears on the `fine` setting (the teeth in contact locally refined,
+ * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
@@ -33,7 +35,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
                "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
-               "                         [--nearfield] [--nearfield-depth MM]\n"
+               "                         [--nearfield] [--nearfield-depth MM] [--fine]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -169,6 +171,8 @@ int main(int argc, char **argv)
             o.nearfield = 1;
         } else if (!strcmp(a, "--nearfield"))
             o.nearfield = 1;
+        else if (!strcmp(a, "--fine"))
+            o.fine = 1;
         else if (!strcmp(a, "--no-tangent"))
             o.tangent = 0;
         else if (!strcmp(a, "--json"))

@@ -14,7 +14,8 @@ least 100 times below the reference code's).
   against the limit.
 * gearsim: `gearsim-stiffness PAIR/scene.json` over the reference's 12
   roll positions (tests/reference/compare.py) at each setting of a short
-  list (order 2 refine 0..2, plain and --nearfield); the error against the
+  list (order 2 refine 0..2, plain and --nearfield, and the locally refined
+  `fine` setting); the error against the
   limit is computed live at every position (k and TE), never assumed.
 
 Printed: the per-setting table (unknowns, largest |error|, CPU seconds per
@@ -32,9 +33,12 @@ benchmark reports. Exits 77 (skipped) if gmsh or ccx is missing.
         [--tool PATH] [-- extra gearsim-stiffness options]
 
 --quick: CalculiX at one roll position and gearsim at order 2 refine 0
-and 1 (a few minutes on a loaded 2-core machine); the full mode times
-CalculiX at three positions and adds refine 2 (tens of minutes). A setting
-is written oOrR[nf]: element order O, refine R, nf for --nearfield. The
+and 1 and the `fine` setting (a few minutes on a loaded 2-core machine);
+the full mode times CalculiX at three positions and adds refine 2 (tens of
+minutes). A setting is written oOrR[nf]: element order O, refine R, nf for
+--nearfield; or fine[nf]: gearsim-stiffness --fine (the teeth in contact
+locally refined, docs/CONVERGENCE.md "Local refinement and the fine
+setting"). The
 environment variable GEARSIM_BENCH_REFERENCE_ARGS (split on blanks) is
 prepended to the command line, so a mode can be chosen under meson test.
 """
@@ -62,7 +66,7 @@ import run_pair  # noqa: E402
 
 EQUAL_ACCURACY = 0.01
 TARGET_RATIO = 100.0
-QUICK_SETTINGS = ["o2r0", "o2r0nf", "o2r1", "o2r1nf"]
+QUICK_SETTINGS = ["o2r0", "o2r0nf", "o2r1", "o2r1nf", "fine"]
 FULL_SETTINGS = QUICK_SETTINGS + ["o2r2", "o2r2nf"]
 
 
@@ -72,9 +76,14 @@ def child_cpu():
 
 
 def parse_setting(s):
+    """(order, refine, near field) of oOrR[nf]; (None, None, nf) for fine[nf],
+    gearsim-stiffness --fine (the locally refined `fine` setting)."""
+    m = re.fullmatch(r"fine(nf)?", s)
+    if m:
+        return None, None, bool(m.group(1))
     m = re.fullmatch(r"o([12])r(\d)(nf)?", s)
     if not m:
-        raise SystemExit("bad setting %r (want oOrR or oOrRnf, e.g. o2r1nf)" % s)
+        raise SystemExit("bad setting %r (want oOrR, oOrRnf or fine[nf], e.g. o2r1nf)" % s)
     return int(m.group(1)), int(m.group(2)), bool(m.group(3))
 
 
@@ -127,7 +136,8 @@ def run_reference(pair_dir, j, positions, h, threads):
 
 def run_setting(pair_dir, tool, name, extra):
     order, refine, nf = parse_setting(name)
-    args = ["--order", str(order)] + (["--nearfield"] if nf else []) + list(extra)
+    args = (["--fine"] if order is None else ["--order", str(order)]) + \
+        (["--nearfield"] if nf else []) + list(extra)
     w0, c0 = time.monotonic(), child_cpu()
     res = compare.compare(pair_dir, tool, refine, args)
     wall, cpu = time.monotonic() - w0, child_cpu() - c0

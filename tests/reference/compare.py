@@ -4,7 +4,7 @@
 CalculiX reference (tests/reference/README.md).
 
     compare.py [--pair stiffness_30_20] [--refine R ...] [--build DIR]
-               [--tool PATH] [--json] [-- extra gearsim-stiffness options]
+               [--tool PATH] [--json] [--mesh JSON] [-- extra gearsim-stiffness options]
 
 Runs `gearsim-stiffness PAIR/scene.json --json --positions N --no-tangent`
 (N = the reference's number of positions; without --refine the scene's own
@@ -46,6 +46,18 @@ def reference_checks(ref, min_positions, est_bar, shape_ratio):
             (est < est_bar, "reference finest level within %.2f%% of its limit (%.3f%%)"
              % (100 * est_bar, 100 * est)),
             (ratio > shape_ratio, "reference k max/min > %.2f (%.3f)" % (shape_ratio, ratio))]
+
+
+def checker():
+    """(check, failures) for a validation test: check(cond, what) prints
+    ok/FAIL and what, and collects the failed ones in the list failures."""
+    failures = []
+
+    def check(cond, what):
+        print("%s: %s" % ("ok" if cond else "FAIL", what))
+        if not cond:
+            failures.append(what)
+    return check, failures
 
 
 def open_checked(pair_dir, build, min_positions, est_bar, shape_ratio, check):
@@ -155,6 +167,8 @@ def main():
         "GEARSIM_BUILD_ROOT", os.path.join(HERE, "..", "..", "build")))
     ap.add_argument("--tool")
     ap.add_argument("--json", action="store_true")
+    ap.add_argument("--mesh", help="a scene mesh object for every gear, as JSON "
+                    "(e.g. '{\"fine_teeth\": 3, \"fine_refine\": 2}')")
     ap.add_argument("extra", nargs="*")
     a = ap.parse_args()
     tool = a.tool or find_tool(a.build)
@@ -162,7 +176,7 @@ def main():
     levels = a.refine if a.refine else [None]
     out = []
     for r in levels:
-        res = compare(pair_dir, tool, r, a.extra)
+        res = compare(pair_dir, tool, r, a.extra, json.loads(a.mesh) if a.mesh else None)
         out.append(res)
         if not a.json:
             print_result(res)
