@@ -699,7 +699,7 @@ static gs_err nf_offsets(work *w)
         const gs_contact_row *rm = &w->row[im];
         double curv, nn = hypot(rm->gap.grad[0], rm->gap.grad[1]);
         bool corner = pair_curvature(w, rm->x[0], &curv, NULL) != 0;
-        double off = 0.0, g0sum = 0.0, win = GS_NF_FIT * w->b[0].sb->gear.module_m;
+        double off = 0.0, g0best = 0.0, win = GS_NF_FIT * w->b[0].sb->gear.module_m;
         double rho_best = 0.0, xv[2] = {0.0, 0.0};
         int ng0 = 0;
         for (int pass = 0; pass < 2 && !corner && nn > 0.0; pass++) {
@@ -730,14 +730,8 @@ static gs_err nf_offsets(work *w)
             }
             if (jl < 0 || jh < 0)
                 continue;
-            /* g = gm + B s + C s^2 through (sl, gl), (0, gm), (sh, gh). */
-            double gm = w->row[jm].gap.g, dl = w->row[jl].gap.g - gm, dh = w->row[jh].gap.g - gm;
-            double det = sl * sh * sh - sh * sl * sl;
-            double B = (dl * sh * sh - dh * sl * sl) / det, C = (sl * dh - sh * dl) / det;
-            if (!(C > 0.0))
-                continue;
-            double sv = -B / (2.0 * C);
-            if (sv < sl || sv > sh)
+            double gm = w->row[jm].gap.g, sv, g0;
+            if (!gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
                 continue;
             /* The pass whose master flank is the flatter (larger involute
              * radius: its parabolic edges follow it more closely) wins. */
@@ -747,14 +741,14 @@ static gs_err nf_offsets(work *w)
             double rho = sqrt(fmax(rr * rr - rbm * rbm, 0.0));
             if (ng0 == 0 || rho > rho_best) {
                 rho_best = rho;
-                g0sum = gm - B * B / (4.0 * C);
+                g0best = g0;
                 xv[0] = xm[0] + sv * tg[0];
                 xv[1] = xm[1] + sv * tg[1];
             }
             ng0 = 1;
         }
         if (ng0 > 0)
-            off = rm->gap.g - g0sum;
+            off = rm->gap.g - g0best;
         w->go[w->n_go].tooth[0] = t[0];
         w->go[w->n_go].tooth[1] = t[1];
         w->go[w->n_go].off = off;
