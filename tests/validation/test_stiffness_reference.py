@@ -167,7 +167,7 @@ def main():
     check(abs(sn1["cycle_mean_err_k"]) < BAR_MEAN_O2R1_NF and sm is not None
           and abs(sm) < BAR_SINGLE_O2R1_NF,
           "refine 1 near-field: cycle-mean %+.2f%% within %.0f%% and single-contact-mean "
-          "%s k error within %.0f%%" % (100 * sn1["cycle_mean_err_k"], 100 * BAR_MEAN_O2R1_NF,
+          "%s k error within %.1f%%" % (100 * sn1["cycle_mean_err_k"], 100 * BAR_MEAN_O2R1_NF,
                                         "n/a" if sm is None else "%+.2f%%" % (100 * sm),
                                         100 * BAR_SINGLE_O2R1_NF))
 
