@@ -834,7 +834,9 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
          * body alone gets the near-field law, as a half-plane under the
          * contact width of a line contact with its own flank curvature. */
         int only = -1;
-        if (corner == 1 || corner == 2) {
+        if ((corner == 1 || corner == 2) && kb[corner == 1 ? 1 : 0] > 0.0) {
+            /* (A concave flank, a ring's, under a corner: no half-plane
+             * width; the pair keeps the plain FE.) */
             only = corner == 1 ? 1 : 0;
             curv = kb[only];
             corner = 0;
