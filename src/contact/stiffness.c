@@ -38,7 +38,7 @@
  * STIFF_BATCH free-dof vectors). */
 #define STIFF_BATCH 32
 /* Automatic near-field depth, in modules. */
-#define GS_NF_DEPTH 0.4
+#define GS_NF_DEPTH 0.2
 /* A contact point within this many modules of a tip circle is a corner contact. */
 #define GS_NF_CORNER 0.02
 /* Near-field correction: half-width of the gap fit along the flank, module. */
@@ -410,6 +410,7 @@ typedef struct work {
     double nf_depth;       /* depth d, m */
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
+    int nf_conj;           /* perfect flanks touch at the kinematic angle (nf_offsets) */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
     struct {
@@ -748,7 +749,7 @@ static gs_err nf_offsets(work *w)
             ng0 = 1;
         }
         if (ng0 > 0)
-            off = rm->gap.g - g0best;
+            off = rm->gap.g - (w->nf_conj ? 0.0 : g0best);
         w->go[w->n_go].tooth[0] = t[0];
         w->go[w->n_go].tooth[1] = t[1];
         w->go[w->n_go].off = off;
@@ -940,6 +941,28 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
             c += (dh - (as - aq - dself)) / lam;
             L += (as - aq - dself) / lam;
             dep[k] = depth;
+        }
+        /* The Hertz law is the approach at the contact centre; a loaded row
+         * at distance x from it starts x^2 / (2 R) apart (its rigid gap
+         * above the pair's, offset taken off) and moves that much less:
+         * the FE's centre approach is the rows' plus their load-weighted
+         * rigid gap (a^2 / (8 R) once the mesh resolves the pressure). */
+        if (!skip && has_x) {
+            double gs = 0.0;
+            for (int i = 0; i < nr; i++) {
+                const int *ti = w->teeth[i];
+                if (w->x[i] <= 0.0 || ti[0] != g[p].tooth[0] || ti[1] != g[p].tooth[1])
+                    continue;
+                const gs_contact_row *r = &w->row[i];
+                double du = 0.0;
+                for (int t = 0; t < r->n_nodes; t++) {
+                    const sbody *b = &w->b[r->body[t] == w->si[0] ? 0 : 1];
+                    du += r->dg_du[t][0] * b->u[2 * r->node[t]] + r->dg_du[t][1] * b->u[2 * r->node[t] + 1];
+                }
+                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * delta);
+            }
+            c -= gs / (lam * lam);
+            L += gs / (lam * lam);
         }
         /* The FE's point load is stiffer than the Hertzian one while the
          * mesh does not resolve a; never add a negative compliance (W must
@@ -1341,6 +1364,17 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         w.nf_estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa,
                                            m1->poisson, m0->plane);
         w.nf_bw = fmin(gA->face_width_m, gB->face_width_m);
+        /* Unmodified gears at their tight-mesh centre distance (to 0.01 um:
+         * the common gap that leaves is below 0.01 um): conjugate involutes,
+         * whose every flank pair touches at the kinematic angle
+         * (nf_offsets). */
+        double at = 0.0;
+        gs_diag td;
+        gs_diag_clear(&td);
+        w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref &&
+                    gs_pair_tight_centre_distance(gA, gB, &at, &td) == GS_OK &&
+                    fabs(hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]) - at) <
+                        1e-8;
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;
         w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
