@@ -65,7 +65,7 @@ typedef struct gs_stiffness_opts {
                         * correction of the contact compliance (docs/STIFFNESS.md
                         * "Near-field correction") */
     double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,
-                        * mm (at most one module); 0 (default): 0.4 module */
+                        * mm (at most one module); 0 (default): 0.2 module */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

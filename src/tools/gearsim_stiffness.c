@@ -16,7 +16,7 @@
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. --nearfield adds the
  * near-field (Hertz) correction of the contact compliance, --nearfield-depth
- * sets its depth (mm; default 0.4 module; implies --nearfield). Exit status 0 on success, 1 on bad usage, 2 on an
+ * sets its depth (mm; default 0.2 module; implies --nearfield). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
