@@ -65,7 +65,7 @@ typedef struct gs_stiffness_opts {
                         * correction of the contact compliance (docs/STIFFNESS.md
                         * "Near-field correction") */
     double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,
-                        * mm (at most one module); 0 (default): 0.8 module */
+                        * mm (at most one module); 0 (default): 0.2 module */
     int fine;          /* 0 (default): the scene's mesh; 1: both gears on the `fine` setting
                         * (gs_gear_mesh_opts_fine: teeth in contact locally refined, cycles + 2
                         * of them rounded up to odd; replaces the scene's mesh density, refine
@@ -219,5 +219,15 @@ double gs_hertz_line_modulus(double E1, double nu1, double E2, double nu2, gs_pl
 double gs_hertz_line_half_width(double load_per_m, double r_eff_m, double e_star_pa);
 double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, double E, double nu,
                               gs_plane plane);
+
+/* The smallest gap between two smooth flanks from three samples of it
+ * along their common tangent (the contact rows of the nodes nearest the
+ * contact and their neighbours, docs/STIFFNESS.md "Near-field correction"):
+ * the parabola g(s) = g_m + B s + C s^2 through (s_l, g_l), (0, g_m),
+ * (s_h, g_h), s_l < 0 < s_h; its vertex s_v = -B / (2 C) in *s_v and
+ * g_0 = g_m - B^2 / (4 C) in *g0. Returns 1 when the parabola is convex
+ * (C > 0) and s_l <= s_v <= s_h, else 0 (outputs untouched). */
+int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double *s_v,
+                   double *g0);
 
 #endif

@@ -38,9 +38,11 @@
  * STIFF_BATCH free-dof vectors). */
 #define STIFF_BATCH 32
 /* Automatic near-field depth, in modules. */
-#define GS_NF_DEPTH 0.8
+#define GS_NF_DEPTH 0.2
 /* A contact point within this many modules of a tip circle is a corner contact. */
 #define GS_NF_CORNER 0.02
+/* Near-field correction: half-width of the gap fit along the flank, module. */
+#define GS_NF_FIT 0.25
 
 /* CPU seconds of the process (the cost split of the result: CPU time is
  * the comparable figure on a shared machine). */
@@ -455,6 +457,7 @@ typedef struct work {
     double nf_depth;       /* depth d, m */
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
+    int nf_conj;           /* perfect flanks touch at the kinematic angle (nf_offsets) */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
     struct {
@@ -466,6 +469,15 @@ typedef struct work {
         int skip;          /* corner contact, or Q not found: no correction */
     } pc[GS_STIFF_MAX_PAIRS];
     double *fq, *uq;       /* scratch 2 n_nodes of the larger body */
+    /* Near-field correction: per tooth pair the node-sampling part of its
+     * rows' rigid gap (nf_offsets), taken off their gaps in collect. */
+    int n_go;
+    struct {
+        int tooth[2];
+        double off;        /* m */
+        int has_x;         /* the flanks' contact point found: */
+        double xb[2];      /* it, in the driver's body frame, m */
+    } go[2 * GS_STIFF_MAX_PAIRS];
 } work;
 
 static void work_free(work *w)
@@ -536,6 +548,15 @@ static void cand_teeth(const work *w, const gs_contact_candidate *c, int tooth[2
     }
 }
 
+/* The gap offset of the rows of tooth pair t (nf_offsets; 0 when none). */
+static double gap_offset(const work *w, const int t[2])
+{
+    for (int p = 0; p < w->n_go; p++)
+        if (w->go[p].tooth[0] == t[0] && w->go[p].tooth[1] == t[1])
+            return w->go[p].off;
+    return 0.0;
+}
+
 /* Search and evaluate at the current state; keep the rows the driver's
  * rotation in the torque direction closes (a_i s < 0) and any row already
  * penetrated. Returns their number in *nr and the smallest gap in *gmin. */
@@ -553,6 +574,9 @@ static gs_err collect(work *w, double delta, int *nr, double *gmin)
     for (gs_index j = 0; j < nc; j++) {
         gs_contact_row r;
         GS_TRY(gs_contact_eval(w->search, pose, &cand[j], &r));
+        int tp[2];
+        cand_teeth(w, &cand[j], tp);
+        r.gap.g -= gap_offset(w, tp);
         double a = r.dg_dtheta[w->si[0]];
         if (!(a * w->sgn < -tiny || r.gap.g < 0.0))
             continue;
@@ -560,7 +584,8 @@ static gs_err collect(work *w, double delta, int *nr, double *gmin)
             lo = r.gap.g;
         w->row[n] = r;
         w->cand[n] = &cand[j];
-        cand_teeth(w, &cand[j], w->teeth[n]);
+        w->teeth[n][0] = tp[0];
+        w->teeth[n][1] = tp[1];
         n++;
     }
     *nr = n;
@@ -658,6 +683,136 @@ static void nearfield_refresh(work *w, int nr)
     }
 }
 
+/* Relative curvature 1/R_1 + 1/R_2 (*curv, 1/m) of the flanks at the
+ * contact point X (scene frame): involute radii sqrt(r^2 - r_b^2), concave
+ * for an internal gear; each body's signed curvature in kb (may be NULL).
+ * Returns a mask of the bodies (bit k) for which X is within GS_NF_CORNER
+ * module of the tip circle: a tip-corner contact, not a Hertzian line
+ * contact (0: a flank contact). */
+static int pair_curvature(const work *w, const double X[2], double *curv, double kb[2])
+{
+    int corner = 0;
+    *curv = 0.0;
+    for (int k = 0; k < 2; k++) {
+        const gs_gear_params *gp = &w->b[k].sb->gear;
+        double rr = hypot(X[0] - w->b[k].c[0], X[1] - w->b[k].c[1]);
+        double rt = gs_gear_tip_radius(gp), eps = GS_NF_CORNER * gp->module_m;
+        if (gp->kind == GS_GEAR_INTERNAL ? rr < rt + eps : rr > rt - eps)
+            corner |= 1 << k;
+        double rb = gs_gear_base_radius(gp);
+        double Rk = fmax(sqrt(fmax(rr * rr - rb * rb, 0.0)), 0.05 * gp->module_m);
+        double ck = (gp->kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) / Rk;
+        *curv += ck;
+        if (kb)
+            kb[k] = ck;
+    }
+    return corner;
+}
+
+/* Near-field correction, rigid bodies at the kinematic position (delta 0,
+ * u = 0): per tooth pair the part of its rows' gap that comes from sampling
+ * the flanks at nodes. The rows of one pass sample the gap between the two
+ * flanks at the slave nodes along the common tangent (coordinate s); near a
+ * line contact it is smooth and convex, g(s) = g0 + (s - s0)^2 / (2 R) to
+ * leading order, and the nearest node sits up to h^2 / (8 R) above the
+ * minimum g0 (h the node spacing). Per pass the parabola through the row of
+ * smallest gap and its neighbours on either side (within GS_NF_FIT module)
+ * gives g0 at its vertex (when the vertex lies between them), taken from
+ * the pass whose master flank has the larger involute radius (the flatter
+ * one, whose parabolic edges depart least from it: near a form point the
+ * other pass sees the edges' bulge). The offset min_i g_i - g0 is taken off every row of
+ * the pair (collect): the pair first touches where its flanks do, not
+ * where its nearest node does, and the Hertz law (nearfield_measure) gives
+ * the approach about that contact. Tip-corner contacts, and pairs without
+ * a vertex, keep 0. */
+static gs_err nf_offsets(work *w)
+{
+    w->n_go = 0;
+    int nr;
+    double gmin;
+    GS_TRY(collect(w, 0.0, &nr, &gmin));
+    for (int i = 0; i < nr; i++) {
+        const int *t = w->teeth[i];
+        int seen = 0;
+        for (int p = 0; p < w->n_go && !seen; p++)
+            seen = w->go[p].tooth[0] == t[0] && w->go[p].tooth[1] == t[1];
+        if (seen || w->n_go == (int)(sizeof w->go / sizeof w->go[0]))
+            continue;
+        /* The pair's row of smallest gap: its contact point and tangent. */
+        int im = -1;
+        for (int j = 0; j < nr; j++)
+            if (w->teeth[j][0] == t[0] && w->teeth[j][1] == t[1] &&
+                (im < 0 || w->row[j].gap.g < w->row[im].gap.g))
+                im = j;
+        const gs_contact_row *rm = &w->row[im];
+        double curv, nn = hypot(rm->gap.grad[0], rm->gap.grad[1]);
+        bool corner = pair_curvature(w, rm->x[0], &curv, NULL) != 0;
+        double off = 0.0, g0best = 0.0, win = GS_NF_FIT * w->b[0].sb->gear.module_m;
+        double rho_best = 0.0, xv[2] = {0.0, 0.0};
+        int ng0 = 0;
+        for (int pass = 0; pass < 2 && !corner && nn > 0.0; pass++) {
+            double tg[2] = {-rm->gap.grad[1] / nn, rm->gap.grad[0] / nn};
+            int jm = -1, jl = -1, jh = -1;
+            double sl = -INFINITY, sh = INFINITY;
+            for (int j = 0; j < nr; j++)
+                if (w->teeth[j][0] == t[0] && w->teeth[j][1] == t[1] &&
+                    (w->cand[j]->slave == w->si[pass]) &&
+                    (jm < 0 || w->row[j].gap.g < w->row[jm].gap.g))
+                    jm = j;
+            if (jm < 0)
+                continue;
+            const double *xm = w->row[jm].x[0];
+            for (int j = 0; j < nr; j++) {
+                if (j == jm || w->teeth[j][0] != t[0] || w->teeth[j][1] != t[1] ||
+                    w->cand[j]->slave != w->si[pass])
+                    continue;
+                double sj = (w->row[j].x[0][0] - xm[0]) * tg[0] + (w->row[j].x[0][1] - xm[1]) * tg[1];
+                if (sj < 0.0 && sj > sl && sj >= -win) {
+                    sl = sj;
+                    jl = j;
+                }
+                if (sj > 0.0 && sj < sh && sj <= win) {
+                    sh = sj;
+                    jh = j;
+                }
+            }
+            if (jl < 0 || jh < 0)
+                continue;
+            double gm = w->row[jm].gap.g, sv, g0;
+            if (!gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
+                continue;
+            /* The pass whose master flank is the flatter (larger involute
+             * radius: its parabolic edges follow it more closely) wins. */
+            const gs_gear_params *gpm = &w->b[1 - pass].sb->gear;
+            double rr = hypot(xm[0] - w->b[1 - pass].c[0], xm[1] - w->b[1 - pass].c[1]);
+            double rbm = gs_gear_base_radius(gpm);
+            double rho = sqrt(fmax(rr * rr - rbm * rbm, 0.0));
+            if (ng0 == 0 || rho > rho_best) {
+                rho_best = rho;
+                g0best = g0;
+                xv[0] = xm[0] + sv * tg[0];
+                xv[1] = xm[1] + sv * tg[1];
+            }
+            ng0 = 1;
+        }
+        if (ng0 > 0)
+            off = rm->gap.g - (w->nf_conj ? 0.0 : g0best);
+        w->go[w->n_go].tooth[0] = t[0];
+        w->go[w->n_go].tooth[1] = t[1];
+        w->go[w->n_go].off = off;
+        w->go[w->n_go].has_x = ng0 > 0;
+        if (ng0 > 0) {
+            /* Driver's body frame at the kinematic angle (delta 0). */
+            double th = w->theta0[0], cs = cos(th), sn = sin(th);
+            double dx = xv[0] - w->b[0].c[0], dy = xv[1] - w->b[0].c[1];
+            w->go[w->n_go].xb[0] = cs * dx + sn * dy;
+            w->go[w->n_go].xb[1] = -sn * dx + cs * dy;
+        }
+        w->n_go++;
+    }
+    return GS_OK;
+}
+
 /* At the converged plain FE solution (rows w->row, forces w->x,
  * displacements in the bodies): the near-field data of every loaded tooth
  * pair. Per pair and body k the FE approach of the contact point
@@ -708,23 +863,31 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         double nn = hypot(g[p].n[0], g[p].n[1]);
         if (!(lam > 1e-6 * w->ftot) || !(nn > 0.0))
             continue;
+        /* The flanks' contact point (nf_offsets) when known, else the rows'
+         * load centre. */
+        bool has_x = false;
+        for (int q = 0; q < w->n_go; q++)
+            if (w->go[q].tooth[0] == g[p].tooth[0] && w->go[q].tooth[1] == g[p].tooth[1] &&
+                w->go[q].has_x) {
+                double th = w->theta0[0] + delta, cs = cos(th), sn = sin(th);
+                const double *xb = w->go[q].xb;
+                X[0] = w->b[0].c[0] + cs * xb[0] - sn * xb[1];
+                X[1] = w->b[0].c[1] + sn * xb[0] + cs * xb[1];
+                has_x = true;
+            }
         double nD[2] = {g[p].n[0] / nn, g[p].n[1] / nn};
-        /* Involute curvature radii at the contact point; concave for an
-         * internal gear. */
-        double curv = 0.0, R[2];
-        bool corner = false;
-        for (int k = 0; k < 2; k++) {
-            const gs_gear_params *gp = &w->b[k].sb->gear;
-            double rr = hypot(X[0] - w->b[k].c[0], X[1] - w->b[k].c[1]);
-            /* A contact at a tip corner is not a Hertzian line contact:
-             * left to the FE. */
-            double rt = gs_gear_tip_radius(gp), eps = GS_NF_CORNER * gp->module_m;
-            if (gp->kind == GS_GEAR_INTERNAL ? rr < rt + eps : rr > rt - eps)
-                corner = true;
-            double rb = gs_gear_base_radius(gp);
-            R[k] = sqrt(fmax(rr * rr - rb * rb, 0.0));
-            R[k] = fmax(R[k], 0.05 * gp->module_m);
-            curv += (gp->kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) / R[k];
+        double curv, kb[2];
+        int corner = pair_curvature(w, X, &curv, kb);
+        /* A tip corner of one body on the flank of the other: the flank
+         * body alone gets the near-field law, as a half-plane under the
+         * contact width of a line contact with its own flank curvature. */
+        int only = -1;
+        if ((corner == 1 || corner == 2) && kb[corner == 1 ? 1 : 0] > 0.0) {
+            /* (A concave flank, a ring's, under a corner: no half-plane
+             * width; the pair keeps the plain FE.) */
+            only = corner == 1 ? 1 : 0;
+            curv = kb[only];
+            corner = 0;
         }
         if (corner) {
             memset(&w->pc[np], 0, sizeof w->pc[np]);
@@ -739,6 +902,8 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         double c = 0.0, L = 0.0, dep[2] = {0.0, 0.0};
         bool skip = false;
         for (int k = 0; k < 2 && !skip; k++) {
+            if (only >= 0 && k != only)
+                continue;
             sbody *b = &w->b[k];
             const gs_mesh *m = b->mesh;
             double nk[2] = {k == 0 ? nD[0] : -nD[0], k == 0 ? nD[1] : -nD[1]};
@@ -787,11 +952,64 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
                     as += l * bs;
             }
             as /= lam;
+            /* The FE carries the pair's load on its slave nodes, up to half
+             * a node spacing from the flanks' contact point; Q's
+             * displacement under the load there instead (by reciprocity,
+             * the unit solve's field at the contact point, just inside the
+             * surface) less the one under the nodal loads. */
+            double dself = 0.0;
+            if (has_x) {
+                double xc[2] = {X[0] - b->c[0], X[1] - b->c[1]};
+                double xbk[2] = {cs * xc[0] + sn * xc[1], -sn * xc[0] + cs * xc[1]};
+                double Qb[2] = {xbk[0] + depth * eb[0], xbk[1] + depth * eb[1]};
+                double pin[2] = {xbk[0] + 1e-2 * (Qb[0] - xbk[0]), xbk[1] + 1e-2 * (Qb[1] - xbk[1])};
+                gs_index nx[6];
+                double Nx[6];
+                int nxn = locate(m, pin, nx, Nx);
+                if (nxn > 0) {
+                    double ux = 0.0, own = 0.0;
+                    for (int t = 0; t < nxn; t++)
+                        ux += Nx[t] * (eb[0] * w->uq[2 * nx[t]] + eb[1] * w->uq[2 * nx[t] + 1]);
+                    for (int i = 0; i < nr; i++) {
+                        const int *ti = w->teeth[i];
+                        if (w->x[i] <= 0.0 || ti[0] != g[p].tooth[0] || ti[1] != g[p].tooth[1])
+                            continue;
+                        gs_index nd[4];
+                        double gg[4][2];
+                        int mm = row_nodes(w, &w->row[i], k, nd, gg);
+                        for (int t = 0; t < mm; t++)
+                            own += w->x[i] * (gg[t][0] * w->uq[2 * nd[t]] + gg[t][1] * w->uq[2 * nd[t] + 1]);
+                    }
+                    dself = lam * ux - own;
+                }
+            }
             double dh = gs_hertz_line_approach(Pm, a, depth, b->sb->material.youngs_pa,
                                                b->sb->material.poisson, b->sb->material.plane);
-            c += (dh - (as - aq)) / lam;
-            L += (as - aq) / lam;
+            c += (dh - (as - aq - dself)) / lam;
+            L += (as - aq - dself) / lam;
             dep[k] = depth;
+        }
+        /* The Hertz law is the approach at the contact centre; a loaded row
+         * at distance x from it starts x^2 / (2 R) apart (its rigid gap
+         * above the pair's, offset taken off) and moves that much less:
+         * the FE's centre approach is the rows' plus their load-weighted
+         * rigid gap (a^2 / (8 R) once the mesh resolves the pressure). */
+        if (!skip && has_x) {
+            double gs = 0.0;
+            for (int i = 0; i < nr; i++) {
+                const int *ti = w->teeth[i];
+                if (w->x[i] <= 0.0 || ti[0] != g[p].tooth[0] || ti[1] != g[p].tooth[1])
+                    continue;
+                const gs_contact_row *r = &w->row[i];
+                double du = 0.0;
+                for (int t = 0; t < r->n_nodes; t++) {
+                    const sbody *b = &w->b[r->body[t] == w->si[0] ? 0 : 1];
+                    du += r->dg_du[t][0] * b->u[2 * r->node[t]] + r->dg_du[t][1] * b->u[2 * r->node[t] + 1];
+                }
+                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * delta);
+            }
+            c -= gs / (lam * lam);
+            L += gs / (lam * lam);
         }
         /* The FE's point load is stiffer than the Hertzian one while the
          * mesh does not resolve a; never add a negative compliance (W must
@@ -984,6 +1202,7 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
     for (int i = 0; i < *nr_out; i++) {
         gs_contact_row r;
         GS_TRY(gs_contact_eval(w->search, pose, w->cand[i], &r));
+        r.gap.g -= gap_offset(w, w->teeth[i]);
         if (r.gap.g < lo)
             lo = r.gap.g;
     }
@@ -1203,6 +1422,17 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         w.nf_estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa,
                                            m1->poisson, m0->plane);
         w.nf_bw = fmin(gA->face_width_m, gB->face_width_m);
+        /* Unmodified gears at their tight-mesh centre distance (to 0.01 um:
+         * the common gap that leaves is below 0.01 um): conjugate involutes,
+         * whose every flank pair touches at the kinematic angle
+         * (nf_offsets). */
+        double at = 0.0;
+        gs_diag td;
+        gs_diag_clear(&td);
+        w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref &&
+                    gs_pair_tight_centre_distance(gA, gB, &at, &td) == GS_OK &&
+                    fabs(hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]) - at) <
+                        1e-8;
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;
         w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
@@ -1323,6 +1553,12 @@ gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
                                          r->thB_first + r->ratio * w.sgn * roll * pitch);
         for (int k = 0; k < 2; k++)
             memset(w.b[k].u, 0, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
+        w.n_go = 0;
+        if (w.nf) {
+            e = nf_offsets(&w);
+            if (e != GS_OK)
+                goto done;
+        }
         /* No-load closing rotation: rigid bodies turned until the first row
          * closes, the rows re-evaluated at each new angle (with backlash the
          * linearisation at the kinematic angle alone is too crude). */

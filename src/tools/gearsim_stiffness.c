@@ -16,7 +16,7 @@
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. --nearfield adds the
  * near-field (Hertz) correction of the contact compliance, --nearfield-depth
- * sets its depth (mm; default 0.8 module; implies --nearfield). --fine meshes
+ * sets its depth (mm; default 0.2 module; implies --nearfield). --fine meshes
  * both gears on the `fine` setting (the teeth in contact locally refined,
  * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */

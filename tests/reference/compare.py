@@ -72,6 +72,16 @@ def open_checked(pair_dir, build, min_positions, est_bar, shape_ratio, check):
     return tool, ref
 
 
+def check_max_errors(summ, bar_k, bar_te, label, check):
+    """check(cond, what) that the largest |k error| and |TE error| of a
+    compare() summary are below bar_k and bar_te (the validation tests'
+    per-position bars)."""
+    check(summ["max_abs_err_k"] < bar_k and summ["max_abs_err_te"] < bar_te,
+          "%s: max |k error| %.2f%% < %.1f%%, max |TE error| %.2f%% < %.1f%%"
+          % (label, 100 * summ["max_abs_err_k"], 100 * bar_k, 100 * summ["max_abs_err_te"],
+             100 * bar_te))
+
+
 def find_tool(build):
     for p in (os.path.join(build, "src", "tools", "gearsim-stiffness"),):
         if os.access(p, os.X_OK):

@@ -86,12 +86,90 @@ static void half_width_and_modulus(void **state)
     assert_true(isnan(gs_hertz_line_approach(P, a, 1e-3, 0.0, nu, GS_PLANE_STRAIN)));
 }
 
+/* gs_gap_vertex3: exact on a parabola; rejects a concave or an
+ * extrapolated vertex. */
+static void gap_vertex_parabola(void **state)
+{
+    (void)state;
+    double sv = 0.0, g0 = 0.0;
+    /* g(s) = 0.3 + (s - 0.07)^2 / (2 * 5): samples at -0.2, 0, 0.25. */
+    double R = 5.0, s0 = 0.07, gv = 0.3;
+#define G(s) (gv + ((s) - s0) * ((s) - s0) / (2.0 * R))
+    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), &sv, &g0), 1);
+    assert_true(fabs(sv - s0) < 1e-12 && fabs(g0 - gv) < 1e-12);
+    /* Vertex beyond the samples, concave samples, unordered abscissae. */
+    s0 = 0.4;
+    sv = g0 = -1.0;
+    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), &sv, &g0), 0);
+    assert_true(sv == -1.0 && g0 == -1.0);
+#undef G
+    assert_int_equal(gs_gap_vertex3(-0.2, 0.0, 1.0, 0.25, 0.0, &sv, &g0), 0);
+    assert_int_equal(gs_gap_vertex3(0.1, 1.0, 0.0, 0.25, 1.0, &sv, &g0), 0);
+}
+
+/* The smallest gap of two circles (radii R1, R2, the flanks' curvature
+ * radii near a gear contact) from their gaps sampled at nodes of spacing h
+ * on one of them, the nearest node at an arbitrary place: the nearest
+ * node's gap is up to h^2 / (8 R) above the true one, the vertex of the
+ * three nearest samples is far closer and converges under refinement. */
+static double circles_vertex_error(double h, double phase, double *nearest_err)
+{
+    double R1 = 3e-3, R2 = 20e-3, gap = 0.5e-6;   /* m */
+    double cA[2] = {0.0, -R1}, cB[2] = {0.0, R2 + gap};
+    double best = INFINITY, gs[3] = {0}, ss[3] = {0};
+    int nb = 0;
+    for (int i = -40; i <= 40; i++) {
+        double ang = (i + phase) * h / R2;             /* node on B's lower arc */
+        double p[2] = {cB[0] + R2 * sin(ang), cB[1] - R2 * cos(ang)};
+        double g = hypot(p[0] - cA[0], p[1] - cA[1]) - R1;
+        if (g < best) {
+            best = g;
+            nb = i;
+        }
+    }
+    for (int k = -1; k <= 1; k++) {
+        double ang = (nb + k + phase) * h / R2;
+        double p[2] = {cB[0] + R2 * sin(ang), cB[1] - R2 * cos(ang)};
+        ss[k + 1] = p[0];
+        gs[k + 1] = hypot(p[0] - cA[0], p[1] - cA[1]) - R1;
+    }
+    for (int k = 0; k < 3; k += 2)
+        ss[k] -= ss[1];
+    double sv, g0;
+    assert_int_equal(gs_gap_vertex3(ss[0], gs[0], gs[1], ss[2], gs[2], &sv, &g0), 1);
+    *nearest_err = gs[1] - gap;
+    return fabs(g0 - gap);
+}
+
+static void gap_vertex_circles(void **state)
+{
+    (void)state;
+    double prev = 0.0;
+    for (int lev = 0; lev < 3; lev++) {
+        double h = 0.3e-3 / (1 << lev), worst = 0.0, worst_near = 0.0;
+        for (int j = 0; j < 8; j++) {
+            double en, e = circles_vertex_error(h, 0.0625 + j / 8.0, &en);
+            worst = fmax(worst, e);
+            worst_near = fmax(worst_near, en);
+        }
+        print_message("h %.4f mm: nearest node %.4f um, vertex %.2e um\n", h * 1e3,
+                      worst_near * 1e6, worst * 1e6);
+        assert_true(worst_near > 0.3 * h * h / (8.0 * 2.6e-3)); /* the sampling error is real */
+        assert_true(worst < 0.05 * worst_near);
+        if (lev > 0)
+            assert_true(worst < prev / 4.0);               /* at least second order */
+        prev = worst;
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(approach_matches_quadrature),
         cmocka_unit_test(approach_far_field_is_johnson),
         cmocka_unit_test(half_width_and_modulus),
+        cmocka_unit_test(gap_vertex_parabola),
+        cmocka_unit_test(gap_vertex_circles),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -25,16 +25,18 @@ Asserted (bars are named constants; each can fail):
 * default mesh (order 2, refine 0): per position |k error| within BAR_K_O2
   and |TE error| within BAR_TE_O2, the cycle mean too stiff by less than
   BAR_CYCLE_O2, the single-contact mean too stiff and closer than the
-  linear mesh's; with the near-field correction (--nearfield) within
-  BAR_K_O2_NF and the cycle mean within BAR_CYCLE_O2_NF and closer than
-  without it;
+  linear mesh's; with the near-field correction (--nearfield) k within
+  BAR_K_O2_NF and TE within BAR_TE_O2_NF per position, the cycle mean
+  within BAR_CYCLE_O2_NF (1 %) and closer than without it, the
+  single-contact mean within BAR_SINGLE_O2_NF;
 * refine 1: the single-contact mean error smaller than on the default mesh
   (gearsim converges towards the reference), |k error| below
   BAR_K_REFINE1; with the correction: k and TE within BAR_K_O2R1_NF per
   position, the cycle mean within BAR_MEAN_O2R1_NF and the single-contact
   mean within BAR_SINGLE_O2R1_NF.
 Issue 14's targets (2 % per position on the default mesh, 1 % fine) are not
-met yet: docs/CONVERGENCE.md "Against the independent reference".
+met yet: docs/CONVERGENCE.md "Near-field correction, revised"; the cycle
+means within 1 % (TARGET_MEAN) are, and asserted.
 """
 import os
 import sys
@@ -62,12 +64,23 @@ BAR_SINGLE_O1 = 0.25       # single-contact mean k error (> 0 asserted; +16.4%)
 BAR_K_O2 = 0.115           # |k error| per position, plain FE (10.3%; 11.6%)
 BAR_TE_O2 = 0.105          # |TE error| per position, plain FE (9.4%; 10.4%)
 BAR_CYCLE_O2 = 0.08        # cycle-mean k error in (0, bar): too stiff (+6.8%; +5.9%)
-BAR_K_O2_NF = 0.055        # |k error| per position, near-field (4.7%; 4.8%)
-BAR_CYCLE_O2_NF = 0.015    # |cycle-mean k error|, near-field (0.78%; 2.5%)
+# The near-field correction as revised in issue 14 (node-sampling gap
+# offsets, Q below the flanks' contact point, flank-side law at tip corners,
+# depth 0.4 module; docs/CONVERGENCE.md "Near-field correction, revised"),
+# in brackets the previous correction's figure:
+BAR_K_O2_NF = 0.033        # |k error| per position, near-field (3.01%; 3.29%; 4.7%)
+BAR_TE_O2_NF = 0.033       # |TE error| per position, near-field (2.92%; 3.18%; 4.5%)
+BAR_CYCLE_O2_NF = 0.01     # |cycle-mean k error|, near-field: issue 14's 1 % (+0.77%; +0.36%; +0.78%)
+BAR_SINGLE_O2_NF = 0.01    # |single-contact-mean k error|, near-field: issue 14's 1 % (+0.91%; +1.14%; +2.28%)
 BAR_K_REFINE1 = 0.05       # |k error| per position at refine 1, plain (4.0%; 4.5%; linear refine 1 was 10.7%)
-BAR_K_O2R1_NF = 0.04       # |k error| and |TE error| per position, refine 1, near-field (3.3%, 3.2%; 4.0%, 4.1%)
-BAR_MEAN_O2R1_NF = 0.017   # |cycle-mean| k error, same (+1.19%; +0.49%: worse with the parabolic gap, loosened)
-BAR_SINGLE_O2R1_NF = 0.03  # |single-contact-mean| k error, same (+2.31%; +2.28%)
+BAR_K_O2R1_NF = 0.021      # |k error| and |TE error| per position, refine 1, near-field (1.99%, 1.95%; 2.11%, 2.07%; 3.3%, 3.2%)
+BAR_MEAN_O2R1_NF = 0.01    # |cycle-mean| k error, same: issue 14's 1 % (+0.68%; +0.77%; +1.19%)
+BAR_SINGLE_O2R1_NF = 0.01  # |single-contact-mean| k error, same: 1 % (+0.57%; +1.20%; +2.31%)
+# Issue 14's targets for the default mesh: k and TE within 2 % at every
+# position, the cycle and single-contact means within 1 %. Asserted where
+# met (the cycle means above); the rest is printed as a status line.
+TARGET_POS = 0.02
+TARGET_MEAN = 0.01
 
 failures = []
 
@@ -127,12 +140,20 @@ def main():
     n0 = compare.compare(PAIR, tool, refine=0, extra=["--nearfield"])
     compare.print_result(n0)
     sn0 = n0["summary"]
-    check(sn0["max_abs_err_k"] < BAR_K_O2_NF, "near-field: max |k error| %.2f%% < %.0f%%"
-          % (100 * sn0["max_abs_err_k"], 100 * BAR_K_O2_NF))
+    compare.check_max_errors(sn0, BAR_K_O2_NF, BAR_TE_O2_NF, "near-field", check)
     check(abs(sn0["cycle_mean_err_k"]) < min(BAR_CYCLE_O2_NF, abs(s0["cycle_mean_err_k"])),
           "near-field: |cycle-mean k error| %.2f%% < %.0f%% and below the plain FE's %.2f%%"
           % (100 * abs(sn0["cycle_mean_err_k"]), 100 * BAR_CYCLE_O2_NF,
              100 * abs(s0["cycle_mean_err_k"])))
+    smn = sn0["single_mean_err_k"]
+    check(smn is not None and abs(smn) < BAR_SINGLE_O2_NF,
+          "near-field: |single-contact-mean k error| %s < %.1f%%"
+          % ("n/a" if smn is None else "%.2f%%" % (100 * abs(smn)), 100 * BAR_SINGLE_O2_NF))
+    met = (sn0["max_abs_err_k"] < TARGET_POS and sn0["max_abs_err_te"] < TARGET_POS
+           and abs(sn0["cycle_mean_err_k"]) < TARGET_MEAN and smn is not None
+           and abs(smn) < TARGET_MEAN)
+    print("issue-14 target on the default mesh (k, TE within %.0f%% per position, means within "
+          "%.0f%%): %s" % (100 * TARGET_POS, 100 * TARGET_MEAN, "met" if met else "NOT met"))
     n1 = compare.compare(PAIR, tool, refine=1, extra=["--nearfield"])
     compare.print_result(n1)
     sn1 = n1["summary"]
@@ -143,7 +164,7 @@ def main():
     check(abs(sn1["cycle_mean_err_k"]) < BAR_MEAN_O2R1_NF and sm is not None
           and abs(sm) < BAR_SINGLE_O2R1_NF,
           "refine 1 near-field: cycle-mean %+.2f%% within %.0f%% and single-contact-mean "
-          "%s k error within %.0f%%" % (100 * sn1["cycle_mean_err_k"], 100 * BAR_MEAN_O2R1_NF,
+          "%s k error within %.1f%%" % (100 * sn1["cycle_mean_err_k"], 100 * BAR_MEAN_O2R1_NF,
                                         "n/a" if sm is None else "%+.2f%%" % (100 * sm),
                                         100 * BAR_SINGLE_O2R1_NF))
 
