@@ -553,8 +553,9 @@ gs_err gs_contact_search_run(gs_contact_search *s, const gs_contact_pose pose[2]
     return GS_OK;
 }
 
-/* Order 1 at a master tip corner V (window position v): the Euclidean
- * signed distance to the two segments at V instead of the blended
+/* Order 1 at a master tip corner V (window position v), the slave outside
+ * the master: the Euclidean distance to the two segments at V instead of
+ * the blended
  * R-function wedge, whose gradient off the zero set turns towards the
  * corner's bisector (a predicted row of a flank node beside the flank then
  * pushes along neither flank nor tip: locking, docs/CONTACT.md "Tip
@@ -578,7 +579,10 @@ static gs_err tip_corner_distance(const gear_data *gb, const double *pts, const 
         double tau = ((x[0] - a[0]) * d[0] + (x[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
         v = tau >= 1.0 ? i + 1 : (tau <= 0.0 ? i : -1);
     }
-    if (v < 1 || v > k - 2 || !gb->tipc[cand->window[v]])
+    /* outside the master only: inside, the wedge's rows (the seed's, which
+     * makes rows at g <= 0 alone) stay as they were; on the zero set both
+     * are zero with the segment's normal as gradient */
+    if (v < 1 || v > k - 2 || !gb->tipc[cand->window[v]] || !(gap->g > 0.0))
         return GS_OK;
     double q[10];
     for (int c = 0; c < 2; c++) {
