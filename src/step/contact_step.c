@@ -194,13 +194,15 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
 }
 
 /* True when node `node` of gear k (0 / 1) of contact mesh cm is a slave
- * candidate of this step (tip corners are slaves in both search modes when
- * near the other gear). A flank node in the outer normal cone of the other
- * gear's tip corner gets no row then (docs/CONTACT.md "Tip corners"): its
- * gap's gradient there points from the corner to the node, along the flank
- * rather than across it, and such a row holds the flank against the rolling
- * (locking); the contact of a sharp corner with a smooth flank has the
- * flank's normal, which the corner's own row against the flank edges
+ * candidate of this step (tip corners and tip arc nodes are slaves in both
+ * search modes when near the other gear). A flank node outside the other
+ * gear in the outer normal cone of its tip corner, or beside its tip land
+ * (gs_contact_row.fan_corner), gets no row then (docs/CONTACT.md "Tip
+ * corners: no locking"): its gap's gradient there points from the corner
+ * to the node, along the flank rather than across it, or radially through
+ * the other gear's centre, and such a row holds the flank against the
+ * rolling (locking); the contact of a sharp corner with a smooth flank has
+ * the flank's normal, which the corner's own row against the flank edges
  * carries. */
 static bool corner_is_slave(const gsi_contact_mesh *cm, int k, gs_index node)
 {
@@ -231,7 +233,7 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         if (-g > *pen)
             *pen = -g;
         if (r.fan_corner >= 0 && corner_is_slave(cm, cm->cand[j].master, r.fan_corner))
-            continue; /* outside the master, nearest its tip corner: the corner's own row holds it */
+            continue; /* outside the master at its tip corner or tip land: that node's own row holds it */
         bool take = g <= 0.0;
         if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
