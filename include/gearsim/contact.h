@@ -79,7 +79,9 @@ typedef enum {
     GS_GAP_LINE = 0,    /* point-to-line of one segment */
     GS_GAP_CONVEX = 1,  /* convex wedge, blended with a line (see gs_gap_eval) */
     GS_GAP_CONCAVE = 2, /* concave wedge, blended with a line */
-    GS_GAP_PARABOLA = 3 /* signed distance to parabolic edges (gs_gap_eval_quad) */
+    GS_GAP_PARABOLA = 3, /* signed distance to parabolic edges (gs_gap_eval_quad) */
+    GS_GAP_CORNER = 4    /* order 1 at a tip corner of the master: signed distance to the
+                          * corner's two segments (gs_contact_eval) */
 } gs_gap_kind;
 
 /* The gap of a slave point against a polyline, and what it was built from. */
@@ -274,6 +276,11 @@ typedef struct gs_contact_row {
     double dg_du[4][2];     /* dg/du of each node, body frame of its gear */
     double dg_dtheta[2];    /* dg/dtheta of gear 0, gear 1 (sum over its nodes) */
     double dg_dc[2][2];     /* dg/dc of gear 0, gear 1 */
+    gs_index fan_corner;    /* the master's tip corner (mesh node) whose outer normal
+                             * cone holds the slave (the corner is the master's
+                             * nearest point, the slave outside it), -1 otherwise:
+                             * the step leaves such a row out when the corner is a
+                             * slave itself (docs/CONTACT.md "Tip corners") */
 } gs_contact_row;
 
 /* Evaluate a candidate at the poses (current displacements included):

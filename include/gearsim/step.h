@@ -288,6 +288,16 @@ void gs_system_book_damping(gs_system *sys);
  * schemes. Returns the contact work still booked (round-off but when
  * removing energy is asked of a pair that cannot give it yet). */
 double gs_step_contact_return(gs_system *sys, const double *sol);
+/* The contact rows of the last step's final solve (serial, or rank 0 of a
+ * distributed step; for diagnostics such as tests/bench/corner_stats):
+ * gs_step_contact_rows gives their number (0 before the first contact
+ * step), gs_step_contact_row row i as evaluated at the step's start (gap,
+ * gradients, nodes), its contact mesh and its multiplier (the normal force
+ * is lambda |dg/dx| of the slave), NULL for i out of range. Valid until the
+ * next step. */
+struct gs_contact_row;
+int gs_step_contact_rows(const gs_system *sys);
+const struct gs_contact_row *gs_step_contact_row(const gs_system *sys, int i, int *mesh, double *lambda);
 /* True when some body keeps state of its own (elastic): then energies and
  * snapshots need the owners. */
 bool gs_system_has_body_state(const gs_system *sys);

@@ -44,6 +44,7 @@ typedef struct gear_data {
     gs_index *bpos;          /* n_nodes: position on the boundary loop, or -1 */
     int order;               /* element order of the mesh (1, 2) */
     gs_index cpar;           /* order 2: parity of the corner positions on the loop */
+    unsigned char *tipc;     /* n_nodes: 1 for a tip corner (the last node of a flank) */
 } gear_data;
 
 struct gs_contact_search {
@@ -54,6 +55,9 @@ struct gs_contact_search {
     gs_index n;
     size_t cap;
 };
+
+static gs_err tip_corner_distance(const gear_data *gb, const double *pts, const gs_contact_candidate *cand,
+                                  const double x[2], gs_gap *gap);
 
 void gs_contact_opts_defaults(gs_contact_opts *o)
 {
@@ -134,6 +138,16 @@ static gs_err gear_prepare(gear_data *gd, const gs_mesh *m, const gs_gear_params
                                "%s: order-2 boundary loop does not alternate corner and "
                                "mid-side nodes", which);
     }
+    /* tip corners: the tip end of every flank table (root to tip) */
+    gd->tipc = gs_calloc((size_t)m->n_nodes, 1);
+    if (!gd->tipc)
+        return GS_ENOMEM;
+    for (int f = 0; f < 2 * m->n_teeth; f++)
+        if (m->flank_ptr[f + 1] > m->flank_ptr[f]) {
+            gs_index nd = m->flank_nodes[m->flank_ptr[f + 1] - 1];
+            if (nd >= 0 && nd < m->n_nodes)
+                gd->tipc[nd] = 1;
+        }
     /* flank spacing from flank 0 of tooth 0 */
     gs_index f0 = m->flank_ptr[0], f1 = m->flank_ptr[1];
     double len = 0.0;
@@ -196,6 +210,7 @@ void gs_contact_search_free(gs_contact_search **s)
     for (int i = 0; i < 2; i++) {
         free((*s)->g[i].ang);
         free((*s)->g[i].bpos);
+        free((*s)->g[i].tipc);
     }
     free((*s)->cand);
     free(*s);
@@ -383,6 +398,7 @@ static gs_err try_node(pass_ctx *pc, gs_index nd, int tooth, int where, bool cor
                           : wrapi(j + 1, gb->nb);
         make_window(gb, pb, j0, s->o.window, &c, pts);
         GS_TRY(gs_gap_eval(y, pts, c.n_window, &gap));
+        GS_TRY(tip_corner_distance(gb, pts, &c, y, &gap));
     }
     if (dist > s->band && !(gap.g < 0.0 && dist <= s->depth))
         return GS_OK;
@@ -537,6 +553,117 @@ gs_err gs_contact_search_run(gs_contact_search *s, const gs_contact_pose pose[2]
     return GS_OK;
 }
 
+/* Order 1 at a master tip corner V (window position v), the slave outside
+ * the master: the Euclidean distance to the two segments at V instead of
+ * the blended
+ * R-function wedge, whose gradient off the zero set turns towards the
+ * corner's bisector (a predicted row of a flank node beside the flank then
+ * pushes along neither flank nor tip: locking, docs/CONTACT.md "Tip
+ * corners"). Used where gs_gap_eval blends V's wedge or projects beyond V
+ * on a segment ending at V; elsewhere the gap is untouched. The distance
+ * is that of gs_gap_eval_quad on the two segments as straight parabolic
+ * edges (mid-side nodes at the midpoints), its gradient on a midpoint
+ * shared half and half by the segment's ends; the row keeps the two nodes
+ * of the nearer segment (n_master 2). */
+static gs_err tip_corner_distance(const gear_data *gb, const double *pts, const gs_contact_candidate *cand,
+                                  const double x[2], gs_gap *gap)
+{
+    const int k = cand->n_window;
+    int v = -1;
+    if (gap->kind == GS_GAP_CONVEX && gap->n_master == 3)
+        v = gap->master[1];
+    else if (gap->kind == GS_GAP_LINE) {
+        int i = gap->segment;
+        const double *a = pts + 2 * i, *b = pts + 2 * i + 2;
+        double d[2] = {b[0] - a[0], b[1] - a[1]};
+        double tau = ((x[0] - a[0]) * d[0] + (x[1] - a[1]) * d[1]) / (d[0] * d[0] + d[1] * d[1]);
+        v = tau >= 1.0 ? i + 1 : (tau <= 0.0 ? i : -1);
+    }
+    /* outside the master only: inside, the wedge's rows (the seed's, which
+     * makes rows at g <= 0 alone) stay as they were; on the zero set both
+     * are zero with the segment's normal as gradient */
+    if (v < 1 || v > k - 2 || !gb->tipc[cand->window[v]] || !(gap->g > 0.0))
+        return GS_OK;
+    double q[10];
+    for (int c = 0; c < 2; c++) {
+        q[c] = pts[2 * (v - 1) + c];
+        q[4 + c] = pts[2 * v + c];
+        q[8 + c] = pts[2 * (v + 1) + c];
+        q[2 + c] = 0.5 * (q[c] + q[4 + c]);
+        q[6 + c] = 0.5 * (q[4 + c] + q[8 + c]);
+    }
+    gs_gap qg;
+    GS_TRY(gs_gap_eval_quad(x, q, 5, &qg));
+    const int e = qg.segment; /* segment v - 1 + e of the window */
+    double ga[2], gb2[2];
+    for (int c = 0; c < 2; c++) {
+        ga[c] = qg.grad[2 + c] + 0.5 * qg.grad[4 + c];
+        gb2[c] = qg.grad[6 + c] + 0.5 * qg.grad[4 + c];
+    }
+    memset(gap, 0, sizeof *gap);
+    gap->g = qg.g;
+    gap->kind = GS_GAP_CORNER;
+    gap->segment = v - 1 + e;
+    gap->xi = qg.xi;
+    gap->n_master = 2;
+    gap->master[0] = v - 1 + e;
+    gap->master[1] = v + e;
+    gap->master[2] = -1;
+    gap->grad[0] = qg.grad[0];
+    gap->grad[1] = qg.grad[1];
+    gap->grad[2] = ga[0];
+    gap->grad[3] = ga[1];
+    gap->grad[4] = gb2[0];
+    gap->grad[5] = gb2[1];
+    return GS_OK;
+}
+
+/* For a flank slave (not a tip corner): a master tip node whose own row
+ * covers this one, or -1. (a) The slave is outside the master beside an
+ * edge of its tip land (both ends tip nodes): the end nearer the
+ * projection. (b) The master tip corner V (a window node) whose outer
+ * normal cone holds the slave point x: V convex, x - V at an obtuse-or-right angle to both
+ * boundary pieces leaving V (x projects onto V from either side), so V is
+ * the master's nearest point and x lies outside it. Tangents at V: the
+ * segments at order 1, the end tangents of the two parabolic edges at
+ * order 2. Returns V's mesh node, or -1. */
+static bool tip_node(const gear_data *gb, gs_index nd)
+{
+    return gb->tipc[nd] || gb->m->node_tag[nd] == GS_NODE_TIP;
+}
+
+static gs_index corner_fan(const gear_data *gb, const double *pts, const gs_contact_candidate *cand,
+                           const double x[2], const gs_gap *gap)
+{
+    const int k = cand->n_window, st = gb->order == 2 ? 2 : 1;
+    /* outside the master beside its tip land: the nearer end of that edge */
+    if (gap->g > 0.0 && gap->n_master >= 2) {
+        gs_index a = cand->window[gap->master[0]], b = cand->window[gap->master[gap->n_master - 1]];
+        if (tip_node(gb, a) && tip_node(gb, b))
+            return gap->xi < 0.5 ? a : b;
+    }
+    for (int q = st; q + st < k; q += st) {
+        if (!gb->tipc[cand->window[q]])
+            continue;
+        const double *V = pts + 2 * q;
+        double tin[2], tout[2];
+        for (int c = 0; c < 2; c++) {
+            if (st == 1) {
+                tin[c] = V[c] - pts[2 * (q - 1) + c];
+                tout[c] = pts[2 * (q + 1) + c] - V[c];
+            } else { /* P'(1) of edge (q-2, q-1, q), P'(0) of edge (q, q+1, q+2) */
+                tin[c] = pts[2 * (q - 2) + c] - 4.0 * pts[2 * (q - 1) + c] + 3.0 * V[c];
+                tout[c] = -3.0 * V[c] + 4.0 * pts[2 * (q + 1) + c] - pts[2 * (q + 2) + c];
+            }
+        }
+        double d[2] = {x[0] - V[0], x[1] - V[1]};
+        if (tin[0] * tout[1] - tin[1] * tout[0] > 0.0 && d[0] * tin[0] + d[1] * tin[1] > 0.0 &&
+            d[0] * tout[0] + d[1] * tout[1] < 0.0)
+            return cand->window[q];
+    }
+    return -1;
+}
+
 gs_err gs_contact_eval(const gs_contact_search *s, const gs_contact_pose pose[2],
                        const gs_contact_candidate *cand, gs_contact_row *row)
 {
@@ -558,8 +685,13 @@ gs_err gs_contact_eval(const gs_contact_search *s, const gs_contact_pose pose[2]
     memset(row, 0, sizeof *row);
     if (gb->order == 2)
         GS_TRY(gs_gap_eval_quad(x, pts, cand->n_window, &row->gap));
-    else
+    else {
         GS_TRY(gs_gap_eval(x, pts, cand->n_window, &row->gap));
+        GS_TRY(tip_corner_distance(gb, pts, cand, x, &row->gap));
+    }
+    row->fan_corner = s->g[cand->slave].tipc[cand->slave_node] || cand->slave_where == 2
+                          ? -1
+                          : corner_fan(gb, pts, cand, x, &row->gap);
     row->n_nodes = 1 + row->gap.n_master;
     for (int q = 0; q < row->n_nodes; q++) {
         int b = q ? cand->master : cand->slave;

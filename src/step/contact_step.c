@@ -193,6 +193,25 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
     return dg;
 }
 
+/* True when node `node` of gear k (0 / 1) of contact mesh cm is a slave
+ * candidate of this step (tip corners and tip arc nodes are slaves in both
+ * search modes when near the other gear). A flank node outside the other
+ * gear in the outer normal cone of its tip corner, or beside its tip land
+ * (gs_contact_row.fan_corner), gets no row then (docs/CONTACT.md "Tip
+ * corners: no locking"): its gap's gradient there points from the corner
+ * to the node, along the flank rather than across it, or radially through
+ * the other gear's centre, and such a row holds the flank against the
+ * rolling (locking); the contact of a sharp corner with a smooth flank has
+ * the flank's normal, which the corner's own row against the flank edges
+ * carries. */
+static bool corner_is_slave(const gsi_contact_mesh *cm, int k, gs_index node)
+{
+    for (gs_index j = 0; j < cm->n_cand; j++)
+        if (cm->cand[j].slave == k && cm->cand[j].slave_node == node)
+            return true;
+    return false;
+}
+
 /* Evaluate the candidates of contact mesh mi at the current positions and
  * keep those that become rows; returns the deepest penetration. With an
  * adaptive step that can still refine (or closure), the others are kept to
@@ -213,6 +232,8 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         double g = r.gap.g;
         if (-g > *pen)
             *pen = -g;
+        if (r.fan_corner >= 0 && corner_is_slave(cm, cm->cand[j].master, r.fan_corner))
+            continue; /* outside the master at its tip corner or tip land: that node's own row holds it */
         bool take = g <= 0.0;
         if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
@@ -809,4 +830,22 @@ gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)
 gs_err gsi_contact_select(gs_system *sys, const double *rec, int *mask)
 {
     return contact_solve(sys, rec, NULL, mask);
+}
+
+int gs_step_contact_rows(const gs_system *sys)
+{
+    const solver *s = sys ? sys->solver : NULL;
+    return s ? s->n_rows : 0;
+}
+
+const gs_contact_row *gs_step_contact_row(const gs_system *sys, int i, int *mesh, double *lambda)
+{
+    const solver *s = sys ? sys->solver : NULL;
+    if (!s || i < 0 || i >= s->n_rows)
+        return NULL;
+    if (mesh)
+        *mesh = s->rows[i].mesh;
+    if (lambda)
+        *lambda = s->lam_in && (size_t)i < s->cap[8] ? s->lam_in[i] : 0.0;
+    return &s->rows[i].r;
 }

@@ -1121,6 +1121,119 @@ static void one_pass(void **state)
     gs_mesh_free(&m[1]);
 }
 
+/* fan_corner of gs_contact_eval against brute force: for a flank slave
+ * (not a tip corner, not a tip arc node) outside the master, the master's
+ * nearest point over the whole boundary loop (order 2: the parabolic edges
+ * sampled at 2000 points each, the nodes exactly) is one of its tip
+ * corners (the last node of a flank table: that corner expected) or lies
+ * on an edge of its tip land (either end expected).
+ * Pairs within 1e-9 m of a tie between the corner and another point are
+ * not judged. Both element orders, 24 positions over a pitch. */
+static void corner_fan_order(int order)
+{
+    gs_gear_params g[2] = {gear(GS_GEAR_EXTERNAL, 20, 2.5e-3, 0),
+                           gear(GS_GEAR_EXTERNAL, 30, 2.5e-3, 0)};
+    gs_mesh *m[2] = {mesh_order(&g[0], order), mesh_order(&g[1], order)};
+    gs_contact_search *s = NULL;
+    assert_int_equal(gs_contact_search_new(m[0], &g[0], m[1], &g[1], NULL, &s, NULL), GS_OK);
+    int fan = 0, agree = 0, ties = 0, total = 0;
+    for (int pos = 0; pos < 24; pos++) {
+        gs_contact_pose pose[2];
+        memset(pose, 0, sizeof pose);
+        pose[1].c[0] = 62.5e-3;
+        pose[0].theta = 2 * GS_PI / 20 * pos / 24.0;
+        pose[1].theta = gs_pair_mesh_phase(&g[0], pose[0].c, pose[0].theta, &g[1], pose[1].c, 0);
+        const gs_contact_candidate *c;
+        gs_index n;
+        assert_int_equal(gs_contact_search_run(s, pose, &c, &n, NULL), GS_OK);
+        for (gs_index k = 0; k < n; k++) {
+            gs_contact_row r;
+            assert_int_equal(gs_contact_eval(s, pose, &c[k], &r), GS_OK);
+            const gs_mesh *mb = m[c[k].master];
+            const gs_contact_pose *pb = &pose[c[k].master];
+            double x[2];
+            scene_xy(m[c[k].slave], &pose[c[k].slave], c[k].slave_node, x);
+            /* nearest boundary point: nodes exactly, edges sampled */
+            double best = INFINITY, bestnode = INFINITY;
+            gs_index bn = -1, be0 = -1, be1 = -1;
+            int step = order == 2 ? 2 : 1;
+            for (gs_index j = 0; j < mb->n_boundary; j++) {
+                double a[2];
+                scene_xy(mb, pb, mb->boundary[j], a);
+                double dn = hypot(x[0] - a[0], x[1] - a[1]);
+                if (dn < bestnode) {
+                    bestnode = dn;
+                    bn = mb->boundary[j];
+                }
+            }
+            for (gs_index j = 0; j < mb->n_boundary; j += step) {
+                double p[3][2];
+                for (int q = 0; q <= step; q++)
+                    scene_xy(mb, pb, mb->boundary[(j + q) % mb->n_boundary], p[q]);
+                double dj = INFINITY;
+                if (order < 2)
+                    dj = seg_dist(x, p[0], p[1]);
+                for (int t = 1; order == 2 && t < 2000; t++) {
+                    double xi = t / 2000.0, N0 = (1 - xi) * (1 - 2 * xi), N1 = 4 * xi * (1 - xi),
+                           N2 = xi * (2 * xi - 1);
+                    double P[2] = {N0 * p[0][0] + N1 * p[1][0] + N2 * p[2][0],
+                                   N0 * p[0][1] + N1 * p[1][1] + N2 * p[2][1]};
+                    dj = fmin(dj, hypot(x[0] - P[0], x[1] - P[1]));
+                }
+                if (dj < best) {
+                    best = dj;
+                    be0 = mb->boundary[j];
+                    be1 = mb->boundary[(j + step) % mb->n_boundary];
+                }
+            }
+            bool tipc = false, tip0 = false, tip1 = false, slave_tip = c[k].slave_where == 2;
+            const gs_mesh *ms = m[c[k].slave];
+            for (int f = 0; f < 2 * mb->n_teeth; f++) {
+                gs_index tn = mb->flank_nodes[mb->flank_ptr[f + 1] - 1];
+                tipc |= tn == bn;
+                tip0 |= tn == be0;
+                tip1 |= tn == be1;
+            }
+            for (int f = 0; f < 2 * ms->n_teeth; f++)
+                slave_tip |= ms->flank_nodes[ms->flank_ptr[f + 1] - 1] == c[k].slave_node;
+            tip0 |= mb->node_tag[be0] == GS_NODE_TIP;
+            tip1 |= mb->node_tag[be1] == GS_NODE_TIP;
+            total++;
+            double diff = bestnode - best; /* > 0: some edge point is nearer than every node */
+            if (diff > 1e-12 && diff < 1e-9) {
+                ties++;
+                continue;
+            }
+            /* (b) the corner's normal cone; (a) beside the tip land */
+            bool at_corner = tipc && diff <= 1e-12, land = diff > 0 && tip0 && tip1;
+            bool expect = !slave_tip && r.gap.g > 0 && (at_corner || land);
+            fan += expect;
+            bool ok = !expect ? r.fan_corner < 0
+                              : (at_corner ? r.fan_corner == bn : r.fan_corner == be0 || r.fan_corner == be1);
+            if (ok)
+                agree++;
+            else
+                print_error("position %d candidate %lld: fan_corner %lld, brute force %s (node %lld, g %.3e)\n", pos,
+                            (long long)k, (long long)r.fan_corner, expect ? "fan" : "none", (long long)bn, r.gap.g);
+        }
+    }
+    print_message("# tip-corner fans, order %d: %d candidates over 24 positions, %d in a tip corner's fan or beside a tip land, %d agree "
+                  "with brute force, %d ties not judged\n",
+                  order, total, fan, agree, ties);
+    assert_int_equal(agree, total - ties);
+    assert_true(fan > 0);
+    gs_contact_search_free(&s);
+    gs_mesh_free(&m[0]);
+    gs_mesh_free(&m[1]);
+}
+
+static void corner_fan(void **state)
+{
+    (void)state;
+    corner_fan_order(1);
+    corner_fan_order(2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -1141,6 +1254,7 @@ int main(void)
         cmocka_unit_test(quad_continuity),
         cmocka_unit_test(search_errors),
         cmocka_unit_test(one_pass),
+        cmocka_unit_test(corner_fan),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
