@@ -264,9 +264,12 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
             ref[q] = est
         if len(ref) == 2:
             ok = [r for r in sub if all(abs(f(r[q]) - ref[q]) <= 0.02 * abs(ref[q]) for q in ref)]
-            line = (f"\nConverged estimate ({damp}; finest run plus the Richardson corrections of both "
-                    f"families where they converge): DTE rms {ref['dte_rms_um']:.4f} um, mean TE "
-                    f"{ref['mean_te_um']:.4f} um. ")
+            conv = all(verdicts.get((zeta, n, q)) is True for n in fams for q in ref
+                       if (zeta, n, q) in verdicts)
+            line = (f"\nReference ({damp}; finest run plus the Richardson corrections of both "
+                    f"families where they converge; "
+                    f"{'the two finest of every family within 2 %' if conv else 'NOT converged: a family misses 2 %'}"
+                    f"): DTE rms {ref['dte_rms_um']:.4f} um, mean TE {ref['mean_te_um']:.4f} um. ")
             if ok:
                 c = min(ok, key=lambda r: f(r["cpu_per_sim_s"]))
                 line += (f"Cheapest run within 2 % of both: {c['level']} at h = {f(c['h']):g} s, "

@@ -108,6 +108,15 @@ check("table reports order 1.00 in h", "| 1.00 |" in text)
 check("table reports order 2.00 in the mesh", "| 2.00 |" in text)
 limit_dte = 1.4
 check("converged estimate printed", f"DTE rms {limit_dte:.4f} um" in text, text[-400:])
+check("reference marked converged", "the two finest of every family within 2 %" in text)
+# the same grid with the DTE still moving by 10 % between the two finest steps
+rows2 = [dict(r) for r in rows]
+for r in rows2:
+    if r["level"] == "o1r2" and r["h"] == 5e-6:
+        r["dte_rms_um"] *= 0.9
+text2, verdicts2 = dc.tables(rows2, "syn", hs, levels, "closure_energy", [0.02], 0.035, 0.065, 1.0)
+check("moving DTE misses 2 %", verdicts2.get((0.02, "h", "dte_rms_um")) is False)
+check("reference marked not converged", "NOT converged" in text2)
 
 if failures:
     print(f"FAILED: {len(failures)}: {', '.join(failures)}")
