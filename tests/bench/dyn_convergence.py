@@ -237,12 +237,15 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
                 fam = family([(s, f(r[q])) for s, r in pts])
                 ok = None
                 if bar is not None and fam["rel_last"] is not None:
-                    ok = fam["rel_last"] <= bar and (len(pts) < 3 or fam["p"] is not None)
+                    ok = fam["rel_last"] <= bar
                     verdicts[(zeta, name, q)] = ok
                 nd = 6 if q == "ratio" else 4
-                verdict = "" if bar is None else (
-                    f"{'meets' if ok else 'misses'} {bar * 100:g} %" + (
-                        "" if fam["p"] is not None or len(pts) < 3 else " (not monotone)"))
+                shrink = ""
+                if len(fam["diffs"]) >= 2:
+                    d1, d2 = fam["diffs"][-2:]
+                    shrink = ("; differences shrink" if abs(d2) < abs(d1) else "; differences grow") + (
+                        "" if fam["p"] is not None else (", change sign" if d1 * d2 < 0 else ""))
+                verdict = "" if bar is None else f"{'meets' if ok else 'misses'} {bar * 100:g} %{shrink}"
                 out.append("| " + " | ".join(
                     [label] + [fmt(v, nd) for v in fam["values"]] +
                     [", ".join(f"{d:+.{nd}g}" for d in fam["diffs"]), fmt(fam["p"], 2), fmt(fam["rich"], nd),
