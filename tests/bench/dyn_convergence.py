@@ -273,7 +273,9 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
                     f"families where they converge; "
                     f"{'the two finest of every family within 2 %' if conv else 'NOT converged: a family misses 2 %'}"
                     f"): DTE rms {ref['dte_rms_um']:.4f} um, mean TE {ref['mean_te_um']:.4f} um. ")
-            if ok:
+            if not conv:
+                line += "No converged value, so no cheapest setting within 2 % of it."
+            elif ok:
                 c = min(ok, key=lambda r: f(r["cpu_per_sim_s"]))
                 line += (f"Cheapest run within 2 % of both: {c['level']} at h = {f(c['h']):g} s, "
                          f"{f(c['cpu_per_sim_s']):.0f} CPU s per simulated s "
