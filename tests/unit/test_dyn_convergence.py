@@ -117,6 +117,8 @@ for r in rows2:
 text2, verdicts2 = dc.tables(rows2, "syn", hs, levels, "closure_energy", [0.02], 0.035, 0.065, 1.0)
 check("moving DTE misses 2 %", verdicts2.get((0.02, "h", "dte_rms_um")) is False)
 check("reference marked not converged", "NOT converged" in text2)
+check("no cheapest setting when not converged", "No converged value" in text2 and "Cheapest" not in text2)
+check("cheapest setting when converged", "Cheapest run within 2 % of both: o1r2 at h = 1e-05 s" in text)
 
 if failures:
     print(f"FAILED: {len(failures)}: {', '.join(failures)}")
