@@ -208,6 +208,7 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
             f"{f(r['force_peak_over_mean']):.2f}",
             f"{sm:.2f}" + (f" ({sm / static_mj:.1f}x)" if static_mj else ""), f"{f(r['cpu_per_sim_s']):.0f}"]) + " |")
     verdicts = {}
+    levels = [level_name(*parse_level(lv)[:3]) for lv in levels]  # o1s1 is o1r0
     finest_lv = levels[-1]
     finest_h = min(hs)
     for zeta in zetas:
