@@ -39,6 +39,7 @@
 #include "gearsim/stiffness.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "../common/dyn_window.h"
 #include "scene_build.h"
 
 #define MEAN_BAR 0.01    /* |mean dynamic / mean static - 1| */
@@ -108,51 +109,28 @@ static te_stats static_te(int refine)
     return s;
 }
 
-/* The mesh's TE over the whole mesh cycles (pinion pitches) in [t0, t1]. */
+/* The mesh's TE over the whole mesh cycles in [t0, t1] (tests/common/dyn_window.h). */
 static te_stats dynamic_te(const char *scheme, double zeta, int refine, double t0, double t1)
 {
     gs_system *s = NULL;
     gs_diag d;
     if (gs_system_new(scene(scheme, zeta, refine), 0, 1, &s, &d) != GS_OK)
         fail_msg("%s: %s", d.field, d.message);
-    const gs_gmesh_rt *m = &s->meshes[0];
-    int g2 = s->scene->meshes[0].gear[1], c2 = s->bodies[g2].coord;
-    double pitch = 2 * GS_PI / s->scene->bodies[g2].gear.teeth;
-    long cap = (long)ceil((t1 - t0) / s->h) + 16, n = 0;
-    double *te = malloc(sizeof(double) * (size_t)cap), *th = malloc(sizeof(double) * (size_t)cap);
-    assert_non_null(te);
-    assert_non_null(th);
-    double worst = 0, scale = 1e-300;
-    gs_energy en;
+    dyn_window w = {0};
     while (s->time < t1 - 0.5 * s->h) {
         if (gs_step_serial(s) != GS_OK)
             fail_msg("t %.6f: %s: %s", s->time, s->diag.field, s->diag.message);
-        gs_system_energy(s, &en);
-        worst = fmax(worst, fabs(en.balance_residual));
-        scale = fmax(scale, fmax(fabs(en.total), fmax(en.work_in, en.dissipated)));
-        if (s->time < t0 - 0.5 * s->h || n >= cap)
-            continue;
-        double v = -m->s_ref;
-        for (int k = 0; k < s->n_coords; k++)
-            v += m->a[k] * s->q[k];
-        te[n] = v * 1e6, th[n] = s->q[c2];
-        n++;
+        dw_energy(&w, s);
+        if (s->time >= t0 - 0.5 * s->h)
+            assert_int_equal(dw_sample(&w, s, 0, -1, -1), 0);
     }
-    assert_true(n > 2);
-    double sgn = th[n - 1] >= th[0] ? 1 : -1;
+    dyn_figures f;
+    assert_int_equal(dw_finish(&w, &f), 0);
     te_stats r = {0};
-    r.cycles = (int)floor(sgn * (th[n - 1] - th[0]) / pitch);
-    assert_true(r.cycles >= 1);
-    long used = 0;
-    while (used < n && sgn * (th[used] - th[0]) < r.cycles * pitch)
-        r.mean += te[used++];
-    r.mean /= (double)used;
-    for (long i = 0; i < used; i++)
-        r.rms += (te[i] - r.mean) * (te[i] - r.mean);
-    r.rms = sqrt(r.rms / (double)used);
-    r.balance = worst / scale;
-    free(te);
-    free(th);
+    r.cycles = f.cycles;
+    r.mean = f.te_mean * 1e6, r.rms = f.te_rms * 1e6;
+    r.balance = f.balance_rel;
+    dw_free(&w);
     gs_system_free(&s);
     return r;
 }

@@ -1,0 +1,220 @@
+/* SPDX-License-Identifier: MIT
+ * One run of the dynamic convergence study (docs/CONVERGENCE.md "Dynamic
+ * convergence (issue 15)"; driven by tests/bench/dyn_convergence.py): a
+ * scene with `contact` meshes (a builtin name or a file) at one time step,
+ * mesh level, contact treatment and material damping, run from rest to
+ * --to; over the whole cycles of the first mesh from --from on it prints
+ * one JSON line: kinematic TE mean and rms about the mean (DTE), peak and
+ * mean mesh force, deepest penetration, largest strain energy against its
+ * mean (locking indicators), mean speed ratio of the loaded bodies (the
+ * ramp-driven input over the braked output), the worst energy balance
+ * residual over the run against the energy scale, the elastic unknowns and
+ * the CPU seconds of the process per simulated second.
+ *
+ *   dyn_convergence_run SCENE [--h 1e-5] [--order 2] [--refine 0]
+ *       [--scale 1] [--contact closure_energy] [--zeta 0 --fhz 9200]
+ *       [--from 0.04] [--to 0.08]
+ *
+ * --scale multiplies the flank/across/rim counts of the order's default
+ * mesh (rounded; grading kept) on every elastic gear. Figures are taken
+ * with tests/common/dyn_window.h. Not a test: runs take minutes. */
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "../common/dyn_window.h"
+#include "gearsim/mesh.h"
+#include "gearsim/scene.h"
+#include "gearsim/step.h"
+
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static char *slurp(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *t = malloc((size_t)n + 1);
+    if (t && fread(t, 1, (size_t)n, f) != (size_t)n) {
+        free(t);
+        t = NULL;
+    }
+    if (t)
+        t[n] = 0;
+    fclose(f);
+    return t;
+}
+
+static json_object *obj_child(json_object *o, const char *key)
+{
+    json_object *c;
+    if (!json_object_object_get_ex(o, key, &c)) {
+        c = json_object_new_object();
+        json_object_object_add(o, key, c);
+    }
+    return c;
+}
+
+int main(int argc, char **argv)
+{
+    const char *scene = NULL, *contact = "closure_energy";
+    double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08;
+    int order = 2, refine = 0;
+    for (int i = 1; i < argc; i++) {
+        if (argv[i][0] != '-') {
+            scene = argv[i];
+            continue;
+        }
+        if (i + 1 >= argc) {
+            fprintf(stderr, "%s: value missing\n", argv[i]);
+            return 2;
+        }
+        const char *k = argv[i], *v = argv[++i];
+        if (!strcmp(k, "--h"))
+            h = atof(v);
+        else if (!strcmp(k, "--order"))
+            order = atoi(v);
+        else if (!strcmp(k, "--refine"))
+            refine = atoi(v);
+        else if (!strcmp(k, "--scale"))
+            scale = atof(v);
+        else if (!strcmp(k, "--contact"))
+            contact = v;
+        else if (!strcmp(k, "--zeta"))
+            zeta = atof(v);
+        else if (!strcmp(k, "--fhz"))
+            fhz = atof(v);
+        else if (!strcmp(k, "--from"))
+            t0 = atof(v);
+        else if (!strcmp(k, "--to"))
+            t1 = atof(v);
+        else {
+            fprintf(stderr, "unknown option %s\n", k);
+            return 2;
+        }
+    }
+    if (!scene || !(h > 0) || !(t1 > t0 && t0 >= 0) || !(scale > 0) || (order != 1 && order != 2)) {
+        fprintf(stderr, "usage: dyn_convergence_run SCENE [--h H] [--order 1|2] [--refine R] [--scale S] "
+                        "[--contact seed|closure|closure_energy] [--zeta Z --fhz F] [--from T0] [--to T1]\n");
+        return 2;
+    }
+    const char *builtin = gs_scene_builtin(scene);
+    char *txt = builtin ? strdup(builtin) : slurp(scene);
+    json_object *root = txt ? json_tokener_parse(txt) : NULL;
+    free(txt);
+    if (!root) {
+        fprintf(stderr, "%s: not a builtin scene nor a readable JSON file\n", scene);
+        return 2;
+    }
+    /* The mesh level, damping on every elastic gear; the loads' bodies. */
+    gs_gear_mesh_opts def;
+    gs_gear_mesh_opts_for_order(&def, order);
+    int flank = (int)lround(def.flank * scale), across = (int)lround(def.across * scale),
+        rim = (int)lround(def.rim * scale);
+    json_object *bs = json_object_object_get(root, "bodies");
+    for (size_t i = 0; i < json_object_array_length(bs); i++) {
+        json_object *b = json_object_array_get_idx(bs, i), *t;
+        if (!json_object_object_get_ex(b, "model", &t) || strcmp(json_object_get_string(t), "elastic"))
+            continue;
+        json_object *m = obj_child(b, "mesh");
+        json_object_object_add(m, "order", json_object_new_int(order));
+        json_object_object_add(m, "refine", json_object_new_int(refine));
+        if (scale != 1) {
+            json_object_object_add(m, "flank", json_object_new_int(flank));
+            json_object_object_add(m, "across", json_object_new_int(across));
+            json_object_object_add(m, "rim", json_object_new_int(rim));
+        }
+        if (zeta > 0) {
+            json_object *mat = obj_child(b, "material");
+            json_object_object_add(mat, "damping_ratio", json_object_new_double(zeta));
+            json_object_object_add(mat, "damping_hz", json_object_new_double(fhz));
+        }
+    }
+    json_object *num = obj_child(root, "numerics");
+    json_object_object_add(num, "time_step", json_object_new_double(h));
+    json_object_object_add(num, "contact", json_object_new_string(contact));
+    char in_name[GS_NAME_MAX] = "", out_name[GS_NAME_MAX] = "";
+    json_object *ls = json_object_object_get(root, "loads");
+    for (size_t i = 0; ls && i < json_object_array_length(ls); i++) {
+        json_object *l = json_object_array_get_idx(ls, i), *t, *b;
+        if (!json_object_object_get_ex(l, "type", &t) || !json_object_object_get_ex(l, "body", &b))
+            continue;
+        if (!strcmp(json_object_get_string(t), "brake"))
+            snprintf(out_name, sizeof out_name, "%s", json_object_get_string(b));
+        else if (!in_name[0])
+            snprintf(in_name, sizeof in_name, "%s", json_object_get_string(b));
+    }
+    const char *st = json_object_to_json_string(root);
+    gs_scene *sc = NULL;
+    gs_diag d;
+    if (gs_scene_parse(st, strlen(st), &sc, &d) != GS_OK) {
+        fprintf(stderr, "scene: %s: %s\n", d.field, d.message);
+        return 1;
+    }
+    json_object_put(root);
+    long unknowns = 0;
+    for (int i = 0; i < sc->n_bodies; i++) {
+        const gs_scene_body *b = &sc->bodies[i];
+        if (b->type != GS_BODY_GEAR || b->model != GS_MODEL_ELASTIC)
+            continue;
+        gs_mesh *m = NULL;
+        if (gs_scene_gear_mesh(b, &m, &d) == GS_OK)
+            unknowns += 2 * ((long)m->n_nodes - (long)m->n_fixed);
+        gs_mesh_free(&m);
+    }
+    double c0 = cpu_now();
+    gs_system *s = NULL;
+    if (gs_system_new(sc, 0, 1, &s, &d) != GS_OK) {
+        fprintf(stderr, "system: %s: %s\n", d.field, d.message);
+        return 1;
+    }
+    int in = in_name[0] ? gs_scene_find_body(s->scene, in_name) : -1;
+    int out = out_name[0] ? gs_scene_find_body(s->scene, out_name) : -1;
+    dyn_window w = {0};
+    long steps = 0;
+    while (s->time < t1 - 0.5 * s->h) {
+        if (gs_step_serial(s) != GS_OK) {
+            fprintf(stderr, "t %.6f: %s: %s\n", s->time, s->diag.field, s->diag.message);
+            return 1;
+        }
+        steps++;
+        dw_energy(&w, s);
+        if (s->time >= t0 - 0.5 * s->h && dw_sample(&w, s, 0, in, out) != 0) {
+            fprintf(stderr, "out of memory\n");
+            return 1;
+        }
+    }
+    double cpu = cpu_now() - c0;
+    dyn_figures f;
+    if (dw_finish(&w, &f) != 0) {
+        fprintf(stderr, "the window [%g, %g] s holds no whole mesh cycle\n", t0, t1);
+        return 1;
+    }
+    printf("{\"scene\": \"%s\", \"h\": %.6g, \"order\": %d, \"refine\": %d, \"scale\": %.4g, \"flank\": %d, "
+           "\"across\": %d, \"rim\": %d, \"unknowns\": %ld, \"contact\": \"%s\", \"zeta\": %.4g, \"fhz\": %.6g, "
+           "\"from\": %.5g, \"to\": %.5g, \"cycles\": %d, \"mesh_hz\": %.3f, \"dte_rms_um\": %.6f, "
+           "\"mean_te_um\": %.6f, \"te_pp_um\": %.5f, \"peak_force_n\": %.3f, \"mean_force_n\": %.4f, "
+           "\"ratio\": %.8f, \"balance_rel\": %.3e, \"pen_max_um\": %.6f, \"force_peak_over_mean\": %.4f, "
+           "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
+           "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f}\n",
+           scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
+           (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
+           fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
+           f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
+           f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
+           cpu / s->time);
+    dw_free(&w);
+    gs_system_free(&s);
+    return 0;
+}
