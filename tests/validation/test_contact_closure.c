@@ -343,6 +343,8 @@ static void long_study(void **state)
         return;
     }
     const char *schemes[3] = {"seed", "closure", "closure_energy"};
+    const char *ord = getenv("GEARSIM_CLOSURE_ORDER"); /* 2: the default quadratic mesh */
+    g_order = ord ? atoi(ord) : 1;
     for (int refine = 0; refine <= 2; refine++)
         for (int k = 0; k < 3; k++) {
             char name[32];
