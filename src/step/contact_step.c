@@ -401,12 +401,15 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
         for (int j = 0; j < n_end && err == GS_OK; j++) {
             row_ref *e = &end[j];
             e->g0 = e->r.gap.g - inc_dot(sys, s, &e->r, sys->meshes[e->mesh].contact, true);
-            if (j < rows)
+            if (j < rows) {
                 s->rows[j] = *e;
-            else if (e->r.gap.g < -CLOSURE_NEWTON_TOL)
-                err = add_row(&s->rows, &s->n_rows, &s->cap_rows, e->mesh, e->cand, &e->r), s->rows[s->n_rows - 1].g0 = e->g0;
-            else
+            } else if (e->r.gap.g < -CLOSURE_NEWTON_TOL) {
+                err = add_row(&s->rows, &s->n_rows, &s->cap_rows, e->mesh, e->cand, &e->r);
+                if (err == GS_OK)
+                    s->rows[s->n_rows - 1].g0 = e->g0;
+            } else {
                 s->watch[kept++] = s->watch[j - rows];
+            }
         }
         s->n_watch = kept;
         *redo = err == GS_OK;
