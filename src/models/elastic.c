@@ -266,7 +266,9 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
     GS_TRY(gs_fe_body_end_step(el->body));
     b->D_step = gs_fe_body_damped(el->body) - damped;
     b->ops->energy(sys, b, &b->T, &b->V);
-    b->L = gs_fe_body_angular_momentum(el->body);
+    /* The angular momentum (a pass over every elastic unknown) is read only
+     * by closure_energy's velocity update (gs_step_contact_return). */
+    b->L = sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY ? gs_fe_body_angular_momentum(el->body) : 0.0;
     return GS_OK;
 }
 

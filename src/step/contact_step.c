@@ -45,11 +45,21 @@
 
 typedef struct row_ref {
     int mesh;
+    gs_index cand;  /* the candidate of the mesh's last search */
+    double g0;      /* closure: the row is G x >= -g0 (g0 = r.gap.g, or after
+                     * a Newton update g(x_k) - G x_k at the iterate x_k) */
     gs_contact_row r;
 } row_ref;
 
+/* Closure, Newton on the nonlinear gap: the rows are linearised again at
+ * the step's end while the solution leaves some row or watched candidate
+ * deeper than this inside (m), at most CLOSURE_NEWTON_MAX times a step. */
+#define CLOSURE_NEWTON_TOL 1e-9
+#define CLOSURE_NEWTON_MAX 4
+
 typedef struct solver {
     double **u;          /* per body: full nodal displacement array (elastic gears in contact) */
+    double **ue;         /* closure: the same at the step's end (plan nodes only) */
     row_ref *rows;
     int n_rows;
     size_t cap_rows;
@@ -86,8 +96,9 @@ void gsi_contact_free(gs_system *sys)
     if (!s)
         return;
     for (int i = 0; s->u && i < sys->n_bodies; i++)
-        free(s->u[i]);
+        free(s->u[i]), free(s->ue[i]);
     free(s->u);
+    free(s->ue);
     free(s->rows);
     free(s->watch);
     free(s->unk);
@@ -113,7 +124,10 @@ static solver *get_solver(gs_system *sys)
     if (!s)
         return NULL;
     s->u = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
-    if (!s->u) {
+    s->ue = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
+    if (!s->u || !s->ue) {
+        free(s->u);
+        free(s->ue);
         free(s);
         return NULL;
     }
@@ -143,13 +157,15 @@ static gs_err reserve(solver *s, int N, int ne, int ni, int maxdof)
     return GS_OK;
 }
 
-static gs_err add_row(row_ref **rows, int *n, size_t *cap, int mesh, const gs_contact_row *r)
+static gs_err add_row(row_ref **rows, int *n, size_t *cap, int mesh, gs_index cand, const gs_contact_row *r)
 {
     row_ref *nr = gs_grow(*rows, cap, (size_t)*n + 1, sizeof *nr);
     if (!nr)
         return GS_ENOMEM;
     *rows = nr;
     nr[*n].mesh = mesh;
+    nr[*n].cand = cand;
+    nr[*n].g0 = r->gap.g;
     nr[*n].r = *r;
     (*n)++;
     return GS_OK;
@@ -238,9 +254,9 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
         if (take)
-            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, mi, &r));
+            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, mi, j, &r));
         else if (closure || sys->level < sys->scene->adapt_levels)
-            GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, &r));
+            GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, j, &r));
     }
     return GS_OK;
 }
@@ -297,16 +313,28 @@ static gs_err plan_increments(const gs_system *sys, solver *s, const double *rec
     return GS_OK;
 }
 
-/* Closure: row r's gap at the step's end, linearised, from s->inc. */
-static double closure_gap(const gs_system *sys, const solver *s, const gs_contact_row *r,
-                          const gsi_contact_mesh *cm)
+/* Closure: row r's linear part applied to the increments s->inc (with
+ * carrier, the term of a planet's carrier coordinate too, from s->x, as the
+ * row of step 4 has it). */
+static double inc_dot(const gs_system *sys, const solver *s, const gs_contact_row *r, const gsi_contact_mesh *cm,
+                      bool carrier)
 {
     const gs_step_plan *p = &sys->plan;
-    double g = r->gap.g;
+    double g = 0.0;
     for (int k = 0; k < 2; k++) {
         int b = cm->body[k];
         if (sys->bodies[b].coord >= 0)
             g += r->dg_dtheta[k] * s->inc[s->base[b]];
+        const gs_scene_body *sb = &sys->scene->bodies[b];
+        if (carrier && sb->joint == GS_JOINT_ON_CARRIER) {
+            int cc = sys->bodies[sb->carrier].coord;
+            if (cc >= 0) {
+                double pc[2], th;
+                gs_system_body_pose(sys, b, pc, &th);
+                const double *cC = sys->scene->bodies[sb->carrier].centre;
+                g += (r->dg_dc[k][0] * -(pc[1] - cC[1]) + r->dg_dc[k][1] * (pc[0] - cC[0])) * s->x[cc];
+            }
+        }
     }
     for (int t = 0; t < r->n_nodes; t++) {
         int gk = r->body[t], b = cm->body[gk];
@@ -319,6 +347,98 @@ static double closure_gap(const gs_system *sys, const solver *s, const gs_contac
     return g;
 }
 
+/* Closure: row r's gap at the step's end, linearised, from s->inc. */
+static double closure_gap(const gs_system *sys, const solver *s, const gs_contact_row *r,
+                          const gsi_contact_mesh *cm)
+{
+    return r->gap.g + inc_dot(sys, s, r, cm, false);
+}
+
+/* Closure, Newton on the nonlinear gap: the gaps of the rows and of the
+ * watched candidates at the step's end of the solution x_k (s->x, s->inc;
+ * positions from the rigid increments and the nodes' displacement
+ * increments, not linearised). The rows' linearisation at the step's start
+ * misses a curved gap by about kappa |dx_rel|^2 / 2 (the parabolic edges of
+ * order 2: kappa v_s^2 h^2 / 2) and the rotation's arc by r dtheta^2 / 2.
+ * When some row or watched candidate ends deeper than CLOSURE_NEWTON_TOL,
+ * every row is linearised again at x_k,
+ *   g(x_k) + G_k (x - x_k) >= 0,  i.e.  G_k x >= -(g(x_k) - G_k x_k),
+ * the watched candidates that end inside become rows the same way, and the
+ * step is solved again (*redo). The rows stay linear in the increment with
+ * a constant term, like the closure's, so the reactions' work
+ * lambda^T G x is booked the same way. */
+static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
+{
+    const gs_step_plan *p = &sys->plan;
+    int n = sys->n_coords;
+    *redo = false;
+    for (int i = 0; i < sys->n_bodies; i++) {
+        if (p->n_nodes[i] == 0 || !s->u[i])
+            continue;
+        if (!s->ue[i]) {
+            const gs_mesh *m = sys->bodies[i].ops->mesh(&sys->bodies[i]);
+            s->ue[i] = gs_calloc(2 * (size_t)m->n_nodes, sizeof(double));
+            if (!s->ue[i])
+                return GS_ENOMEM;
+        }
+        for (int k = 0; k < p->n_nodes[i]; k++)
+            for (int comp = 0; comp < 2; comp++) {
+                size_t a = 2 * (size_t)p->nodes[i][k] + (size_t)comp;
+                s->ue[i][a] = s->u[i][a] + s->inc[s->base[i] + (size_t)node_dof(sys, i, k, comp)];
+            }
+    }
+    /* The poses at the step's end: the coordinates moved by x_k for the
+     * pose only, restored bit for bit below. */
+    double *q0 = gs_calloc((size_t)n + 1, sizeof(double));
+    if (!q0)
+        return GS_ENOMEM;
+    memcpy(q0, sys->q, (size_t)n * sizeof(double));
+    for (int j = 0; j < n; j++)
+        sys->q[j] += s->x[j];
+    gs_err err = GS_OK;
+    double deepest = 0.0;
+    int n_end = s->n_rows + s->n_watch;
+    row_ref *end = gs_calloc((size_t)n_end + 1, sizeof *end);
+    if (!end)
+        err = GS_ENOMEM;
+    for (int j = 0; j < n_end && err == GS_OK; j++) {
+        const row_ref *w = j < s->n_rows ? &s->rows[j] : &s->watch[j - s->n_rows];
+        gsi_contact_mesh *cm = sys->meshes[w->mesh].contact;
+        gs_contact_pose pose[2];
+        for (int k = 0; k < 2; k++) {
+            gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
+            pose[k].u = cm->elastic[k] ? s->ue[cm->body[k]] : NULL;
+        }
+        end[j] = *w;
+        err = gs_contact_eval(cm->search, pose, &cm->cand[w->cand], &end[j].r);
+        if (err == GS_OK && (j < s->n_rows || end[j].r.gap.g < -CLOSURE_NEWTON_TOL))
+            deepest = fmax(deepest, -end[j].r.gap.g);
+    }
+    memcpy(sys->q, q0, (size_t)n * sizeof(double));
+    free(q0);
+    if (err == GS_OK && deepest > CLOSURE_NEWTON_TOL) {
+        /* Linearise at x_k: the row's constant g(x_k) - G_k x_k. */
+        int rows = s->n_rows, kept = 0;
+        for (int j = 0; j < n_end && err == GS_OK; j++) {
+            row_ref *e = &end[j];
+            e->g0 = e->r.gap.g - inc_dot(sys, s, &e->r, sys->meshes[e->mesh].contact, true);
+            if (j < rows) {
+                s->rows[j] = *e;
+            } else if (e->r.gap.g < -CLOSURE_NEWTON_TOL) {
+                err = add_row(&s->rows, &s->n_rows, &s->cap_rows, e->mesh, e->cand, &e->r);
+                if (err == GS_OK)
+                    s->rows[s->n_rows - 1].g0 = e->g0;
+            } else {
+                s->watch[kept++] = s->watch[j - rows];
+            }
+        }
+        s->n_watch = kept;
+        *redo = err == GS_OK;
+    }
+    free(end);
+    return err;
+}
+
 /* Closure: move the watched candidates the solution would take to g < 0
  * into the rows (the rows only grow, so the solves that follow end);
  * returns how many moved. */
@@ -329,7 +449,7 @@ static gs_err promote_watched(gs_system *sys, solver *s, int *moved)
     for (int j = 0; j < s->n_watch; j++) {
         const row_ref *w = &s->watch[j];
         if (closure_gap(sys, s, &w->r, sys->meshes[w->mesh].contact) < 0.0) {
-            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, w->mesh, &w->r));
+            GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, w->mesh, w->cand, &w->r));
             (*moved)++;
         } else {
             s->watch[kept++] = *w;
@@ -592,7 +712,7 @@ static gs_err contact_solve(gs_system *sys, const double *rec, double *sol, int 
         ct[2] = s->mct[2 * mi + 1];
     }
     bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
-    int passes = 0;
+    int passes = 0, newton = 0;
 again:;
     /* 2. Unknowns: coordinates, then the nodes that enter a row. */
     int *nu = gs_grow(s->unk, &s->cap_unk, total_dof + 1, sizeof(int));
@@ -687,7 +807,7 @@ again:;
         const gsi_contact_mesh *cm = sys->meshes[s->rows[r].mesh].contact;
         double *G = s->G + (size_t)r * N;
         /* seed: homogeneous, the gap g(x_n) is dropped on purpose; closure: kept */
-        s->g[r] = closure ? -cr->gap.g : 0.0;
+        s->g[r] = closure ? -s->rows[r].g0 : 0.0;
         for (int k = 0; k < 2; k++) {
             int b = cm->body[k], c = sys->bodies[b].coord;
             if (c >= 0)
@@ -740,12 +860,21 @@ again:;
     }
     /* 5c. Closure: candidates without a row that the solution takes inside
      * get one, and the step is solved again (at most 8 times). */
-    if (closure && s->n_watch > 0 && passes < 8) {
+    if (closure && ((s->n_watch > 0 && passes < 8) || newton < CLOSURE_NEWTON_MAX)) {
         GS_TRY(plan_increments(sys, s, rec, N, total_dof));
-        int moved;
-        GS_TRY(promote_watched(sys, s, &moved));
+        int moved = 0;
+        if (s->n_watch > 0 && passes < 8)
+            GS_TRY(promote_watched(sys, s, &moved));
         if (moved > 0) {
             passes++;
+            goto again;
+        }
+        /* 5c'. Newton on the nonlinear gap (closure_newton). */
+        bool redo = false;
+        if (newton < CLOSURE_NEWTON_MAX)
+            GS_TRY(closure_newton(sys, s, &redo));
+        if (redo) {
+            newton++;
             goto again;
         }
     }
