@@ -66,6 +66,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->nearfield = 0;
     o->nearfield_depth_mm = 0.0;
     o->fine = 0;
+    o->all_rows = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
