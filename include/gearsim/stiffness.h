@@ -70,6 +70,9 @@ typedef struct gs_stiffness_opts {
                         * (gs_gear_mesh_opts_fine: teeth in contact locally refined, cycles + 2
                         * of them rounded up to odd; replaces the scene's mesh density, refine
                         * and order) */
+    int all_rows;      /* 0 (default): the contact QP takes the rows within a window of the
+                        * contact, checked at the solution (docs/STIFFNESS.md "Contact
+                        * window"); 1: every closing row of the search (the reference) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
@@ -141,6 +144,8 @@ typedef struct gs_stiffness_result {
      * minus the four. columns: contact dofs whose compliance was computed. */
     double cpu_seconds, cpu_mesh, cpu_factor, cpu_columns, cpu_solves, cpu_contact;
     long columns;
+    long window_widened;  /* contact window widened (a row left out found penetrated at a
+                           * settled solution), over all positions and load cases */
 } gs_stiffness_result;
 
 /* Analyse mesh mesh_index of scene sc (o may be NULL: defaults). out is

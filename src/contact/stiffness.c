@@ -68,6 +68,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->nearfield = 0;
     o->nearfield_depth_mm = 0.0;
     o->fine = 0;
+    o->all_rows = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -449,6 +450,15 @@ typedef struct work {
     rowdofs *rd[2];        /* per row and body: its dofs' cache slots and dg/du */
     int (*teeth)[2];       /* per row: tooth pair of its candidate (cand_teeth) */
     int n_prev;            /* 1 when the last linearisation changed delta by little */
+    /* Contact window: the QP takes the rows whose gap is below win (m); the
+     * others are checked at the solution (window_missed). */
+    double win;
+    const gs_contact_candidate *call; /* every candidate of the last search */
+    gs_index ncall;
+    unsigned char *kept;   /* per candidate of call: in the rows */
+    gs_index capk;
+    int win_on;            /* the window is used (not gs_stiffness_opts.all_rows) */
+    long win_dropped, win_widened;
     gs_qp *qp;
     int qp_n;
     /* Near-field correction: the extra compliance c (m/N) of each loaded tooth
@@ -490,6 +500,7 @@ static void work_free(work *w)
     free(w->row);
     free(w->cand);
     free(w->teeth);
+    free(w->kept);
     free(w->H);
     free(w->cvec);
     free(w->x);
@@ -559,8 +570,10 @@ static double gap_offset(const work *w, const int t[2])
 
 /* Search and evaluate at the current state; keep the rows the driver's
  * rotation in the torque direction closes (a_i s < 0) and any row already
- * penetrated. Returns their number in *nr and the smallest gap in *gmin. */
-static gs_err collect(work *w, double delta, int *nr, double *gmin)
+ * penetrated, of those only the rows whose gap is below win (the contact
+ * window; INFINITY: all). Returns their number in *nr and the smallest gap
+ * in *gmin. */
+static gs_err collect(work *w, double delta, double win, int *nr, double *gmin)
 {
     gs_contact_pose pose[2];
     set_poses(w, delta, pose);
@@ -568,11 +581,18 @@ static gs_err collect(work *w, double delta, int *nr, double *gmin)
     gs_index nc;
     GS_TRY(gs_contact_search_run(w->search, pose, &cand, &nc, NULL));
     GS_TRY(work_reserve(w, (int)nc + 1));
+    if (nc + 1 > w->capk) {
+        GROW(w->kept, (size_t)nc + 1);
+        w->capk = nc + 1;
+    }
+    w->call = cand;
+    w->ncall = nc;
     int n = 0;
     double lo = INFINITY;
     double tiny = 1e-6 * w->rb;
     for (gs_index j = 0; j < nc; j++) {
         gs_contact_row r;
+        w->kept[j] = 0;
         GS_TRY(gs_contact_eval(w->search, pose, &cand[j], &r));
         int tp[2];
         cand_teeth(w, &cand[j], tp);
@@ -580,8 +600,13 @@ static gs_err collect(work *w, double delta, int *nr, double *gmin)
         double a = r.dg_dtheta[w->si[0]];
         if (!(a * w->sgn < -tiny || r.gap.g < 0.0))
             continue;
+        if (!(r.gap.g < win)) {
+            w->win_dropped++;
+            continue;
+        }
         if (r.gap.g < lo)
             lo = r.gap.g;
+        w->kept[j] = 1;
         w->row[n] = r;
         w->cand[n] = &cand[j];
         w->teeth[n][0] = tp[0];
@@ -1032,6 +1057,32 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
 /* One load case from the current state (delta in *delta, displacements in
  * the bodies): iterate linearisations. Fills lambda in w->x, the rows in
  * w->row (nr), and the outcome. */
+/* The contact window (docs/STIFFNESS.md "Contact window"): the first
+ * linearisation takes the rows whose gap is below the TE of a soft mesh
+ * (GS_WIN_K, a quarter of a usual steel spur mesh stiffness) under the load,
+ * the next ones those below GS_WIN_FACTOR times the current elastic TE; the
+ * window is widened fourfold whenever a row left out is found penetrated at
+ * a settled solution. */
+#define GS_WIN_K 5e9      /* N/m^2: 5 N/(mm um) */
+#define GS_WIN_FACTOR 2.0
+
+/* 1 when a candidate of the last search left out of the rows by the window
+ * is penetrated at the current state (delta, u): the window missed it. */
+static gs_err window_missed(work *w, double delta, int *missed)
+{
+    gs_contact_pose pose[2];
+    set_poses(w, delta, pose);
+    *missed = 0;
+    for (gs_index j = 0; j < w->ncall && !*missed; j++) {
+        if (w->kept[j])
+            continue;
+        gs_contact_row r;
+        GS_TRY(gs_contact_eval(w->search, pose, &w->call[j], &r));
+        *missed = r.gap.g < 0.0;
+    }
+    return GS_OK;
+}
+
 static gs_err solve_load(work *w, double T, int max_iter, double delta0, double *delta, int *nr_out,
                          int *iters, int *converged, double *pen, gs_diag *d)
 {
@@ -1043,9 +1094,12 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
     int phase = w->nf ? 0 : 1; /* 0: plain FE; 1: with the near-field correction */
     if (w->nf)
         max_iter *= 4; /* the fixed point on the pair loads converges linearly */
+    double bw = fmin(w->b[0].sb->gear.face_width_m, w->b[1].sb->gear.face_width_m);
+    double wscale = 1.0;
+    double win = w->win_on ? w->ftot / (bw * GS_WIN_K) : INFINITY;
     for (int it = 0; it < max_iter; it++) {
         double gmin;
-        GS_TRY(collect(w, *delta, &nr, &gmin));
+        GS_TRY(collect(w, *delta, win, &nr, &gmin));
         if (nr == 0)
             return gs_diag_set(d, GS_EINFEASIBLE, "meshes",
                                "no contact row can carry the torque at this position");
@@ -1180,6 +1234,20 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
         *delta = dnew;
         *iters = it + 1;
         *nr_out = nr;
+        if (w->win_on)
+            win = wscale * fmax(GS_WIN_FACTOR * fabs(dnew - delta0) * w->rb,
+                                1e-3 * w->ftot / (bw * GS_WIN_K));
+        if (small && it > 0 && w->n_prev == 1 && w->win_on) {
+            int missed;
+            GS_TRY(window_missed(w, dnew, &missed));
+            if (missed) {
+                wscale *= 4.0;
+                win *= 4.0;
+                w->win_widened++;
+                w->n_prev = 0;
+                continue;
+            }
+        }
         if (small && it > 0 && w->n_prev == 1) {
             if (phase == 0) {
                 /* Plain FE settled: measure the near field, then iterate
@@ -1352,6 +1420,8 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         o.max_iter = 12;
     if (o.cycles < 1 || o.cycles > 10000)
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
+    if (o.all_rows != 0 && o.all_rows != 1)
+        return gs_diag_set(d, GS_ERANGE, "all_rows", "all_rows must be 0 or 1");
     if (o.fine != 0 && o.fine != 1)
         return gs_diag_set(d, GS_ERANGE, "fine", "fine must be 0 or 1");
     if (o.fine && (o.refine >= 0 || o.order > 0))
@@ -1378,6 +1448,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     int bidx[2] = {sm->gear[o.driver], sm->gear[1 - o.driver]};
     w.si[0] = o.driver;
     w.si[1] = 1 - o.driver;
+    w.win_on = !o.all_rows;
     int fc[2] = {0, 0};
     if (sc->bodies[bidx[0]].type == GS_BODY_GEAR && sc->bodies[bidx[1]].type == GS_BODY_GEAR)
         fine_centres(sc, bidx, &o, fc);
@@ -1509,7 +1580,7 @@ static gs_err close_rigid(work *w, double *delta0, double roll, const char *name
     int nr;
     double gmin;
     for (int it = 0; it < 30; it++) {
-        GS_TRY(collect(w, *delta0, &nr, &gmin));
+        GS_TRY(collect(w, *delta0, INFINITY, &nr, &gmin));
         double close = INFINITY;
         for (int i = 0; i < nr; i++) {
             double a = w->row[i].dg_dtheta[w->si[0]];
@@ -1685,6 +1756,7 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
     out->seconds = gs_now() - r->t_start;
     out->cpu_seconds = cpu_now() - r->cpu_start;
     out->columns = 0;
+    out->window_widened = w.win_widened;
     out->cpu_mesh = out->cpu_factor = out->cpu_columns = out->cpu_solves = 0.0;
     for (int k = 0; k < 2; k++) {
         out->columns += w.b[k].columns;
@@ -1900,6 +1972,7 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(o, "seconds", json_num(r->seconds));
     json_object_object_add(o, "solves", json_object_new_int64(r->solves));
     json_object_object_add(o, "columns", json_object_new_int64(r->columns));
+    json_object_object_add(o, "window_widened", json_object_new_int64(r->window_widened));
     json_object *tm = json_object_new_object();
     json_object_object_add(tm, "cpu_s", json_num(r->cpu_seconds));
     json_object_object_add(tm, "mesh_s", json_num(r->cpu_mesh));

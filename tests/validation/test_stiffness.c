@@ -283,6 +283,10 @@ static void bad_input(void **state)
     o.nearfield_depth_mm = -1.0;
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
     assert_string_equal(d.field, "nearfield_depth_mm");
+    o.nearfield_depth_mm = 0.0;
+    o.all_rows = 2;
+    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
+    assert_string_equal(d.field, "all_rows");
     gs_scene_free(&s);
 }
 
@@ -317,6 +321,47 @@ static void nearfield_softens(void **state)
     gs_scene_free(&s);
 }
 
+/* The contact window (docs/STIFFNESS.md "Contact window") leaves out of
+ * the QP the rows far from the contact: the same solution as with every
+ * row (to round-off: 1e-8 bar, measured <1e-10), plain and near field, at T
+ * and at T/2 (the tangent), with fewer contact dofs. */
+static void window_matches_all_rows(void **state)
+{
+    (void)state;
+    gs_scene *s = scene(0, 0, 0);
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 6;
+    o.order = 2;
+    for (int nf = 0; nf < 2; nf++) {
+        o.nearfield = nf;
+        gs_stiffness_result win, all;
+        gs_diag d;
+        gs_diag_clear(&d);
+        o.all_rows = 0;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &win, &d), GS_OK);
+        o.all_rows = 1;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &all, &d), GS_OK);
+        printf("# near field %d: contact dofs %ld windowed, %ld all rows; window widened %ld\n",
+               nf, win.columns, all.columns, win.window_widened);
+        assert_true(win.columns < all.columns);
+        assert_int_equal(all.window_widened, 0);
+        for (int j = 0; j < o.positions; j++) {
+            printf("#   roll %.3f: k %.9f / %.9f, k_tan %.9f / %.9f, rows %d / %d\n", win.pt[j].roll,
+                   win.pt[j].k, all.pt[j].k, win.pt[j].k_tan, all.pt[j].k_tan, win.pt[j].rows,
+                   all.pt[j].rows);
+            assert_true(win.pt[j].converged);
+            assert_true(fabs(win.pt[j].k / all.pt[j].k - 1.0) < 1e-8);
+            assert_true(fabs(win.pt[j].k_tan / all.pt[j].k_tan - 1.0) < 1e-8);
+            assert_int_equal(win.pt[j].pairs, all.pt[j].pairs);
+            assert_true(win.pt[j].rows < all.pt[j].rows);
+        }
+        gs_stiffness_result_clear(&win);
+        gs_stiffness_result_clear(&all);
+    }
+    gs_scene_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -325,6 +370,7 @@ int main(void)
         cmocka_unit_test(quadratic_elements),
         cmocka_unit_test(bad_input),
         cmocka_unit_test(nearfield_softens),
+        cmocka_unit_test(window_matches_all_rows),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

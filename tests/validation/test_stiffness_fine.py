@@ -14,6 +14,8 @@ Asserted (bars measured when written, in the comments; each can fail):
 * the fine teeth follow the contact: over two mesh cycles (--cycles 2,
   5 fine teeth) k at rolls 0 and 1, and at 0.5 and 1.5 (the same contact,
   one tooth on) agree within BAR_PERIODIC;
+* the contact window gives the all-rows solution within BAR_WINDOW, with
+  fewer contact dofs;
 * the setting is local: fewer than FRACTION_OF_R2 of the unknowns of the
   uniform refine 2 of the default counts (606 304), the cheapest uniform
   level near this accuracy (1.8 % off at the transitions,
@@ -33,6 +35,7 @@ BAR_FINE = 0.01        # |k error|, |TE error| per position (30/20: 0.90%, 0.89%
 BAR_FINE_MEAN = 0.005  # |cycle mean|, |single-contact mean| k error (+0.24%, +0.12%; +0.20%, +0.08%)
 UNKNOWNS_R2 = 606304   # uniform order 2 refine 2 of the default counts, 20/30 pair
 FRACTION_OF_R2 = 0.3   # the fine setting: 144 832 unknowns (0.24)
+BAR_WINDOW = 1e-8      # |k windowed / k all rows - 1| (8e-11)
 BAR_PERIODIC = 0.001   # |k(roll + 1) / k(roll) - 1| over two cycles (0.001%; 0.64% with 4 teeth)
 
 check, failures = compare.checker()
@@ -74,6 +77,16 @@ def main():
             check(abs(k[b] / k[a] - 1) < BAR_PERIODIC,
                   "two cycles: k(roll %.1f) %.4f vs k(roll %.1f) %.4f within %.1f%%"
                   % (0.5 * a, k[a], 0.5 * b, k[b], 100 * BAR_PERIODIC))
+    # the contact window: the same solution as with every row, fewer contact dofs
+    alls = subprocess.run([tool, scene, "--fine", "--cycles", "2", "--positions", "4",
+                           "--no-tangent", "--json", "--all-rows"], capture_output=True, text=True)
+    check(alls.returncode == 0, "gearsim-stiffness --fine --all-rows runs (%s)" % alls.stderr.strip())
+    if out.returncode == 0 and alls.returncode == 0:
+        wj, aj = json.loads(out.stdout), json.loads(alls.stdout)
+        dk = max(abs(p["k"] / q["k"] - 1) for p, q in zip(wj["points"], aj["points"]))
+        check(dk < BAR_WINDOW, "contact window: k within %.0e of all rows (%.1e)" % (BAR_WINDOW, dk))
+        check(wj["columns"] < aj["columns"], "contact window: %d contact dofs < %d with all rows"
+              % (wj["columns"], aj["columns"]))
     if failures:
         print("%d check(s) failed" % len(failures))
         return 1
