@@ -755,7 +755,7 @@ static gs_err nf_offsets(work *w)
     w->n_go = 0;
     int nr;
     double gmin;
-    GS_TRY(collect(w, 0.0, &nr, &gmin));
+    GS_TRY(collect(w, 0.0, INFINITY, &nr, &gmin));
     for (int i = 0; i < nr; i++) {
         const int *t = w->teeth[i];
         int seen = 0;
