@@ -124,7 +124,12 @@ def run():
         c.cancel()
         done3 = c.wait_done(rid, timeout=120)
         k = done3.get("points_done", -1)
-        R.check("cancelled sweep keeps its finished points", done3.get("cancelled") is True and 1 <= k <= POINTS and
+        # On a fast machine the 6 points can all finish before the cancel is
+        # read (a lumped point takes a few ms): then the done event says not
+        # cancelled and the table is whole; either way nothing finished is lost.
+        raced = done3.get("cancelled") is False and k == POINTS
+        R.check("cancelled sweep keeps its finished points (or finished before the cancel)",
+                (raced or (done3.get("cancelled") is True and 1 <= k <= POINTS)) and
                 len(table(d.path("g3.csv")).splitlines()) == k + 1, done3)
         if k < POINTS:
             e = error_of(c, dict(SPEC, groups=2, path="g3"))
