@@ -482,7 +482,7 @@ typedef struct work {
     /* Near-field correction: per tooth pair the node-sampling part of its
      * rows' rigid gap (nf_offsets), taken off their gaps in collect. */
     int n_go;
-    struct {
+    struct gap_off {
         int tooth[2];
         double off;        /* m */
         int has_x;         /* the flanks' contact point found: */
@@ -559,13 +559,20 @@ static void cand_teeth(const work *w, const gs_contact_candidate *c, int tooth[2
     }
 }
 
-/* The gap offset of the rows of tooth pair t (nf_offsets; 0 when none). */
-static double gap_offset(const work *w, const int t[2])
+/* The near-field entry of tooth pair t (nf_offsets; one per pair), or NULL. */
+static const struct gap_off *gap_off_find(const work *w, const int t[2])
 {
     for (int p = 0; p < w->n_go; p++)
         if (w->go[p].tooth[0] == t[0] && w->go[p].tooth[1] == t[1])
-            return w->go[p].off;
-    return 0.0;
+            return &w->go[p];
+    return NULL;
+}
+
+/* The gap offset of the rows of tooth pair t (nf_offsets; 0 when none). */
+static double gap_offset(const work *w, const int t[2])
+{
+    const struct gap_off *go = gap_off_find(w, t);
+    return go ? go->off : 0.0;
 }
 
 /* Search and evaluate at the current state; keep the rows the driver's
@@ -595,8 +602,11 @@ static gs_err collect(work *w, double delta, double win, int *nr, double *gmin)
         w->kept[j] = 0;
         GS_TRY(gs_contact_eval(w->search, pose, &cand[j], &r));
         int tp[2];
-        cand_teeth(w, &cand[j], tp);
-        r.gap.g -= gap_offset(w, tp);
+        bool have_tp = w->n_go > 0; /* near-field gap offsets: only they need the pair here */
+        if (have_tp) {
+            cand_teeth(w, &cand[j], tp);
+            r.gap.g -= gap_offset(w, tp);
+        }
         double a = r.dg_dtheta[w->si[0]];
         if (!(a * w->sgn < -tiny || r.gap.g < 0.0))
             continue;
@@ -609,6 +619,8 @@ static gs_err collect(work *w, double delta, double win, int *nr, double *gmin)
         w->kept[j] = 1;
         w->row[n] = r;
         w->cand[n] = &cand[j];
+        if (!have_tp)
+            cand_teeth(w, &cand[j], tp);
         w->teeth[n][0] = tp[0];
         w->teeth[n][1] = tp[1];
         n++;
@@ -758,10 +770,7 @@ static gs_err nf_offsets(work *w)
     GS_TRY(collect(w, 0.0, INFINITY, &nr, &gmin));
     for (int i = 0; i < nr; i++) {
         const int *t = w->teeth[i];
-        int seen = 0;
-        for (int p = 0; p < w->n_go && !seen; p++)
-            seen = w->go[p].tooth[0] == t[0] && w->go[p].tooth[1] == t[1];
-        if (seen || w->n_go == (int)(sizeof w->go / sizeof w->go[0]))
+        if (gap_off_find(w, t) || w->n_go == (int)(sizeof w->go / sizeof w->go[0]))
             continue;
         /* The pair's row of smallest gap: its contact point and tangent. */
         int im = -1;
@@ -890,16 +899,13 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
             continue;
         /* The flanks' contact point (nf_offsets) when known, else the rows'
          * load centre. */
-        bool has_x = false;
-        for (int q = 0; q < w->n_go; q++)
-            if (w->go[q].tooth[0] == g[p].tooth[0] && w->go[q].tooth[1] == g[p].tooth[1] &&
-                w->go[q].has_x) {
-                double th = w->theta0[0] + delta, cs = cos(th), sn = sin(th);
-                const double *xb = w->go[q].xb;
-                X[0] = w->b[0].c[0] + cs * xb[0] - sn * xb[1];
-                X[1] = w->b[0].c[1] + sn * xb[0] + cs * xb[1];
-                has_x = true;
-            }
+        const struct gap_off *go = gap_off_find(w, g[p].tooth);
+        bool has_x = go && go->has_x;
+        if (has_x) {
+            double th = w->theta0[0] + delta, cs = cos(th), sn = sin(th);
+            X[0] = w->b[0].c[0] + cs * go->xb[0] - sn * go->xb[1];
+            X[1] = w->b[0].c[1] + sn * go->xb[0] + cs * go->xb[1];
+        }
         double nD[2] = {g[p].n[0] / nn, g[p].n[1] / nn};
         double curv, kb[2];
         int corner = pair_curvature(w, X, &curv, kb);

@@ -88,8 +88,6 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
     const gs_scene_body *sb = &sys->scene->bodies[b->index];
     char field[160];
     snprintf(field, sizeof field, "bodies[%d].mesh", b->index);
-    if (sb->mesh.fine_teeth > 0)
-        snprintf(field, sizeof field, "bodies[%d].mesh.fine_teeth", b->index);
     if (sb->type != GS_BODY_GEAR)
         return gs_diag_set(d, GS_ERANGE, field, "only gears can be elastic");
     elastic *el = gs_calloc(1, sizeof *el);
@@ -97,9 +95,14 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
         return GS_ENOMEM;
     b->model = el;
     gs_diag md;
+    gs_diag_clear(&md);
     gs_err e = gs_scene_gear_mesh(sb, &el->mesh, &md);
-    if (e != GS_OK)
+    if (e != GS_OK) {
+        /* a mesh field the mesher names (e.g. mesh.fine_teeth) under this body */
+        if (strncmp(md.field, "mesh.", 5) == 0)
+            snprintf(field, sizeof field, "bodies[%d].%.120s", b->index, md.field);
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", sb->name, md.message, md.field);
+    }
     /* Rigid core: the solid hub disc of an external gear; a ring's elastic
      * part reaches its outer rim, which is fixed (held or on its bearing). */
     const gs_gear_params *g = &sb->gear;

@@ -63,6 +63,10 @@ typedef struct solver {
     row_ref *rows;
     int n_rows;
     size_t cap_rows;
+    row_ref *end;        /* closure_newton: the rows and watched candidates at the step's end */
+    size_t cap_end;
+    double *q0;          /* closure_newton: the coordinates kept while the poses move */
+    size_t cap_q0;
     row_ref *watch;      /* adaptive step: candidates without a row, checked after the solve */
     int n_watch;
     size_t cap_watch;
@@ -100,6 +104,8 @@ void gsi_contact_free(gs_system *sys)
     free(s->u);
     free(s->ue);
     free(s->rows);
+    free(s->end);
+    free(s->q0);
     free(s->watch);
     free(s->unk);
     free(s->base);
@@ -389,18 +395,21 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
     }
     /* The poses at the step's end: the coordinates moved by x_k for the
      * pose only, restored bit for bit below. */
-    double *q0 = gs_calloc((size_t)n + 1, sizeof(double));
+    double *q0 = gs_grow(s->q0, &s->cap_q0, (size_t)n + 1, sizeof(double));
     if (!q0)
         return GS_ENOMEM;
+    s->q0 = q0;
     memcpy(q0, sys->q, (size_t)n * sizeof(double));
     for (int j = 0; j < n; j++)
         sys->q[j] += s->x[j];
     gs_err err = GS_OK;
     double deepest = 0.0;
     int n_end = s->n_rows + s->n_watch;
-    row_ref *end = gs_calloc((size_t)n_end + 1, sizeof *end);
+    row_ref *end = gs_grow(s->end, &s->cap_end, (size_t)n_end + 1, sizeof *end);
     if (!end)
         err = GS_ENOMEM;
+    else
+        s->end = end;
     for (int j = 0; j < n_end && err == GS_OK; j++) {
         const row_ref *w = j < s->n_rows ? &s->rows[j] : &s->watch[j - s->n_rows];
         gsi_contact_mesh *cm = sys->meshes[w->mesh].contact;
@@ -415,7 +424,6 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
             deepest = fmax(deepest, -end[j].r.gap.g);
     }
     memcpy(sys->q, q0, (size_t)n * sizeof(double));
-    free(q0);
     if (err == GS_OK && deepest > CLOSURE_NEWTON_TOL) {
         /* Linearise at x_k: the row's constant g(x_k) - G_k x_k. */
         int rows = s->n_rows, kept = 0;
@@ -435,7 +443,6 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
         s->n_watch = kept;
         *redo = err == GS_OK;
     }
-    free(end);
     return err;
 }
 
