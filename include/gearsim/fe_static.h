@@ -60,6 +60,16 @@ gs_err gs_fe_static_half_column(gs_fe_static *s, gs_index dof, gs_index *nnz,
 gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_rows,
                          const gs_index *rows, double *out);
 
+/* gs_fe_static_back for one right-hand side z when only the entries at the
+ * n_rows dofs `rows` are wanted: the back substitution visits only the
+ * supernodes those entries depend on (the rows' pivots and their
+ * elimination-tree ancestors), where gs_fe_static_back passes over all of
+ * L. The entries are gs_fe_static_back's to round-off (another summation
+ * order), written to out[i]; *frac (may be NULL) receives the fraction of
+ * L's entries visited. Counted as one solve. Errors: GS_EINVAL. */
+gs_err gs_fe_static_back_rows(gs_fe_static *s, const double *z, gs_index n_rows,
+                              const gs_index *rows, double *out, double *frac);
+
 /* Right-hand sides solved so far (one per column and per solved load case). */
 long gs_fe_static_solves(const gs_fe_static *s);
 

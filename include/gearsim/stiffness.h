@@ -73,6 +73,9 @@ typedef struct gs_stiffness_opts {
     int all_rows;      /* 0 (default): the contact QP takes the rows within a window of the
                         * contact, checked at the solution (docs/STIFFNESS.md "Contact
                         * window"); 1: every closing row of the search (the reference) */
+    int all_dofs;      /* 0 (default): the displacements for the contact search only at the
+                        * teeth it reads, by partial back substitutions (docs/STIFFNESS.md
+                        * "Displacement zone"); 1: at every boundary dof (the reference) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
@@ -146,6 +149,9 @@ typedef struct gs_stiffness_result {
     long columns;
     long window_widened;  /* contact window widened (a row left out found penetrated at a
                            * settled solution), over all positions and load cases */
+    double zone_fraction; /* displacement zone: the mean fraction of L's entries a
+                           * back substitution for the displacements visited (1: all) */
+    long zone_restarts;   /* positions solved again because a zone grew mid-position */
 } gs_stiffness_result;
 
 /* Analyse mesh mesh_index of scene sc (o may be NULL: defaults). out is

@@ -69,6 +69,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->nearfield_depth_mm = 0.0;
     o->fine = 0;
     o->all_rows = 0;
+    o->all_dofs = 0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -103,6 +104,20 @@ typedef struct sbody {
                            * one back substitution per linearisation) */
     int ncol;
     long nback;           /* back substitutions for displacements so far */
+    double backw;         /* their cost in full back substitutions (partial ones: the
+                           * fraction of L visited) */
+    /* Displacement zone (docs/STIFFNESS.md "Displacement zone"): the
+     * displacements are computed only at the boundary nodes of the teeth the
+     * contact search reads (gs_fe_static_back_rows), the others stay 0. */
+    int zone_on;          /* 0: every boundary dof (gs_stiffness_opts.all_dofs) */
+    int *btooth;          /* nb: tooth of each boundary node */
+    unsigned char *zt;    /* teeth: in the zone */
+    gs_index nzn;         /* boundary nodes in the zone */
+    gs_index *zk;         /* nb: their boundary positions */
+    gs_index *zdof;       /* 2 nb: their dofs */
+    int zall;             /* the zone holds every tooth: full back substitutions */
+    int dirty;            /* displacements computed since the last reset of u */
+    double zfrac;         /* fraction of L the last partial back substitution visited */
     double *fd;           /* capd: scratch, the force on each cached dof */
     double *z;            /* max(ne, 2 nb): dense work (zero between uses) */
     double *u;            /* 2 n_nodes: current displacement */
@@ -133,6 +148,10 @@ static void sbody_free(sbody *b)
     free(b->z);
     free(b->bpos);
     free(b->bdof);
+    free(b->btooth);
+    free(b->zt);
+    free(b->zk);
+    free(b->zdof);
     free(b->xy_ref);
     free(b->u);
     gs_fe_static_free(&b->fs);
@@ -175,6 +194,8 @@ static void fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffne
     centre[0] = contact_tooth(&A->gear, cA, cB, B->gear.kind == GS_GEAR_INTERNAL, thA);
     centre[1] = contact_tooth(&B->gear, cB, cA, A->gear.kind == GS_GEAR_INTERNAL, thB);
 }
+
+static int node_tooth(const gs_mesh *m, int z, gs_index node);
 
 /* fine: 0, or the number of teeth of the `fine` setting (its mesh replaces
  * the scene's density) */
@@ -235,8 +256,15 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int 
     b->slot = malloc((size_t)(2 * b->nb) * sizeof *b->slot);
     b->u = gs_calloc((size_t)(2 * n), sizeof *b->u);
     b->z = gs_calloc((size_t)gs_fe_static_size(b->fs) + (size_t)(2 * b->nb) + 1, sizeof *b->z);
-    if (!b->bpos || !b->bdof || !b->slot || !b->u || !b->z)
+    b->btooth = malloc(((size_t)b->nb + 1) * sizeof *b->btooth);
+    b->zt = gs_calloc((size_t)b->sb->gear.teeth + 1, 1);
+    b->zk = malloc(((size_t)b->nb + 1) * sizeof *b->zk);
+    b->zdof = malloc((size_t)(2 * b->nb + 1) * sizeof *b->zdof);
+    if (!b->bpos || !b->bdof || !b->slot || !b->u || !b->z || !b->btooth || !b->zt || !b->zk ||
+        !b->zdof)
         return GS_ENOMEM;
+    for (gs_index k = 0; k < b->nb; k++)
+        b->btooth[k] = node_tooth(b->mesh, b->sb->gear.teeth, b->mesh->boundary[k]);
     for (gs_index j = 0; j < 2 * b->nb; j++)
         b->slot[j] = -1;
     for (gs_index i = 0; i < n; i++)
@@ -384,7 +412,7 @@ static gs_err sbody_displace(sbody *b)
 {
     double t0 = cpu_now();
     size_t len = (size_t)(2 * b->nb);
-    if (b->ncol == 0 && 2 * b->nback >= b->nd) {
+    if (b->ncol == 0 && 2.0 * b->backw >= (double)b->nd) {
         double t1 = cpu_now();
         GS_TRY(sbody_columns(b));
         b->t_columns += cpu_now() - t1;
@@ -406,16 +434,34 @@ static gs_err sbody_displace(sbody *b)
                 for (gs_index q = 0; q < b->ynz[d]; q++)
                     b->z[b->yi[d][q]] += f * b->yv[d][q];
         }
-        gs_err e = gs_fe_static_back(b->fs, 1, b->z, 2 * b->nb, b->bdof, v);
+        gs_err e;
+        if (b->zone_on && !b->zall) {
+            e = gs_fe_static_back_rows(b->fs, b->z, 2 * b->nzn, b->zdof, v, &b->zfrac);
+            b->backw += b->zfrac;
+        } else {
+            e = gs_fe_static_back(b->fs, 1, b->z, 2 * b->nb, b->bdof, v);
+            b->backw += 1.0;
+        }
         memset(b->z, 0, (size_t)gs_fe_static_size(b->fs) * sizeof *b->z);
         GS_TRY(e);
         b->nback++;
+        if (b->zone_on && !b->zall) {
+            for (gs_index i = 0; i < b->nzn; i++) {
+                gs_index node = b->mesh->boundary[b->zk[i]];
+                b->u[2 * node] = v[2 * i];
+                b->u[2 * node + 1] = v[2 * i + 1];
+            }
+            b->dirty = 1;
+            b->t_solves += cpu_now() - t0;
+            return GS_OK;
+        }
     }
     for (gs_index q = 0; q < b->nb; q++) {
         gs_index node = b->mesh->boundary[q];
         b->u[2 * node] = v[2 * q];
         b->u[2 * node + 1] = v[2 * q + 1];
     }
+    b->dirty = 1;
     b->t_solves += cpu_now() - t0;
     return GS_OK;
 }
@@ -426,6 +472,37 @@ static int node_tooth(const gs_mesh *m, int z, gs_index node)
     double ang = atan2(m->xy[2 * node + 1], m->xy[2 * node]);
     long t = lround(ang / (2.0 * GS_PI / z));
     return (int)(((t % z) + z) % z);
+}
+
+/* The zone's node and dof lists from its teeth (zt). */
+static void zone_rebuild(sbody *b)
+{
+    int z = b->sb->gear.teeth, all = 1;
+    for (int t = 0; t < z; t++)
+        all = all && b->zt[t];
+    b->zall = all;
+    b->nzn = 0;
+    for (gs_index k = 0; k < b->nb; k++)
+        if (b->zt[b->btooth[k]]) {
+            b->zk[b->nzn] = k;
+            b->zdof[2 * b->nzn] = b->bdof[2 * k];
+            b->zdof[2 * b->nzn + 1] = b->bdof[2 * k + 1];
+            b->nzn++;
+        }
+}
+
+/* Add tooth t and its neighbours to the zone; 1 when one was new. */
+static int zone_add(sbody *b, int t)
+{
+    int z = b->sb->gear.teeth, grew = 0;
+    for (int o = -1; o <= 1; o++) {
+        int u = ((t + o) % z + z) % z;
+        if (!b->zt[u]) {
+            b->zt[u] = 1;
+            grew = 1;
+        }
+    }
+    return grew;
 }
 
 /* The dofs of one contact row in one body: cache slots and dg/du. */
@@ -459,6 +536,9 @@ typedef struct work {
     gs_index capk;
     int win_on;            /* the window is used (not gs_stiffness_opts.all_rows) */
     long win_dropped, win_widened;
+    long zone_restarts;    /* positions solved again for it */
+    int restart;           /* the displacement zone grew after displacements were computed:
+                            * the roll position is solved again (gs_stiffness_next) */
     gs_qp *qp;
     int qp_n;
     /* Near-field correction: the extra compliance c (m/N) of each loaded tooth
@@ -575,6 +655,44 @@ static double gap_offset(const work *w, const int t[2])
     return go ? go->off : 0.0;
 }
 
+/* Make the displacement zones cover what the last search read: the teeth
+ * it visited on each gear and their neighbours (the master segments near a
+ * slave node), and every node of its candidates. A zone that grows after
+ * displacements were computed in this roll position leaves wrong (zero)
+ * displacements behind at the new nodes: w->restart is set and the
+ * position is solved again from the start (GS_EINTERNAL here). */
+static gs_err zone_cover(work *w, const gs_contact_stats *st, const gs_contact_candidate *cand,
+                         gs_index nc)
+{
+    for (int k = 0; k < 2; k++) {
+        sbody *b = &w->b[k];
+        if (!b->zone_on || b->zall)
+            continue;
+        int s = w->si[k], grew = 0, z = b->sb->gear.teeth;
+        if (st->n_teeth[s] > 16)
+            for (int t = 0; t < z; t++)
+                grew |= zone_add(b, t);
+        else
+            for (int i = 0; i < st->n_teeth[s]; i++)
+                grew |= zone_add(b, st->teeth[s][i]);
+        for (gs_index j = 0; j < nc; j++) {
+            const gs_contact_candidate *c = &cand[j];
+            if (c->slave == s && !b->zt[b->btooth[b->bpos[c->slave_node]]])
+                grew |= zone_add(b, b->btooth[b->bpos[c->slave_node]]);
+            if (c->master == s)
+                for (int q = 0; q < c->n_window; q++)
+                    if (!b->zt[b->btooth[b->bpos[c->window[q]]]])
+                        grew |= zone_add(b, b->btooth[b->bpos[c->window[q]]]);
+        }
+        if (grew) {
+            zone_rebuild(b);
+            if (b->dirty)
+                w->restart = 1;
+        }
+    }
+    return w->restart ? GS_EINTERNAL : GS_OK;
+}
+
 /* Search and evaluate at the current state; keep the rows the driver's
  * rotation in the torque direction closes (a_i s < 0) and any row already
  * penetrated, of those only the rows whose gap is below win (the contact
@@ -586,7 +704,9 @@ static gs_err collect(work *w, double delta, double win, int *nr, double *gmin)
     set_poses(w, delta, pose);
     const gs_contact_candidate *cand;
     gs_index nc;
-    GS_TRY(gs_contact_search_run(w->search, pose, &cand, &nc, NULL));
+    gs_contact_stats st;
+    GS_TRY(gs_contact_search_run(w->search, pose, &cand, &nc, &st));
+    GS_TRY(zone_cover(w, &st, cand, nc));
     GS_TRY(work_reserve(w, (int)nc + 1));
     if (nc + 1 > w->capk) {
         GROW(w->kept, (size_t)nc + 1);
@@ -1428,6 +1548,8 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         return gs_diag_set(d, GS_ERANGE, "cycles", "cycles must be 1..10000, not %d", o.cycles);
     if (o.all_rows != 0 && o.all_rows != 1)
         return gs_diag_set(d, GS_ERANGE, "all_rows", "all_rows must be 0 or 1");
+    if (o.all_dofs != 0 && o.all_dofs != 1)
+        return gs_diag_set(d, GS_ERANGE, "all_dofs", "all_dofs must be 0 or 1");
     if (o.fine != 0 && o.fine != 1)
         return gs_diag_set(d, GS_ERANGE, "fine", "fine must be 0 or 1");
     if (o.fine && (o.refine >= 0 || o.order > 0))
@@ -1465,6 +1587,8 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
                        fc[k], &w.b[k], d);
     if (e != GS_OK)
         goto done;
+    for (int k = 0; k < 2; k++)
+        w.b[k].zone_on = !o.all_dofs;
     const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;
     {
         gs_contact_opts co;
@@ -1606,10 +1730,8 @@ static gs_err close_rigid(work *w, double *delta0, double roll, const char *name
 
 /* Roll position r->next: its no-load closing rotation, the loaded solve
  * and the tangent. */
-gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
+static gs_err solve_position(gs_stiffness_run *r, gs_diag *d)
 {
-    if (!r || r->next >= r->o.positions)
-        return gs_diag_set(d, GS_EINVAL, "", "no roll position left to solve");
     work *wp = &r->w;
 #define w (*wp)
     const gs_stiffness_opts o = r->o;
@@ -1628,8 +1750,10 @@ gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
         w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
         w.theta0[1] = gs_pair_mesh_phase(gA, w.b[0].c, w.theta0[0], gB, w.b[1].c,
                                          r->thB_first + r->ratio * w.sgn * roll * pitch);
-        for (int k = 0; k < 2; k++)
+        for (int k = 0; k < 2; k++) {
             memset(w.b[k].u, 0, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
+            w.b[k].dirty = 0;
+        }
         w.n_go = 0;
         if (w.nf) {
             e = nf_offsets(&w);
@@ -1715,10 +1839,28 @@ gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
             pt->converged = pt->converged && ch;
         }
     }
-    r->next++;
 done:
 #undef w
-    if (e != GS_OK && d && !d->message[0])
+    return e;
+}
+
+gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
+{
+    if (!r || r->next >= r->o.positions)
+        return gs_diag_set(d, GS_EINVAL, "", "no roll position left to solve");
+    gs_err e;
+    /* A displacement zone that grew mid-position (zone_cover): again, with
+     * the larger zone (they only grow: at most once per tooth). */
+    for (;;) {
+        r->w.restart = 0;
+        e = solve_position(r, d);
+        if (!(e == GS_EINTERNAL && r->w.restart))
+            break;
+        r->w.zone_restarts++;
+    }
+    if (e == GS_OK)
+        r->next++;
+    else if (d && !d->message[0])
         gs_diag_set(d, e, "meshes", "stiffness analysis failed: %s", gs_strerror(e));
     return e;
 }
@@ -1763,6 +1905,16 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
     out->cpu_seconds = cpu_now() - r->cpu_start;
     out->columns = 0;
     out->window_widened = w.win_widened;
+    out->zone_restarts = w.zone_restarts;
+    {
+        double fw = 0.0;
+        long nb = 0;
+        for (int k = 0; k < 2; k++) {
+            fw += w.b[k].backw;
+            nb += w.b[k].nback;
+        }
+        out->zone_fraction = nb > 0 ? fw / (double)nb : 1.0;
+    }
     out->cpu_mesh = out->cpu_factor = out->cpu_columns = out->cpu_solves = 0.0;
     for (int k = 0; k < 2; k++) {
         out->columns += w.b[k].columns;
@@ -1979,6 +2131,8 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(o, "solves", json_object_new_int64(r->solves));
     json_object_object_add(o, "columns", json_object_new_int64(r->columns));
     json_object_object_add(o, "window_widened", json_object_new_int64(r->window_widened));
+    json_object_object_add(o, "zone_fraction", json_num(r->zone_fraction));
+    json_object_object_add(o, "zone_restarts", json_object_new_int64(r->zone_restarts));
     json_object *tm = json_object_new_object();
     json_object_object_add(tm, "cpu_s", json_num(r->cpu_seconds));
     json_object_object_add(tm, "mesh_s", json_num(r->cpu_mesh));

@@ -193,8 +193,7 @@ gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out)
     gs_fe_body *b = gs_calloc(1, sizeof *b);
     if (!b)
         return GS_ENOMEM;
-    cholmod_l_start(&b->cc);
-    b->cc.print = 0; /* failures are returned as gs_err */
+    gsi_cholmod_start(&b->cc); /* failures are returned as gs_err */
     b->m = m;
     b->ne = m->ne;
     size_t n1 = (size_t)m->ne + 1;

@@ -82,6 +82,11 @@ struct cholmod_sparse_struct;
 struct cholmod_common_struct;
 struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double alpha,
                                                     double beta, struct cholmod_common_struct *c);
+/* cholmod_l_start with the project's settings: no printing, and CHOLMOD's
+ * OpenMP regions (a fixed 4 threads in the supernodal factorisation, which
+ * ignores OMP_NUM_THREADS) run on the calling thread alone: on a shared
+ * machine the extra threads only spin and wait (docs/PERFORMANCE.md). */
+void gsi_cholmod_start(struct cholmod_common_struct *c);
 
 /* An annulus r_in <= r <= r_out of n_r radial by n_t circumferential cells,
  * each split into two counter-clockwise triangles (diagonals alternate), the

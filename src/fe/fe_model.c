@@ -517,8 +517,7 @@ gs_err gs_fe_model_static(const gs_fe_model *m, const double *f_nodes, double *u
     if (m->ne == 0)
         return GS_OK;
     cholmod_common c;
-    cholmod_l_start(&c);
-    c.print = 0;
+    gsi_cholmod_start(&c);
     gs_err err = GS_ENOMEM;
     cholmod_factor *L = NULL;
     cholmod_dense *B = NULL, *X = NULL;

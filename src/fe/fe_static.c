@@ -2,6 +2,9 @@
  * Static solves with K factored once (include/gearsim/fe_static.h). */
 #include <cholmod.h>
 #include <stdlib.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <string.h>
 
 #include "fe/fe_internal.h"
@@ -20,6 +23,8 @@ struct gs_fe_static {
     SuiteSparse_long *iperm; /* ne: factor position of free dof q */
     SuiteSparse_long *sup;   /* ne: supernode of factor column k */
     double *x;               /* ne: dense work, zero between calls */
+    double *xb;              /* ne: gs_fe_static_back_rows' solution (factor order) */
+    unsigned char *smark;    /* nsuper: gs_fe_static_back_rows' supernodes */
     unsigned char *mark;     /* nsuper: supernode queued */
     SuiteSparse_long *heap;  /* nsuper: pending supernodes (min-heap) */
     gs_index *hidx;          /* ne: pattern of the last half column */
@@ -37,6 +42,8 @@ void gs_fe_static_free(gs_fe_static **ps)
     free(s->iperm);
     free(s->sup);
     free(s->x);
+    free(s->xb);
+    free(s->smark);
     free(s->mark);
     free(s->heap);
     free(s->hidx);
@@ -50,6 +57,17 @@ void gs_fe_static_free(gs_fe_static **ps)
     *ps = NULL;
 }
 
+void gsi_cholmod_start(cholmod_common *c)
+{
+#ifdef _OPENMP
+    /* No active parallel level: every OpenMP region of the libraries runs
+     * with a team of one (the calling thread). */
+    omp_set_max_active_levels(0);
+#endif
+    cholmod_l_start(c);
+    c->print = 0;
+}
+
 gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
 {
     if (!m || !out)
@@ -59,8 +77,7 @@ gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
     if (!s)
         return GS_ENOMEM;
     s->m = m;
-    cholmod_l_start(&s->c);
-    s->c.print = 0;
+    gsi_cholmod_start(&s->c);
     /* Supernodal LL' always (also for small K): the half columns walk its
      * supernodes. */
     s->c.supernodal = CHOLMOD_SUPERNODAL;
@@ -98,11 +115,13 @@ gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
         s->iperm = malloc(ne * sizeof *s->iperm);
         s->sup = malloc(ne * sizeof *s->sup);
         s->x = calloc(ne, sizeof *s->x);
+        s->xb = malloc(ne * sizeof *s->xb);
+        s->smark = calloc(ns, 1);
         s->mark = calloc(ns, 1);
         s->heap = malloc(ns * sizeof *s->heap);
         s->hidx = malloc(ne * sizeof *s->hidx);
         s->hval = malloc(ne * sizeof *s->hval);
-        if (!s->iperm || !s->sup || !s->x || !s->mark || !s->heap || !s->hidx || !s->hval)
+        if (!s->iperm || !s->sup || !s->x || !s->xb || !s->smark || !s->mark || !s->heap || !s->hidx || !s->hval)
             goto fail;
         const SuiteSparse_long *perm = s->L->Perm, *super = s->L->super;
         for (size_t k = 0; k < ne; k++)
@@ -349,5 +368,73 @@ gs_err gs_fe_static_back(gs_fe_static *s, int nrhs, const double *z, gs_index n_
             o[i] = q >= 0 ? x[q] : 0.0;
         }
     }
+    return GS_OK;
+}
+
+gs_err gs_fe_static_back_rows(gs_fe_static *s, const double *z, gs_index n_rows,
+                              const gs_index *rows, double *out, double *frac)
+{
+    if (!s || n_rows < 0 || (n_rows > 0 && (!z || !out || !rows)))
+        return GS_EINVAL;
+    const gs_fe_model *m = s->m;
+    if (!dofs_ok(m, n_rows, rows))
+        return GS_EINVAL;
+    if (frac)
+        *frac = 0.0;
+    for (gs_index i = 0; i < n_rows; i++)
+        out[i] = 0.0;
+    if (m->ne == 0 || n_rows == 0)
+        return GS_OK;
+    const cholmod_factor *L = s->L;
+    const SuiteSparse_long *super = L->super, *pi = L->pi, *px = L->px, *Ls = L->s;
+    const double *Lx = L->x;
+    SuiteSparse_long ns = (SuiteSparse_long)L->nsuper;
+    unsigned char *mk = s->smark;
+    /* The supernodes the rows' entries depend on: each row's supernode and
+     * its ancestors (the parent of a supernode is the supernode of its first
+     * row below the diagonal block); a walk stops at a marked one. */
+    SuiteSparse_long lo = ns;
+    for (gs_index i = 0; i < n_rows; i++) {
+        gs_index q = m->dof[rows[i]];
+        if (q < 0)
+            continue;
+        SuiteSparse_long t = s->sup[s->iperm[q]];
+        if (t < lo)
+            lo = t;
+        while (!mk[t]) {
+            mk[t] = 1;
+            SuiteSparse_long nc = super[t + 1] - super[t], nr = pi[t + 1] - pi[t];
+            if (nr == nc)
+                break;
+            t = s->sup[Ls[pi[t] + nc]];
+        }
+    }
+    /* L^T x = z over them, the last supernode first; the entries a column
+     * reads belong to marked supernodes (its ancestors), solved before. */
+    double *x = s->xb, used = 0.0;
+    for (SuiteSparse_long t = ns - 1; t >= lo; t--) {
+        if (!mk[t])
+            continue;
+        mk[t] = 0;
+        SuiteSparse_long k1 = super[t], nc = super[t + 1] - k1, nr = pi[t + 1] - pi[t];
+        const SuiteSparse_long *ri = Ls + pi[t];
+        const double *lq = Lx + px[t];
+        for (SuiteSparse_long c = nc - 1; c >= 0; c--) {
+            const double *lc = lq + c * nr;
+            double sum = z[k1 + c];
+            for (SuiteSparse_long r = c + 1; r < nr; r++)
+                sum -= lc[r] * x[ri[r]];
+            x[k1 + c] = sum / lc[c];
+        }
+        used += (double)(nr * nc);
+    }
+    for (gs_index i = 0; i < n_rows; i++) {
+        gs_index q = m->dof[rows[i]];
+        if (q >= 0)
+            out[i] = x[s->iperm[q]];
+    }
+    s->solves++;
+    if (frac)
+        *frac = used / (double)L->xsize;
     return GS_OK;
 }

@@ -441,8 +441,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
     gs_stiffness_run *run = NULL;
     ctx x;
     memset(&x, 0, sizeof x);
-    cholmod_l_start(&x.cc);
-    x.cc.print = 0;
+    gsi_cholmod_start(&x.cc);
     double *G = NULL;
     gs_err e = gs_stiffness_begin(sc, mesh_index, &so, &run, d);
     if (e != GS_OK)

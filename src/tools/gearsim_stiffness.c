@@ -5,7 +5,7 @@
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
- *                     [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows]
+ *                     [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -35,7 +35,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
                "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
-               "                         [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows]\n"
+               "                         [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -175,6 +175,8 @@ int main(int argc, char **argv)
             o.fine = 1;
         else if (!strcmp(a, "--all-rows"))
             o.all_rows = 1;
+        else if (!strcmp(a, "--all-dofs"))
+            o.all_dofs = 1;
         else if (!strcmp(a, "--no-tangent"))
             o.tangent = 0;
         else if (!strcmp(a, "--json"))
