@@ -1,5 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Static solves with K factored once (include/gearsim/fe_static.h). */
+#include <cblas.h>
 #include <cholmod.h>
 #include <stdlib.h>
 #ifdef _OPENMP
@@ -24,6 +25,7 @@ struct gs_fe_static {
     SuiteSparse_long *sup;   /* ne: supernode of factor column k */
     double *x;               /* ne: dense work, zero between calls */
     double *xb;              /* ne: gs_fe_static_back_rows' solution (factor order) */
+    double *xg;              /* ne: its gathered entries below a supernode's diagonal block */
     unsigned char *smark;    /* nsuper: gs_fe_static_back_rows' supernodes */
     unsigned char *mark;     /* nsuper: supernode queued */
     SuiteSparse_long *heap;  /* nsuper: pending supernodes (min-heap) */
@@ -43,6 +45,7 @@ void gs_fe_static_free(gs_fe_static **ps)
     free(s->sup);
     free(s->x);
     free(s->xb);
+    free(s->xg);
     free(s->smark);
     free(s->mark);
     free(s->heap);
@@ -116,12 +119,13 @@ gs_err gs_fe_static_new(const gs_fe_model *m, gs_fe_static **out)
         s->sup = malloc(ne * sizeof *s->sup);
         s->x = calloc(ne, sizeof *s->x);
         s->xb = malloc(ne * sizeof *s->xb);
+        s->xg = malloc(ne * sizeof *s->xg);
         s->smark = calloc(ns, 1);
         s->mark = calloc(ns, 1);
         s->heap = malloc(ns * sizeof *s->heap);
         s->hidx = malloc(ne * sizeof *s->hidx);
         s->hval = malloc(ne * sizeof *s->hval);
-        if (!s->iperm || !s->sup || !s->x || !s->xb || !s->smark || !s->mark || !s->heap || !s->hidx || !s->hval)
+        if (!s->iperm || !s->sup || !s->x || !s->xb || !s->xg || !s->smark || !s->mark || !s->heap || !s->hidx || !s->hval)
             goto fail;
         const SuiteSparse_long *perm = s->L->Perm, *super = s->L->super;
         for (size_t k = 0; k < ne; k++)
@@ -411,20 +415,32 @@ gs_err gs_fe_static_back_rows(gs_fe_static *s, const double *z, gs_index n_rows,
     }
     /* L^T x = z over them, the last supernode first; the entries a column
      * reads belong to marked supernodes (its ancestors), solved before. */
-    double *x = s->xb, used = 0.0;
+    double *x = s->xb, *g = s->xg, used = 0.0;
     for (SuiteSparse_long t = ns - 1; t >= lo; t--) {
         if (!mk[t])
             continue;
         mk[t] = 0;
         SuiteSparse_long k1 = super[t], nc = super[t + 1] - k1, nr = pi[t + 1] - pi[t];
+        SuiteSparse_long nb = nr - nc;
         const SuiteSparse_long *ri = Ls + pi[t];
         const double *lq = Lx + px[t];
+        double *xs = x + k1;
+        for (SuiteSparse_long c = 0; c < nc; c++)
+            xs[c] = z[k1 + c];
+        /* x_1 = L_11^{-T} (z_1 - L_21^T x_2), x_2 the entries below the
+         * diagonal block (gathered), as CHOLMOD's supernodal solve. */
+        if (nb > 0) {
+            for (SuiteSparse_long r = 0; r < nb; r++)
+                g[r] = x[ri[nc + r]];
+            cblas_dgemv(CblasColMajor, CblasTrans, (blasint)nb, (blasint)nc, -1.0, lq + nc,
+                        (blasint)nr, g, 1, 1.0, xs, 1);
+        }
         for (SuiteSparse_long c = nc - 1; c >= 0; c--) {
             const double *lc = lq + c * nr;
-            double sum = z[k1 + c];
-            for (SuiteSparse_long r = c + 1; r < nr; r++)
-                sum -= lc[r] * x[ri[r]];
-            x[k1 + c] = sum / lc[c];
+            double sum = xs[c];
+            for (SuiteSparse_long r = c + 1; r < nc; r++)
+                sum -= lc[r] * xs[r];
+            xs[c] = sum / lc[c];
         }
         used += (double)(nr * nc);
     }
