@@ -7,6 +7,7 @@
 #include <omp.h>
 #endif
 #include <string.h>
+#include <sys/mman.h>
 
 #include "fe/fe_internal.h"
 #include "gearsim/fe_static.h"
@@ -60,8 +61,44 @@ void gs_fe_static_free(gs_fe_static **ps)
     *ps = NULL;
 }
 
+/* CHOLMOD's large arrays (the factor's values above all, read by every
+ * back substitution and half column) on transparent huge pages where the
+ * kernel offers them on request (madvise): 2 MB pages instead of 4 kB, far
+ * fewer TLB misses and page faults. Blocks come from aligned_alloc, so
+ * free and realloc stay the C library's. */
+#define GS_HUGE_PAGE ((size_t)2 << 20)
+
+static void *huge_malloc(size_t n)
+{
+    if (n < GS_HUGE_PAGE)
+        return malloc(n);
+    size_t len = (n + GS_HUGE_PAGE - 1) / GS_HUGE_PAGE * GS_HUGE_PAGE;
+    void *p = aligned_alloc(GS_HUGE_PAGE, len);
+#ifdef MADV_HUGEPAGE
+    if (p)
+        (void)madvise(p, len, MADV_HUGEPAGE);
+#endif
+    return p;
+}
+
+static void *huge_calloc(size_t n, size_t size)
+{
+    if (size != 0 && n > (size_t)-1 / size)
+        return NULL;
+    if (n * size < GS_HUGE_PAGE)
+        return calloc(n, size);
+    void *p = huge_malloc(n * size);
+    if (p)
+        memset(p, 0, n * size);
+    return p;
+}
+
 void gsi_cholmod_start(cholmod_common *c)
 {
+    /* Before CHOLMOD's first allocation; blocks allocated before would be
+     * freed by free all the same. */
+    SuiteSparse_config.malloc_func = huge_malloc;
+    SuiteSparse_config.calloc_func = huge_calloc;
 #ifdef _OPENMP
     /* No active parallel level: every OpenMP region of the libraries runs
      * with a team of one (the calling thread). */
