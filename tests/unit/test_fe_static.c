@@ -103,6 +103,34 @@ static void half_columns_give_the_compliance(void **state)
         assert_true(fabs(u1[i] - u0[i]) <= 1e-10 * umax);
     /* the clamped nodes (x = 0) do not move */
     assert_true(u1[gs_fe_dof_node(0, 0)] == 0.0 && u1[gs_fe_dof_node(0, 1)] == 0.0);
+    /* Partial back substitution at a few rows (one node at the far end, the
+     * chosen dofs, a clamped node): the full one's entries, visiting part of
+     * L only; all rows: all of L. */
+    {
+        gs_index rows[2 * N + 3];
+        int nr = 0;
+        for (int j = 0; j < 2 * N; j++)
+            rows[nr++] = dofs[j];
+        rows[nr++] = gs_fe_dof_node(mesh->n_nodes - 1, 0);
+        rows[nr++] = gs_fe_dof_node(mesh->n_nodes - 1, 1);
+        rows[nr++] = gs_fe_dof_node(0, 1);
+        double ur[2 * N + 3], frac = -1.0;
+        long s1 = gs_fe_static_solves(s);
+        assert_int_equal(gs_fe_static_back_rows(s, z, nr, rows, ur, &frac), GS_OK);
+        assert_int_equal(gs_fe_static_solves(s), s1 + 1);
+        for (int i = 0; i < nr; i++)
+            assert_true(fabs(ur[i] - u1[rows[i]]) <= 1e-12 * umax);
+        assert_true(ur[nr - 1] == 0.0);
+        assert_true(frac > 0.0 && frac < 1.0);
+        double *ua = malloc(nn * sizeof *ua);
+        assert_non_null(ua);
+        assert_int_equal(gs_fe_static_back_rows(s, z, (gs_index)nn, all, ua, &frac), GS_OK);
+        assert_true(fabs(frac - 1.0) < 1e-12);
+        for (size_t i = 0; i < nn; i++)
+            assert_true(fabs(ua[i] - u1[i]) <= 1e-12 * umax);
+        free(ua);
+        s0 += 2;
+    }
     /* Batched: the back substitutions of the half columns are the columns
      * of K^{-1}, here at the chosen dofs. */
     double Cb[4 * N * N];
@@ -144,6 +172,9 @@ static void fixed_dofs_and_errors(void **state)
     assert_int_equal(gs_fe_static_back(NULL, 1, z, 1, &bad, z), GS_EINVAL);
     double *zz = calloc((size_t)gs_fe_static_size(s), sizeof *zz);
     assert_int_equal(gs_fe_static_back(s, 1, zz, 1, &bad, z), GS_EINVAL);
+    assert_int_equal(gs_fe_static_back_rows(s, zz, 1, &bad, z, NULL), GS_EINVAL);
+    assert_int_equal(gs_fe_static_back_rows(NULL, zz, 1, &bad, z, NULL), GS_EINVAL);
+    assert_int_equal(gs_fe_static_back_rows(s, NULL, 1, &bad, z, NULL), GS_EINVAL);
     free(zz);
     assert_int_equal(gs_fe_static_size(NULL), 0);
     gs_fe_static_free(&s);

@@ -362,6 +362,53 @@ static void window_matches_all_rows(void **state)
     gs_scene_free(&s);
 }
 
+/* The displacement zone (docs/STIFFNESS.md "Displacement zone"): the
+ * displacements only at the teeth the search reads, by partial back
+ * substitutions, give the solution of full back substitutions
+ * (gs_stiffness_opts.all_dofs) to round-off (1e-9 bar), plain and near
+ * field, at T and T/2, visiting part of the factor. */
+static void zone_matches_all_dofs(void **state)
+{
+    (void)state;
+    gs_scene *s = scene(0, 0, 0);
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 6;
+    o.order = 2;
+    for (int nf = 0; nf < 2; nf++) {
+        o.nearfield = nf;
+        gs_stiffness_result zone, all;
+        gs_diag d;
+        gs_diag_clear(&d);
+        o.all_dofs = 0;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &zone, &d), GS_OK);
+        o.all_dofs = 1;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &all, &d), GS_OK);
+        printf("# near field %d: zone fraction %.3f (all dofs %.3f), restarts %ld\n", nf,
+               zone.zone_fraction, all.zone_fraction, zone.zone_restarts);
+        assert_true(zone.zone_fraction > 0.0 && zone.zone_fraction < 0.9);
+        assert_true(all.zone_fraction == 1.0);
+        for (int j = 0; j < o.positions; j++) {
+            printf("#   roll %.3f: k %.12f / %.12f, k_tan %.12f / %.12f\n", zone.pt[j].roll,
+                   zone.pt[j].k, all.pt[j].k, zone.pt[j].k_tan, all.pt[j].k_tan);
+            assert_true(zone.pt[j].converged);
+            assert_true(fabs(zone.pt[j].k / all.pt[j].k - 1.0) < 1e-9);
+            assert_true(fabs(zone.pt[j].te_um / all.pt[j].te_um - 1.0) < 1e-9);
+            assert_true(fabs(zone.pt[j].k_tan / all.pt[j].k_tan - 1.0) < 1e-9);
+            assert_int_equal(zone.pt[j].pairs, all.pt[j].pairs);
+        }
+        gs_stiffness_result_clear(&zone);
+        gs_stiffness_result_clear(&all);
+    }
+    o.all_dofs = 2;
+    gs_stiffness_result r;
+    gs_diag d;
+    gs_diag_clear(&d);
+    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
+    assert_string_equal(d.field, "all_dofs");
+    gs_scene_free(&s);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -371,6 +418,7 @@ int main(void)
         cmocka_unit_test(bad_input),
         cmocka_unit_test(nearfield_softens),
         cmocka_unit_test(window_matches_all_rows),
+        cmocka_unit_test(zone_matches_all_dofs),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
