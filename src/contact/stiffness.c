@@ -384,9 +384,21 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
         for (gs_index q = 0; q < b->ynz[d]; q++)
             b->z[b->yi[d][q]] = b->yv[d][q];
         for (int e = 0; e <= d; e++) {
-            double sum = 0.0;
-            for (gs_index q = 0; q < b->ynz[e]; q++)
-                sum += b->yv[e][q] * b->z[b->yi[e][q]];
+            /* four partial sums: the gathered dot product is otherwise
+             * bound by the latency of one chain of additions */
+            const double *yv = b->yv[e], *z = b->z;
+            const gs_index *yi = b->yi[e];
+            gs_index nz = b->ynz[e], q = 0;
+            double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+            for (; q + 4 <= nz; q += 4) {
+                s0 += yv[q] * z[yi[q]];
+                s1 += yv[q + 1] * z[yi[q + 1]];
+                s2 += yv[q + 2] * z[yi[q + 2]];
+                s3 += yv[q + 3] * z[yi[q + 3]];
+            }
+            for (; q < nz; q++)
+                s0 += yv[q] * z[yi[q]];
+            double sum = (s0 + s1) + (s2 + s3);
             b->G[(size_t)d * cap + (size_t)e] = b->G[(size_t)e * cap + (size_t)d] = sum;
         }
         for (gs_index q = 0; q < b->ynz[d]; q++)
