@@ -98,7 +98,10 @@ typedef struct sbody {
     gs_index *ynz;        /* capd: nonzeros of each half column */
     gs_index **yi;        /* capd: its pattern (factor positions, ascending) */
     double **yv;          /* capd: its values */
-    double *G;            /* capd x capd: Gram matrix of the cached dofs */
+    double *G;            /* capd x capd: Gram matrix of the cached dofs (the entries
+                           * flagged in gk: computed when two dofs first meet in the rows
+                           * of one linearisation) */
+    unsigned char *gk;    /* capd x capd: G entry known */
     double **col;         /* capd: compliance column of each cached dof at the boundary dofs
                            * (the first ncol; ncol = 0 while the displacements come from
                            * one back substitution per linearisation) */
@@ -144,6 +147,7 @@ static void sbody_free(sbody *b)
     free(b->yv);
     free(b->col);
     free(b->G);
+    free(b->gk);
     free(b->fd);
     free(b->z);
     free(b->bpos);
@@ -300,12 +304,20 @@ static gs_err sbody_grow(sbody *b, int n)
     GROW(b->fd, cn);
     GROW(b->col, cn);
     double *G = malloc(cn * cn * sizeof *G);
-    if (!G)
+    unsigned char *gk = gs_calloc(cn * cn, 1);
+    if (!G || !gk) {
+        free(G);
+        free(gk);
         return GS_ENOMEM;
-    for (int i = 0; i < b->nd; i++)
+    }
+    for (int i = 0; i < b->nd; i++) {
         memcpy(G + (size_t)i * cn, b->G + (size_t)i * (size_t)b->capd, (size_t)b->nd * sizeof *G);
+        memcpy(gk + (size_t)i * cn, b->gk + (size_t)i * (size_t)b->capd, (size_t)b->nd);
+    }
     free(b->G);
+    free(b->gk);
     b->G = G;
+    b->gk = gk;
     b->capd = c;
     return GS_OK;
 }
@@ -344,10 +356,8 @@ static gs_err sbody_columns(sbody *b)
     return GS_OK;
 }
 
-/* Make sure the compliance among the dofs of the listed nodes (mesh
- * numbering, boundary nodes) and every dof cached before is known: the
- * half column of each new dof, and its Gram entries with all cached dofs
- * (one scatter of the new half column, one gather per cached one). */
+/* Make sure the half columns of the dofs of the listed nodes (mesh
+ * numbering, boundary nodes) are cached. */
 static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
 {
     double t0 = cpu_now();
@@ -379,11 +389,34 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
             b->nd++;
         }
     }
+    if (b->ncol > 0)
+        GS_TRY(sbody_columns(b));
+    b->columns += b->nd - nd0;
+    b->t_columns += cpu_now() - t0;
+    return GS_OK;
+}
+
+/* Make sure the Gram entries G_de = y_d . y_e among the n cached dofs sl
+ * (repeats allowed) are known: per dof that lacks one, one scatter of its
+ * half column and one gather per missing partner. */
+static void sbody_gram(sbody *b, int n, const int *sl)
+{
+    double t0 = cpu_now();
     size_t cap = (size_t)b->capd;
-    for (int d = nd0; d < b->nd; d++) {
+    for (int i = 0; i < n; i++) {
+        int d = sl[i];
+        const unsigned char *kd = b->gk + (size_t)d * cap;
+        int need = 0;
+        for (int j = 0; j < n && !need; j++)
+            need = !kd[sl[j]];
+        if (!need)
+            continue;
         for (gs_index q = 0; q < b->ynz[d]; q++)
             b->z[b->yi[d][q]] = b->yv[d][q];
-        for (int e = 0; e <= d; e++) {
+        for (int j = 0; j < n; j++) {
+            int e = sl[j];
+            if (b->gk[(size_t)d * cap + (size_t)e])
+                continue;
             /* four partial sums: the gathered dot product is otherwise
              * bound by the latency of one chain of additions */
             const double *yv = b->yv[e], *z = b->z;
@@ -400,15 +433,12 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
                 s0 += yv[q] * z[yi[q]];
             double sum = (s0 + s1) + (s2 + s3);
             b->G[(size_t)d * cap + (size_t)e] = b->G[(size_t)e * cap + (size_t)d] = sum;
+            b->gk[(size_t)d * cap + (size_t)e] = b->gk[(size_t)e * cap + (size_t)d] = 1;
         }
         for (gs_index q = 0; q < b->ynz[d]; q++)
             b->z[b->yi[d][q]] = 0.0;
     }
-    if (b->ncol > 0)
-        GS_TRY(sbody_columns(b));
-    b->columns += b->nd - nd0;
     b->t_columns += cpu_now() - t0;
-    return GS_OK;
 }
 
 /* The boundary displacements u = C f from the forces f_d on the cached
@@ -538,6 +568,7 @@ typedef struct work {
     double *H, *cvec, *x, *lam_in, *Gm, *gz, *gbar, *a;
     rowdofs *rd[2];        /* per row and body: its dofs' cache slots and dg/du */
     int (*teeth)[2];       /* per row: tooth pair of its candidate (cand_teeth) */
+    int *gsl;              /* 8 cap: the rows' cache slots of one body (sbody_gram) */
     int n_prev;            /* 1 when the last linearisation changed delta by little */
     /* Contact window: the QP takes the rows whose gap is below win (m); the
      * others are checked at the solution (window_missed). */
@@ -592,6 +623,7 @@ static void work_free(work *w)
     free(w->row);
     free(w->cand);
     free(w->teeth);
+    free(w->gsl);
     free(w->kept);
     free(w->H);
     free(w->cvec);
@@ -623,6 +655,7 @@ static gs_err work_reserve(work *w, int n)
     GROW(w->gbar, cn);
     GROW(w->a, cn);
     GROW(w->teeth, cn);
+    GROW(w->gsl, 8 * cn);
     for (int k = 0; k < 2; k++)
         GROW(w->rd[k], cn);
     w->cap = c;
@@ -1276,6 +1309,11 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
                         rd[i].g[2 * t + c] = gg[t][c];
                     }
             }
+            int ns = 0;
+            for (int i = 0; i < nr; i++)
+                for (int p = 0; p < 2 * rd[i].m; p++)
+                    w->gsl[ns++] = rd[i].slot[p];
+            sbody_gram(b, ns, w->gsl);
             size_t cap = (size_t)b->capd;
             for (int i = 0; i < nr; i++)
                 for (int j = 0; j <= i; j++) {
