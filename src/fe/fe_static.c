@@ -356,19 +356,31 @@ gs_err gs_fe_static_half_column(gs_fe_static *s, gs_index dof, gs_index *nnz,
     while (nh > 0) {
         SuiteSparse_long q = heap_pop(s->heap, &nh);
         s->mark[q] = 0;
-        SuiteSparse_long nc = super[q + 1] - super[q], nr = pi[q + 1] - pi[q];
+        SuiteSparse_long nc = super[q + 1] - super[q], nr = pi[q + 1] - pi[q], nb = nr - nc;
         const SuiteSparse_long *rows = Ls + pi[q];
         const double *lq = Lx + px[q];
+        /* x_1 = L_11^{-1} x_1 in the diagonal block, then x_2 -= L_21 x_1
+         * below it (one dgemv into g, scattered), as CHOLMOD's supernodal
+         * solve */
+        double *x1 = x + super[q];
         for (SuiteSparse_long c = 0; c < nc; c++) {
-            SuiteSparse_long j = super[q] + c;
-            double xj = x[j] / lq[c + c * nr];
-            x[j] = xj;
+            double xj = x1[c] / lq[c + c * nr];
+            x1[c] = xj;
             if (xj != 0.0)
-                for (SuiteSparse_long r = c + 1; r < nr; r++)
-                    x[rows[r]] -= lq[r + c * nr] * xj;
-            s->hidx[n] = (gs_index)j;
-            s->hval[n++] = xj;
-            x[j] = 0.0;
+                for (SuiteSparse_long r = c + 1; r < nc; r++)
+                    x1[r] -= lq[r + c * nr] * xj;
+        }
+        if (nb > 0) {
+            double *g = s->xg;
+            cblas_dgemv(CblasColMajor, CblasNoTrans, (blasint)nb, (blasint)nc, 1.0, lq + nc,
+                        (blasint)nr, x1, 1, 0.0, g, 1);
+            for (SuiteSparse_long r = 0; r < nb; r++)
+                x[rows[nc + r]] -= g[r];
+        }
+        for (SuiteSparse_long c = 0; c < nc; c++) {
+            s->hidx[n] = (gs_index)(super[q] + c);
+            s->hval[n++] = x1[c];
+            x1[c] = 0.0;
         }
         for (SuiteSparse_long r = nc; r < nr; r++) {
             SuiteSparse_long t = s->sup[rows[r]];
