@@ -321,13 +321,14 @@ static void nearfield_softens(void **state)
     gs_scene_free(&s);
 }
 
-/* The contact window (docs/STIFFNESS.md "Contact window") leaves out of
- * the QP the rows far from the contact: the same solution as with every
- * row (to round-off: 1e-8 bar, measured <1e-10), plain and near field, at T
- * and at T/2 (the tangent), with fewer contact dofs. */
-static void window_matches_all_rows(void **state)
+/* The standard pair at order 2 over 6 positions, plain and near field,
+ * analysed with a reference switch of the options (the int at offset
+ * flag) off and on; check compares the two results of each. */
+typedef void (*switch_check)(int nf, int positions, const gs_stiffness_result *on,
+                             const gs_stiffness_result *ref);
+
+static void run_switch(size_t flag, switch_check check)
 {
-    (void)state;
     gs_scene *s = scene(0, 0, 0);
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
@@ -335,31 +336,47 @@ static void window_matches_all_rows(void **state)
     o.order = 2;
     for (int nf = 0; nf < 2; nf++) {
         o.nearfield = nf;
-        gs_stiffness_result win, all;
-        gs_diag d;
-        gs_diag_clear(&d);
-        o.all_rows = 0;
-        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &win, &d), GS_OK);
-        o.all_rows = 1;
-        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &all, &d), GS_OK);
-        printf("# near field %d: contact dofs %ld windowed, %ld all rows; window widened %ld\n",
-               nf, win.columns, all.columns, win.window_widened);
-        assert_true(win.columns < all.columns);
-        assert_int_equal(all.window_widened, 0);
-        for (int j = 0; j < o.positions; j++) {
-            printf("#   roll %.3f: k %.9f / %.9f, k_tan %.9f / %.9f, rows %d / %d\n", win.pt[j].roll,
-                   win.pt[j].k, all.pt[j].k, win.pt[j].k_tan, all.pt[j].k_tan, win.pt[j].rows,
-                   all.pt[j].rows);
-            assert_true(win.pt[j].converged);
-            assert_true(fabs(win.pt[j].k / all.pt[j].k - 1.0) < 1e-8);
-            assert_true(fabs(win.pt[j].k_tan / all.pt[j].k_tan - 1.0) < 1e-8);
-            assert_int_equal(win.pt[j].pairs, all.pt[j].pairs);
-            assert_true(win.pt[j].rows < all.pt[j].rows);
+        gs_stiffness_result r[2];
+        for (int v = 0; v < 2; v++) {
+            gs_diag d;
+            gs_diag_clear(&d);
+            *(int *)((char *)&o + flag) = v;
+            assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r[v], &d), GS_OK);
         }
-        gs_stiffness_result_clear(&win);
-        gs_stiffness_result_clear(&all);
+        check(nf, o.positions, &r[0], &r[1]);
+        gs_stiffness_result_clear(&r[0]);
+        gs_stiffness_result_clear(&r[1]);
     }
     gs_scene_free(&s);
+}
+
+/* The contact window (docs/STIFFNESS.md "Contact window") leaves out of
+ * the QP the rows far from the contact: the same solution as with every
+ * row (to round-off: 1e-8 bar, measured <1e-10), plain and near field, at T
+ * and at T/2 (the tangent), with fewer contact dofs. */
+static void window_check(int nf, int positions, const gs_stiffness_result *win,
+                         const gs_stiffness_result *all)
+{
+    printf("# near field %d: contact dofs %ld windowed, %ld all rows; window widened %ld\n", nf,
+           win->columns, all->columns, win->window_widened);
+    assert_true(win->columns < all->columns);
+    assert_int_equal(all->window_widened, 0);
+    for (int j = 0; j < positions; j++) {
+        const gs_stiffness_point *a = &win->pt[j], *b = &all->pt[j];
+        printf("#   roll %.3f: k %.9f / %.9f, k_tan %.9f / %.9f, rows %d / %d\n", a->roll, a->k,
+               b->k, a->k_tan, b->k_tan, a->rows, b->rows);
+        assert_true(a->converged);
+        assert_true(fabs(a->k / b->k - 1.0) < 1e-8);
+        assert_true(fabs(a->k_tan / b->k_tan - 1.0) < 1e-8);
+        assert_int_equal(a->pairs, b->pairs);
+        assert_true(a->rows < b->rows);
+    }
+}
+
+static void window_matches_all_rows(void **state)
+{
+    (void)state;
+    run_switch(offsetof(gs_stiffness_opts, all_rows), window_check);
 }
 
 /* The displacement zone (docs/STIFFNESS.md "Displacement zone"): the
@@ -367,39 +384,32 @@ static void window_matches_all_rows(void **state)
  * substitutions, give the solution of full back substitutions
  * (gs_stiffness_opts.all_dofs) to round-off (1e-9 bar), plain and near
  * field, at T and T/2, visiting part of the factor. */
+static void zone_check(int nf, int positions, const gs_stiffness_result *zone,
+                       const gs_stiffness_result *all)
+{
+    printf("# near field %d: zone fraction %.3f (all dofs %.3f), restarts %ld\n", nf,
+           zone->zone_fraction, all->zone_fraction, zone->zone_restarts);
+    assert_true(zone->zone_fraction > 0.0 && zone->zone_fraction < 0.9);
+    assert_true(all->zone_fraction == 1.0);
+    for (int j = 0; j < positions; j++) {
+        const gs_stiffness_point *a = &zone->pt[j], *b = &all->pt[j];
+        printf("#   roll %.3f: k %.12f / %.12f, k_tan %.12f / %.12f\n", a->roll, a->k, b->k,
+               a->k_tan, b->k_tan);
+        assert_true(a->converged);
+        assert_true(fabs(a->k / b->k - 1.0) < 1e-9);
+        assert_true(fabs(a->te_um / b->te_um - 1.0) < 1e-9);
+        assert_true(fabs(a->k_tan / b->k_tan - 1.0) < 1e-9);
+        assert_int_equal(a->pairs, b->pairs);
+    }
+}
+
 static void zone_matches_all_dofs(void **state)
 {
     (void)state;
+    run_switch(offsetof(gs_stiffness_opts, all_dofs), zone_check);
     gs_scene *s = scene(0, 0, 0);
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
-    o.positions = 6;
-    o.order = 2;
-    for (int nf = 0; nf < 2; nf++) {
-        o.nearfield = nf;
-        gs_stiffness_result zone, all;
-        gs_diag d;
-        gs_diag_clear(&d);
-        o.all_dofs = 0;
-        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &zone, &d), GS_OK);
-        o.all_dofs = 1;
-        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &all, &d), GS_OK);
-        printf("# near field %d: zone fraction %.3f (all dofs %.3f), restarts %ld\n", nf,
-               zone.zone_fraction, all.zone_fraction, zone.zone_restarts);
-        assert_true(zone.zone_fraction > 0.0 && zone.zone_fraction < 0.9);
-        assert_true(all.zone_fraction == 1.0);
-        for (int j = 0; j < o.positions; j++) {
-            printf("#   roll %.3f: k %.12f / %.12f, k_tan %.12f / %.12f\n", zone.pt[j].roll,
-                   zone.pt[j].k, all.pt[j].k, zone.pt[j].k_tan, all.pt[j].k_tan);
-            assert_true(zone.pt[j].converged);
-            assert_true(fabs(zone.pt[j].k / all.pt[j].k - 1.0) < 1e-9);
-            assert_true(fabs(zone.pt[j].te_um / all.pt[j].te_um - 1.0) < 1e-9);
-            assert_true(fabs(zone.pt[j].k_tan / all.pt[j].k_tan - 1.0) < 1e-9);
-            assert_int_equal(zone.pt[j].pairs, all.pt[j].pairs);
-        }
-        gs_stiffness_result_clear(&zone);
-        gs_stiffness_result_clear(&all);
-    }
     o.all_dofs = 2;
     gs_stiffness_result r;
     gs_diag d;
