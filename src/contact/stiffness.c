@@ -931,8 +931,6 @@ static int corner_loa(const work *w, int kc, const double P[2], const double nre
     X[1] = bc->c[1] + Xl[1];
     double rfv = hypot(X[0] - bf->c[0], X[1] - bf->c[1]);
     double raf = gs_gear_tip_radius(&bf->sb->gear);
-    if (getenv("NF4DBG"))
-        fprintf(stderr, "LOA kc %d rho_tip %.4f rho_v %.4f rcv %.4f rfv %.4f (form %.4f %.4f)\n", kc, rho_tip*1e3, rho_v*1e3, rcv*1e3, rfv*1e3, w->nf_rform[kc]*1e3, w->nf_rform[1-kc]*1e3);
     return rcv >= w->nf_rform[kc] && rfv >= w->nf_rform[1 - kc] && rfv <= raf;
 }
 
@@ -1019,8 +1017,6 @@ static gs_err nf_offsets(work *w)
             }
             ng0 = 1;
         }
-        if (getenv("NF4DBG"))
-            fprintf(stderr, "OFF pair %d,%d corner %d gmin %.4f um slave %d node %ld\n", t[0], t[1], (int)corner, rm->gap.g * 1e6, w->cand[im]->slave == w->si[0] ? 0 : 1, (long)w->cand[im]->slave_node);
         int oslave = -1, flank = 0, okc = -1;
         double oxv = 0.0;
         int cmask = corner ? pair_curvature(w, rm->x[0], &(double){0.0}, NULL) : 0;
@@ -1042,7 +1038,7 @@ static gs_err nf_offsets(work *w)
                               gn > 0.0 ? w->row[ic].gap.grad[1] / gn : 0.0};
             double xvc = NAN;
             int inside = gn > 0.0 && corner_loa(w, kc, w->row[ic].x[0], nref, xv, &xvc);
-            if (isfinite(xvc)) {
+            if (isfinite(xvc) && (inside || xvc < 0.0)) {
                 okc = kc;
                 oxv = xvc;
             }
@@ -1056,13 +1052,10 @@ static gs_err nf_offsets(work *w)
                  * its exact gap (the master's parabolic edges near its form
                  * point may sit ~1 um off the involute at the default
                  * density). */
-                if (getenv("NF4DBG")) fprintf(stderr, "GEX node %ld g %.4f gex %.4f\n", (long)w->cand[ic]->slave_node, w->row[ic].gap.g*1e6, gex*1e6);
                 off = w->row[ic].gap.g - gex;
                 oslave = w->si[kc];
             }
         }
-        if (getenv("NF4DBG"))
-            fprintf(stderr, "OFF2 pair %d,%d off %.4f um slave %d\n", t[0], t[1], off * 1e6, oslave);
         if (ng0 > 0)
             off = rm->gap.g - (w->nf_conj ? 0.0 : g0best);
         w->go[w->n_go].tooth[0] = t[0];
@@ -1297,21 +1290,6 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
          * mesh does not resolve a; never add a negative compliance (W must
          * stay positive definite). */
         c = skip ? 0.0 : fmax(c, 0.0);
-        if (getenv("NF4DBG")) {
-            fprintf(stderr, "NF pair %d,%d lam %.1f corner %d kc %d hasx %d X %.4f %.4f curvR %.3fmm c %.4g L %.4g dep %.3g %.3g xv %.4g kw %.4g\n",
-                    g[p].tooth[0], g[p].tooth[1], lam, pair_curvature(w, X, &(double){0}, NULL), kc, has_x,
-                    X[0]*1e3, X[1]*1e3, 1e3/fmax(curv,1e-9), c*1e9, L*1e9, dep[0]*1e3, dep[1]*1e3, xvc*1e3, kw);
-            for (int i = 0; i < nr; i++) {
-                const int *ti = w->teeth[i];
-                if (ti[0] != g[p].tooth[0] || ti[1] != g[p].tooth[1])
-                    continue;
-                const gs_contact_row *r = &w->row[i];
-                double r0 = hypot(r->x[0][0]-w->b[0].c[0], r->x[0][1]-w->b[0].c[1]);
-                double r1 = hypot(r->x[0][0]-w->b[1].c[0], r->x[0][1]-w->b[1].c[1]);
-                fprintf(stderr, "   row slave %d where %d node %ld r0 %.4f r1 %.4f g %.4f um x %.2f\n", w->cand[i]->slave == w->si[0] ? 0 : 1, w->cand[i]->slave_where,
-                        (long)w->cand[i]->slave_node, r0*1e3, r1*1e3, r->gap.g*1e6, w->x[i]);
-            }
-        }
         w->pc[np].tooth[0] = g[p].tooth[0];
         w->pc[np].tooth[1] = g[p].tooth[1];
         w->pc[np].c = c;
