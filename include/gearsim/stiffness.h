@@ -241,4 +241,30 @@ double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, dou
 int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double *s_v,
                    double *g0);
 
+/* Near-field law of a line contact next to a sharp tip corner
+ * (docs/STIFFNESS.md "Tip-corner contact"): x along the common tangent from
+ * the corner into the corner body's flank, rigid gap (x - xv)^2 / (2 R)
+ * (xv > 0: the flanks' touching point inside the flank; xv < 0: beyond the
+ * corner, whose flank face then leaves the other flank at -xv / R).
+ *
+ * gs_corner_line_width: the contact length, 2 a (Hertz) when xv >= a, else
+ * c = (2 xv + sqrt(4 xv^2 + 48 R P / (pi E*))) / 3 on [0, c], the pressure
+ * singular at the corner. NaN for invalid arguments.
+ * gs_corner_line_approach: one body's rigid approach (surface to depth d,
+ * the gap's vertex for xv >= 0, the corner's gap for xv < 0 as reference)
+ * under the line load P: gs_hertz_line_approach when xv >= a, else the
+ * load-weighted approach of the Hertzian load of equal logarithmic energy,
+ * plus (K - 2/pi) P ln(d / a_eq) / E' (K: gs_wedge_apex_factor of the
+ * corner body, 2/pi for the flank's half-plane), plus this body's share
+ * E* / E' of the load-weighted rigid gap. Continuous at xv = a.
+ * gs_wedge_apex_factor: K = cos^2 psi / (al + sin al cos al) + sin^2 psi /
+ * (al - sin al cos al), the coefficient in the approach P K ln(d / r) / E'
+ * along the line of a force at the apex of a wedge of half-angle al, at psi
+ * from its bisector (Michell's radial stress field); 2 / pi for the
+ * half-plane. NaN unless 0 < al <= pi / 2 and |psi| <= al. */
+double gs_corner_line_width(double load_per_m, double r_eff_m, double xv_m, double e_star_pa);
+double gs_corner_line_approach(double load_per_m, double r_eff_m, double xv_m, double depth_m,
+                               double E, double nu, gs_plane plane, double e_star_pa, double K);
+double gs_wedge_apex_factor(double half_angle, double psi);
+
 #endif

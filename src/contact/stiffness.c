@@ -591,6 +591,7 @@ typedef struct work {
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
     int nf_conj;           /* perfect flanks touch at the kinematic angle (nf_offsets) */
+    double nf_rform[2];    /* form radius of each body (involute above it), m */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
     struct {
@@ -599,7 +600,10 @@ typedef struct work {
         double L;          /* FE near-field compliance (surface to Q, both bodies), m/N */
         double depth[2];   /* depth of Q in each body, m */
         double reff;       /* effective radius of curvature, m */
-        int skip;          /* corner contact, or Q not found: no correction */
+        int kc;            /* contact next to a tip corner: the corner body (-1: none) */
+        double xv;         /* the flanks' touching point from the corner, m (corner_loa) */
+        double kw;         /* the corner's wedge apex factor (gs_wedge_apex_factor) */
+        int skip;          /* Q not found, or a corner on a concave flank: no correction */
     } pc[GS_STIFF_MAX_PAIRS];
     double *fq, *uq;       /* scratch 2 n_nodes of the larger body */
     /* Near-field correction: per tooth pair the node-sampling part of its
@@ -608,6 +612,11 @@ typedef struct work {
     struct gap_off {
         int tooth[2];
         double off;        /* m */
+        int slave;         /* search gear of the rows it applies to (-1: all) */
+        int flank;         /* a conjugate contact inside both flanks next to a tip
+                            * corner (corner_loa): a flank contact at xb */
+        int kc;            /* next to a tip corner of this body (-1: no) */
+        double xv;         /* the touching point from the corner (corner_loa), m */
         int has_x;         /* the flanks' contact point found: */
         double xb[2];      /* it, in the driver's body frame, m */
     } go[2 * GS_STIFF_MAX_PAIRS];
@@ -693,11 +702,12 @@ static const struct gap_off *gap_off_find(const work *w, const int t[2])
     return NULL;
 }
 
-/* The gap offset of the rows of tooth pair t (nf_offsets; 0 when none). */
-static double gap_offset(const work *w, const int t[2])
+/* The gap offset of the rows of tooth pair t whose slave is search gear
+ * slave (nf_offsets; 0 when none). */
+static double gap_offset(const work *w, const int t[2], int slave)
 {
     const struct gap_off *go = gap_off_find(w, t);
-    return go ? go->off : 0.0;
+    return go && (go->slave < 0 || go->slave == slave) ? go->off : 0.0;
 }
 
 /* Make the displacement zones cover what the last search read: the teeth
@@ -770,7 +780,7 @@ static gs_err collect(work *w, double delta, double win, int *nr, double *gmin)
         bool have_tp = w->n_go > 0; /* near-field gap offsets: only they need the pair here */
         if (have_tp) {
             cand_teeth(w, &cand[j], tp);
-            r.gap.g -= gap_offset(w, tp);
+            r.gap.g -= gap_offset(w, tp, cand[j].slave);
         }
         double a = r.dg_dtheta[w->si[0]];
         if (!(a * w->sgn < -tiny || r.gap.g < 0.0))
@@ -853,17 +863,54 @@ static int locate(const gs_mesh *m, const double q[2], gs_index node[6], double 
     return 0;
 }
 
-/* Hertzian approach (both bodies, surface to their depths) of pair p under
+/* Near-field approach of body k from its surface to depth d under the line
+ * load Pm (N/m) of a pair of effective radius reff: the Hertzian law at the
+ * contact centre; next to a tip corner of body kc (kc >= 0), the flanks'
+ * touching point xv from the corner, gs_corner_line_approach (the corner
+ * body a wedge of factor kw where the load reaches the corner). */
+static double nf_body_approach(const work *w, double reff, int kc, double xv, double kw, int k,
+                               double Pm, double depth)
+{
+    const gs_material *mk = &w->b[k].sb->material;
+    if (kc < 0) {
+        double a = gs_hertz_line_half_width(Pm, reff, w->nf_estar);
+        return gs_hertz_line_approach(Pm, a, depth, mk->youngs_pa, mk->poisson, mk->plane);
+    }
+    return gs_corner_line_approach(Pm, reff, xv, depth, mk->youngs_pa, mk->poisson, mk->plane,
+                                   w->nf_estar, k == kc ? kw : 2.0 / GS_PI);
+}
+
+/* Near-field approach (both bodies, surface to their depths) of pair p under
  * the normal load lam (N), divided by lam. */
 static double nf_hertz(const work *w, int p, double lam)
 {
-    double Pm = lam / w->nf_bw, a = gs_hertz_line_half_width(Pm, w->pc[p].reff, w->nf_estar);
-    double s = 0.0;
-    for (int k = 0; k < 2; k++) {
-        const gs_material *mk = &w->b[k].sb->material;
-        s += gs_hertz_line_approach(Pm, a, w->pc[p].depth[k], mk->youngs_pa, mk->poisson, mk->plane);
-    }
+    double Pm = lam / w->nf_bw, s = 0.0;
+    for (int k = 0; k < 2; k++)
+        s += nf_body_approach(w, w->pc[p].reff, w->pc[p].kc, w->pc[p].xv, w->pc[p].kw, k, Pm,
+                              w->pc[p].depth[k]);
     return s / lam;
+}
+
+/* Unit normal of the involute of body k through the point X (scene frame):
+ * the line through X tangent to the base circle; of its two directions
+ * (either flank) the one nearest +-nref. */
+static void involute_normal(const work *w, int k, const double X[2], const double nref[2], double n[2])
+{
+    const gs_gear_params *gp = &w->b[k].sb->gear;
+    double ex = X[0] - w->b[k].c[0], ey = X[1] - w->b[k].c[1], r = hypot(ex, ey);
+    double rb = gs_gear_base_radius(gp), sb = fmin(rb / r, 1.0), cb = sqrt(1.0 - sb * sb);
+    ex /= r;
+    ey /= r;
+    double best = -1.0;
+    for (int sg = -1; sg <= 1; sg += 2) {
+        double m[2] = {cb * ex - sg * sb * ey, cb * ey + sg * sb * ex};
+        double dp = fabs(m[0] * nref[0] + m[1] * nref[1]);
+        if (dp > best) {
+            best = dp;
+            n[0] = m[0];
+            n[1] = m[1];
+        }
+    }
 }
 
 /* Normal load of every stored pair in the current solution; c from it. */
@@ -909,6 +956,147 @@ static int pair_curvature(const work *w, const double X[2], double *curv, double
             kb[k] = ck;
     }
     return corner;
+}
+
+static double wrap_pi(double a)
+{
+    return a - 2.0 * GS_PI * floor((a + GS_PI) / (2.0 * GS_PI));
+}
+
+/* The exact rigid gap (*g, m) of a tip corner, the slave node of row r
+ * (candidate cd; rigid bodies, u = 0), against the involute flank of the
+ * master body kf: its involute's base angle phi0 from the master window's
+ * nodes on the involute (r_form <= r <= r_tip; the boundary nodes lie on
+ * the exact outline), F(X) = theta_X - s inv(alpha_X) (constant, phi0, on
+ * an involute unwound in the sense s = +-1, the sense for which the nodes
+ * agree), and the distance of the corner P from it along P's normal line to
+ * the base circle, s r_b (phi0 - F(P)), signed by the master's outward
+ * normal (the row's gap gradient). Returns 0 (no *g) when fewer than two
+ * window nodes are on the involute, they do not agree, or the foot of P
+ * is off the involute (a corner on the fillet). */
+static int corner_exact_gap(const work *w, int kf, const gs_contact_row *r,
+                            const gs_contact_candidate *cd, double *g)
+{
+    const sbody *b = &w->b[kf];
+    const gs_gear_params *gp = &b->sb->gear;
+    double rb = gs_gear_base_radius(gp), ra = gs_gear_tip_radius(gp), rf = w->nf_rform[kf];
+    double rlo = fmin(rf, ra), rhi = fmax(rf, ra);
+    double th = w->theta0[kf], cs = cos(th), sn = sin(th);
+    double best = INFINITY, phi0 = 0.0;
+    int sbest = 0;
+    for (int sg = -1; sg <= 1; sg += 2) {
+        double f0 = 0.0, lo = INFINITY, hi = -INFINITY;
+        int n = 0;
+        for (int j = 0; j < cd->n_window; j++) {
+            const double *X = b->mesh->xy + 2 * cd->window[j];
+            double rr = hypot(X[0], X[1]);
+            if (!(rr >= rlo * (1.0 + 1e-9) && rr <= rhi * (1.0 - 1e-9) && rr > rb))
+                continue;
+            double ang = atan2(sn * X[0] + cs * X[1], cs * X[0] - sn * X[1]);
+            double F = ang - sg * gs_involute(acos(rb / rr));
+            if (n == 0)
+                f0 = F;
+            double dF = wrap_pi(F - f0);
+            lo = fmin(lo, dF);
+            hi = fmax(hi, dF);
+            n++;
+        }
+        if (n >= 2 && hi - lo < best) {
+            best = hi - lo;
+            sbest = sg;
+            phi0 = f0 + 0.5 * (hi + lo);
+        }
+    }
+    if (!(best * rb < 1e-8))
+        return 0;
+    const double *P = r->x[0];
+    double px = P[0] - b->c[0], py = P[1] - b->c[1], rp = hypot(px, py);
+    if (!(rp > rb))
+        return 0;
+    double al = acos(rb / rp), thp = atan2(py, px);
+    double dF = wrap_pi(thp - sbest * gs_involute(al) - phi0);
+    double phT = thp + sbest * al;
+    double T[2] = {rb * cos(phT), rb * sin(phT)};
+    double u[2] = {px - T[0], py - T[1]}, lt = hypot(u[0], u[1]);
+    double foot = lt + sbest * rb * dF; /* |Y'T|: the involute's point on P's normal line */
+    double rfoot = hypot(rb, foot);
+    if (!(rfoot >= rlo && rfoot <= rhi + 1e-3 * gp->module_m))
+        return 0;
+    double dn = -sbest * rb * dF;
+    double gn = hypot(r->gap.grad[0], r->gap.grad[1]);
+    if (!(gn > 0.0))
+        return 0;
+    double side = (u[0] * r->gap.grad[0] + u[1] * r->gap.grad[1]) / (lt * gn);
+    *g = side >= 0.0 ? dn : -dn;
+    return 1;
+}
+
+/* Where a pair flagged as a tip-corner contact (the corner P of body kc is
+ * its nearest node) touches, for conjugate involutes of two external gears:
+ * the line of action (the common internal tangent of the base circles
+ * nearest the corner's involute normal) crosses the corner's involute at
+ * roll length rho_v = rho_tip + s r_b (phi(T_v) - phi(T_tip)) (T the
+ * tangent points of the involute's normals at the crossing and at P, s its
+ * unwinding sense). Returns 1 with the crossing in X (scene frame) when it
+ * is inside the corner's flank (rho_v < rho_tip) and on both involutes
+ * (above both form radii): a flank contact next to the corner, whose rows
+ * sample it with no node beyond the corner; 0 when the crossing is beyond
+ * the tip: a true corner contact. */
+static int corner_loa(const work *w, int kc, const double P[2], const double nref[2], double X[2],
+                      double *xv)
+{
+    const sbody *bc = &w->b[kc], *bf = &w->b[1 - kc];
+    if (bc->sb->gear.kind == GS_GEAR_INTERNAL || bf->sb->gear.kind == GS_GEAR_INTERNAL)
+        return 0;
+    double rbc = gs_gear_base_radius(&bc->sb->gear), rbf = gs_gear_base_radius(&bf->sb->gear);
+    double px = P[0] - bc->c[0], py = P[1] - bc->c[1], rp = hypot(px, py);
+    if (!(rp > rbc))
+        return 0;
+    /* The corner's involute normal: of the two tangents from P, the one
+     * nearest the flank body's involute normal at P. */
+    double nf_[2], nc_[2];
+    involute_normal(w, 1 - kc, P, nref, nf_);
+    involute_normal(w, kc, P, nf_, nc_);
+    /* Tangent point of the corner's normal line on base circle kc. */
+    double tpar = px * nc_[0] + py * nc_[1];
+    double T[2] = {px - tpar * nc_[0], py - tpar * nc_[1]};
+    double rho_tip = sqrt(rp * rp - rbc * rbc);
+    double sg = (T[0] * py - T[1] * px) < 0.0 ? 1.0 : -1.0; /* -sign(e_T x (P - T)) */
+    /* The line of action: unit normal m, m.X = h, tangent to both base
+     * circles with the circles on opposite sides. */
+    double D[2] = {bf->c[0] - bc->c[0], bf->c[1] - bc->c[1]}, a = hypot(D[0], D[1]);
+    double cg = (rbc + rbf) / a;
+    if (!(cg < 1.0))
+        return 0;
+    double sgm = sqrt(1.0 - cg * cg), Dh[2] = {D[0] / a, D[1] / a}, Dp[2] = {-Dh[1], Dh[0]};
+    double m[2] = {0.0, 0.0}, best = INFINITY;
+    for (int i = 0; i < 4; i++) {
+        double c1 = (i & 1) ? -cg : cg, s1 = (i & 2) ? -sgm : sgm;
+        double mm[2] = {c1 * Dh[0] + s1 * Dp[0], c1 * Dh[1] + s1 * Dp[1]};
+        double q = fabs(mm[0] * nc_[0] + mm[1] * nc_[1]);
+        if (q < best) {
+            best = q;
+            m[0] = mm[0];
+            m[1] = mm[1];
+        }
+    }
+    /* Circle kc at the origin here: m.C_c - h = sc rbc, m.D = -sc (rbc + rbf). */
+    double sc = -(m[0] * D[0] + m[1] * D[1]) / (rbc + rbf);
+    double Tv[2] = {-sc * rbc * m[0], -sc * rbc * m[1]}; /* foot from the centre */
+    double dphi = wrap_pi(atan2(Tv[1], Tv[0]) - atan2(T[1], T[0]));
+    double rho_v = rho_tip + sg * rbc * dphi;
+    /* Along the common tangent: the involute's arc between the roll lengths. */
+    *xv = (rho_tip * rho_tip - rho_v * rho_v) / (2.0 * rbc);
+    if (!(rho_v < rho_tip) || !(rho_v > 0.0))
+        return 0;
+    double e[2] = {Tv[0] / rbc, Tv[1] / rbc};
+    double Xl[2] = {Tv[0] + rho_v * sg * e[1], Tv[1] - rho_v * sg * e[0]};
+    double rcv = hypot(Xl[0], Xl[1]);
+    X[0] = bc->c[0] + Xl[0];
+    X[1] = bc->c[1] + Xl[1];
+    double rfv = hypot(X[0] - bf->c[0], X[1] - bf->c[1]);
+    double raf = gs_gear_tip_radius(&bf->sb->gear);
+    return rcv >= w->nf_rform[kc] && rfv >= w->nf_rform[1 - kc] && rfv <= raf;
 }
 
 /* Near-field correction, rigid bodies at the kinematic position (delta 0,
@@ -994,11 +1182,54 @@ static gs_err nf_offsets(work *w)
             }
             ng0 = 1;
         }
+        int oslave = -1, flank = 0, okc = -1;
+        double oxv = 0.0;
+        int cmask = corner ? pair_curvature(w, rm->x[0], &(double){0.0}, NULL) : 0;
+        if ((cmask == 1 || cmask == 2) && w->nf_conj) {
+            /* A tip corner of body kc: its row (the corner node as slave). */
+            int kc = cmask == 1 ? 0 : 1, ic = -1;
+            double rtc = gs_gear_tip_radius(&w->b[kc].sb->gear);
+            for (int j = 0; j < nr; j++) {
+                if (w->teeth[j][0] != t[0] || w->teeth[j][1] != t[1] ||
+                    w->cand[j]->slave != w->si[kc])
+                    continue;
+                double rr = hypot(w->row[j].x[0][0] - w->b[kc].c[0], w->row[j].x[0][1] - w->b[kc].c[1]);
+                if (fabs(rr - rtc) < 1e-3 * w->b[kc].sb->gear.module_m &&
+                    (ic < 0 || w->row[j].gap.g < w->row[ic].gap.g))
+                    ic = j;
+            }
+            double gex, gn = ic >= 0 ? hypot(w->row[ic].gap.grad[0], w->row[ic].gap.grad[1]) : 0.0;
+            double nref[2] = {gn > 0.0 ? w->row[ic].gap.grad[0] / gn : 0.0,
+                              gn > 0.0 ? w->row[ic].gap.grad[1] / gn : 0.0};
+            double xvc = NAN;
+            int inside = gn > 0.0 && corner_loa(w, kc, w->row[ic].x[0], nref, xv, &xvc);
+            if (isfinite(xvc) && (inside || xvc < 0.0)) {
+                okc = kc;
+                oxv = xvc;
+            }
+            if (inside) {
+                /* Conjugate flanks touching next to the corner: a flank
+                 * contact at xv, g0 = 0 (as below). */
+                flank = 1;
+                ng0 = 1;
+            } else if (okc >= 0 && corner_exact_gap(w, 1 - kc, &w->row[ic], w->cand[ic], &gex)) {
+                /* A true corner contact: the rows of the corner node take
+                 * its exact gap (the master's parabolic edges near its form
+                 * point may sit ~1 um off the involute at the default
+                 * density). */
+                off = w->row[ic].gap.g - gex;
+                oslave = w->si[kc];
+            }
+        }
         if (ng0 > 0)
             off = rm->gap.g - (w->nf_conj ? 0.0 : g0best);
         w->go[w->n_go].tooth[0] = t[0];
         w->go[w->n_go].tooth[1] = t[1];
         w->go[w->n_go].off = off;
+        w->go[w->n_go].slave = oslave;
+        w->go[w->n_go].flank = flank;
+        w->go[w->n_go].kc = okc;
+        w->go[w->n_go].xv = oxv;
         w->go[w->n_go].has_x = ng0 > 0;
         if (ng0 > 0) {
             /* Driver's body frame at the kinematic angle (delta 0). */
@@ -1074,13 +1305,27 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         double nD[2] = {g[p].n[0] / nn, g[p].n[1] / nn};
         double curv, kb[2];
         int corner = pair_curvature(w, X, &curv, kb);
-        /* A tip corner of one body on the flank of the other: the flank
-         * body alone gets the near-field law, as a half-plane under the
-         * contact width of a line contact with its own flank curvature. */
-        int only = -1;
-        if ((corner == 1 || corner == 2) && kb[corner == 1 ? 1 : 0] > 0.0) {
-            /* (A concave flank, a ring's, under a corner: no half-plane
-             * width; the pair keeps the plain FE.) */
+        if (go && go->flank)
+            corner = 0;
+        /* Next to a tip corner of body kc (nf_offsets found where the
+         * flanks touch, xv from the corner): both bodies get
+         * gs_corner_line_approach with both flanks' curvature, the corner
+         * body a wedge of half-angle (pi/2 + alpha_tip)/2 loaded normal to
+         * its flank face. */
+        int kc = -1, only = -1;
+        double xvc = 0.0, kw = 0.0;
+        if (go && go->kc >= 0) {
+            kc = go->kc;
+            xvc = go->xv;
+            corner = 0;
+            const gs_gear_params *gc = &w->b[kc].sb->gear;
+            double at = acos(fmin(gs_gear_base_radius(gc) / gs_gear_tip_radius(gc), 1.0));
+            double al = 0.25 * GS_PI + 0.5 * at;
+            kw = gs_wedge_apex_factor(al, 0.5 * GS_PI - al);
+        } else if ((corner == 1 || corner == 2) && kb[corner == 1 ? 1 : 0] > 0.0) {
+            /* Otherwise (modified flanks, a ring) the flank body alone gets
+             * the half-plane law with its own flank curvature; a concave
+             * flank, a ring's, under a corner keeps the plain FE. */
             only = corner == 1 ? 1 : 0;
             curv = kb[only];
             corner = 0;
@@ -1090,11 +1335,11 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
             w->pc[np].tooth[0] = g[p].tooth[0];
             w->pc[np].tooth[1] = g[p].tooth[1];
             w->pc[np].skip = 1;
+            w->pc[np].kc = -1;
             np++;
             continue;
         }
-        double Pm = lam / w->nf_bw;
-        double a = gs_hertz_line_half_width(Pm, 1.0 / fmax(curv, 1e-9), w->nf_estar);
+        double Pm = lam / w->nf_bw, reff = 1.0 / fmax(curv, 1e-9);
         double c = 0.0, L = 0.0, dep[2] = {0.0, 0.0};
         bool skip = false;
         for (int k = 0; k < 2 && !skip; k++) {
@@ -1179,8 +1424,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
                     dself = lam * ux - own;
                 }
             }
-            double dh = gs_hertz_line_approach(Pm, a, depth, b->sb->material.youngs_pa,
-                                               b->sb->material.poisson, b->sb->material.plane);
+            double dh = nf_body_approach(w, reff, kc, xvc, kw, k, Pm, depth);
             c += (dh - (as - aq - dself)) / lam;
             L += (as - aq - dself) / lam;
             dep[k] = depth;
@@ -1217,7 +1461,10 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
         w->pc[np].L = L;
         w->pc[np].depth[0] = dep[0];
         w->pc[np].depth[1] = dep[1];
-        w->pc[np].reff = 1.0 / fmax(curv, 1e-9);
+        w->pc[np].reff = reff;
+        w->pc[np].kc = kc;
+        w->pc[np].xv = xvc;
+        w->pc[np].kw = kw;
         w->pc[np].skip = skip;
         np++;
     }
@@ -1446,7 +1693,7 @@ static gs_err solve_load(work *w, double T, int max_iter, double delta0, double 
     for (int i = 0; i < *nr_out; i++) {
         gs_contact_row r;
         GS_TRY(gs_contact_eval(w->search, pose, w->cand[i], &r));
-        r.gap.g -= gap_offset(w, w->teeth[i]);
+        r.gap.g -= gap_offset(w, w->teeth[i], w->cand[i]->slave);
         if (r.gap.g < lo)
             lo = r.gap.g;
     }
@@ -1673,6 +1920,13 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         w.nf_estar = gs_hertz_line_modulus(m0->youngs_pa, m0->poisson, m1->youngs_pa,
                                            m1->poisson, m0->plane);
         w.nf_bw = fmin(gA->face_width_m, gB->face_width_m);
+        for (int k = 0; k < 2 && e == GS_OK; k++) {
+            gs_gear_geom gg;
+            e = gs_gear_geometry(&w.b[k].sb->gear, &gg, d);
+            w.nf_rform[k] = gg.r_form;
+        }
+        if (e != GS_OK)
+            goto done;
         /* Unmodified gears at their tight-mesh centre distance (to 0.01 um:
          * the common gap that leaves is below 0.01 um): conjugate involutes,
          * whose every flank pair touches at the kinematic angle

@@ -7,6 +7,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 
 #include <cmocka.h>
 
@@ -162,6 +163,116 @@ static void gap_vertex_circles(void **state)
     }
 }
 
+/* Tip-corner law (gs_corner_line_*): a Hertzian zone that just reaches the
+ * corner (xv = a) is Hertz's; the law is continuous there. */
+static void corner_law_is_hertz_at_the_corner(void **state)
+{
+    (void)state;
+    double P = 8e4, R = 5e-3, E = 210e9, nu = 0.3, d = 5e-4;
+    double es = gs_hertz_line_modulus(E, nu, E, nu, GS_PLANE_STRAIN);
+    double a = gs_hertz_line_half_width(P, R, es);
+    double h = gs_hertz_line_approach(P, a, d, E, nu, GS_PLANE_STRAIN);
+    double lo = gs_corner_line_approach(P, R, a * (1.0 - 1e-9), d, E, nu, GS_PLANE_STRAIN, es,
+                                        2.0 / M_PI);
+    double hi = gs_corner_line_approach(P, R, a * (1.0 + 1e-9), d, E, nu, GS_PLANE_STRAIN, es,
+                                        2.0 / M_PI);
+    print_message("xv = a: Hertz %.6e, corner law %.6e / %.6e m\n", h, lo, hi);
+    assert_true(fabs(hi - h) <= 1e-12 * h);
+    assert_true(fabs(lo - h) <= 1e-6 * h);
+    assert_true(fabs(gs_corner_line_width(P, R, a * (1.0 - 1e-9), es) - 2.0 * a) < 1e-6 * a);
+    /* A zone cut by the corner is softer than the whole one, more so the
+     * more of it is cut (xv from a down to beyond the corner). */
+    double prev = h;
+    for (double f = 0.75; f > -3.0; f -= 0.5) {
+        double v = gs_corner_line_approach(P, R, f * a, d, E, nu, GS_PLANE_STRAIN, es, 2.0 / M_PI);
+        assert_true(v > prev);
+        prev = v;
+    }
+}
+
+/* The contact length balances the load, P = pi E* c (3 c - 4 xv) / (16 R),
+ * and far beyond the corner (a flat face at angle beta = -xv / R) tends to
+ * 4 P / (pi E* beta). */
+static void corner_width_balances_the_load(void **state)
+{
+    (void)state;
+    double P = 3e4, es = 1.154e11;
+    const double xvs[] = {-2e-4, -5e-5, 0.0, 2e-5};
+    for (int i = 0; i < 4; i++) {
+        double R = 4.6e-3, c = gs_corner_line_width(P, R, xvs[i], es);
+        double Pc = M_PI * es * c * (3.0 * c - 4.0 * xvs[i]) / (16.0 * R);
+        assert_true(fabs(Pc - P) < 1e-9 * P);
+        assert_true(c >= 2.0 * xvs[i]); /* the pressure at the corner is not negative */
+    }
+    double beta = 0.05, R = 1e3, c = gs_corner_line_width(P, R, -beta * R, es);
+    double c0 = 4.0 * P / (M_PI * es * beta);
+    print_message("flat face: c %.4e m, 4 P / (pi E* beta) %.4e m\n", c, c0);
+    assert_true(fabs(c / c0 - 1.0) < 1e-3);
+}
+
+/* The law's closed forms (log energy and moments of the pressure
+ * w(t) (A0 + A1 t)) against a quadrature: with t = -cos(th) the load is
+ * (1 + cos th)(A0 - A1 cos th) d th, smooth; the logarithmic energy
+ * int int ln|x - y| by the midpoint rule on a staggered pair of grids (the
+ * diagonal singularity is integrable). */
+static void corner_law_matches_quadrature(void **state)
+{
+    (void)state;
+    double P = 3e4, E = 210e9, nu = 0.3, d = 5e-4, R = 4.6e-3;
+    double Ep = E / (1.0 - nu * nu), es = 0.5 * Ep;
+    const double xvs[] = {-2.4e-4, -3e-5, 1e-5};
+    for (int i = 0; i < 3; i++) {
+        double xv = xvs[i], c = gs_corner_line_width(P, R, xv, es);
+        double A1 = c, A0 = 2.0 * (c - xv);
+        int n = 4000;
+        double *x = malloc(sizeof *x * (size_t)n), *wq = malloc(sizeof *wq * (size_t)n);
+        double *y = malloc(sizeof *y * (size_t)n), *wy = malloc(sizeof *wy * (size_t)n);
+        double W = 0.0, Wy = 0.0, m2 = 0.0;
+        for (int k = 0; k < n; k++) {
+            double th = M_PI * (k + 0.5) / n, th2 = M_PI * (k + 0.25) / n;
+            x[k] = 0.5 * c * (1.0 - cos(th));
+            wq[k] = (1.0 + cos(th)) * (A0 - A1 * cos(th));
+            y[k] = 0.5 * c * (1.0 - cos(th2));
+            wy[k] = (1.0 + cos(th2)) * (A0 - A1 * cos(th2));
+            W += wq[k];
+            Wy += wy[k];
+            m2 += wq[k] * (x[k] - xv) * (x[k] - xv);
+        }
+        m2 /= W;
+        double en = 0.0;
+        for (int k = 0; k < n; k++)
+            for (int j = 0; j < n; j++)
+                en += wq[k] * wy[j] * log(fabs(x[k] - y[j]));
+        en /= W * Wy;
+        free(x);
+        free(wq);
+        free(y);
+        free(wy);
+        double aeq = 2.0 * exp(en + 0.25);
+        double g = m2 - (xv < 0.0 ? xv * xv : 0.0);
+        double want = gs_hertz_line_approach(P, aeq, d, E, nu, GS_PLANE_STRAIN) -
+                      P / (2.0 * M_PI * Ep) + es / Ep * g / (2.0 * R);
+        double got = gs_corner_line_approach(P, R, xv, d, E, nu, GS_PLANE_STRAIN, es, 2.0 / M_PI);
+        print_message("xv %.1e m: c %.3e m, approach %.6e (quadrature %.6e) m\n", xv, c, got, want);
+        assert_true(fabs(got - want) < 2e-3 * want);
+    }
+}
+
+/* Michell's wedge: the half-plane's 2/pi at any angle; a narrower wedge is
+ * more compliant, most across its bisector. */
+static void wedge_apex_factor(void **state)
+{
+    (void)state;
+    for (double psi = -1.5; psi <= 1.5; psi += 0.5)
+        assert_true(fabs(gs_wedge_apex_factor(M_PI / 2.0, psi) - 2.0 / M_PI) < 1e-12);
+    double al = M_PI / 3.0;
+    assert_true(fabs(gs_wedge_apex_factor(al, 0.0) - 1.0 / (al + sin(al) * cos(al))) < 1e-12);
+    assert_true(gs_wedge_apex_factor(al, 0.0) > 2.0 / M_PI);
+    assert_true(gs_wedge_apex_factor(al, 0.5) > gs_wedge_apex_factor(al, 0.0));
+    assert_true(isnan(gs_wedge_apex_factor(al, 1.2)));
+    assert_true(isnan(gs_wedge_apex_factor(0.0, 0.0)));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -170,6 +281,10 @@ int main(void)
         cmocka_unit_test(half_width_and_modulus),
         cmocka_unit_test(gap_vertex_parabola),
         cmocka_unit_test(gap_vertex_circles),
+        cmocka_unit_test(corner_law_is_hertz_at_the_corner),
+        cmocka_unit_test(corner_width_balances_the_load),
+        cmocka_unit_test(corner_law_matches_quadrature),
+        cmocka_unit_test(wedge_apex_factor),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
