@@ -51,6 +51,7 @@
 typedef struct run_out {
     double speed, defl, pen, residual, scale, wall, iters; /* iters: mean per step */
     double *dte, *vel; /* per step of the tail: line-of-action deflection and its rate a . w */
+    double *phase;     /* and the mesh phase c . q (cycles) */
     /* contact meshes, over the tail: share of the steps with no loaded row
      * (the teeth apart), smallest and mean |force| along the line of action */
     double apart, fmin, fmean;
@@ -63,6 +64,8 @@ static run_out run(gs_system *s, int n, int tail)
     run_out r = {0};
     r.dte = calloc((size_t)tail, sizeof(double));
     r.vel = calloc((size_t)tail, sizeof(double));
+    r.phase = calloc((size_t)tail, sizeof(double));
+    assert_non_null(r.phase);
     assert_non_null(r.dte);
     assert_non_null(r.vel);
     gs_energy e;
@@ -79,9 +82,12 @@ static run_out run(gs_system *s, int n, int tail)
             const gs_gmesh_rt *m = &s->meshes[0];
             defl += m->deflection;
             pen += m->penetration;
-            double v = 0;
-            for (int j = 0; j < s->n_coords; j++)
+            double v = 0, ph = 0;
+            for (int j = 0; j < s->n_coords; j++) {
                 v += m->a[j] * s->w[j];
+                ph += m->c[j] * s->q[j];
+            }
+            r.phase[i - (n - tail)] = ph;
             r.dte[i - (n - tail)] = m->deflection;
             r.vel[i - (n - tail)] = v;
             if (m->ops->contact)
@@ -164,7 +170,8 @@ static double unwarp(double f, double h)
  * x (n samples, step h) band-passed to [f0, f1] (the exact DFT on the
  * window's own grid k / (n h), inverted over the band), its zero
  * crossings counted: (crossings - 1) / (2 x the time between the first
- * and the last), the midpoint rule's warp undone. The mode's frequency
+ * and the last), the midpoint rule's warp undone; over whole mesh cycles
+ * (whole_cycles). The mode's frequency
  * changes over the mesh cycle with the number of loaded tooth pairs (FE
  * eigenproblem: 7.8 kHz single, 9.7 kHz double contact); the count of
  * crossings averages it over time, at steady speed the mean over the
@@ -209,6 +216,19 @@ static double crossing_frequency(const double *x, int n, double h, double f0, do
     free(st);
     assert_true(crossings > 2);
     return unwarp((crossings - 1) / (2 * (last - first)), h);
+}
+
+/* The samples from the first of the tail that span whole mesh cycles (the
+ * cycle mean must weigh single and double contact by their shares of a
+ * cycle: 4.24 cycles in the 30 ms window would move it by 0.5 %). */
+static int whole_cycles(const run_out *r, int tail)
+{
+    double cycles = floor(fabs(r->phase[tail - 1] - r->phase[0]));
+    assert_true(cycles >= 1);
+    int i = 0;
+    while (i < tail && fabs(r->phase[i] - r->phase[0]) < cycles)
+        i++;
+    return i;
 }
 
 /* The lumped, calibrated pair: the same scene at fidelity "lumped", the
@@ -421,9 +441,9 @@ static void calibrated_run(void)
     double f_lum_run = unwarp(dominant_frequency(a.vel, tail, lum->h, 4000, 14000), lum->h);
     /* The cycle-mean mode the runs follow (crossing_frequency): the FE run,
      * the modal calibration's run, the tangent one's. */
-    double f_fe = crossing_frequency(b.vel, tail, fe->h, CROSS_F0, CROSS_F1);
-    double f_mod_run = crossing_frequency(md.vel, tail, mod->h, CROSS_F0, CROSS_F1); /* printed */
-    double f_lum_cross = crossing_frequency(a.vel, tail, lum->h, CROSS_F0, CROSS_F1);
+    double f_fe = crossing_frequency(b.vel, whole_cycles(&b, tail), fe->h, CROSS_F0, CROSS_F1);
+    double f_mod_run = crossing_frequency(md.vel, whole_cycles(&md, tail), mod->h, CROSS_F0, CROSS_F1); /* printed */
+    double f_lum_cross = crossing_frequency(a.vel, whole_cycles(&a, tail), lum->h, CROSS_F0, CROSS_F1);
     /* The FE eigenproblem's cycle mean at the same load: the modal table
      * holds k_t (f_FE / f_2)^2 per position, so sqrt(k_mod (rb1^2/I1 +
      * rb2^2/I2)) / 2 pi is f_FE there (to the difference of the two
@@ -496,6 +516,10 @@ static void calibrated_run(void)
     free(c.vel);
     free(md.dte);
     free(md.vel);
+    free(a.phase);
+    free(b.phase);
+    free(c.phase);
+    free(md.phase);
     gs_system_free(&mod);
     gs_system_free(&sec);
     gs_system_free(&lum);
