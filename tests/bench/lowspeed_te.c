@@ -6,6 +6,10 @@
  * lie in [--from, --to] seconds it prints the
  * mean and the rms about the mean, the mean mesh frequency, the largest
  * |balance residual| against the energy scale and the booked contact work.
+ * The CSV also has per step the TE's rate a . w (m/s), the mesh force (N),
+ * the loaded and all contact rows and the deepest penetration (m); the JSON
+ * the share of the window's steps with no loaded row ("apart": the teeth
+ * separated; docs/STIFFNESS.md "A non-rattling FE reference run").
  * The dynamic TE includes the no-load closing of the flanks (backlash and
  * chord sag, `te0` of gearsim-stiffness): subtract its mean to compare the
  * mean with the static TE.
@@ -72,8 +76,9 @@ int main(int argc, char **argv)
     }
     FILE *out = csv ? fopen(csv, "w") : NULL;
     if (out)
-        fprintf(out, "t_s,phase_cycles,te_um\n");
+        fprintf(out, "t_s,phase_cycles,te_um,rate_m_s,force_n,active,rows,penetration_m\n");
     dyn_window w = {0};
+    long steps = 0, apart = 0; /* window steps, those with no loaded contact row (the teeth apart) */
     while (s->time < t1 - 0.5 * s->h) {
         if (gs_step_serial(s) != GS_OK) {
             fprintf(stderr, "t %.6f: %s: %s\n", s->time, s->diag.field, s->diag.message);
@@ -87,8 +92,15 @@ int main(int argc, char **argv)
             return 1;
         }
         const dw_sample_t *x = &w.s[w.n - 1];
+        const gs_gmesh_rt *m = &s->meshes[0];
+        steps++;
+        apart += m->ops->contact && m->n_active == 0;
+        double v = 0; /* the deflection's rate a . w */
+        for (int j = 0; j < s->n_coords; j++)
+            v += m->a[j] * s->w[j];
         if (out)
-            fprintf(out, "%.9g,%.12g,%.6f\n", x->t, x->phase, x->te * 1e6);
+            fprintf(out, "%.9g,%.12g,%.6f,%.9e,%.6e,%d,%d,%.4e\n", x->t, x->phase, x->te * 1e6, v, m->force,
+                    m->n_active, m->n_rows, m->penetration);
     }
     if (out)
         fclose(out);
@@ -99,9 +111,9 @@ int main(int argc, char **argv)
     }
     printf("{\"scene\": \"%s\", \"h\": %.3g, \"from\": %.4f, \"cycles\": %d, \"seconds\": %.5f, "
            "\"mesh_hz\": %.2f, \"mean_um\": %.5f, \"rms_um\": %.5f, \"pp_um\": %.5f, \"balance_rel\": %.2e, "
-           "\"contact_work_j\": %.4e, \"samples\": %ld}\n",
+           "\"contact_work_j\": %.4e, \"samples\": %ld, \"apart\": %.5f}\n",
            path, s->h, t0, fig.cycles, fig.seconds, fig.mesh_hz, fig.te_mean * 1e6, fig.te_rms * 1e6, fig.te_pp * 1e6,
-           fig.balance_rel, w.contact_work, fig.used);
+           fig.balance_rel, w.contact_work, fig.used, steps ? (double)apart / (double)steps : 0.0);
     dw_free(&w);
     gs_system_free(&s);
     return 0;

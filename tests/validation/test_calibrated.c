@@ -16,13 +16,16 @@
  *  - the mean dynamic TE of the two runs, the same quantity (line-of-action
  *    deflection less the FE backlash closing and contact penetration),
  *    agree within 10%;
- *  - the first torsional mesh mode against the dominant frequency of the FE
- *    run (mesh velocity and DTE; the FE run with numerics.contact
- *    "closure_energy"): the modal calibration (k_t scaled per position to
- *    the FE pair's own eigenproblem, delta_0 keeping the static TE) within
- *    3% in closed form (issue 8) and 5% in its own run, keeping the mean TE
- *    within 1%; the tangent calibration below it (the web's compliance in
- *    the static stiffness) by less than 15%;
+ *  - the FE run (numerics.contact "closure_energy", 5 % material damping at
+ *    the FE mesh mode) is linear: no step with the teeth apart; its
+ *    cycle-mean frequency of the mesh velocity within 3% of its own
+ *    eigenproblem's mean mode;
+ *  - the first torsional mesh mode against that cycle-mean frequency: the
+ *    modal calibration (k_t scaled per position to the FE pair's own
+ *    eigenproblem, delta_0 keeping the static TE) within 3% in closed form
+ *    (issue 8) and 5% in its own run, keeping the mean TE within 1%; the
+ *    tangent calibration below it (the web's compliance in the static
+ *    stiffness) by less than 15%; the spectral peaks printed;
  *  - the secant calibration, run alongside, is printed for comparison;
  * and the wall-time ratio of the two runs is printed, not asserted: speed is
  * the benchmarks' business (bench_tradeoff, docs/PERFORMANCE.md).
@@ -48,6 +51,10 @@
 typedef struct run_out {
     double speed, defl, pen, residual, scale, wall, iters; /* iters: mean per step */
     double *dte, *vel; /* per step of the tail: line-of-action deflection and its rate a . w */
+    double *phase;     /* and the mesh phase c . q (cycles) */
+    /* contact meshes, over the tail: share of the steps with no loaded row
+     * (the teeth apart), smallest and mean |force| along the line of action */
+    double apart, fmin, fmean;
 } run_out;
 
 static run_out run(gs_system *s, int n, int tail)
@@ -57,6 +64,8 @@ static run_out run(gs_system *s, int n, int tail)
     run_out r = {0};
     r.dte = calloc((size_t)tail, sizeof(double));
     r.vel = calloc((size_t)tail, sizeof(double));
+    r.phase = calloc((size_t)tail, sizeof(double));
+    assert_non_null(r.phase);
     assert_non_null(r.dte);
     assert_non_null(r.vel);
     gs_energy e;
@@ -73,11 +82,18 @@ static run_out run(gs_system *s, int n, int tail)
             const gs_gmesh_rt *m = &s->meshes[0];
             defl += m->deflection;
             pen += m->penetration;
-            double v = 0;
-            for (int j = 0; j < s->n_coords; j++)
+            double v = 0, ph = 0;
+            for (int j = 0; j < s->n_coords; j++) {
                 v += m->a[j] * s->w[j];
+                ph += m->c[j] * s->q[j];
+            }
+            r.phase[i - (n - tail)] = ph;
             r.dte[i - (n - tail)] = m->deflection;
             r.vel[i - (n - tail)] = v;
+            if (m->ops->contact)
+                r.apart += (m->n_active == 0) / (double)tail;
+            r.fmin = i == n - tail ? fabs(m->force) : fmin(r.fmin, fabs(m->force));
+            r.fmean += fabs(m->force) / tail;
         }
     }
     r.wall = gs_now() - t0;
@@ -150,6 +166,71 @@ static double unwarp(double f, double h)
     return tan(M_PI * f * h) / (M_PI * h);
 }
 
+/* Cycle-mean frequency of the mode a parametrically excited run follows:
+ * x (n samples, step h) band-passed to [f0, f1] (the exact DFT on the
+ * window's own grid k / (n h), inverted over the band), its zero
+ * crossings counted: (crossings - 1) / (2 x the time between the first
+ * and the last), the midpoint rule's warp undone; over whole mesh cycles
+ * (whole_cycles). The mode's frequency
+ * changes over the mesh cycle with the number of loaded tooth pairs (FE
+ * eigenproblem: 7.8 kHz single, 9.7 kHz double contact); the count of
+ * crossings averages it over time, at steady speed the mean over the
+ * cycle's positions that the eigenproblem quotes. The spectral peak
+ * instead falls on the lobe the response spends most time in (the double
+ * contact's), not on that mean. */
+static double crossing_frequency(const double *x, int n, double h, double f0, double f1)
+{
+    double *y = calloc((size_t)n, sizeof(double)), *ct = malloc((size_t)n * sizeof(double)),
+           *st = malloc((size_t)n * sizeof(double));
+    assert_non_null(y);
+    assert_non_null(ct);
+    assert_non_null(st);
+    for (int i = 0; i < n; i++) {
+        ct[i] = cos(2 * M_PI * i / n);
+        st[i] = sin(2 * M_PI * i / n);
+    }
+    int k0 = (int)ceil(f0 * n * h), k1 = (int)floor(f1 * n * h);
+    for (int k = k0; k <= k1 && 2 * k < n; k++) {
+        double c = 0, s = 0;
+        for (int i = 0; i < n; i++) {
+            int j = (int)(((long)k * i) % n);
+            c += x[i] * ct[j];
+            s += x[i] * st[j];
+        }
+        for (int i = 0; i < n; i++) {
+            int j = (int)(((long)k * i) % n);
+            y[i] += 2.0 / n * (c * ct[j] + s * st[j]);
+        }
+    }
+    int crossings = 0;
+    double first = 0, last = 0;
+    for (int i = 0; i + 1 < n; i++)
+        if ((y[i] < 0) != (y[i + 1] < 0)) {
+            double tz = (i + y[i] / (y[i] - y[i + 1])) * h;
+            if (crossings++ == 0)
+                first = tz;
+            last = tz;
+        }
+    free(y);
+    free(ct);
+    free(st);
+    assert_true(crossings > 2);
+    return unwarp((crossings - 1) / (2 * (last - first)), h);
+}
+
+/* The samples from the first of the tail that span whole mesh cycles (the
+ * cycle mean must weigh single and double contact by their shares of a
+ * cycle: 4.24 cycles in the 30 ms window would move it by 0.5 %). */
+static int whole_cycles(const run_out *r, int tail)
+{
+    double cycles = floor(fabs(r->phase[tail - 1] - r->phase[0]));
+    assert_true(cycles >= 1);
+    int i = 0;
+    while (i < tail && fabs(r->phase[i] - r->phase[0]) < cycles)
+        i++;
+    return i;
+}
+
 /* The lumped, calibrated pair: the same scene at fidelity "lumped", the
  * mesh's stiffness from the FE analysis, no backlash (the FE transmission
  * error is measured from the contact-just-closing position); calibration
@@ -157,6 +238,25 @@ static double unwarp(double f, double h)
 /* Element order of the elastic gears (and of the calibration): 1 pins
  * linear triangles, 2 is the default mesh. */
 static int g_order = 2;
+
+/* The FE reference run's material damping: ratio FE_ZETA at the FE pair's
+ * cycle-mean mesh mode (gearsim-modal --fe, docs/MODAL.md: 9075.2 Hz on the
+ * default mesh, 9236.3 Hz on linear triangles, 20 N m). */
+#define FE_ZETA 0.05
+#define FE_MODE_HZ_O2 9075.2
+#define FE_MODE_HZ_O1 9236.3
+/* Bars on the mesh mode: the FE run's cycle-mean frequency against its own
+ * eigenproblem (the modal calibration's per-position FE modes) and the
+ * modal calibration's closed form against the FE run (issue 8: 3 %), the
+ * modal calibration's own run against the FE run (issue 15: 5 %). */
+#define MODE_FE_EIGEN_BAR 0.03
+#define MODE_CLOSED_BAR 0.03
+#define MODE_RUN_BAR 0.05
+/* Band of the cycle-mean frequency estimate (Hz): the mesh mode's range
+ * over the cycle (7.5-10 kHz) with margin, the mesh harmonics of the
+ * flank geometry below it. */
+#define CROSS_F0 5000.0
+#define CROSS_F1 13000.0
 
 static json_object *drive_scene(void)
 {
@@ -167,6 +267,18 @@ static json_object *drive_scene(void)
      * mode (7.9 kHz against 9.3 kHz on the default mesh). */
     json_object_object_add(json_object_object_get(root, "numerics"), "contact",
                            json_object_new_string("closure_energy"));
+    /* Material damping on both gears, FE_ZETA at the FE pair's mesh mode
+     * (the lumped meshes' default 5 % of theirs): the reference run's
+     * vibration about the loaded state then decays as the lumped runs' does.
+     * Undamped or damped, no step of the window has the teeth apart (a row
+     * loaded at every step; asserted below). */
+    json_object *bs = json_object_object_get(root, "bodies");
+    for (size_t i = 0; i < json_object_array_length(bs); i++) {
+        json_object *mat = json_object_new_object();
+        json_object_object_add(mat, "damping_ratio", json_object_new_double(FE_ZETA));
+        json_object_object_add(mat, "damping_hz", json_object_new_double(g_order == 1 ? FE_MODE_HZ_O1 : FE_MODE_HZ_O2));
+        json_object_object_add(json_object_array_get_idx(bs, i), "material", mat);
+    }
     return root;
 }
 
@@ -181,6 +293,8 @@ static gs_system *lumped_calibrated(const char *calibration)
     for (size_t i = 0; i < json_object_array_length(bs); i++)
         json_object_object_add(json_object_array_get_idx(bs, i), "model", json_object_new_string("rigid"));
     json_object_object_del(tree, "fidelity");
+    for (size_t i = 0; i < json_object_array_length(bs); i++)
+        json_object_object_del(json_object_array_get_idx(bs, i), "material"); /* rigid: no material damping */
     json_object *m = json_object_array_get_idx(json_object_object_get(tree, "meshes"), 0);
     json_object_object_add(m, "model", json_object_new_string("lumped"));
     json_object *st = json_object_new_object();
@@ -306,10 +420,11 @@ static void calibrated_run(void)
     /* (2) First torsional mesh mode. Lumped: omega^2 = k_mean (rb1^2/I1 +
      * rb2^2/I2) with the calibrated (tangent) k_mean and the rigid inertias;
      * also the lumped run's own dominant frequency by the FE run's estimator.
-     * FE: the dominant frequency of the FE run's mesh-velocity signal a . w
-     * (the rate of the DTE, which weights the mode above the low mesh
-     * harmonics of the flank geometry) and of its DTE over the same steady
-     * window, the midpoint rule's frequency warp undone. */
+     * FE: the cycle-mean frequency of the FE run's mesh-velocity signal
+     * a . w (the rate of the DTE, which weights the mode above the low mesh
+     * harmonics of the flank geometry; crossing_frequency), and, printed,
+     * the dominant frequency (spectral peak) of it and of its DTE over the
+     * same steady window, the midpoint rule's frequency warp undone. */
     double inv_l = 0, inv_f = 0;
     for (int i = 0; i < lum->n_bodies; i++) {
         int c = lum->bodies[i].coord;
@@ -319,40 +434,75 @@ static void calibrated_run(void)
     }
     double f_lum = sqrt(kmean * inv_l) / (2 * M_PI), f_tan = sqrt(ktan * inv_f) / (2 * M_PI);
     double f_sec = sqrt(ksec * inv_l) / (2 * M_PI), f_mod = sqrt(kmod * inv_l) / (2 * M_PI);
-    double f_mod_run = unwarp(dominant_frequency(md.vel, tail, mod->h, 4000, 14000), mod->h);
+    double f_mod_peak = unwarp(dominant_frequency(md.vel, tail, mod->h, 4000, 14000), mod->h);
     double fd_fe = dominant_frequency(b.vel, tail, fe->h, 4000, 14000);
     double fd_fe_dte = dominant_frequency(b.dte, tail, fe->h, 4000, 14000);
-    double f_fe = unwarp(fd_fe, fe->h), f_fe_dte = unwarp(fd_fe_dte, fe->h);
+    double f_fe_peak = unwarp(fd_fe, fe->h), f_fe_dte = unwarp(fd_fe_dte, fe->h);
     double f_lum_run = unwarp(dominant_frequency(a.vel, tail, lum->h, 4000, 14000), lum->h);
-    print_message("mesh mode: lumped closed form %.0f Hz (tangent k_mean %.4g N/m; lumped run %.0f Hz by the FE "
-                  "estimator; secant closed form %.0f Hz); FE run %.0f Hz from the mesh velocity (%.0f Hz as "
-                  "stepped), %.0f Hz from the DTE; closed form with the FE tangent stiffness %.4g N/m and the FE "
-                  "inertias %.0f Hz\n", f_lum, kmean, f_lum_run, f_sec, f_fe, fd_fe, f_fe_dte, ktan, f_tan);
-    print_message("mesh mode lumped vs FE: %+.2f%% (bar 3%%; %+.2f%% against the DTE estimate; lumped run %+.2f%% "
-                  "/ %+.2f%%; secant %+.2f%% / %+.2f%%)\n", 100 * (f_lum / f_fe - 1), 100 * (f_lum / f_fe_dte - 1),
-                  100 * (f_lum_run / f_fe - 1), 100 * (f_lum_run / f_fe_dte - 1), 100 * (f_sec / f_fe - 1),
-                  100 * (f_sec / f_fe_dte - 1));
-    print_message("mesh mode, modal calibration: closed form %.0f Hz, its run %.0f Hz: %+.2f%% / %+.2f%% against the "
-                  "FE run (bar 7%% on the closed form); its run against its closed form %+.2f%% (bar 3%%)\n", f_mod, f_mod_run, 100 * (f_mod / f_fe - 1), 100 * (f_mod_run / f_fe - 1), 100 * (f_mod_run / f_mod - 1));
-    /* The FE run's two estimates of its mode agree. */
-    assert_true(fabs(f_fe / f_fe_dte - 1) < 0.02);
+    /* The cycle-mean mode the runs follow (crossing_frequency): the FE run,
+     * the modal calibration's run, the tangent one's. */
+    double f_fe = crossing_frequency(b.vel, whole_cycles(&b, tail), fe->h, CROSS_F0, CROSS_F1);
+    double f_mod_run = crossing_frequency(md.vel, whole_cycles(&md, tail), mod->h, CROSS_F0, CROSS_F1); /* printed */
+    double f_lum_cross = crossing_frequency(a.vel, whole_cycles(&a, tail), lum->h, CROSS_F0, CROSS_F1);
+    /* The FE eigenproblem's cycle mean at the same load: the modal table
+     * holds k_t (f_FE / f_2)^2 per position, so sqrt(k_mod (rb1^2/I1 +
+     * rb2^2/I2)) / 2 pi is f_FE there (to the difference of the two
+     * analyses' tangent steps, 5 % and 10 %, and of the rigid and FE
+     * inertias). */
+    double f_eig = 0, f_eig_lo = 1e300, f_eig_hi = 0;
+    for (int j = 0; j < gmod->n_table; j++) {
+        double fj = sqrt(gmod->k_table[j] * inv_l) / (2 * M_PI);
+        f_eig += fj / gmod->n_table;
+        f_eig_lo = fmin(f_eig_lo, fj);
+        f_eig_hi = fmax(f_eig_hi, fj);
+    }
+    print_message("mesh mode: lumped closed form %.0f Hz (tangent k_mean %.4g N/m; lumped run %.0f Hz spectral "
+                  "peak, %.0f Hz cycle mean; secant closed form %.0f Hz); closed form with the FE tangent stiffness "
+                  "%.4g N/m and the FE inertias %.0f Hz\n", f_lum, kmean, f_lum_run, f_lum_cross, f_sec, ktan, f_tan);
+    print_message("FE run (damping %.0f%% at %.1f Hz): teeth apart at %.4f of the steps, |force| min / mean %.1f / "
+                  "%.1f N; spectral peak %.0f Hz from the mesh velocity (%.0f Hz as stepped), %.0f Hz from the DTE "
+                  "(printed only: the lobe of the double contact); cycle mean %.0f Hz; FE eigenproblem %.0f Hz "
+                  "(%.0f-%.0f over %d positions): %+.2f%% (bar %.0f%%)\n", 100 * FE_ZETA,
+                  g_order == 1 ? FE_MODE_HZ_O1 : FE_MODE_HZ_O2, b.apart, b.fmin, b.fmean, f_fe_peak, fd_fe, f_fe_dte,
+                  f_fe, f_eig, f_eig_lo, f_eig_hi, gmod->n_table, 100 * (f_fe / f_eig - 1), 100 * MODE_FE_EIGEN_BAR);
+    print_message("mesh mode, modal calibration: closed form %.0f Hz %+.2f%% against the FE run's cycle mean (bar "
+                  "%.0f%%); its run's spectral peak %.0f Hz, %+.2f%% against its closed form (bar 3%%), %+.2f%% "
+                  "against the FE run's cycle mean (bar %.0f%%), %+.2f%% against the FE run's peak (printed); its "
+                  "run's crossing figure %.0f Hz (%+.2f%%, printed); tangent closed form %+.2f%%, its run's peak "
+                  "%+.2f%%, crossing figure %.0f Hz\n", f_mod, 100 * (f_mod / f_fe - 1), 100 * MODE_CLOSED_BAR,
+                  f_mod_peak, 100 * (f_mod_peak / f_mod - 1), 100 * (f_mod_peak / f_fe - 1), 100 * MODE_RUN_BAR,
+                  100 * (f_mod_peak / f_fe_peak - 1), f_mod_run, 100 * (f_mod_run / f_fe - 1), 100 * (f_lum / f_fe - 1),
+                  100 * (f_lum_run / f_fe - 1), f_lum_cross);
+    /* The FE reference run is linear: no step of the window with the teeth
+     * apart, the force far from zero. */
+    assert_true(b.apart == 0.0);
+    assert_true(b.fmin > 0.5 * b.fmean);
+    /* Its two spectral estimates agree, and its cycle-mean frequency is its
+     * own eigenproblem's (the run follows the FE pair's mesh mode). */
+    assert_true(fabs(f_fe_peak / f_fe_dte - 1) < 0.02);
+    assert_true(fabs(f_fe / f_eig - 1) < MODE_FE_EIGEN_BAR);
     /* Issue 8's check, met by the modal calibration: the lumped mesh mode in
-     * closed form (the mean stiffness) within 3% of the FE run's; the
-     * lumped run's own spectral peak within 5% (issue 15's bar for the
-     * lumped peak: the estimator of a parametrically excited comb moves
-     * 1-1.5% between a closed form and its own run, measured -2.2% / -3.5%
-     * on the default mesh). */
-    /* Merged with the tip-corner rule and the order-2 closure Newton step
-     * the FE run's peak moved: 9323 Hz (the calibration's own branch),
-     * 9657 Hz (with the corner rule), 9561 Hz (with both), against the FE
-     * eigenproblem's 9075 Hz mean at 20 N m: the closure_energy run at this
-     * load rattles (docs/MODAL.md), so its spectral peak is not a linear
-     * mode and the 3 % / 5 % bars are not met (-4.7 % / -5.9 % measured).
-     * What is asserted: the modal calibration's own run against its closed
-     * form (the lumped model's dynamics agree with its linearisation), and
-     * the closed form within 7 % of the FE run (sign and size). */
-    assert_true(fabs(f_mod_run / f_mod - 1) < 0.03);
-    assert_true(fabs(f_mod / f_fe - 1) < 0.07);
+     * closed form (the mean stiffness) within 3 % of the FE run's cycle mean,
+     * the modal calibration's own run within 5 % of it. Each run's figure
+     * is the estimator that recovers that run's own linearisation: the FE
+     * run rings after every tooth pair's entry at the mode of the contact
+     * state it is in (7.8 kHz single, 9.7 kHz double contact: two lobes in
+     * its spectrum, the peak on the double contact's, 9561 Hz undamped,
+     * 9771 Hz at 5 %), so its crossings give the cycle mean and its peak does
+     * not (that was the -4.7 % / -5.9 % measured before: not a rattle, the
+     * undamped run has no step with the teeth apart either); the lumped
+     * run's smooth stiffness table excites one broad lobe some 400 times
+     * weaker in power, its peak within 1.3 % of its closed form (asserted,
+     * 3 %), while its crossings in the band are pulled down by the forced
+     * mesh harmonics below it (8085 Hz; printed). The FE run's ringing is
+     * excited by the contact events at tooth entry, a step-size effect:
+     * its power falls 2.3-3 times per halving of h, and at h 2.5e-6 the
+     * cycle mean is no longer resolved (docs/STIFFNESS.md, "A non-rattling
+     * FE reference run"); the bars hold at h 2e-5 to 5e-6 (FE against its
+     * eigenproblem) and at the test's 1e-5 (the closed form). */
+    assert_true(fabs(f_mod / f_fe - 1) < MODE_CLOSED_BAR);
+    assert_true(fabs(f_mod_peak / f_mod - 1) < 0.03);
+    assert_true(fabs(f_mod_peak / f_fe - 1) < MODE_RUN_BAR);
     /* The tangent (static, hub-to-hub) calibration lies below: the web's
      * torsional compliance is in k_t, while in the vibration most of the
      * inertia sits on the contact's side of it (docs/STIFFNESS.md). Measured
@@ -371,6 +521,10 @@ static void calibrated_run(void)
     free(c.vel);
     free(md.dte);
     free(md.vel);
+    free(a.phase);
+    free(b.phase);
+    free(c.phase);
+    free(md.phase);
     gs_system_free(&mod);
     gs_system_free(&sec);
     gs_system_free(&lum);
