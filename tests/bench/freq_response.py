@@ -55,7 +55,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-MODELS = ["contact", "lumped", "calibrated", "compliant"]
+MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
 Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds"]
@@ -82,6 +82,9 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
+        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/STIFFNESS.md)
+            m["model"] = "lumped"
+            m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
         else:
             m["model"] = "compliant"
         m["damping_ratio"] = zeta
@@ -266,12 +269,15 @@ def main():
         if len(pts) >= 3:
             found[m] = peaks(pts)
     fc = found["calibrated"][0][0] if found.get("calibrated") else float("nan")
+    fm = found["modal"][0][0] if found.get("modal") else float("nan")
     print("\nDTE rms peaks (local maxima, prominence >= 25 %; largest first)")
-    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
-    print("|---|---|---|---|---|")
+    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated (tangent) peak | "
+          "vs calibrated (modal) peak |" % f0)
+    print("|---|---|---|---|---|---|")
     for m, lst in found.items():
         for fp, yp in lst:
-            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% | %+.2f %% |" %
+                  (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1), 100 * (fp / fm - 1)))
     if a.peaks_json:
         json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"),
                    "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
@@ -287,7 +293,7 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d"}
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v"}
         for m in MODELS:
             pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
             if not pts:
@@ -311,6 +317,10 @@ def main():
         ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
         if fc == fc:
             ax[0].text(fc, ax[0].get_ylim()[1] * 0.15, "calibrated peak %.0f Hz " % fc, color="c", va="top", ha="right")
+        if fm == fm:
+            for k in range(2):
+                ax[k].axvline(fm, color="c", ls=":", lw=1)
+            ax[0].text(fm, ax[0].get_ylim()[1] * 0.05, " modal-calibrated peak %.0f Hz" % fm, color="c", va="top")
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
