@@ -358,7 +358,8 @@ def main():
         print("| FE eigenproblem's damped time-varying mesh (linear_parametric) | %.1f | %.3f | %+.2f %% | %+.2f %% | "
               "%+.2f %% |" % (fl, yl, 100 * (fl / f0 - 1), 100 * (fl / fc - 1), 100 * (fl / fm - 1)))
         for m, lst in found.items():
-            print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
+            if lst:
+                print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
     if a.peaks_json:
         json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"), "linear_parametric_hz": fl,
                    "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
@@ -411,7 +412,7 @@ def main():
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
-        ax[0].legend()
+        ax[0].legend(loc="lower left", fontsize=8)
         ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
                         (a.torque or 20, 100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
         fig.tight_layout()
