@@ -145,7 +145,7 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact
             "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
 
 
-def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20):
+def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20, push_only=False):
     """DTE rms of the linear single-degree-of-freedom mesh the FE eigenproblem
     describes, at mesh frequencies rel * mean mode: the equivalent mass
     m = 1 / (rb1^2 / I1 + rb2^2 / I2) of the two gears' inertias, the
@@ -154,7 +154,8 @@ def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20)
     constant damper c = 2 zeta m (2 pi f_mean) (what the stiffness-
     proportional material damping gives the mesh mode) and the mean force
     torque / rb1:  m x'' + c x' + k(f t) x = F. The spring also pulls (no
-    separation): the linear parametric resonance. Classical RK4, `steps` per
+    separation): the linear parametric resonance (push_only: a spring that
+    only pushes, the flanks free to part). Classical RK4, `steps` per
     mesh cycle, rms over the last `measure` of `cycles` cycles, all the
     frequencies at once. Returns the rms (m), one per rel."""
     import numpy as np
@@ -170,7 +171,10 @@ def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20)
     h = 1.0 / fm / steps
 
     def acc(k, x, v, ph):
-        return (force - np.interp(ph % 1.0, roll, kj) * x - c * v) / m
+        fs = np.interp(ph % 1.0, roll, kj) * x
+        if push_only:
+            fs = np.maximum(fs, 0.0)
+        return (force - fs - c * v) / m
 
     x = force / np.mean(kj[:-1]) * np.ones_like(fm)
     v = np.zeros_like(fm)
@@ -194,12 +198,12 @@ def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20)
     return np.sqrt(np.maximum(sxx / cnt - (sx / cnt) ** 2, 0.0))
 
 
-def linear_peak(mode, zeta, torque, lo=0.8, hi=1.1, step=0.005):
+def linear_peak(mode, zeta, torque, lo=0.8, hi=1.1, step=0.005, push_only=False):
     """Mesh frequency (Hz) of the largest DTE rms of linear_parametric,
     refined by a parabola, and that rms (um)."""
     n = int(round((hi - lo) / step)) + 1
     rel = [lo + step * i for i in range(n)]
-    y = list(linear_parametric(mode, zeta, torque, rel) * 1e6)
+    y = list(linear_parametric(mode, zeta, torque, rel, push_only=push_only) * 1e6)
     x = [r * mode["mean_hz"] for r in rel]
     i = max(range(n), key=lambda i: y[i])
     return parabola(x, y, i), y[i]
