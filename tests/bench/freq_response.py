@@ -44,6 +44,20 @@ time step h = min(2.5 us, mesh period / 24); settle 5 ms; measure the
 whole mesh cycles in at least 2.5 ms (and at least 12 cycles).
 Peaks: every local maximum of the DTE rms above 1.5 times the median of
 its curve, refined by a parabola through it and its neighbours.
+
+Models: contact, lumped, calibrated (tangent), compliant and modal (the
+calibrated lumped mesh with "calibration": "modal", its k_t scaled per
+position to the FE eigenproblem's mode). With the eigenproblem's positions
+in fe_mode.json the report adds linear_parametric: the DTE rms of the
+single-degree-of-freedom mesh with those modes as a stiffness over the
+cycle and the same damping, a spring that also pulls (its peak is where
+the damped time-varying mesh resonates; the plot draws its curve).
+The order-2 figures with the tip-corner rule (docs/MODAL.md, work directory
+of their own): --order 2 --torque 80 --damping 0.12 --settle 0.002
+--min-measure 0.0012 --contact closure --models contact --grid 1 --grid-from
+1.0 --dense 0 --extra-rel 0.8,0.86,0.9,0.94,0.955,0.97,0.985,1.03,1.06,1.1,1.14,1.2;
+the same with --models modal on 0.86-1.06; the lumped models with the
+default grid and those points.
 """
 import argparse
 import csv
@@ -55,7 +69,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-MODELS = ["contact", "lumped", "calibrated", "compliant"]
+MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
 Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds"]
@@ -82,6 +96,9 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
+        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/STIFFNESS.md)
+            m["model"] = "lumped"
+            m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
         else:
             m["model"] = "compliant"
         m["damping_ratio"] = zeta
@@ -126,6 +143,70 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact
             "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
             "seconds": time.time() - t0,
             "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
+
+
+def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20, push_only=False):
+    """DTE rms of the linear single-degree-of-freedom mesh the FE eigenproblem
+    describes, at mesh frequencies rel * mean mode: the equivalent mass
+    m = 1 / (rb1^2 / I1 + rb2^2 / I2) of the two gears' inertias, the
+    stiffness k(phase) = m (2 pi f_j)^2 through the modes f_j of the
+    eigenproblem's roll positions (periodic, piecewise linear), the
+    constant damper c = 2 zeta m (2 pi f_mean) (what the stiffness-
+    proportional material damping gives the mesh mode) and the mean force
+    torque / rb1:  m x'' + c x' + k(f t) x = F. The spring also pulls (no
+    separation): the linear parametric resonance (push_only: a spring that
+    only pushes, the flanks free to part). Classical RK4, `steps` per
+    mesh cycle, rms over the last `measure` of `cycles` cycles, all the
+    frequencies at once. Returns the rms (m), one per rel."""
+    import numpy as np
+    I1, I2 = mode["inertia"]
+    rb1, rb2 = (r * 1e-3 for r in mode["base_radius_mm"])
+    m = 1.0 / (rb1 * rb1 / I1 + rb2 * rb2 / I2)
+    roll = [p["roll"] for p in mode["points"]] + [1.0]
+    kj = [m * (2 * math.pi * p["hz"][0]) ** 2 for p in mode["points"]]
+    kj.append(kj[0])
+    c = 2 * zeta * m * 2 * math.pi * mode["mean_hz"]
+    force = torque / rb1
+    fm = np.asarray(rel, dtype=float) * mode["mean_hz"]
+    h = 1.0 / fm / steps
+
+    def acc(k, x, v, ph):
+        fs = np.interp(ph % 1.0, roll, kj) * x
+        if push_only:
+            fs = np.maximum(fs, 0.0)
+        return (force - fs - c * v) / m
+
+    x = force / np.mean(kj[:-1]) * np.ones_like(fm)
+    v = np.zeros_like(fm)
+    sx = np.zeros_like(fm)
+    sxx = np.zeros_like(fm)
+    n = steps * cycles
+    for k in range(n):
+        ph = k / steps
+        a1 = acc(k, x, v, ph)
+        x2, v2 = x + 0.5 * h * v, v + 0.5 * h * a1
+        a2 = acc(k, x2, v2, ph + 0.5 / steps)
+        x3, v3 = x + 0.5 * h * v2, v + 0.5 * h * a2
+        a3 = acc(k, x3, v3, ph + 0.5 / steps)
+        x4, v4 = x + h * v3, v + h * a3
+        a4 = acc(k, x4, v4, ph + 1.0 / steps)
+        x, v = x + h / 6 * (v + 2 * v2 + 2 * v3 + v4), v + h / 6 * (a1 + 2 * a2 + 2 * a3 + a4)
+        if k >= n - steps * measure:
+            sx += x
+            sxx += x * x
+    cnt = steps * measure
+    return np.sqrt(np.maximum(sxx / cnt - (sx / cnt) ** 2, 0.0))
+
+
+def linear_peak(mode, zeta, torque, lo=0.8, hi=1.1, step=0.005, push_only=False):
+    """Mesh frequency (Hz) of the largest DTE rms of linear_parametric,
+    refined by a parabola, and that rms (um)."""
+    n = int(round((hi - lo) / step)) + 1
+    rel = [lo + step * i for i in range(n)]
+    y = list(linear_parametric(mode, zeta, torque, rel, push_only=push_only) * 1e6)
+    x = [r * mode["mean_hz"] for r in rel]
+    i = max(range(n), key=lambda i: y[i])
+    return parabola(x, y, i), y[i]
 
 
 def load_cache(path):
@@ -266,14 +347,25 @@ def main():
         if len(pts) >= 3:
             found[m] = peaks(pts)
     fc = found["calibrated"][0][0] if found.get("calibrated") else float("nan")
+    fm = found["modal"][0][0] if found.get("modal") else float("nan")
     print("\nDTE rms peaks (local maxima, prominence >= 25 %; largest first)")
-    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated peak |" % f0)
-    print("|---|---|---|---|---|")
+    print("| model | peak (Hz) | DTE rms (um) | vs FE mode %.1f Hz | vs calibrated (tangent) peak | "
+          "vs calibrated (modal) peak |" % f0)
+    print("|---|---|---|---|---|---|")
     for m, lst in found.items():
         for fp, yp in lst:
-            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% |" % (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1)))
+            print("| %s | %.1f | %.3f | %+.2f %% | %+.2f %% | %+.2f %% |" %
+                  (m, fp, yp, 100 * (fp / f0 - 1), 100 * (fp / fc - 1), 100 * (fp / fm - 1)))
+    fl = float("nan")
+    if mode.get("points") and mode.get("inertia"):
+        fl, yl = linear_peak(mode, a.damping, a.torque or 20.0)
+        print("| FE eigenproblem's damped time-varying mesh (linear_parametric) | %.1f | %.3f | %+.2f %% | %+.2f %% | "
+              "%+.2f %% |" % (fl, yl, 100 * (fl / f0 - 1), 100 * (fl / fc - 1), 100 * (fl / fm - 1)))
+        for m, lst in found.items():
+            if lst:
+                print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
     if a.peaks_json:
-        json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"),
+        json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"), "linear_parametric_hz": fl,
                    "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
                   open(a.peaks_json, "w"), indent=1)
     if a.csv:
@@ -287,7 +379,7 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d"}
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v"}
         for m in MODELS:
             pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
             if not pts:
@@ -295,6 +387,12 @@ def main():
             x = [r["mesh_hz"] for r in pts]
             ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
             ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
+        if fl == fl:
+            lo = min(r["mesh_hz"] for r in cache) / f0
+            hi = max(r["mesh_hz"] for r in cache) / f0
+            rel = [lo + (hi - lo) * k / 119 for k in range(120)]
+            ax[0].plot([r * f0 for r in rel], linear_parametric(mode, a.damping, a.torque or 20.0, rel) * 1e6, "m--",
+                       lw=1, label="FE modes, linear time-varying")
         ax[0].set_yscale("log")
         ax[1].set_yscale("log")
         fl = mode.get("lumped_mean_hz")
@@ -311,10 +409,14 @@ def main():
         ax[0].text(f0, ax[0].get_ylim()[1] * 0.8, " FE mesh mode %.0f Hz" % f0, color="m", va="top")
         if fc == fc:
             ax[0].text(fc, ax[0].get_ylim()[1] * 0.15, "calibrated peak %.0f Hz " % fc, color="c", va="top", ha="right")
+        if fm == fm:
+            for k in range(2):
+                ax[k].axvline(fm, color="c", ls=":", lw=1)
+            ax[0].text(fm, ax[0].get_ylim()[1] * 0.05, " modal-calibrated peak %.0f Hz" % fm, color="c", va="top")
         ax[0].set_ylabel("DTE rms (um)")
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
-        ax[0].legend()
+        ax[0].legend(loc="lower left", fontsize=8)
         ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
                         (a.torque or 20, 100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
         fig.tight_layout()
