@@ -132,9 +132,7 @@ typedef struct gs_scene {
     gs_scene_load *loads;
     double time_step;
     int adapt_levels;          /* numerics.adaptive: halvings of time_step allowed (0: fixed step) */
-    double adapt_penetration;  /* numerics.adaptive.penetration_um, m: finer above it (INFINITY: not given) */
-    double adapt_onset;        /* numerics.adaptive.onset_um, m: finer where a row open wider than
-                                * this at a substep's start closes in it (closure; 0: off) */
+    double adapt_penetration;  /* numerics.adaptive.penetration_um, m: finer above it */
     int contact_scheme;        /* numerics.contact: GS_CONTACT_SEED (homogeneous rows) or
                                 * GS_CONTACT_CLOSURE (gap kept in the rows, work booked) or
                                 * GS_CONTACT_CLOSURE_ENERGY (closure, its work returned) */

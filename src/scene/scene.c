@@ -50,7 +50,7 @@ static const char *const stiff_keys[] = {"type",      "value",     "single",    
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
 static const char *const numerics_keys[] = {"time_step", "newton_tol", "max_newton", "adaptive", "contact", NULL};
-static const char *const adaptive_keys[] = {"penetration_um", "levels", "onset_um", NULL};
+static const char *const adaptive_keys[] = {"penetration_um", "levels", NULL};
 static const char *const initial_keys[] = {"angle", "omega", "speed_rpm", "tip_load", NULL};
 static const char *const outputs_keys[] = {"telemetry_every", "record_every", "fields_every",
                                             "checkpoint_every", NULL};
@@ -1247,18 +1247,9 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_object(o, "adaptive", "numerics", false, &ad, d));
         if (ad) {
             CHECK(gsi_json_only(ad, "numerics.adaptive", adaptive_keys, d));
-            double pum, oum;
-            bool has_onset = json_object_object_get_ex(ad, "onset_um", NULL);
-            CHECK(gsi_json_positive(ad, "penetration_um", "numerics.adaptive", 1e3, !has_onset, 0, &pum, d));
-            s->adapt_penetration = json_object_object_get_ex(ad, "penetration_um", NULL) ? pum * 1e-6 : INFINITY;
-            CHECK(gsi_json_positive(ad, "onset_um", "numerics.adaptive", 1e3, false, 0, &oum, d));
-            s->adapt_onset = oum * 1e-6;
-            if (has_onset && s->contact_scheme == GS_CONTACT_SEED) {
-                e = gs_diag_set(d, GS_ESCHEMA, "numerics.adaptive.onset_um",
-                                "onset refinement acts on the closure rows: it needs numerics.contact "
-                                "\"closure\" or \"closure_energy\"");
-                goto fail;
-            }
+            double pum;
+            CHECK(gsi_json_positive(ad, "penetration_um", "numerics.adaptive", 1e3, true, 0, &pum, d));
+            s->adapt_penetration = pum * 1e-6;
             CHECK(gsi_json_int(ad, "levels", "numerics.adaptive", 1, GS_SCENE_MAX_ADAPT_LEVELS, false, 3, &v, d));
             s->adapt_levels = (int)v;
             bool contact = false;

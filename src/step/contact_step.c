@@ -48,7 +48,6 @@ typedef struct row_ref {
     gs_index cand;  /* the candidate of the mesh's last search */
     double g0;      /* closure: the row is G x >= -g0 (g0 = r.gap.g, or after
                      * a Newton update g(x_k) - G x_k at the iterate x_k) */
-    double g_start; /* the gap at the step's start (numerics.adaptive.onset_um) */
     gs_contact_row r;
 } row_ref;
 
@@ -173,7 +172,6 @@ static gs_err add_row(row_ref **rows, int *n, size_t *cap, int mesh, gs_index ca
     nr[*n].mesh = mesh;
     nr[*n].cand = cand;
     nr[*n].g0 = r->gap.g;
-    nr[*n].g_start = r->gap.g;
     nr[*n].r = *r;
     (*n)++;
     return GS_OK;
@@ -436,10 +434,8 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
                 s->rows[j] = *e;
             } else if (e->r.gap.g < -CLOSURE_NEWTON_TOL) {
                 err = add_row(&s->rows, &s->n_rows, &s->cap_rows, e->mesh, e->cand, &e->r);
-                if (err == GS_OK) {
+                if (err == GS_OK)
                     s->rows[s->n_rows - 1].g0 = e->g0;
-                    s->rows[s->n_rows - 1].g_start = e->g_start;
-                }
             } else {
                 s->watch[kept++] = s->watch[j - rows];
             }
@@ -894,14 +890,6 @@ again:;
     if (s->n_watch > 0 && sys->level < sys->scene->adapt_levels &&
         watched_penetration(sys, s, rec, s->x) > sys->scene->adapt_penetration)
         return GS_EREFINE;
-    /* 5d'. Adaptive step at contact onsets (closure, numerics.adaptive.onset_um):
-     * a row that was open wider than the threshold at the substep's start
-     * and carries force closed inside the substep; the substep is taken
-     * again finer, so the onset falls within h / 2^levels. */
-    if (closure && sys->scene->adapt_onset > 0.0 && sys->level < sys->scene->adapt_levels)
-        for (int r = 0; r < ni; r++)
-            if (s->lam_in[r] > 0.0 && s->rows[r].g_start > sys->scene->adapt_onset)
-                return GS_EREFINE;
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));
     memset(s->f, 0, (size_t)N * sizeof(double));

@@ -13,11 +13,7 @@
  *
  *   dyn_convergence_run SCENE [--h 1e-5] [--order 2] [--refine 0]
  *       [--scale 1] [--contact closure_energy] [--zeta 0 --fhz 9200]
- *       [--from 0.04] [--to 0.08] [--onset UM [--levels L]]
- *
- * --onset: numerics.adaptive {onset_um: UM, levels: L (default 3)}, the
- * substeps refined at contact onsets (closure treatments; docs/CONTACT.md
- * "Adaptive time step"); the line then gives the substeps taken and refused.
+ *       [--from 0.04] [--to 0.08]
  *
  * --scale multiplies the flank/across/rim counts of the order's default
  * mesh (rounded; grading kept) on every elastic gear. Figures are taken
@@ -73,8 +69,8 @@ static json_object *obj_child(json_object *o, const char *key)
 int main(int argc, char **argv)
 {
     const char *scene = NULL, *contact = "closure_energy";
-    double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08, onset = 0;
-    int order = 2, refine = 0, levels = 3;
+    double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08;
+    int order = 2, refine = 0;
     for (int i = 1; i < argc; i++) {
         if (argv[i][0] != '-') {
             scene = argv[i];
@@ -103,10 +99,6 @@ int main(int argc, char **argv)
             t0 = atof(v);
         else if (!strcmp(k, "--to"))
             t1 = atof(v);
-        else if (!strcmp(k, "--onset"))
-            onset = atof(v);
-        else if (!strcmp(k, "--levels"))
-            levels = atoi(v);
         else {
             fprintf(stderr, "unknown option %s\n", k);
             return 2;
@@ -114,7 +106,7 @@ int main(int argc, char **argv)
     }
     if (!scene || !(h > 0) || !(t1 > t0 && t0 >= 0) || !(scale > 0) || (order != 1 && order != 2)) {
         fprintf(stderr, "usage: dyn_convergence_run SCENE [--h H] [--order 1|2] [--refine R] [--scale S] "
-                        "[--contact seed|closure|closure_energy] [--zeta Z --fhz F] [--from T0] [--to T1] [--onset UM [--levels L]]\n");
+                        "[--contact seed|closure|closure_energy] [--zeta Z --fhz F] [--from T0] [--to T1]\n");
         return 2;
     }
     const char *builtin = gs_scene_builtin(scene);
@@ -152,11 +144,6 @@ int main(int argc, char **argv)
     json_object *num = obj_child(root, "numerics");
     json_object_object_add(num, "time_step", json_object_new_double(h));
     json_object_object_add(num, "contact", json_object_new_string(contact));
-    if (onset > 0) {
-        json_object *ad = obj_child(num, "adaptive");
-        json_object_object_add(ad, "onset_um", json_object_new_double(onset));
-        json_object_object_add(ad, "levels", json_object_new_int(levels));
-    }
     char in_name[GS_NAME_MAX] = "", out_name[GS_NAME_MAX] = "";
     json_object *ls = json_object_object_get(root, "loads");
     for (size_t i = 0; ls && i < json_object_array_length(ls); i++) {
@@ -220,14 +207,12 @@ int main(int argc, char **argv)
            "\"mean_te_um\": %.6f, \"te_pp_um\": %.5f, \"peak_force_n\": %.3f, \"mean_force_n\": %.4f, "
            "\"ratio\": %.8f, \"balance_rel\": %.3e, \"pen_max_um\": %.6f, \"force_peak_over_mean\": %.4f, "
            "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
-           "\"contact_work_j\": %.3e, \"steps\": %ld, \"onset_um\": %.6g, \"levels\": %d, \"substeps\": %ld, "
-           "\"refused\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f}\n",
+           "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f}\n",
            scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
            (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
            fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
            f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
-           f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, onset,
-           onset > 0 ? levels : 0, (long)s->substeps, (long)s->refinements, cpu,
+           f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
            cpu / s->time);
     dw_free(&w);
     gs_system_free(&s);

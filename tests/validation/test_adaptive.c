@@ -15,11 +15,6 @@
  *  - the elastic bodies refactorise only for step sizes not seen before
  *    (four factorisations at most each: one per level, kept in a cache).
  * Scenes with no contact mesh are refused naming numerics.adaptive.
- * Onset refinement (numerics.adaptive.onset_um, closure treatments only):
- * on 7.1 with closure_energy, the substeps where a row closes after opening
- * wider than the threshold are taken again finer; energy stays at
- * round-off, time exact, and it refines (fewer substeps than the fine
- * run). With the seed's scheme onset_um is refused naming the field.
  * Elastic gears on linear triangles (vt_scene_linear, mesh.order 1): the
  * figures were measured on them and the checks need some elastic gear;
  * the default quadratic mesh costs about 12 times as much per step. */
@@ -45,21 +40,14 @@ typedef struct run {
     int64_t step;
 } run;
 
-/* onset_um > 0: closure_energy with onset refinement instead of the
- * penetration threshold; onset_um < 0: closure_energy, fixed step. */
-static gs_system *impact_system(double h, int levels, double onset_um)
+static gs_system *impact_system(double h, int levels)
 {
     json_object *root = vt_scene_linear("contact_impact");
     json_object *num = json_object_new_object();
     json_object_object_add(num, "time_step", json_object_new_double(h));
-    if (onset_um != 0)
-        json_object_object_add(num, "contact", json_object_new_string("closure_energy"));
     if (levels > 0) {
         json_object *ad = json_object_new_object();
-        if (onset_um > 0)
-            json_object_object_add(ad, "onset_um", json_object_new_double(onset_um));
-        else
-            json_object_object_add(ad, "penetration_um", json_object_new_double(1.0));
+        json_object_object_add(ad, "penetration_um", json_object_new_double(1.0));
         json_object_object_add(ad, "levels", json_object_new_int(levels));
         json_object_object_add(num, "adaptive", ad);
     }
@@ -67,9 +55,9 @@ static gs_system *impact_system(double h, int levels, double onset_um)
     return vt_system(root);
 }
 
-static run simulate_with(double h, int levels, double duration, double onset_um)
+static run simulate(double h, int levels, double duration)
 {
-    gs_system *s = impact_system(h, levels, onset_um);
+    gs_system *s = impact_system(h, levels);
     int64_t n = (int64_t)llround(duration / h);
     gs_energy e;
     gs_system_energy(s, &e);
@@ -93,11 +81,6 @@ static run simulate_with(double h, int levels, double duration, double onset_um)
     return r;
 }
 
-static run simulate(double h, int levels, double duration)
-{
-    return simulate_with(h, levels, duration, 0);
-}
-
 static void adaptive_impacts(void **state)
 {
     (void)state;
@@ -114,44 +97,6 @@ static void adaptive_impacts(void **state)
     assert_true(adapt.worst_pen < 0.5 * coarse.worst_pen);
     assert_true(adapt.substeps < fine.substeps);
     assert_true(adapt.substeps > coarse.substeps); /* it did refine */
-}
-
-static void onset_refinement(void **state)
-{
-    (void)state;
-    const double h0 = 1e-5, T = 1e-3;
-    run coarse = simulate_with(h0, 0, T, -1), onset = simulate_with(h0, 3, T, 1e-3),
-        fine = simulate_with(h0 / 8, 0, T, -1);
-    print_message("# 7.1 closure_energy, 1 ms: run / substeps / refused / max |E-E0|/E0 / max penetration (m)\n");
-    const run *rs[3] = {&coarse, &onset, &fine};
-    const char *names[3] = {"fixed 1e-5", "onset 1e-5/8", "fixed 1.25e-6"};
-    for (int k = 0; k < 3; k++) {
-        print_message("#   %-16s %6lld %5lld %9.2e %9.3e\n", names[k], (long long)rs[k]->substeps,
-                      (long long)rs[k]->refinements, rs[k]->worst_energy, rs[k]->worst_pen);
-        assert_true(rs[k]->worst_energy < 1e-10);
-    }
-    assert_true(onset.refinements > 0);
-    assert_true(onset.substeps > coarse.substeps);
-    assert_true(onset.substeps < fine.substeps);
-}
-
-static void onset_refused_with_seed(void **state)
-{
-    (void)state;
-    json_object *root = vt_scene_linear("contact_impact");
-    json_object *num = json_object_new_object();
-    json_object *ad = json_object_new_object();
-    json_object_object_add(ad, "onset_um", json_object_new_double(1e-3));
-    json_object_object_add(num, "adaptive", ad);
-    json_object_object_add(root, "numerics", num);
-    const char *txt = json_object_to_json_string(root);
-    gs_scene *sc = NULL;
-    gs_diag d;
-    gs_err e = gs_scene_parse(txt, strlen(txt), &sc, &d);
-    print_message("onset_um with the seed's scheme: %s, field '%s': %s\n", gs_errcode(e), d.field, d.message);
-    assert_int_not_equal(e, GS_OK);
-    assert_string_equal(d.field, "numerics.adaptive.onset_um");
-    json_object_put(root);
 }
 
 static void adaptive_refused_without_contact(void **state)
@@ -177,8 +122,6 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(adaptive_impacts),
         cmocka_unit_test(adaptive_refused_without_contact),
-        cmocka_unit_test(onset_refinement),
-        cmocka_unit_test(onset_refused_with_seed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
