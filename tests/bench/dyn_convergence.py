@@ -266,7 +266,7 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
                     [label] + [fmt(v, nd) for v in fam["values"]] +
                     [", ".join(f"{d:+.{nd}g}" for d in fam["diffs"]),
                      ", ".join(fmt(o, 2) for o in fam["orders"]) if len(fam["orders"]) > 1 else fmt(fam["p"], 2),
-                     fmt(fam["rich"], nd) + (f" +- {fmt(fam['unc'], nd)}" if fam["unc"] is not None else ""),
+                     fmt(fam["rich"], nd) + (f" +- {fam['unc']:.3g}" if fam["unc"] is not None else ""),
                      f"{fam['rel_last'] * 100:.2f} %" if fam["rel_last"] is not None else "n/a", verdict]) + " |")
         # the converged value and the cheapest setting within 2 % of it
         ref = {}
