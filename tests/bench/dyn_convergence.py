@@ -98,9 +98,14 @@ def within(f2, f3, bar):
 
 def family(points):
     """points: [(size, value)] coarse to fine (at least 2). Returns a dict
-    with the differences, the observed order, the Richardson estimate and
-    the relative change of the finest step."""
-    out = {"values": [v for _, v in points], "diffs": [], "p": None, "rich": None, "rel_last": None}
+    with the differences, the observed order of every successive triple
+    ("orders"; "p" the finest one's), the Richardson estimate over the
+    finest three ("rich"), its uncertainty ("unc": the larger of its
+    distance to the finest value and, with four points or more, its change
+    from the Richardson estimate of the triple before; None without an
+    estimate) and the relative change of the finest step."""
+    out = {"values": [v for _, v in points], "diffs": [], "p": None, "rich": None, "rel_last": None,
+           "orders": [], "unc": None}
     for (s1, v1), (s2, v2) in zip(points, points[1:]):
         out["diffs"].append(v2 - v1)
     if len(points) >= 2:
@@ -110,6 +115,16 @@ def family(points):
         (s1, v1), (s2, v2), (s3, v3) = points[-3:]
         out["p"] = observed_order(v1, v2, v3, s1 / s2, s2 / s3)
         out["rich"] = richardson(v2, v3, s2 / s3, out["p"])
+        for k in range(len(points) - 2):
+            (a1, b1), (a2, b2), (a3, b3) = points[k:k + 3]
+            out["orders"].append(observed_order(b1, b2, b3, a1 / a2, a2 / a3))
+        if out["rich"] is not None:
+            out["unc"] = abs(out["rich"] - v3)
+            if len(points) >= 4:
+                (a1, b1), (a2, b2), (a3, b3) = points[-4:-1]
+                prev = richardson(b2, b3, a2 / a3, observed_order(b1, b2, b3, a1 / a2, a2 / a3))
+                if prev is not None:
+                    out["unc"] = max(out["unc"], abs(out["rich"] - prev))
     return out
 
 
@@ -230,8 +245,8 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
                 what = "mesh " + ", ".join(r["level"] for _, r in pts) + f" at h = {finest_h:g} s"
             out.append(f"\n#### {scene}, {contact}, {damp}: refinement of {name} ({what})\n")
             cols = ["quantity"] + [f"{'h ' + format(f(r['h']), 'g') if name == 'h' else r['level']}"
-                                   for _, r in pts] + ["differences", "observed order", "Richardson",
-                                                       "two finest", "verdict"]
+                                   for _, r in pts] + ["differences", "observed order",
+                                                       "Richardson (finest three)", "two finest", "verdict"]
             out.append("| " + " | ".join(cols) + " |")
             out.append("|" + "---|" * len(cols))
             for q, label, bar in QUANTITIES:
@@ -249,7 +264,9 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
                 verdict = "" if bar is None else f"{'meets' if ok else 'misses'} {bar * 100:g} %{shrink}"
                 out.append("| " + " | ".join(
                     [label] + [fmt(v, nd) for v in fam["values"]] +
-                    [", ".join(f"{d:+.{nd}g}" for d in fam["diffs"]), fmt(fam["p"], 2), fmt(fam["rich"], nd),
+                    [", ".join(f"{d:+.{nd}g}" for d in fam["diffs"]),
+                     ", ".join(fmt(o, 2) for o in fam["orders"]) if len(fam["orders"]) > 1 else fmt(fam["p"], 2),
+                     fmt(fam["rich"], nd) + (f" +- {fam['unc']:.3g}" if fam["unc"] is not None else ""),
                      f"{fam['rel_last'] * 100:.2f} %" if fam["rel_last"] is not None else "n/a", verdict]) + " |")
         # the converged value and the cheapest setting within 2 % of it
         ref = {}

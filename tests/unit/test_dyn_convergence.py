@@ -61,6 +61,18 @@ check("family diffs", fam["diffs"] == [-0.5, -0.25])
 check("family order 1", close(fam["p"], 1.0, 1e-12))
 check("family Richardson 1.0", close(fam["rich"], 1.0, 1e-12))
 check("family rel_last", close(fam["rel_last"], 0.25 / 1.25, 1e-12))
+check("family uncertainty, three points: distance to the finest", close(fam["unc"], 0.25, 1e-12))
+# four points, f = 1 + s + s^2: the last triple's order and Richardson are
+# closer to the limit than the first's; the uncertainty is the larger of the
+# estimate's distance to the finest value and its change from the triple before
+pts4 = [(s_, 1 + s_ + s_ * s_) for s_ in (1.0, 0.5, 0.25, 0.125)]
+fam4 = dc.family(pts4)
+check("family orders per triple", len(fam4["orders"]) == 2 and all(o is not None for o in fam4["orders"]))
+check("family orders approach 1", abs(fam4["orders"][1] - 1) < abs(fam4["orders"][0] - 1))
+r_prev = dc.family(pts4[:3])["rich"]
+check("family uncertainty, four points",
+      close(fam4["unc"], max(abs(fam4["rich"] - pts4[3][1]), abs(fam4["rich"] - r_prev)), 1e-12))
+check("family Richardson nearer the limit than the finest", abs(fam4["rich"] - 1) < abs(pts4[3][1] - 1))
 
 # levels
 check("level o2r1", dc.parse_level("o2r1") == (2, 1, 1.0, 0.5))
