@@ -18,8 +18,8 @@
  * --static-se is the static strain energy at the running load (J; about
  * 1 mJ for contact_drive, docs/CONTACT.md). Not a test: 0.2 s at h = 1e-5 s
  * is 2e4 steps of the pair. --zeta Z --fhz F: material damping
- * (damping_ratio Z at damping_hz F) on every elastic gear; the CSV then
- * holds the dissipated energy too (docs/CONVERGENCE.md "Vibration energy
+ * (damping_ratio Z at damping_hz F) on every elastic gear; the CSV's
+ * dissipated energy then holds its loss (docs/CONTACT.md "Vibration energy
  * without damping"). */
 #include <json-c/json.h>
 #include <math.h>

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Vibration energy of a contact_drive run over time (issue 15, "Without
-damping, vibration energy no longer grows"; docs/CONVERGENCE.md "Vibration
-energy without damping"), from the per-step CSV of tests/bench/corner_stats
+damping, vibration energy no longer grows"; docs/CONTACT.md "Is the
+undamped growth physical?"), from the per-step CSV of tests/bench/corner_stats
 (--csv).
 
 Per window: the strain energy (mean / max), the vibration energy
