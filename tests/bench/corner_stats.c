@@ -6,15 +6,21 @@
  * one, the steps whose force exceeds --factor x the mean, and the steps and
  * episodes in which a loaded contact row's normal lies more than --off
  * degrees off the lines of action, naming the row's slave and master nodes
- * (tests/common/corner_stats.h).
+ * (tests/common/corner_stats.h). Every contact mesh of the scene is
+ * watched and reported (planetary_contact: its six meshes); the CSV holds
+ * the first.
  *
  *   corner_stats [--scene contact_drive] [--scheme closure_energy] [--h 1e-5]
  *                [--order 2] [--refine 0] [--t 0.2] [--from 0.02] [--off 30]
  *                [--factor 2] [--static-se 1e-3] [--episodes 8] [--csv FILE]
+ *                [--zeta 0 --fhz 9200]
  *
  * --static-se is the static strain energy at the running load (J; about
  * 1 mJ for contact_drive, docs/CONTACT.md). Not a test: 0.2 s at h = 1e-5 s
- * is 2e4 steps of the pair. */
+ * is 2e4 steps of the pair. --zeta Z --fhz F: material damping
+ * (damping_ratio Z at damping_hz F) on every elastic gear; the CSV's
+ * dissipated energy then holds its loss (docs/CONTACT.md "Vibration energy
+ * without damping"). */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -26,6 +32,8 @@
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 
+#define GS_MAX_MESHES_CS 16
+
 static double cpu_now(void)
 {
     struct timespec t;
@@ -36,7 +44,7 @@ static double cpu_now(void)
 int main(int argc, char **argv)
 {
     const char *scene = "contact_drive", *scheme = "closure_energy", *csv = NULL;
-    double h = 1e-5, t_end = 0.2, t_from = 0.02, off = 30, factor = 2, se_static = 1e-3;
+    double h = 1e-5, t_end = 0.2, t_from = 0.02, off = 30, factor = 2, se_static = 1e-3, zeta = 0, fhz = 9200;
     int order = 2, refine = 0, n_print = 8;
     for (int i = 1; i < argc; i++) {
         if (i + 1 >= argc) {
@@ -66,6 +74,10 @@ int main(int argc, char **argv)
             se_static = atof(v);
         else if (!strcmp(k, "--episodes"))
             n_print = atoi(v);
+        else if (!strcmp(k, "--zeta"))
+            zeta = atof(v);
+        else if (!strcmp(k, "--fhz"))
+            fhz = atof(v);
         else if (!strcmp(k, "--csv"))
             csv = v;
         else {
@@ -92,6 +104,15 @@ int main(int argc, char **argv)
         }
         json_object_object_add(m, "order", json_object_new_int(order));
         json_object_object_add(m, "refine", json_object_new_int(refine));
+        if (zeta > 0) {
+            json_object *mat;
+            if (!json_object_object_get_ex(b, "material", &mat)) {
+                mat = json_object_new_object();
+                json_object_object_add(b, "material", mat);
+            }
+            json_object_object_add(mat, "damping_ratio", json_object_new_double(zeta));
+            json_object_object_add(mat, "damping_hz", json_object_new_double(fhz));
+        }
     }
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc = NULL;
@@ -107,8 +128,19 @@ int main(int argc, char **argv)
         return 1;
     }
     FILE *out = csv ? fopen(csv, "w") : NULL;
-    cs_stats c;
-    cs_init(&c, s, t_from, off, factor, out);
+    int nm = 0, mi[GS_MAX_MESHES_CS];
+    for (int i = 0; i < s->scene->n_meshes && nm < GS_MAX_MESHES_CS; i++)
+        if (s->scene->meshes[i].model == GS_MESH_CONTACT)
+            mi[nm++] = i;
+    if (!nm) {
+        fprintf(stderr, "scene %s has no contact mesh\n", scene);
+        return 2;
+    }
+    cs_stats *c = calloc((size_t)nm, sizeof *c);
+    if (!c)
+        return 1;
+    for (int j = 0; j < nm; j++)
+        cs_init(&c[j], s, mi[j], t_from, off, factor, j == 0 ? out : NULL);
     long n = lround(t_end / s->h);
     double cpu0 = cpu_now();
     for (long i = 0; i < n; i++) {
@@ -117,18 +149,23 @@ int main(int argc, char **argv)
             fprintf(stderr, "step %ld: error %d\n", i, (int)e);
             return 1;
         }
-        cs_step(&c, s);
+        for (int j = 0; j < nm; j++)
+            cs_step(&c[j], s);
     }
     double cpu = cpu_now() - cpu0;
-    cs_finish(&c);
     gs_energy en;
     gs_system_energy(s, &en);
-    char label[160];
-    snprintf(label, sizeof label, "%s %s order %d refine %d h %.3g, %.0f ms", scene, scheme, order, refine, h,
-             t_end * 1e3);
-    cs_print(&c, stdout, label, se_static, n_print);
-    printf("  balance residual %.2e J, contact work still booked %.2e J, %.1f CPU s\n", en.balance_residual,
-           en.contact_work, cpu);
+    for (int j = 0; j < nm; j++) {
+        char label[200];
+        cs_finish(&c[j]);
+        snprintf(label, sizeof label, "%s mesh %s %s order %d refine %d h %.3g zeta %.3g, %.0f ms", scene,
+                 s->scene->meshes[mi[j]].name, scheme, order, refine, h, zeta, t_end * 1e3);
+        cs_print(&c[j], stdout, label, se_static, n_print);
+    }
+    printf("  balance residual %.2e J, contact work still booked %.2e J, dissipated %.4g J of %.4g J in, "
+           "%.1f CPU s\n",
+           en.balance_residual, en.contact_work, en.dissipated, en.work_in, cpu);
+    free(c);
     if (out)
         fclose(out);
     gs_system_free(&s);

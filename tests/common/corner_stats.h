@@ -3,10 +3,11 @@
  * contact locking"; docs/CONTACT.md "Tip corners"), shared by
  * tests/bench/corner_stats.c and tests/validation/test_contact_corner.c.
  *
- * After every step, each contact row of mesh 0 that carries force
- * (lambda > 0, gs_step_contact_row) is compared with the lines of action
- * (the two common internal tangents of the base circles at the current
- * centres): the angle between the row's slave normal dg/dx and the nearer
+ * After every step, each contact row of the mesh (cs_init's `mesh`) that
+ * carries force (lambda > 0, gs_step_contact_row) is compared with the
+ * lines of action (the two common internal tangents of the base circles at
+ * the current centres; the two common external ones when a gear is
+ * internal): the angle between the row's slave normal dg/dx and the nearer
  * line, and its lever arm |dg/dtheta_k| / (|dg/dx| r_b,k) on each gear (1 on
  * the line of action). A step with a loaded row more than `off_deg` off both
  * lines is an "off" step; consecutive off steps form an episode. Over the
@@ -48,6 +49,7 @@ typedef struct cs_episode {
 
 typedef struct cs_stats {
     double off_deg, force_factor, t_from; /* settings */
+    int mesh;               /* the contact mesh watched */
     long steps, n_win;      /* steps run, steps in the window */
     double f_max, f_mean, t_fmax;
     double se_max, se_mean, t_semax;
@@ -65,27 +67,32 @@ typedef struct cs_stats {
     bool in_ep;
     double rb[2], ra[2];
     int body[2];
+    bool internal;          /* one gear of the mesh is internal (a ring) */
     FILE *csv;
 } cs_stats;
 
-static inline void cs_init(cs_stats *c, const gs_system *s, double t_from, double off_deg, double force_factor,
-                           FILE *csv)
+static inline void cs_init(cs_stats *c, const gs_system *s, int mesh, double t_from, double off_deg,
+                           double force_factor, FILE *csv)
 {
     memset(c, 0, sizeof *c);
+    c->mesh = mesh;
     c->t_from = t_from;
     c->off_deg = off_deg;
     c->force_factor = force_factor;
     c->csv = csv;
     for (int k = 0; k < 2; k++) {
-        int b = s->scene->meshes[0].gear[k];
+        int b = s->scene->meshes[mesh].gear[k];
         gs_gear_geom g;
         gs_gear_geometry(&s->scene->bodies[b].gear, &g, NULL);
+        if (s->scene->bodies[b].gear.kind == GS_GEAR_INTERNAL)
+            c->internal = true;
         c->body[k] = b;
         c->rb[k] = g.rb;
         c->ra[k] = g.ra;
     }
     if (csv)
-        fprintf(csv, "t_s,force_N,strain_J,loaded_rows,off_rows,max_angle_deg,off_force_N\n");
+        fprintf(csv, "t_s,force_N,strain_J,loaded_rows,off_rows,max_angle_deg,off_force_N,te_m,kinetic_J,"
+                     "rigid_kinetic_J,dissipated_J,work_in_J,omega0_rad_s,omega1_rad_s\n");
 }
 
 /* Angle (deg) of unit normal n to the nearer line of action, and the lever
@@ -99,7 +106,8 @@ static inline double cs_row_angle(const cs_stats *c, const gs_system *s, const g
     e[0] /= a;
     e[1] /= a;
     double p[2] = {-e[1], e[0]};
-    double ca = (c->rb[0] + c->rb[1]) / a, sa = sqrt(fmax(0.0, 1.0 - ca * ca));
+    /* internal tangents of the base circles; the external ones (ring) */
+    double ca = (c->internal ? fabs(c->rb[0] - c->rb[1]) : c->rb[0] + c->rb[1]) / a, sa = sqrt(fmax(0.0, 1.0 - ca * ca));
     double gn = hypot(r->gap.grad[0], r->gap.grad[1]);
     double n[2] = {r->gap.grad[0] / gn, r->gap.grad[1] / gn};
     double best = 180.0;
@@ -121,7 +129,7 @@ static inline void cs_step(cs_stats *c, const gs_system *s)
 {
     gs_energy e;
     gs_system_energy(s, &e);
-    double t = s->time, F = s->meshes[0].force;
+    double t = s->time, F = fabs(s->meshes[c->mesh].force);
     c->steps++;
     int loaded = 0, off = 0;
     double amax = 0.0, foff = 0.0;
@@ -132,7 +140,7 @@ static inline void cs_step(cs_stats *c, const gs_system *s)
         int mesh;
         double lam;
         const gs_contact_row *r = gs_step_contact_row(s, i, &mesh, &lam);
-        if (!r || mesh != 0 || !(lam > 0))
+        if (!r || mesh != c->mesh || !(lam > 0))
             continue;
         loaded++;
         double lev, ang = cs_row_angle(c, s, r, &lev);
@@ -149,8 +157,25 @@ static inline void cs_step(cs_stats *c, const gs_system *s)
             }
         }
     }
-    if (c->csv)
-        fprintf(c->csv, "%.8g,%.6g,%.6g,%d,%d,%.3f,%.6g\n", t, F, e.elastic, loaded, off, amax, foff);
+    if (c->csv) {
+        /* kinematic TE a . q - s_ref; the kinetic energy of the rigid
+         * rotations at their current speeds (the rest of e.kinetic is that of
+         * the elastic deformation and its coupling) */
+        const gs_gmesh_rt *m = &s->meshes[c->mesh];
+        double te = -m->s_ref, tr = 0.0;
+        for (int k = 0; k < s->n_coords; k++)
+            te += m->a[k] * s->q[k];
+        for (int b = 0; b < s->n_bodies; b++)
+            if (s->bodies[b].coord >= 0)
+                tr += 0.5 * s->bodies[b].inertia_eff * s->w[s->bodies[b].coord] * s->w[s->bodies[b].coord];
+        double om[2];
+        for (int k = 0; k < 2; k++) {
+            int kc = s->bodies[c->body[k]].coord;
+            om[k] = kc >= 0 ? s->w[kc] : 0.0;
+        }
+        fprintf(c->csv, "%.8g,%.6g,%.6g,%d,%d,%.3f,%.6g,%.6e,%.8e,%.8e,%.8e,%.8e,%.9g,%.9g\n", t, F, e.elastic, loaded,
+                off, amax, foff, te, e.kinetic, tr, e.dissipated, e.work_in, om[0], om[1]);
+    }
     if (t < c->t_from) {
         c->in_ep = false;
         return;
@@ -208,14 +233,16 @@ static inline void cs_step(cs_stats *c, const gs_system *s)
         gs_system_body_pose(s, c->body[km], cm_, &th);
         p->slave_gear = ks;
         p->slave_node = (long)worst->node[0];
-        p->slave_r_um = (c->ra[ks] - hypot(worst->x[0][0] - cs_[0], worst->x[0][1] - cs_[1])) * 1e6;
+        p->slave_r_um = fabs(c->ra[ks] - hypot(worst->x[0][0] - cs_[0], worst->x[0][1] - cs_[1])) * 1e6;
         p->n_master = worst->n_nodes - 1;
-        double rmax = 0;
+        double rmax = 0; /* the master node nearest its tip radius */
         for (int j = 1; j < worst->n_nodes && j < 4; j++) {
             p->master[j - 1] = (long)worst->node[j];
-            rmax = fmax(rmax, hypot(worst->x[j][0] - cm_[0], worst->x[j][1] - cm_[1]));
+            double r = hypot(worst->x[j][0] - cm_[0], worst->x[j][1] - cm_[1]);
+            if (j == 1 || fabs(c->ra[km] - r) < fabs(c->ra[km] - rmax))
+                rmax = r;
         }
-        p->master_r_um = (c->ra[km] - rmax) * 1e6;
+        p->master_r_um = fabs(c->ra[km] - rmax) * 1e6;
         p->kind = (int)worst->gap.kind;
         p->blend = worst->gap.blend;
         p->g = worst->gap.g;
@@ -261,12 +288,12 @@ static inline void cs_print(const cs_stats *c, FILE *out, const char *label, dou
         const cs_episode *p = &c->ep[idx[i]];
         fprintf(out,
                 "  episode at %.2f ms, %d steps: force max %.0f N, strain energy max %.3f mJ; row %.1f deg off, "
-                "lever %.2f, %.0f N: slave gear %d node %ld (%.1f um below its tip radius) against gear %d nodes",
+                "lever %.2f, %.0f N: slave gear %d node %ld (%.1f um from its tip radius) against gear %d nodes",
                 p->t0 * 1e3, p->steps, p->f_max, p->se_max * 1e3, p->angle, p->lever, p->f_row, p->slave_gear,
                 p->slave_node, p->slave_r_um, 1 - p->slave_gear);
         for (int j = 0; j < p->n_master; j++)
             fprintf(out, " %ld", p->master[j]);
-        fprintf(out, " (outermost %.1f um below its tip radius); gap kind %d, blend %.2f, xi %.3f, g %.3g um\n",
+        fprintf(out, " (the nearest to its tip radius %.1f um from it); gap kind %d, blend %.2f, xi %.3f, g %.3g um\n",
                 p->master_r_um, p->kind, p->blend, p->xi, p->g * 1e6);
     }
 }
