@@ -597,9 +597,9 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
      * Same scheme, but the solve only sees the small correction, so the
      * round-off does not scale with the rigid (or any) velocity. */
     b->has_fnod = f_nodes != NULL;
-    for (gs_index k = 0; k < m->n_free_nodes; k++)
+    for (gs_index k = 0; f_nodes && k < m->n_free_nodes; k++) /* fnod is read only if has_fnod */
         for (int c = 0; c < 2; c++) {
-            double f = f_nodes ? f_nodes[2 * m->free_node[k] + c] : 0.0;
+            double f = f_nodes[2 * m->free_node[k] + c];
             if (!isfinite(f))
                 return GS_EINVAL;
             b->fnod[2 * k + c] = f;
@@ -609,7 +609,7 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
         memcpy(r, b->next_r, (size_t)ne * sizeof *r);
     } else {
         for (gs_index i = 0; i < ne; i++) {
-            r[i] = b->fnod[i];
+            r[i] = f_nodes ? b->fnod[i] : 0.0;
             b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
         }
         if (m->mat.damping_m > 0) /* and - alpha_d M w */
@@ -633,27 +633,29 @@ static double increment(const gs_fe_body *b, gs_index i)
     return b->h * b->w[i] + b->delta[i];
 }
 
-/* The energies of the new state and the next right-hand side in one pass
- * (struct gs_fe_body, next_*); without memory for it, nothing is kept. */
-static void prepare_next(gs_fe_body *b)
+/* The new state (q += dq, w = 2 dq / h - w, written with dq = h w + delta),
+ * its energies and the next right-hand side, in one pass over the matrices
+ * (struct gs_fe_body, next_*); without memory for it, only the state. */
+static void advance(gs_fe_body *b)
 {
     const gs_fe_model *m = b->m;
     const gs_index ne = b->ne;
-    b->next_valid = false;
-    if (ne == 0)
-        return;
-    if (!b->next_r) {
-        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
-        if (!b->next_r)
-            return;
-    }
     const double h = b->h;
-    for (gs_index i = 0; i < ne; i++) {
-        b->next_r[i] = 0.0;
-        b->dq[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* as begin_step forms it */
+    b->next_valid = false;
+    if (ne > 0 && !b->next_r)
+        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
+    if (ne == 0 || !b->next_r) {
+        for (gs_index i = 0; i <= ne; i++) {
+            b->q[i] += h * b->w[i] + b->delta[i];
+            b->w[i] += 2.0 * b->delta[i] / h;
+        }
+        return;
     }
     double wmw, qkq;
-    gsi_fe_symv_quadform2(m, b->dq, b->next_r, b->w, b->q, &wmw, &qkq);
+    /* dq: q + (h/2 + beta) w, as begin_step forms it */
+    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->dq, b->next_r, &wmw, &qkq);
+    b->q[ne] += h * b->w[ne] + b->delta[ne];
+    b->w[ne] += 2.0 * b->delta[ne] / h;
     b->next_T = kinetic_of(b, wmw);
     b->next_V = 0.5 * qkq;
     b->next_h = h;
@@ -688,17 +690,12 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
         dis += dd;
         b->damped += dd;
     }
-    /* q += dq and w = 2 dq / h - w, written with dq = h w + delta */
-    for (gs_index i = 0; i <= ne; i++) {
-        b->q[i] += h * b->w[i] + b->delta[i];
-        b->w[i] += 2.0 * b->delta[i] / h;
-    }
     b->work_in += win;
     b->work_iface += wif;
     b->dissipated += dis;
     b->in_step = false;
     b->st.steps++;
-    prepare_next(b);
+    advance(b);
     return GS_OK;
 }
 

@@ -146,6 +146,18 @@ static double interleaved_floor(const gs_system *sys, int rank, int reps)
     return t;
 }
 
+/* With GEARSIM_PERF_CTL naming perf record's control fifo (perf record -D -1
+ * --control fifo:PATH), profile only the timed chunk. */
+static void perf_ctl(const char *cmd)
+{
+    const char *path = getenv("GEARSIM_PERF_CTL");
+    FILE *f = path ? fopen(path, "w") : NULL;
+    if (f) {
+        fputs(cmd, f);
+        fclose(f);
+    }
+}
+
 static int run_case(gs_engine *e, const bcase *c, int size)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
@@ -170,11 +182,13 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     gs_step_timing t0, t1;
     gs_engine_timing(e, &t0);
     n = c->steps;
+    perf_ctl("enable\n");
     double w0 = gs_now(), c0 = cpu_now(), u0 = user_now();
     if (gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) != GS_OK || done != n) {
         fprintf(stderr, "bench_cost: %s: stopped at %lld\n", c->scene, (long long)done);
         return 1;
     }
+    perf_ctl("disable\n");
     double wall = (gs_now() - w0) / (double)n, cpu = (cpu_now() - c0) / (double)n;
     double user = (user_now() - u0) / (double)n;
     gs_engine_timing(e, &t1);
