@@ -1076,10 +1076,25 @@ static gs_err touch(gs_fe_body *b, gs_index i, double f)
 /* d += sum_g f[g] col[g], added to each entry in the order of g: the same
  * values as ng axpys one after the other, in one pass over d. */
 #define AXPY_GROUP 4
+/* d += f[0] col[0] + ... + f[ng-1] col[ng-1], ng <= AXPY_GROUP + 1, in one
+ * pass, each entry summed in the order of the columns (the values of ng
+ * separate axpys). */
 static void axpy_group(double *d, gs_index ne, int ng, const double *f, const double *const *col)
 {
-    if (ng == AXPY_GROUP) {
-        const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3];
+    const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3], *c4 = col[4];
+    switch (ng) {
+    case 5:
+        for (gs_index r = 0; r < ne; r++) {
+            double v = d[r];
+            v += f[0] * c0[r];
+            v += f[1] * c1[r];
+            v += f[2] * c2[r];
+            v += f[3] * c3[r];
+            v += f[4] * c4[r];
+            d[r] = v;
+        }
+        return;
+    case 4:
         for (gs_index r = 0; r < ne; r++) {
             double v = d[r];
             v += f[0] * c0[r];
@@ -1089,10 +1104,30 @@ static void axpy_group(double *d, gs_index ne, int ng, const double *f, const do
             d[r] = v;
         }
         return;
-    }
-    for (int g = 0; g < ng; g++)
+    case 3:
+        for (gs_index r = 0; r < ne; r++) {
+            double v = d[r];
+            v += f[0] * c0[r];
+            v += f[1] * c1[r];
+            v += f[2] * c2[r];
+            d[r] = v;
+        }
+        return;
+    case 2:
+        for (gs_index r = 0; r < ne; r++) {
+            double v = d[r];
+            v += f[0] * c0[r];
+            v += f[1] * c1[r];
+            d[r] = v;
+        }
+        return;
+    case 1:
         for (gs_index r = 0; r < ne; r++)
-            d[r] += f[g] * col[g][r];
+            d[r] += f[0] * c0[r];
+        return;
+    default:
+        return;
+    }
 }
 
 gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double *f)
@@ -1109,8 +1144,8 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
     gs_err e = GS_OK;
     const gs_index ne = b->ne;
     double tau = 0;
-    const double *cols[AXPY_GROUP];
-    double fs[AXPY_GROUP];
+    const double *cols[AXPY_GROUP + 1] = {NULL};
+    double fs[AXPY_GROUP + 1];
     int ng = 0;
     for (int k = 0; k < n && e == GS_OK; k++) {
         gs_index i = qi[k];
@@ -1129,16 +1164,18 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
         }
         tau += f[k] * b->y[i];
     }
-    if (ng > 0)
+    if (e != GS_OK) {
         axpy_group(b->delta, ne, ng, fs, cols);
-    if (e != GS_OK)
         return e;
+    }
     if (!b->held) {
+        /* the rigid coordinate's term rides with the last columns' pass */
         tau /= b->sigma;
-        for (gs_index r = 0; r < ne; r++)
-            b->delta[r] += tau * b->y[r];
+        cols[ng] = b->y;
+        fs[ng++] = tau;
         b->delta[ne] -= tau;
     }
+    axpy_group(b->delta, ne, ng, fs, cols);
     return GS_OK;
 }
 
