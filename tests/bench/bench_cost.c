@@ -17,7 +17,9 @@
  *   bench_cost                    one rank
  *   mpirun -n 2 bench_cost        two ranks
  *   bench_cost quick              shorter chunks
- *   bench_cost full|quick SCENE   one of the two scenes only
+ *   bench_cost full|quick SCENE   one of the two scenes only ("all": both)
+ *   bench_cost full|quick SCENE SCHEME   with numerics.contact SCHEME
+ *                                 (seed, closure, closure_energy)
  *
  * Run by `meson test -C build --benchmark --suite bench cost` (both rank
  * counts). Wall times are ratios within one run on a shared machine. */
@@ -158,9 +160,12 @@ static void perf_ctl(const char *cmd)
     }
 }
 
-static int run_case(gs_engine *e, const bcase *c, int size)
+static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
+    json_object *num;
+    if (scheme && json_object_object_get_ex(root, "numerics", &num))
+        json_object_object_add(num, "contact", json_object_new_string(scheme));
     json_object *out = json_object_new_object();
     json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
     json_object_object_add(root, "outputs", out);
@@ -196,8 +201,8 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     /* The floor: bare solves, timed here on rank 0 while the other ranks
      * idle (they poll with sleeps), summed per owning rank. */
     double floor_rank[64] = {0}, cfloor_rank[64] = {0}, ufloor_rank[64] = {0}, floor_all = 0;
-    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d\n", c->scene, size, sys->h,
-           c->steps, c->warm, sys->scene->bodies[0].mesh.order);
+    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d, contact %s\n", c->scene, size,
+           sys->h, c->steps, c->warm, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed");
     printf("%-10s %5s %9s %12s %12s\n", "gear", "rank", "unknowns", "solve (ms)", "CPU (ms)");
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
@@ -236,9 +241,9 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     double ifl = interleaved_floor(sys, 0, 1000);
     printf("rank 0's gears solved in turn (CPU ms per round) %.4f: CPU ratio against it %.2f\n", 1e3 * ifl,
            cpu / ifl);
-    printf("RESULT scene %s order %d ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
+    printf("RESULT scene %s order %d contact %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
            "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
-           c->scene, sys->scene->bodies[0].mesh.order, size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
+           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
            1e3 * floor_all);
     fflush(stdout);
     gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
@@ -267,10 +272,11 @@ int main(int argc, char **argv)
         const char *thr = getenv("OPENBLAS_NUM_THREADS");
         printf("# bench_cost: cost per step against one bare solve per gear; OPENBLAS_NUM_THREADS=%s\n",
                thr ? thr : "(unset)");
-        const char *only = argc > 2 ? argv[2] : NULL;
+        const char *only = argc > 2 && strcmp(argv[2], "all") != 0 ? argv[2] : NULL;
+        const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (seed) */
         for (size_t k = 0; k < sizeof cases / sizeof cases[0] && rc == 0; k++)
             if (!only || !strcmp(only, cases[k].scene))
-                rc = run_case(e, &cases[k], size);
+                rc = run_case(e, &cases[k], size, scheme);
         gs_diag d;
         gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
     }
