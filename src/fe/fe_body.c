@@ -1074,27 +1074,13 @@ static gs_err touch(gs_fe_body *b, gs_index i, double f)
 }
 
 /* d += sum_g f[g] col[g], added to each entry in the order of g: the same
- * values as ng axpys one after the other, in one pass over d. */
+ * values as ng axpys one after the other, in one pass over d (the apply's
+ * groups of AXPY_GROUP columns, and its last group with the rigid term). */
 #define AXPY_GROUP 4
-/* d += f[0] col[0] + ... + f[ng-1] col[ng-1], ng <= AXPY_GROUP + 1, in one
- * pass, each entry summed in the order of the columns (the values of ng
- * separate axpys). */
 static void axpy_group(double *d, gs_index ne, int ng, const double *f, const double *const *col)
 {
-    const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3], *c4 = col[4];
-    switch (ng) {
-    case 5:
-        for (gs_index r = 0; r < ne; r++) {
-            double v = d[r];
-            v += f[0] * c0[r];
-            v += f[1] * c1[r];
-            v += f[2] * c2[r];
-            v += f[3] * c3[r];
-            v += f[4] * c4[r];
-            d[r] = v;
-        }
-        return;
-    case 4:
+    if (ng == AXPY_GROUP) { /* the common group, unrolled */
+        const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3];
         for (gs_index r = 0; r < ne; r++) {
             double v = d[r];
             v += f[0] * c0[r];
@@ -1104,29 +1090,12 @@ static void axpy_group(double *d, gs_index ne, int ng, const double *f, const do
             d[r] = v;
         }
         return;
-    case 3:
-        for (gs_index r = 0; r < ne; r++) {
-            double v = d[r];
-            v += f[0] * c0[r];
-            v += f[1] * c1[r];
-            v += f[2] * c2[r];
-            d[r] = v;
-        }
-        return;
-    case 2:
-        for (gs_index r = 0; r < ne; r++) {
-            double v = d[r];
-            v += f[0] * c0[r];
-            v += f[1] * c1[r];
-            d[r] = v;
-        }
-        return;
-    case 1:
-        for (gs_index r = 0; r < ne; r++)
-            d[r] += f[0] * c0[r];
-        return;
-    default:
-        return;
+    }
+    for (gs_index r = 0; r < ne; r++) {
+        double v = d[r];
+        for (int g = 0; g < ng; g++)
+            v += f[g] * col[g][r];
+        d[r] = v;
     }
 }
 
