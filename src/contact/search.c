@@ -228,12 +228,20 @@ static void body_pos(const gear_data *gd, const gs_contact_pose *ps, gs_index nd
     }
 }
 
-static void scene_pos(const gear_data *gd, const gs_contact_pose *ps, gs_index nd, double x[2])
+/* Scene position of node nd, with c, sn the cosine and sine of ps->theta
+ * (taken once per pose by the callers that place many nodes). */
+static void scene_pos_cs(const gear_data *gd, const gs_contact_pose *ps, double c, double sn, gs_index nd,
+                         double x[2])
 {
-    double y[2], c = cos(ps->theta), sn = sin(ps->theta);
+    double y[2];
     body_pos(gd, ps, nd, y);
     x[0] = ps->c[0] + c * y[0] - sn * y[1];
     x[1] = ps->c[1] + sn * y[0] + c * y[1];
+}
+
+static void scene_pos(const gear_data *gd, const gs_contact_pose *ps, gs_index nd, double x[2])
+{
+    scene_pos_cs(gd, ps, cos(ps->theta), sin(ps->theta), nd, x);
 }
 
 static double seg_d2(const double y[2], const double a[2], const double b[2])
@@ -248,6 +256,8 @@ static double seg_d2(const double y[2], const double a[2], const double b[2])
 
 static gs_index wrapi(gs_index j, gs_index n)
 {
+    if (j >= 0 && j < n) /* nearly always: no division */
+        return j;
     j %= n;
     return j < 0 ? j + n : j;
 }
@@ -359,6 +369,7 @@ typedef struct pass_ctx {
     double cB[2], zoneR2;
     bool zone_inside; /* B external: |x - cB| <= R; ring: >= R */
     bool flanks;      /* flank interior nodes are slaves in this pass */
+    double ca, sa, cb, sb; /* cosine and sine of A's and B's rotations */
     gs_index tested;
 } pass_ctx;
 
@@ -369,13 +380,13 @@ static gs_err try_node(pass_ctx *pc, gs_index nd, int tooth, int where, bool cor
     if (!corner && !pc->flanks)
         return GS_OK;
     double x[2];
-    scene_pos(ga, &pc->pose[pc->ia], nd, x);
+    scene_pos_cs(ga, &pc->pose[pc->ia], pc->ca, pc->sa, nd, x);
     double dx = x[0] - pc->cB[0], dy = x[1] - pc->cB[1], r2 = dx * dx + dy * dy;
     if (pc->zone_inside ? r2 > pc->zoneR2 : r2 < pc->zoneR2)
         return GS_OK;
     pc->tested++;
     const gs_contact_pose *pb = &pc->pose[pc->ib];
-    double cb = cos(pb->theta), sb = sin(pb->theta);
+    double cb = pc->cb, sb = pc->sb;
     double y[2] = {cb * dx + sb * dy, -sb * dx + cb * dy};
     double d2;
     gs_index j = nearest_segment(gb, pb, y, &d2);
@@ -444,6 +455,10 @@ static gs_err run_pass(gs_contact_search *s, const gs_contact_pose pose[2], int 
 {
     const gear_data *ga = &s->g[ia], *gb = &s->g[1 - ia];
     pass_ctx pc = {.s = s, .ia = ia, .ib = 1 - ia, .pose = pose};
+    pc.ca = cos(pose[ia].theta);
+    pc.sa = sin(pose[ia].theta);
+    pc.cb = cos(pose[1 - ia].theta);
+    pc.sb = sin(pose[1 - ia].theta);
     pc.cB[0] = pose[1 - ia].c[0];
     pc.cB[1] = pose[1 - ia].c[1];
     double ex = pc.cB[0] - pose[ia].c[0], ey = pc.cB[1] - pose[ia].c[1], d = hypot(ex, ey);
@@ -676,10 +691,11 @@ gs_err gs_contact_eval(const gs_contact_search *s, const gs_contact_pose pose[2]
     if (cand->slave_node < 0 || cand->slave_node >= ga->m->n_nodes)
         return GS_EINVAL;
     double pts[2 * GS_CONTACT_WINDOW_MAX], x[2];
+    const double cm = cos(pose[cand->master].theta), sm = sin(pose[cand->master].theta);
     for (int q = 0; q < cand->n_window; q++) {
         if (cand->window[q] < 0 || cand->window[q] >= gb->m->n_nodes)
             return GS_EINVAL;
-        scene_pos(gb, &pose[cand->master], cand->window[q], pts + 2 * q);
+        scene_pos_cs(gb, &pose[cand->master], cm, sm, cand->window[q], pts + 2 * q);
     }
     scene_pos(ga, &pose[cand->slave], cand->slave_node, x);
     memset(row, 0, sizeof *row);

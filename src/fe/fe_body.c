@@ -596,9 +596,9 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
      * Same scheme, but the solve only sees the small correction, so the
      * round-off does not scale with the rigid (or any) velocity. */
     b->has_fnod = f_nodes != NULL;
-    for (gs_index k = 0; k < m->n_free_nodes; k++)
+    for (gs_index k = 0; f_nodes && k < m->n_free_nodes; k++) /* fnod is read only if has_fnod */
         for (int c = 0; c < 2; c++) {
-            double f = f_nodes ? f_nodes[2 * m->free_node[k] + c] : 0.0;
+            double f = f_nodes[2 * m->free_node[k] + c];
             if (!isfinite(f))
                 return GS_EINVAL;
             b->fnod[2 * k + c] = f;
@@ -608,7 +608,7 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
         memcpy(r, b->next_r, (size_t)ne * sizeof *r);
     } else {
         for (gs_index i = 0; i < ne; i++) {
-            r[i] = b->fnod[i];
+            r[i] = f_nodes ? b->fnod[i] : 0.0;
             b->delta[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* scratch */
         }
         if (m->mat.damping_m > 0) /* and - alpha_d M w */
@@ -632,27 +632,29 @@ static double increment(const gs_fe_body *b, gs_index i)
     return b->h * b->w[i] + b->delta[i];
 }
 
-/* The energies of the new state and the next right-hand side in one pass
- * (struct gs_fe_body, next_*); without memory for it, nothing is kept. */
-static void prepare_next(gs_fe_body *b)
+/* The new state (q += dq, w = 2 dq / h - w, written with dq = h w + delta),
+ * its energies and the next right-hand side, in one pass over the matrices
+ * (struct gs_fe_body, next_*); without memory for it, only the state. */
+static void advance(gs_fe_body *b)
 {
     const gs_fe_model *m = b->m;
     const gs_index ne = b->ne;
-    b->next_valid = false;
-    if (ne == 0)
-        return;
-    if (!b->next_r) {
-        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
-        if (!b->next_r)
-            return;
-    }
     const double h = b->h;
-    for (gs_index i = 0; i < ne; i++) {
-        b->next_r[i] = 0.0;
-        b->dq[i] = b->q[i] + (0.5 * h + m->mat.damping_s) * b->w[i]; /* as begin_step forms it */
+    b->next_valid = false;
+    if (ne > 0 && !b->next_r)
+        b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
+    if (ne == 0 || !b->next_r) {
+        for (gs_index i = 0; i <= ne; i++) {
+            b->q[i] += h * b->w[i] + b->delta[i];
+            b->w[i] += 2.0 * b->delta[i] / h;
+        }
+        return;
     }
     double wmw, qkq;
-    gsi_fe_symv_quadform2(m, b->dq, b->next_r, b->w, b->q, &wmw, &qkq);
+    /* dq: q + (h/2 + beta) w, as begin_step forms it */
+    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->dq, b->next_r, &wmw, &qkq);
+    b->q[ne] += h * b->w[ne] + b->delta[ne];
+    b->w[ne] += 2.0 * b->delta[ne] / h;
     b->next_T = kinetic_of(b, wmw);
     b->next_V = 0.5 * qkq;
     b->next_h = h;
@@ -687,17 +689,12 @@ gs_err gs_fe_body_end_step(gs_fe_body *b)
         dis += dd;
         b->damped += dd;
     }
-    /* q += dq and w = 2 dq / h - w, written with dq = h w + delta */
-    for (gs_index i = 0; i <= ne; i++) {
-        b->q[i] += h * b->w[i] + b->delta[i];
-        b->w[i] += 2.0 * b->delta[i] / h;
-    }
     b->work_in += win;
     b->work_iface += wif;
     b->dissipated += dis;
     b->in_step = false;
     b->st.steps++;
-    prepare_next(b);
+    advance(b);
     return GS_OK;
 }
 
@@ -1076,11 +1073,12 @@ static gs_err touch(gs_fe_body *b, gs_index i, double f)
 }
 
 /* d += sum_g f[g] col[g], added to each entry in the order of g: the same
- * values as ng axpys one after the other, in one pass over d. */
+ * values as ng axpys one after the other, in one pass over d (the apply's
+ * groups of AXPY_GROUP columns, and its last group with the rigid term). */
 #define AXPY_GROUP 4
 static void axpy_group(double *d, gs_index ne, int ng, const double *f, const double *const *col)
 {
-    if (ng == AXPY_GROUP) {
+    if (ng == AXPY_GROUP) { /* the common group, unrolled */
         const double *c0 = col[0], *c1 = col[1], *c2 = col[2], *c3 = col[3];
         for (gs_index r = 0; r < ne; r++) {
             double v = d[r];
@@ -1092,9 +1090,12 @@ static void axpy_group(double *d, gs_index ne, int ng, const double *f, const do
         }
         return;
     }
-    for (int g = 0; g < ng; g++)
-        for (gs_index r = 0; r < ne; r++)
-            d[r] += f[g] * col[g][r];
+    for (gs_index r = 0; r < ne; r++) {
+        double v = d[r];
+        for (int g = 0; g < ng; g++)
+            v += f[g] * col[g][r];
+        d[r] = v;
+    }
 }
 
 gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double *f)
@@ -1111,8 +1112,8 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
     gs_err e = GS_OK;
     const gs_index ne = b->ne;
     double tau = 0;
-    const double *cols[AXPY_GROUP];
-    double fs[AXPY_GROUP];
+    const double *cols[AXPY_GROUP + 1] = {NULL};
+    double fs[AXPY_GROUP + 1];
     int ng = 0;
     for (int k = 0; k < n && e == GS_OK; k++) {
         gs_index i = qi[k];
@@ -1131,16 +1132,18 @@ gs_err gs_fe_body_apply(gs_fe_body *b, int n, const gs_index *dofs, const double
         }
         tau += f[k] * b->y[i];
     }
-    if (ng > 0)
+    if (e != GS_OK) {
         axpy_group(b->delta, ne, ng, fs, cols);
-    if (e != GS_OK)
         return e;
+    }
     if (!b->held) {
+        /* the rigid coordinate's term rides with the last columns' pass */
         tau /= b->sigma;
-        for (gs_index r = 0; r < ne; r++)
-            b->delta[r] += tau * b->y[r];
+        cols[ng] = b->y;
+        fs[ng++] = tau;
         b->delta[ne] -= tau;
     }
+    axpy_group(b->delta, ne, ng, fs, cols);
     return GS_OK;
 }
 

@@ -71,10 +71,14 @@ double gsi_fe_quadform(const gs_fe_model *m, double alpha, double beta, const do
  * the order of gsi_fe_quadform (the same values as its two calls). */
 void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, double *qm, double *qk);
 
-/* gsi_fe_symv2(m, 0, x, -1, x, y) and gsi_fe_quadform2(m, xm, xk, qm, qk)
- * in one pass over the pattern, each result bit for bit as from those. */
-void gsi_fe_symv_quadform2(const gs_fe_model *m, const double *x, double *y, const double *xm,
-                           const double *xk, double *qm, double *qk);
+/* The end of a step of an FE body in one pass over the pattern (column j
+ * updates entry j just before the columns after it read it):
+ * q += h w + delta, then w += 2 delta / h, x = q + c w, y = -K x (y needs no
+ * initial value), *qm = w^T M w and *qk = q^T K q of the new q, w: bit for
+ * bit the values of those loops, gsi_fe_symv2(m, 0, x, -1, x, y) on a zero
+ * y and gsi_fe_quadform2(m, w, q, qm, qk) taken one after the other. */
+void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
+                      double *w, double *x, double *y, double *qm, double *qk);
 
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */

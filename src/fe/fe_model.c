@@ -414,27 +414,32 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
     *qk = diagk + 2.0 * offk;
 }
 
-void gsi_fe_symv_quadform2(const gs_fe_model *m, const double *x, double *y, const double *xm,
-                           const double *xk, double *qm, double *qk)
+void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
+                      double *w, double *x, double *y, double *qm, double *qk)
 {
     const gs_index *cp = m->colp, *ri = m->rowi;
     const double *mx = m->mx, *kx = m->kx;
     double offm = 0, diagm = 0, offk = 0, diagk = 0;
     for (gs_index j = 0; j < m->ne; j++) {
+        /* column j reads rows i < j only (diagonal last): those entries of
+         * q, w and x are final, and y[i] holds its own term */
+        q[j] += h * w[j] + delta[j];
+        w[j] += 2.0 * delta[j] / h;
+        x[j] = q[j] + c * w[j];
         gs_index end = cp[j + 1] - 1;
         double bx = -1.0 * x[j], acc = 0, am = 0, ak = 0;
         for (gs_index p = cp[j]; p < end; p++) {
             gs_index i = ri[p];
             y[i] += kx[p] * bx;
             acc += kx[p] * x[i];
-            am += mx[p] * xm[i];
-            ak += kx[p] * xk[i];
+            am += mx[p] * w[i];
+            ak += kx[p] * q[i];
         }
-        y[j] += -1.0 * acc + kx[end] * bx;
-        offm += am * xm[j];
-        diagm += mx[end] * xm[j] * xm[j];
-        offk += ak * xk[j];
-        diagk += kx[end] * xk[j] * xk[j];
+        y[j] = 0.0 + (-1.0 * acc + kx[end] * bx);
+        offm += am * w[j];
+        diagm += mx[end] * w[j] * w[j];
+        offk += ak * q[j];
+        diagk += kx[end] * q[j] * q[j];
     }
     *qm = diagm + 2.0 * offm;
     *qk = diagk + 2.0 * offk;

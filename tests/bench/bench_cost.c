@@ -17,7 +17,9 @@
  *   bench_cost                    one rank
  *   mpirun -n 2 bench_cost        two ranks
  *   bench_cost quick              shorter chunks
- *   bench_cost full|quick SCENE   one of the two scenes only
+ *   bench_cost full|quick SCENE   one of the two scenes only ("all": both)
+ *   bench_cost full|quick SCENE SCHEME   with numerics.contact SCHEME
+ *                                 (seed, closure, closure_energy)
  *
  * Run by `meson test -C build --benchmark --suite bench cost` (both rank
  * counts). Wall times are ratios within one run on a shared machine. */
@@ -146,9 +148,90 @@ static double interleaved_floor(const gs_system *sys, int rank, int reps)
     return t;
 }
 
-static int run_case(gs_engine *e, const bcase *c, int size)
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The CPU ratio taken in rounds: a chunk of steps through the engine, then
+ * the floor's bare solves (each gear `reps` times on a fresh factor, summed
+ * per owning rank, the largest sum), alternately, so that the step and its
+ * floor see the same load on a shared machine. Prints each round's ratio
+ * and returns their median (negative on failure). */
+static double rounds_ratio(gs_engine *e, const bcase *c, int size, int rounds, int64_t steps, int reps)
+{
+    enum { MAXG = 16, MAXR = 16 };
+    gs_system *sys = gs_engine_system(e);
+    gs_mesh *mesh[MAXG] = {0};
+    gs_fe_model *m[MAXG] = {0};
+    gs_fe_body *b[MAXG] = {0};
+    int owner[MAXG], ng = 0;
+    gs_diag d;
+    bool ok = rounds <= MAXR;
+    for (int i = 0; i < sys->n_bodies && ok; i++) {
+        const gs_body_rt *br = &sys->bodies[i];
+        if (!br->ops->state_size || ng == MAXG)
+            continue;
+        const gs_scene_body *sb = &sys->scene->bodies[i];
+        owner[ng] = br->owner;
+        ok = gs_scene_gear_mesh(sb, &mesh[ng], &d) == GS_OK &&
+             gs_fe_model_new(mesh[ng], &sb->material, sb->gear.face_width_m, 1e-6, &m[ng]) == GS_OK &&
+             gs_fe_body_new(m[ng], &b[ng]) == GS_OK && gs_fe_body_set_step(b[ng], sys->h, 0.0) == GS_OK;
+        ng++;
+    }
+    double ratio[MAXR], med = -1;
+    for (int r = 0; r < rounds && ok; r++) {
+        int64_t n = steps, done = 0;
+        double c0 = cpu_now();
+        ok = gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) == GS_OK && done == n;
+        double cs = (cpu_now() - c0) / (double)n, fr[64] = {0}, fl = 0;
+        for (int g = 0; g < ng && ok; g++) {
+            c0 = cpu_now();
+            ok = gsi_fe_body_time_bare_solve(b[g], reps) >= 0;
+            if (owner[g] >= 0 && owner[g] < 64)
+                fr[owner[g]] += (cpu_now() - c0) / reps;
+        }
+        for (int k = 0; k < size && k < 64; k++)
+            fl = fl > fr[k] ? fl : fr[k];
+        ratio[r] = cs / fl;
+    }
+    if (ok) {
+        printf("rounds (%d x %lld steps, then %d bare solves per gear), CPU ratio per round:", rounds,
+               (long long)steps, reps);
+        for (int r = 0; r < rounds; r++)
+            printf(" %.2f", ratio[r]);
+        qsort(ratio, (size_t)rounds, sizeof *ratio, cmp_double);
+        med = ratio[rounds / 2];
+        printf("\nRESULT_ROUNDS scene %s order %d ranks %d: median CPU ratio %.2f (min %.2f, max %.2f)\n", c->scene,
+               sys->scene->bodies[0].mesh.order, size, med, ratio[0], ratio[rounds - 1]);
+    }
+    for (int g = 0; g < ng; g++) {
+        gs_fe_body_free(&b[g]);
+        gs_fe_model_free(&m[g]);
+        gs_mesh_free(&mesh[g]);
+    }
+    return med;
+}
+
+/* With GEARSIM_PERF_CTL naming perf record's control fifo (perf record -D -1
+ * --control fifo:PATH), profile only the timed chunk. */
+static void perf_ctl(const char *cmd)
+{
+    const char *path = getenv("GEARSIM_PERF_CTL");
+    FILE *f = path ? fopen(path, "w") : NULL;
+    if (f) {
+        fputs(cmd, f);
+        fclose(f);
+    }
+}
+
+static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
+    json_object *num;
+    if (scheme && json_object_object_get_ex(root, "numerics", &num))
+        json_object_object_add(num, "contact", json_object_new_string(scheme));
     json_object *out = json_object_new_object();
     json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
     json_object_object_add(root, "outputs", out);
@@ -170,11 +253,13 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     gs_step_timing t0, t1;
     gs_engine_timing(e, &t0);
     n = c->steps;
+    perf_ctl("enable\n");
     double w0 = gs_now(), c0 = cpu_now(), u0 = user_now();
     if (gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) != GS_OK || done != n) {
         fprintf(stderr, "bench_cost: %s: stopped at %lld\n", c->scene, (long long)done);
         return 1;
     }
+    perf_ctl("disable\n");
     double wall = (gs_now() - w0) / (double)n, cpu = (cpu_now() - c0) / (double)n;
     double user = (user_now() - u0) / (double)n;
     gs_engine_timing(e, &t1);
@@ -182,8 +267,8 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     /* The floor: bare solves, timed here on rank 0 while the other ranks
      * idle (they poll with sleeps), summed per owning rank. */
     double floor_rank[64] = {0}, cfloor_rank[64] = {0}, ufloor_rank[64] = {0}, floor_all = 0;
-    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d\n", c->scene, size, sys->h,
-           c->steps, c->warm, sys->scene->bodies[0].mesh.order);
+    printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d, contact %s\n", c->scene, size,
+           sys->h, c->steps, c->warm, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed");
     printf("%-10s %5s %9s %12s %12s\n", "gear", "rank", "unknowns", "solve (ms)", "CPU (ms)");
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
@@ -222,10 +307,12 @@ static int run_case(gs_engine *e, const bcase *c, int size)
     double ifl = interleaved_floor(sys, 0, 1000);
     printf("rank 0's gears solved in turn (CPU ms per round) %.4f: CPU ratio against it %.2f\n", 1e3 * ifl,
            cpu / ifl);
-    printf("RESULT scene %s order %d ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
+    printf("RESULT scene %s order %d contact %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
            "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
-           c->scene, sys->scene->bodies[0].mesh.order, size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
+           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
            1e3 * floor_all);
+    if (rounds_ratio(e, c, size, 5, c->steps / 5, c->steps >= 1000 ? 400 : 200) < 0)
+        return 1;
     fflush(stdout);
     gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
     return 0;
@@ -253,10 +340,11 @@ int main(int argc, char **argv)
         const char *thr = getenv("OPENBLAS_NUM_THREADS");
         printf("# bench_cost: cost per step against one bare solve per gear; OPENBLAS_NUM_THREADS=%s\n",
                thr ? thr : "(unset)");
-        const char *only = argc > 2 ? argv[2] : NULL;
+        const char *only = argc > 2 && strcmp(argv[2], "all") != 0 ? argv[2] : NULL;
+        const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (seed) */
         for (size_t k = 0; k < sizeof cases / sizeof cases[0] && rc == 0; k++)
             if (!only || !strcmp(only, cases[k].scene))
-                rc = run_case(e, &cases[k], size);
+                rc = run_case(e, &cases[k], size, scheme);
         gs_diag d;
         gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
     }

@@ -363,6 +363,56 @@ static void static_needs_support(void **state)
     gs_mesh_free(&mesh);
 }
 
+/* gsi_fe_step_pass (the end of an FE body's step in one pass) gives bit for
+ * bit the values of the separate loops and kernels it replaces. */
+static void step_pass_matches_separate_loops(void **state)
+{
+    (void)state;
+    gs_mesh *mesh = free_rectangle(0.3, 0.05, 10, 4, 0.2);
+    gs_material mat = gs_material_steel();
+    gs_fe_model *m = NULL;
+    assert_int_equal(gs_fe_model_new(mesh, &mat, T, 1e-6, &m), GS_OK);
+    const gs_index ne = m->ne;
+    const double h = 1e-5, c = 0.5 * h + 3e-7;
+    double *q0 = malloc((size_t)ne * sizeof *q0), *w0 = malloc((size_t)ne * sizeof *w0);
+    double *dl = malloc((size_t)ne * sizeof *dl);
+    double *q1 = malloc((size_t)ne * sizeof *q1), *w1 = malloc((size_t)ne * sizeof *w1);
+    double *x1 = malloc((size_t)ne * sizeof *x1), *y1 = malloc((size_t)ne * sizeof *y1);
+    double *q2 = malloc((size_t)ne * sizeof *q2), *w2 = malloc((size_t)ne * sizeof *w2);
+    double *x2 = malloc((size_t)ne * sizeof *x2), *y2 = malloc((size_t)ne * sizeof *y2);
+    for (gs_index i = 0; i < ne; i++) {
+        q0[i] = 1e-6 * sin(0.71 * (double)i + 0.2) * (1.0 + (double)(i % 5));
+        w0[i] = 1e-2 * cos(1.37 * (double)i) / (1.0 + (double)(i % 3));
+        dl[i] = i % 7 ? 1e-9 * sin(2.1 * (double)i) : 0.0;
+    }
+    /* reference: the state update, x, y = -K x on a zero y, the energies */
+    double qm1, qk1, qm2, qk2;
+    for (gs_index i = 0; i < ne; i++) {
+        q1[i] = q0[i] + (h * w0[i] + dl[i]);
+        w1[i] = w0[i] + 2.0 * dl[i] / h;
+        x1[i] = q1[i] + c * w1[i];
+        y1[i] = 0.0;
+    }
+    gsi_fe_symv2(m, 0.0, x1, -1.0, x1, y1);
+    gsi_fe_quadform2(m, w1, q1, &qm1, &qk1);
+    memcpy(q2, q0, (size_t)ne * sizeof *q2);
+    memcpy(w2, w0, (size_t)ne * sizeof *w2);
+    for (gs_index i = 0; i < ne; i++)
+        y2[i] = NAN; /* needs no initial value */
+    gsi_fe_step_pass(m, h, c, dl, q2, w2, x2, y2, &qm2, &qk2);
+    assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
+    assert_memory_equal(w1, w2, (size_t)ne * sizeof *w1);
+    assert_memory_equal(x1, x2, (size_t)ne * sizeof *x1);
+    assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
+    assert_memory_equal(&qm1, &qm2, sizeof qm1);
+    assert_memory_equal(&qk1, &qk2, sizeof qk1);
+    assert_true(qm1 > 0 && qk1 > 0);
+    free(q0), free(w0), free(dl), free(q1), free(w1), free(x1), free(y1);
+    free(q2), free(w2), free(x2), free(y2);
+    gs_fe_model_free(&m);
+    gs_mesh_free(&mesh);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -374,6 +424,7 @@ int main(void)
         cmocka_unit_test(static_and_energy_match_dense),
         cmocka_unit_test(input_errors),
         cmocka_unit_test(static_needs_support),
+        cmocka_unit_test(step_pass_matches_separate_loops),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
