@@ -65,7 +65,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->max_iter = 12;
     o->cycles = 1;
     o->order = 0;
-    o->nearfield = 0;
+    o->nearfield = 1;
     o->nearfield_depth_mm = 0.0;
     o->fine = 0;
     o->all_rows = 0;
