@@ -1042,7 +1042,7 @@ static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
 static const char *const fetch_args[] = {"path", "offset", "length", NULL};
-static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", "wait", NULL};
+static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "nearfield", "path", "wait", NULL};
 
 /* The result of a finished analysis: written to its HDF5 file when asked,
  * as JSON (the reply of the synchronous form, the done event's `result`). */
