@@ -1099,7 +1099,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
     bool nearfield = true;
     GS_TRY(gsi_json_bool(args, "nearfield", "args", true, &nearfield, d));
-    o.nearfield = nearfield ? 1 : 0;
+    o.nearfield = nearfield ? 2 : 0; /* true: the library's auto (quadratic meshes) */
     bool wait = false;
     GS_TRY(gsi_json_bool(args, "wait", "args", false, &wait, d));
     char full[PATH_MAX] = "", rel[600] = "";

@@ -15,10 +15,12 @@
  * position) and a summary; with --json one JSON object (keys documented in
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. The near-field (Hertz)
- * correction of the contact compliance is on by default; --no-nearfield (or
- * --plain) gives the plain FE contact (what the dynamic FE model has),
- * --nearfield is accepted and changes nothing, --nearfield-depth sets the
- * correction's depth (mm; default 0.2 module; not with --no-nearfield). --fine meshes
+ * correction of the contact compliance is on by default when both gears
+ * have quadratic elements (the default mesh; linear triangles keep the plain
+ * FE); --no-nearfield (or --plain) gives the plain FE contact (what the
+ * dynamic FE model has), --nearfield forces the correction on any mesh,
+ * --nearfield-depth sets its depth (mm; default 0.2 module; implies
+ * --nearfield; not with --no-nearfield). --fine meshes
  * both gears on the `fine` setting (the teeth in contact locally refined,
  * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
@@ -172,8 +174,9 @@ int main(int argc, char **argv)
                 return 1;
             }
             depth_set = true;
+            o.nearfield = 1;
         } else if (!strcmp(a, "--nearfield"))
-            o.nearfield = 1; /* the default; kept so older command lines still run */
+            o.nearfield = 1; /* on any mesh; the default (auto) on quadratic ones */
         else if (!strcmp(a, "--no-nearfield") || !strcmp(a, "--plain"))
             plain = true;
         else if (!strcmp(a, "--fine"))

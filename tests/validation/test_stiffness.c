@@ -278,7 +278,7 @@ static void bad_input(void **state)
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
     assert_string_equal(d.field, "order");
     o.order = 0;
-    o.nearfield = 2;
+    o.nearfield = 3;
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
     assert_string_equal(d.field, "nearfield");
     o.nearfield = 1;
@@ -305,7 +305,7 @@ static void nearfield_softens(void **state)
     gs_scene *s = scene(0, 0, 0);
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
-    assert_int_equal(o.nearfield, 1); /* the correction is the default */
+    assert_int_equal(o.nearfield, 2); /* the default: auto, on with quadratic elements */
     o.nearfield = 0;
     o.positions = 6;
     o.tangent = 0;
@@ -323,6 +323,24 @@ static void nearfield_softens(void **state)
         assert_true(nf.pt[j].converged);
         assert_true(ratio > 1.005 && ratio < 1.25);
     }
+    /* auto (the default) is the correction on quadratic elements and the
+     * plain FE on linear ones, bit for bit. */
+    gs_stiffness_result au, lin[2];
+    o.nearfield = 2;
+    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &au, &d), GS_OK);
+    for (int j = 0; j < o.positions; j++)
+        assert_memory_equal(&au.pt[j].te_um, &nf.pt[j].te_um, sizeof(double));
+    o.order = 1;
+    o.positions = 2;
+    for (int v = 0; v < 2; v++) {
+        o.nearfield = 2 * v;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &lin[v], &d), GS_OK);
+    }
+    for (int j = 0; j < o.positions; j++)
+        assert_memory_equal(&lin[0].pt[j].te_um, &lin[1].pt[j].te_um, sizeof(double));
+    gs_stiffness_result_clear(&au);
+    gs_stiffness_result_clear(&lin[0]);
+    gs_stiffness_result_clear(&lin[1]);
     gs_stiffness_result_clear(&plain);
     gs_stiffness_result_clear(&nf);
     gs_scene_free(&s);
