@@ -53,7 +53,9 @@
  *    round-off. *
  * The dynamic runs (drive_scene, ring_relief, runout_dynamic) pin linear
  * triangles (vt_scene_linear): their figures were measured on them and
- * the quadratic default costs about 12 times as much per step. */
+ * the quadratic default costs about 12 times as much per step. On the
+ * linear pair the analysis' near-field default (auto) is the plain FE; what
+ * feeds a dynamic or calibrated comparison sets nearfield 0 explicitly. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
