@@ -61,9 +61,11 @@ typedef struct gs_stiffness_opts {
                         * see tooth errors and run-out, which are not periodic in one pitch) */
     int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
                         * for both gears */
-    int nearfield;     /* 0 (default): the plain FE contact; 1: near-field (Hertz)
-                        * correction of the contact compliance (docs/STIFFNESS.md
-                        * "Near-field correction") */
+    int nearfield;     /* 2 (default, auto): near-field (Hertz) correction of the contact
+                        * compliance (docs/STIFFNESS.md "Near-field correction") when both
+                        * gears have quadratic elements, the plain FE on linear ones; 1: the
+                        * correction on any mesh; 0: the plain FE contact (what the dynamic
+                        * FE model has) */
     double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,
                         * mm (at most one module); 0 (default): 0.2 module */
     int fine;          /* 0 (default): the scene's mesh; 1: both gears on the `fine` setting

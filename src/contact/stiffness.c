@@ -65,7 +65,7 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->max_iter = 12;
     o->cycles = 1;
     o->order = 0;
-    o->nearfield = 0;
+    o->nearfield = 2;
     o->nearfield_depth_mm = 0.0;
     o->fine = 0;
     o->all_rows = 0;
@@ -1852,8 +1852,8 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (o.fine && (o.refine >= 0 || o.order > 0))
         return gs_diag_set(d, GS_EINVAL, "fine",
                            "the fine setting is a mesh of its own: not with refine or order");
-    if (o.nearfield != 0 && o.nearfield != 1)
-        return gs_diag_set(d, GS_ERANGE, "nearfield", "nearfield must be 0 or 1");
+    if (o.nearfield < 0 || o.nearfield > 2)
+        return gs_diag_set(d, GS_ERANGE, "nearfield", "nearfield must be 0 (off), 1 (on) or 2 (auto)");
     if (!(o.nearfield_depth_mm >= 0.0 && o.nearfield_depth_mm <= 100.0))
         return gs_diag_set(d, GS_ERANGE, "nearfield_depth_mm",
                            "the near-field depth must be in [0, 100] mm (0: automatic)");
@@ -1904,7 +1904,10 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         }
     }
     w.rb = gs_gear_base_radius(gA);
-    w.nf = o.nearfield;
+    /* auto (2): on quadratic meshes, where it is validated; on linear
+     * triangles it left positions unconverged (docs/STIFFNESS.md). */
+    w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2
+                            : o.nearfield;
     if (w.nf) {
         /* Depth of the FE field point below the contact: given, or a fixed
          * fraction of the smaller module (docs/STIFFNESS.md). */

@@ -426,6 +426,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
     double t0 = gs_now();
     gs_stiffness_opts so;
     gs_stiffness_opts_defaults(&so);
+    so.nearfield = 0; /* the modes are those of the FE model, which has no near-field correction */
     so.positions = o.positions;
     so.refine = o.refine;
     so.order = o.order;

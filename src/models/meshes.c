@@ -282,6 +282,7 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
+    o.nearfield = 0; /* the dynamic FE model it stands in for has no near-field correction */
     o.positions = sm->calibrate_positions;
     o.driver = sys->scene->bodies[sm->gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
     int tangent = !sm->calibrate_secant;

@@ -1042,7 +1042,7 @@ static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
 static const char *const fetch_args[] = {"path", "offset", "length", NULL};
-static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "path", "wait", NULL};
+static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "nearfield", "path", "wait", NULL};
 
 /* The result of a finished analysis: written to its HDF5 file when asked,
  * as JSON (the reply of the synchronous form, the done event's `result`). */
@@ -1097,6 +1097,9 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
     o.refine = (int)v;
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
+    bool nearfield = true;
+    GS_TRY(gsi_json_bool(args, "nearfield", "args", true, &nearfield, d));
+    o.nearfield = nearfield ? 2 : 0; /* true: the library's auto (quadratic meshes) */
     bool wait = false;
     GS_TRY(gsi_json_bool(args, "wait", "args", false, &wait, d));
     char full[PATH_MAX] = "", rel[600] = "";

@@ -5,7 +5,7 @@
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
- *                     [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]
+ *                     [--no-nearfield|--plain] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]
  *                     [--json] [--out FILE.h5]
  *
  * --mesh defaults to the scene's first mesh; --positions to 24; --torque
@@ -14,9 +14,13 @@
  * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
  * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
- * over T (1 -+ H) instead of the chord from T/2. --nearfield adds the
- * near-field (Hertz) correction of the contact compliance, --nearfield-depth
- * sets its depth (mm; default 0.2 module; implies --nearfield). --fine meshes
+ * over T (1 -+ H) instead of the chord from T/2. The near-field (Hertz)
+ * correction of the contact compliance is on by default when both gears
+ * have quadratic elements (the default mesh; linear triangles keep the plain
+ * FE); --no-nearfield (or --plain) gives the plain FE contact (what the
+ * dynamic FE model has), --nearfield forces the correction on any mesh,
+ * --nearfield-depth sets its depth (mm; default 0.2 module; implies
+ * --nearfield; not with --no-nearfield). --fine meshes
  * both gears on the `fine` setting (the teeth in contact locally refined,
  * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
  * error (message on stderr naming the field). Not an MPI program. */
@@ -35,7 +39,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
                "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
-               "                         [--nearfield] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]\n"
+               "                         [--no-nearfield|--plain] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
 
@@ -110,6 +114,7 @@ int main(int argc, char **argv)
     int json = 0;
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
+    bool plain = false, depth_set = false;
     for (int i = 1; i < argc; i++) {
         long v;
         const char *a = argv[i];
@@ -168,9 +173,12 @@ int main(int argc, char **argv)
                 fprintf(stderr, "gearsim-stiffness: --nearfield-depth must be a positive number (mm)\n");
                 return 1;
             }
+            depth_set = true;
             o.nearfield = 1;
         } else if (!strcmp(a, "--nearfield"))
-            o.nearfield = 1;
+            o.nearfield = 1; /* on any mesh; the default (auto) on quadratic ones */
+        else if (!strcmp(a, "--no-nearfield") || !strcmp(a, "--plain"))
+            plain = true;
         else if (!strcmp(a, "--fine"))
             o.fine = 1;
         else if (!strcmp(a, "--all-rows"))
@@ -195,6 +203,12 @@ int main(int argc, char **argv)
         usage(stderr);
         return 1;
     }
+    if (plain && depth_set) {
+        fprintf(stderr, "gearsim-stiffness: --nearfield-depth sets the near-field correction, which --no-nearfield switches off\n");
+        return 1;
+    }
+    if (plain)
+        o.nearfield = 0;
     gs_scene *s = tool_load_scene("gearsim-stiffness", scene_path);
     if (!s)
         return 2;

@@ -36,7 +36,8 @@ benchmark reports. Exits 77 (skipped) if gmsh or ccx is missing.
 and 1 and the `fine` setting (a few minutes on a loaded 2-core machine);
 the full mode times CalculiX at three positions and adds refine 2 (tens of
 minutes). A setting is written oOrR[nf]: element order O, refine R, nf for
---nearfield; or fine[nf]: gearsim-stiffness --fine (the teeth in contact
+the near-field correction (the tool's default; without nf --no-nearfield
+is passed: the plain FE); or fine[nf]: gearsim-stiffness --fine (the teeth in contact
 locally refined, docs/CONVERGENCE.md "Local refinement and the fine
 setting"). The
 environment variable GEARSIM_BENCH_REFERENCE_ARGS (split on blanks) is
@@ -137,7 +138,7 @@ def run_reference(pair_dir, j, positions, h, threads):
 def run_setting(pair_dir, tool, name, extra):
     order, refine, nf = parse_setting(name)
     args = (["--fine"] if order is None else ["--order", str(order)]) + \
-        (["--nearfield"] if nf else []) + list(extra)
+        (["--nearfield"] if nf else ["--no-nearfield"]) + list(extra)
     w0, c0 = time.monotonic(), child_cpu()
     res = compare.compare(pair_dir, tool, refine, args)
     wall, cpu = time.monotonic() - w0, child_cpu() - c0

@@ -66,6 +66,17 @@ def run():
         R.check("chunked result: 6 points, same k as the synchronous form",
                 res and len(res.get("points", [])) == 6 and res.get("k") == sync.get("k"),
                 (res and res.get("k"), sync.get("k")))
+        # nearfield (default true): false gives the plain FE contact, stiffer
+        # (the correction adds the Hertz compliance the FE mesh misses).
+        plain = c.stiffness(MESH, positions=6, nearfield=False, timeout=300)
+        R.check("nearfield false: mean k above the default's (the correction softens)",
+                plain and plain["k"]["mean"] > 1.001 * res["k"]["mean"], (plain and plain.get("k"), res.get("k")))
+        try:
+            c.request("stiffness", {"mesh": MESH, "positions": 2, "nearfield": 1, "wait": True}, timeout=60)
+            R.check("nearfield 1 (not a boolean) is refused", False)
+        except Exception as e:  # noqa: BLE001
+            R.check("nearfield 1 (not a boolean) is refused naming args.nearfield",
+                    getattr(e, "field", "") == "args.nearfield", e)
 
         # Lost subscriber: the SUB socket never receives anything.
         c._sub.close(linger=0)

@@ -8,7 +8,9 @@ CalculiX reference (tests/reference/README.md).
 
 Runs `gearsim-stiffness PAIR/scene.json --json --positions N --no-tangent`
 (N = the reference's number of positions; without --refine the scene's own
-mesh density, i.e. gearsim's default mesh, else each --refine level) and
+mesh density, i.e. gearsim's default mesh, else each --refine level; the
+tool's default contact, the near-field correction on: `-- --no-nearfield`
+for the plain FE) and
 prints per roll position gearsim's TE and k, the reference's, and the
 relative errors (gearsim / reference - 1), then the summary: largest |error|,
 mean error, the cycle-mean and single-contact-mean stiffness errors (single

@@ -31,7 +31,10 @@
  * The scene pins linear triangles (mesh.order 1, the linear default counts):
  * the refinement study to refine 2 on the quadratic default would take
  * ~40 s per position; the order comparison and the near-field check set
- * order 2 explicitly (at the linear counts, as measured when written). */
+ * order 2 explicitly (at the linear counts, as measured when written).
+ * The near-field correction is the library default; these checks of the FE
+ * model itself switch it off (nearfield 0), except where they compare the
+ * two (nearfield_softens, which also checks that default). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -78,6 +81,7 @@ static void run(const gs_scene *s, int refine, double torque, double phase, gs_s
 {
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
+    o.nearfield = 0; /* the FE model's own convergence and bands (linear mesh) */
     o.positions = POSITIONS;
     o.refine = refine;
     o.torque_nm = torque;
@@ -225,6 +229,7 @@ static void quadratic_elements(void **state)
     for (int ord = 1; ord <= 2; ord++) {
         gs_stiffness_opts o;
         gs_stiffness_opts_defaults(&o);
+        o.nearfield = 0; /* the FE orders compared as they are */
         o.positions = 12;
         o.order = ord;
         o.tangent = 0;
@@ -273,7 +278,7 @@ static void bad_input(void **state)
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
     assert_string_equal(d.field, "order");
     o.order = 0;
-    o.nearfield = 2;
+    o.nearfield = 3;
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &r, &d), GS_ERANGE);
     assert_string_equal(d.field, "nearfield");
     o.nearfield = 1;
@@ -300,6 +305,8 @@ static void nearfield_softens(void **state)
     gs_scene *s = scene(0, 0, 0);
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
+    assert_int_equal(o.nearfield, 2); /* the default: auto, on with quadratic elements */
+    o.nearfield = 0;
     o.positions = 6;
     o.tangent = 0;
     o.order = 2;
@@ -316,6 +323,24 @@ static void nearfield_softens(void **state)
         assert_true(nf.pt[j].converged);
         assert_true(ratio > 1.005 && ratio < 1.25);
     }
+    /* auto (the default) is the correction on quadratic elements and the
+     * plain FE on linear ones, bit for bit. */
+    gs_stiffness_result au, lin[2];
+    o.nearfield = 2;
+    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &au, &d), GS_OK);
+    for (int j = 0; j < o.positions; j++)
+        assert_memory_equal(&au.pt[j].te_um, &nf.pt[j].te_um, sizeof(double));
+    o.order = 1;
+    o.positions = 2;
+    for (int v = 0; v < 2; v++) {
+        o.nearfield = 2 * v;
+        assert_int_equal(gs_stiffness_analyse(s, 0, &o, &lin[v], &d), GS_OK);
+    }
+    for (int j = 0; j < o.positions; j++)
+        assert_memory_equal(&lin[0].pt[j].te_um, &lin[1].pt[j].te_um, sizeof(double));
+    gs_stiffness_result_clear(&au);
+    gs_stiffness_result_clear(&lin[0]);
+    gs_stiffness_result_clear(&lin[1]);
     gs_stiffness_result_clear(&plain);
     gs_stiffness_result_clear(&nf);
     gs_scene_free(&s);

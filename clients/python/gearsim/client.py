@@ -217,13 +217,16 @@ class Client:
         return self.wait_done(rid, on_telemetry, on_progress, on_event, timeout)
 
     def stiffness(self, mesh, positions=None, torque=None, refine=None, path=None, wait=True,
-                  on_progress=None, timeout=None):
+                  on_progress=None, timeout=None, nearfield=None):
         """Quasi-static mesh stiffness of `mesh` of the loaded scene, run by
         the daemon in chunks (status and cancel answered meanwhile).
         wait=True: the `done` event's result (learned from status when the
-        event is lost); wait=False: the accepted reply with "id" added."""
+        event is lost); wait=False: the accepted reply with "id" added.
+        nearfield=False: the plain FE contact (default: the daemon's, the
+        near-field correction on)."""
         args = {"mesh": mesh}
-        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path)):
+        for k, v in (("positions", positions), ("torque", torque), ("refine", refine), ("path", path),
+                     ("nearfield", nearfield)):
             if v is not None:
                 args[k] = str(v) if k == "path" else v
         if wait and self._sub is None:
