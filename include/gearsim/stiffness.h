@@ -63,7 +63,8 @@ typedef struct gs_stiffness_opts {
                         * for both gears */
     int nearfield;     /* 2 (default, auto): near-field (Hertz) correction of the contact
                         * compliance (docs/STIFFNESS.md "Near-field correction") when both
-                        * gears have quadratic elements, the plain FE on linear ones; 1: the
+                        * gears have quadratic elements and neither has flank modifications
+                        * or pitch errors, else the plain FE; 1: the
                         * correction on any mesh; 0: the plain FE contact (what the dynamic
                         * FE model has) */
     double nearfield_depth_mm; /* depth d below the contact where the FE field is taken,

@@ -1904,9 +1904,13 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         }
     }
     w.rb = gs_gear_base_radius(gA);
-    /* auto (2): on quadratic meshes, where it is validated; on linear
-     * triangles it left positions unconverged (docs/STIFFNESS.md). */
-    w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2
+    /* auto (2): on quadratic meshes of unmodified gears, where it is
+     * validated against the reference; on linear triangles it left positions
+     * unconverged, and on modified flanks it doubled the relieved TE of the
+     * Harris map against the plain FE without a reference to decide
+     * (docs/STIFFNESS.md). */
+    w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2 &&
+                                  !w.b[0].xy_ref && !w.b[1].xy_ref
                             : o.nearfield;
     if (w.nf) {
         /* Depth of the FE field point below the contact: given, or a fixed

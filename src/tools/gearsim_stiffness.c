@@ -176,7 +176,7 @@ int main(int argc, char **argv)
             depth_set = true;
             o.nearfield = 1;
         } else if (!strcmp(a, "--nearfield"))
-            o.nearfield = 1; /* on any mesh; the default (auto) on quadratic ones */
+            o.nearfield = 1; /* on any mesh; the default (auto) on quadratic, unmodified ones */
         else if (!strcmp(a, "--no-nearfield") || !strcmp(a, "--plain"))
             plain = true;
         else if (!strcmp(a, "--fine"))

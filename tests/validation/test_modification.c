@@ -204,6 +204,39 @@ static void flank_nodes_on_profile(void **state)
     gs_scene_free(&sc);
 }
 
+/* The near-field correction's default (auto) keeps the plain FE on
+ * modified flanks, where it is not validated (docs/STIFFNESS.md): a relieved
+ * quadratic pair by default is the plain FE bit for bit, and forcing the
+ * correction on changes it. */
+static void nearfield_auto_plain_on_modified(void **state)
+{
+    (void)state;
+    gs_scene *sc = pair_ok("\"modification\": {\"tip_relief\": {\"amount_um\": 9.6, \"length_mm\": 4.466}}",
+                           "\"modification\": {\"tip_relief\": {\"amount_um\": 9.6, \"length_mm\": 4.466}}");
+    gs_diag d;
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    assert_int_equal(o.nearfield, 2);
+    o.order = 2;
+    o.positions = 2;
+    o.tangent = 0;
+    gs_stiffness_result r[3];
+    for (int v = 0; v < 3; v++) {
+        o.nearfield = (2 + v) % 3; /* auto, off, on */
+        assert_int_equal(gs_stiffness_analyse(sc, 0, &o, &r[v], &d), GS_OK);
+        assert_int_equal(r[v].modified, 1);
+    }
+    for (int j = 0; j < o.positions; j++) {
+        assert_memory_equal(&r[0].pt[j].te_um, &r[1].pt[j].te_um, sizeof(double));
+        assert_true(r[2].pt[j].te_um != r[1].pt[j].te_um);
+    }
+    print_message("relieved order-2 pair: auto = plain bit for bit (TE %.4f um), forced on %.4f um\n",
+                  r[0].pt[0].te_um, r[2].pt[0].te_um);
+    for (int v = 0; v < 3; v++)
+        gs_stiffness_result_clear(&r[v]);
+    gs_scene_free(&sc);
+}
+
 static void unmodified_bit_identical(void **state)
 {
     (void)state;
@@ -1047,7 +1080,7 @@ static void calibrated_planetary_runout(void **state)
 
 #define SHORT_TESTS                                                                                  \
     cmocka_unit_test(flank_nodes_on_profile), cmocka_unit_test(ring_relief),                           \
-        cmocka_unit_test(unmodified_bit_identical), cmocka_unit_test(pitch_and_runout),                \
+        cmocka_unit_test(unmodified_bit_identical), cmocka_unit_test(nearfield_auto_plain_on_modified), cmocka_unit_test(pitch_and_runout),                \
         cmocka_unit_test(bad_input), cmocka_unit_test(harris_map), cmocka_unit_test(compliant_relief), \
         cmocka_unit_test(contact_dynamic_relief), cmocka_unit_test(calibrated_relief),                 \
         cmocka_unit_test(runout_spectrum), cmocka_unit_test(example_scenes),                           \
