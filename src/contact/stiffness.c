@@ -958,11 +958,6 @@ static int pair_curvature(const work *w, const double X[2], double *curv, double
     return corner;
 }
 
-static double wrap_pi(double a)
-{
-    return a - 2.0 * GS_PI * floor((a + GS_PI) / (2.0 * GS_PI));
-}
-
 /* The exact rigid gap (*g, m) of a tip corner, the slave node of row r
  * (candidate cd; rigid bodies, u = 0), against the involute flank of the
  * master body kf: its involute's base angle phi0 from the master window's
@@ -996,7 +991,7 @@ static int corner_exact_gap(const work *w, int kf, const gs_contact_row *r,
             double F = ang - sg * gs_involute(acos(rb / rr));
             if (n == 0)
                 f0 = F;
-            double dF = wrap_pi(F - f0);
+            double dF = remainder(F - f0, 2.0 * GS_PI);
             lo = fmin(lo, dF);
             hi = fmax(hi, dF);
             n++;
@@ -1014,7 +1009,7 @@ static int corner_exact_gap(const work *w, int kf, const gs_contact_row *r,
     if (!(rp > rb))
         return 0;
     double al = acos(rb / rp), thp = atan2(py, px);
-    double dF = wrap_pi(thp - sbest * gs_involute(al) - phi0);
+    double dF = remainder(thp - sbest * gs_involute(al) - phi0, 2.0 * GS_PI);
     double phT = thp + sbest * al;
     double T[2] = {rb * cos(phT), rb * sin(phT)};
     double u[2] = {px - T[0], py - T[1]}, lt = hypot(u[0], u[1]);
@@ -1083,7 +1078,7 @@ static int corner_loa(const work *w, int kc, const double P[2], const double nre
     /* Circle kc at the origin here: m.C_c - h = sc rbc, m.D = -sc (rbc + rbf). */
     double sc = -(m[0] * D[0] + m[1] * D[1]) / (rbc + rbf);
     double Tv[2] = {-sc * rbc * m[0], -sc * rbc * m[1]}; /* foot from the centre */
-    double dphi = wrap_pi(atan2(Tv[1], Tv[0]) - atan2(T[1], T[0]));
+    double dphi = remainder(atan2(Tv[1], Tv[0]) - atan2(T[1], T[0]), 2.0 * GS_PI);
     double rho_v = rho_tip + sg * rbc * dphi;
     /* Along the common tangent: the involute's arc between the roll lengths. */
     *xv = (rho_tip * rho_tip - rho_v * rho_v) / (2.0 * rbc);
