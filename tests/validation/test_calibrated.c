@@ -218,6 +218,100 @@ static double crossing_frequency(const double *x, int n, double h, double f0, do
     return unwarp((crossings - 1) / (2 * (last - first)), h);
 }
 
+/* Cycle-mean frequency of the mesh mode a lumped run follows, from its
+ * free response: the run goes on from where it stands in segments of
+ * `every` steps; each segment is stepped twice from the same state, as is
+ * and with the mesh velocity a . w raised by dv at its start, and the
+ * difference of the two mesh velocities is the free response of the
+ * (time-varying) linearised pair started there: the forced response to the
+ * stiffness table, the same in both, cancels. Its zero crossings in the
+ * segment give the frequency there ((crossings - 1) / (2 x the time from
+ * the first to the last), the midpoint rule's warp undone); the mean over
+ * the segments of `cycles` whole mesh cycles is the time mean over the
+ * cycle, the quantity the FE run's crossing_frequency and the
+ * eigenproblem's per-position mean quote. The spectral peak of the lumped
+ * run is not that: the table's roughness shapes the comb of mesh
+ * harmonics under a lobe that spans the per-position modes (8.0-10.4 kHz
+ * on linear triangles, where the peak of the modal run fell 4.1 % above
+ * its closed form). The segment's lowest and highest figures in lo, hi;
+ * the largest difference of the unkicked repeat from the run in *repeat
+ * (0: the restart reproduces the run). */
+static double kicked_frequency(gs_system *s, int every, double cycles, double dv, double *lo, double *hi,
+                               double *repeat)
+{
+    const gs_gmesh_rt *m = &s->meshes[0];
+    int n = s->n_coords;
+    double *q0 = malloc((size_t)n * sizeof(double)), *w0 = malloc((size_t)n * sizeof(double));
+    double *ya = malloc((size_t)every * sizeof(double)), *yb = malloc((size_t)every * sizeof(double));
+    assert_non_null(q0);
+    assert_non_null(w0);
+    assert_non_null(ya);
+    assert_non_null(yb);
+    double aa = 0, ph0 = 0;
+    for (int j = 0; j < n; j++) {
+        aa += m->a[j] * m->a[j];
+        ph0 += m->c[j] * s->q[j];
+    }
+    double sum = 0, ph = ph0;
+    int segs = 0;
+    *lo = 1e300;
+    *hi = 0;
+    *repeat = 0;
+    while (fabs(ph - ph0) < cycles) {
+        memcpy(q0, s->q, (size_t)n * sizeof(double));
+        memcpy(w0, s->w, (size_t)n * sizeof(double));
+        double t0 = s->time;
+        int64_t k0 = s->step;
+        for (int pass = 0; pass < 3; pass++) { /* as is, kicked, as is again */
+            if (pass > 0) {
+                memcpy(s->q, q0, (size_t)n * sizeof(double));
+                memcpy(s->w, w0, (size_t)n * sizeof(double));
+                s->time = t0;
+                s->step = k0;
+            }
+            if (pass == 1)
+                for (int j = 0; j < n; j++)
+                    s->w[j] += dv * m->a[j] / aa;
+            for (int i = 0; i < every; i++) {
+                assert_int_equal(gs_step_serial(s), GS_OK);
+                double v = 0;
+                for (int j = 0; j < n; j++)
+                    v += m->a[j] * s->w[j];
+                if (pass == 0)
+                    ya[i] = v;
+                else if (pass == 1)
+                    yb[i] = v - ya[i];
+                else
+                    *repeat = fmax(*repeat, fabs(v - ya[i]));
+            }
+        }
+        /* the free response's crossings (the kick at t = 0: a . w jumps by dv) */
+        int crossings = 0;
+        double first = 0, last = 0;
+        for (int i = 0; i + 1 < every; i++)
+            if ((yb[i] < 0) != (yb[i + 1] < 0)) {
+                double tz = (i + yb[i] / (yb[i] - yb[i + 1])) * s->h;
+                if (crossings++ == 0)
+                    first = tz;
+                last = tz;
+            }
+        assert_true(crossings > 2);
+        double f = unwarp((crossings - 1) / (2 * (last - first)), s->h);
+        sum += f;
+        segs++;
+        *lo = fmin(*lo, f);
+        *hi = fmax(*hi, f);
+        ph = 0;
+        for (int j = 0; j < n; j++)
+            ph += m->c[j] * s->q[j];
+    }
+    free(q0);
+    free(w0);
+    free(ya);
+    free(yb);
+    return sum / segs;
+}
+
 /* The samples from the first of the tail that span whole mesh cycles (the
  * cycle mean must weigh single and double contact by their shares of a
  * cycle: 4.24 cycles in the 30 ms window would move it by 0.5 %). */
@@ -350,15 +444,20 @@ static void calibrated_run(void)
     assert_true(kmean > ksec); /* two-pair positions: the second pair is taken up under load */
 
     /* The FE quasi-static transmission error at the steady load: the brake
-     * moment c w2 on the driven gear, i.e. M0 on the driver. Its te0 (the
-     * rigid closing of the flanks: half the backlash from the 0.05 mm
-     * thinning, plus the chord sag of the discretised flanks) is the offset
-     * the FE run's line-of-action deflection carries; k_tan the stiffness
-     * small oscillations about the loaded state see. */
+     * moment c w2 on the driven gear, i.e. M0 on the driver; k_tan the
+     * stiffness small oscillations about the loaded state see. At the
+     * calibration's own positions, the middles of 24 equal intervals of the
+     * cycle (phase 1/48, src/models/meshes.c): the mean over 24 positions
+     * carries a sampling error of the rough TE curve (the chords of the
+     * discretised flanks), and the grid from phase 0 differs from the
+     * table's by 1.1 % on linear triangles (3.785 against 3.744 um), 0.5 %
+     * on the default mesh: measured against that grid, the modal run's
+     * mean TE missed its 1 % bar on linear triangles (-1.34 %). */
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
     o.nearfield = 0; /* the dynamic FE run has no near-field correction */
     o.positions = 24;
+    o.phase = 0.5 / o.positions; /* as the calibration */
     o.tangent = 1;
     o.tangent_step = 0.05; /* as the calibration */
     o.torque_nm = 20.0;
@@ -366,12 +465,37 @@ static void calibrated_run(void)
     gs_diag d;
     gs_system *fe = vt_system(drive_scene());
     assert_int_equal(gs_stiffness_analyse(fe->scene, 0, &o, &sr, &d), GS_OK);
-    double te = sr.te_mean * 1e-6, te0 = 0, ktan = 0;
-    for (int j = 0; j < sr.positions; j++) {
-        te0 += sr.pt[j].te0_um * 1e-6 / sr.positions;
+    double te = sr.te_mean * 1e-6, ktan = 0, force = sr.force_n;
+    for (int j = 0; j < sr.positions; j++)
         ktan += sr.pt[j].k_tan * sr.face_width_mm * 1e6 / sr.positions;
-    }
     gs_stiffness_result_clear(&sr);
+    /* The tangent table is that analysis: delta_0 + F / k_t is the static TE
+     * at each of its positions (to round-off). */
+    double te_table = 0;
+    for (int j = 0; j < gm->n_table; j++)
+        te_table += (gm->d0_table[j] + force / gm->k_table[j]) / gm->n_table;
+    print_message("static TE at 20 N m over the table's 24 positions: analysis %.6e m, tangent table %.6e m\n", te,
+                  te_table);
+    assert_true(fabs(te_table / te - 1) < 1e-9);
+    /* The cycle means under refinement in the roll, 192 positions (no
+     * tangent): the static TE (the 24-position table's sampling error,
+     * printed and held below 1 %: measured -0.66 % on linear triangles,
+     * +0.71 % on the default mesh), and te0, the rigid closing of the flanks
+     * (half the backlash from the 0.05 mm thinning, plus the chord sag of
+     * the discretised flanks): the offset the FE run's line-of-action
+     * deflection carries, in the time mean over the cycle (its 24-position
+     * mean is 0.036 um, 1 % of the DTE, off on linear triangles). */
+    o.positions = 192;
+    o.phase = 0.0;
+    o.tangent = 0;
+    assert_int_equal(gs_stiffness_analyse(fe->scene, 0, &o, &sr, &d), GS_OK);
+    double te_cycle = sr.te_mean * 1e-6, te0 = 0;
+    for (int j = 0; j < sr.positions; j++)
+        te0 += sr.pt[j].te0_um * 1e-6 / sr.positions;
+    gs_stiffness_result_clear(&sr);
+    print_message("static TE cycle mean (192 positions) %.6e m: the 24-position table %+.2f%% from it; te0 cycle mean "
+                  "%.6e m\n", te_cycle, 100 * (te / te_cycle - 1), te0);
+    assert_true(fabs(te / te_cycle - 1) < 0.01);
 
     run_out a = run(lum, n, tail);
     run_out c = run(sec, n, tail);
@@ -467,13 +591,28 @@ static void calibrated_run(void)
                   g_order == 1 ? FE_MODE_HZ_O1 : FE_MODE_HZ_O2, b.apart, b.fmin, b.fmean, f_fe_peak, fd_fe, f_fe_dte,
                   f_fe, f_eig, f_eig_lo, f_eig_hi, gmod->n_table, 100 * (f_fe / f_eig - 1), 100 * MODE_FE_EIGEN_BAR);
     print_message("mesh mode, modal calibration: closed form %.0f Hz %+.2f%% against the FE run's cycle mean (bar "
-                  "%.0f%%); its run's spectral peak %.0f Hz, %+.2f%% against its closed form (bar 3%%), %+.2f%% "
-                  "against the FE run's cycle mean (bar %.0f%%), %+.2f%% against the FE run's peak (printed); its "
+                  "%.0f%%); its run's spectral peak %.0f Hz (printed), %+.2f%% against its closed form, %+.2f%% "
+                  "against the FE run's cycle mean, %+.2f%% against the FE run's peak; its "
                   "run's crossing figure %.0f Hz (%+.2f%%, printed); tangent closed form %+.2f%%, its run's peak "
                   "%+.2f%%, crossing figure %.0f Hz\n", f_mod, 100 * (f_mod / f_fe - 1), 100 * MODE_CLOSED_BAR,
-                  f_mod_peak, 100 * (f_mod_peak / f_mod - 1), 100 * (f_mod_peak / f_fe - 1), 100 * MODE_RUN_BAR,
+                  f_mod_peak, 100 * (f_mod_peak / f_mod - 1), 100 * (f_mod_peak / f_fe - 1),
                   100 * (f_mod_peak / f_fe_peak - 1), f_mod_run, 100 * (f_mod_run / f_fe - 1), 100 * (f_lum / f_fe - 1),
                   100 * (f_lum_run / f_fe - 1), f_lum_cross);
+    /* The lumped runs' own cycle-mean mode from their free response
+     * (kicked_frequency: 50-step segments over 4 mesh cycles, kick 1e-4 m/s
+     * on a mesh velocity swinging some 3e-2 m/s), against the time mean of
+     * their tables' per-position closed forms. */
+    double kl_lo, kl_hi, kl_rep, km_lo, km_hi, km_rep, f_tab_tan = 0;
+    for (int j = 0; j < gm->n_table; j++)
+        f_tab_tan += sqrt(gm->k_table[j] * inv_l) / (2 * M_PI) / gm->n_table;
+    double f_mod_kick = kicked_frequency(mod, 50, 4.0, 1e-4, &km_lo, &km_hi, &km_rep);
+    double f_lum_kick = kicked_frequency(lum, 50, 4.0, 1e-4, &kl_lo, &kl_hi, &kl_rep);
+    print_message("free response of the lumped runs, cycle mean (segment range): modal %.0f Hz (%.0f-%.0f), %+.2f%% "
+                  "against its table's per-position mean %.0f Hz (bar 3%%), %+.2f%% against the FE run's cycle mean "
+                  "(bar %.0f%%); tangent %.0f Hz (%.0f-%.0f), %+.2f%% against its table's %.0f Hz; unkicked repeat "
+                  "differs by %.1e / %.1e m/s\n", f_mod_kick, km_lo, km_hi, 100 * (f_mod_kick / f_eig - 1), f_eig,
+                  100 * (f_mod_kick / f_fe - 1), 100 * MODE_RUN_BAR, f_lum_kick, kl_lo, kl_hi,
+                  100 * (f_lum_kick / f_tab_tan - 1), f_tab_tan, km_rep, kl_rep);
     /* The FE reference run is linear: no step of the window with the teeth
      * apart, the force far from zero. */
     assert_true(b.apart == 0.0);
@@ -492,9 +631,16 @@ static void calibrated_run(void)
      * 9771 Hz at 5 %), so its crossings give the cycle mean and its peak does
      * not (that was the -4.7 % / -5.9 % measured before: not a rattle, the
      * undamped run has no step with the teeth apart either); the lumped
-     * run's smooth stiffness table excites one broad lobe some 400 times
-     * weaker in power, its peak within 1.3 % of its closed form (asserted,
-     * 3 %), while its crossings in the band are pulled down by the forced
+     * runs' cycle mean comes from their free response (kicked_frequency),
+     * which the forced response to the table does not reach: -0.36 % /
+     * -0.32 % from the modal table's per-position mean (default mesh /
+     * linear triangles), the tangent run -0.45 % / -0.36 % from its table's.
+     * Their spectral peak, asserted before (within 3 % of the closed form),
+     * is printed only: their comb of mesh harmonics is some 400 times weaker
+     * in power than the FE run's, and where it peaks under the lobe of the
+     * per-position modes depends on the table's roughness (-1.28 % on the
+     * default mesh, +4.12 % on linear triangles, the tangent run's +8.9 %
+     * there); their crossings in the band are pulled down by the forced
      * mesh harmonics below it (8085 Hz; printed). The FE run's ringing is
      * excited by the contact events at tooth entry, a step-size effect:
      * its power falls 2.3-3 times per halving of h, and at h 2.5e-6 the
@@ -502,8 +648,10 @@ static void calibrated_run(void)
      * FE reference run"); the bars hold at h 2e-5 to 5e-6 (FE against its
      * eigenproblem) and at the test's 1e-5 (the closed form). */
     assert_true(fabs(f_mod / f_fe - 1) < MODE_CLOSED_BAR);
-    assert_true(fabs(f_mod_peak / f_mod - 1) < 0.03);
-    assert_true(fabs(f_mod_peak / f_fe - 1) < MODE_RUN_BAR);
+    assert_true(km_rep == 0.0 && kl_rep == 0.0); /* the restarted segments reproduce the runs */
+    assert_true(fabs(f_mod_kick / f_eig - 1) < 0.03);
+    assert_true(fabs(f_lum_kick / f_tab_tan - 1) < 0.03);
+    assert_true(fabs(f_mod_kick / f_fe - 1) < MODE_RUN_BAR);
     /* The tangent (static, hub-to-hub) calibration lies below: the web's
      * torsional compliance is in k_t, while in the vibration most of the
      * inertia sits on the contact's side of it (docs/STIFFNESS.md). Measured
@@ -532,11 +680,16 @@ static void calibrated_run(void)
     gs_system_free(&fe);
 }
 
-/* Linear triangles (vt_scene_linear), GEARSIM_LONG=1 only: the mesh the
- * first bars were set on. */
+/* Linear triangles (vt_scene_linear), GEARSIM_LONG=1 only (skipped
+ * otherwise): the mesh the first bars were set on. */
 static void calibrated_against_fe(void **state)
 {
     (void)state;
+    const char *lg = getenv("GEARSIM_LONG");
+    if (!lg || strcmp(lg, "1") != 0) {
+        print_message("linear-triangle case skipped (GEARSIM_LONG=1 runs it)\n");
+        skip();
+    }
     g_order = 1;
     calibrated_run();
     g_order = 2;
@@ -551,17 +704,13 @@ static void calibrated_against_fe_default(void **state)
     calibrated_run();
 }
 
+/* One group, one TAP plan (two groups printed two plans, which meson
+ * counts as an error even with every subtest passed). */
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(calibrated_against_fe_default),
-    };
-    const struct CMUnitTest long_tests[] = {
         cmocka_unit_test(calibrated_against_fe),
     };
-    const char *lg = getenv("GEARSIM_LONG");
-    int rc = cmocka_run_group_tests(tests, NULL, NULL);
-    if (lg && strcmp(lg, "1") == 0)
-        rc |= cmocka_run_group_tests(long_tests, NULL, NULL);
-    return rc;
+    return cmocka_run_group_tests(tests, NULL, NULL);
 }
