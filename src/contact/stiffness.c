@@ -24,6 +24,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "contact/stiffness_hook.h"
 #include "gearsim/contact.h"
 #include "gearsim/fe.h"
 #include "gearsim/fe_static.h"
@@ -716,12 +717,14 @@ static double gap_offset(const work *w, const int t[2], int slave)
  * displacements were computed in this roll position leaves wrong (zero)
  * displacements behind at the new nodes: w->restart is set and the
  * position is solved again from the start (GS_EINTERNAL here). */
+int gsi_stiffness_zone_late = 0; /* src/contact/stiffness_hook.h */
+
 static gs_err zone_cover(work *w, const gs_contact_stats *st, const gs_contact_candidate *cand,
                          gs_index nc)
 {
     for (int k = 0; k < 2; k++) {
         sbody *b = &w->b[k];
-        if (!b->zone_on || b->zall)
+        if (!b->zone_on || b->zall || (gsi_stiffness_zone_late && !(b->dirty && w->n_prev == 1)))
             continue;
         int s = w->si[k], grew = 0, z = b->sb->gear.teeth;
         if (st->n_teeth[s] > 16)
