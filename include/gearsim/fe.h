@@ -325,6 +325,8 @@ typedef struct gs_fe_reduced_opts {
     bool held;              /* theta held (modes of the elastic block alone) */
     gs_index n_nodes;       /* candidate nodes (mesh numbering) that may carry force */
     const gs_index *nodes;  /* NULL: every node (small models) */
+    int eigensolver;        /* 0 (default): dense up to 1600 elastic unknowns, else Lanczos;
+                             * 1 dense; 2 Lanczos (for the tests) */
 } gs_fe_reduced_opts;
 
 typedef struct gs_fe_reduced_info {
@@ -372,7 +374,9 @@ void gs_fe_reduced_spin(gs_fe_reduced *b, double dw);
 gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes);
 void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *out);
 /* Snapshot: modal q, v, the residual force state on the rows, the residual
- * amplitude of the last set_state (2 N + rows + 1 values). */
+ * amplitude of the last set_state: 2 (ne + 1) + rows + 2 values, a size that
+ * does not depend on the modes (every rank knows it from the mesh; N <= ne
+ * + 1). Loading a snapshot of another basis (N differs): GS_EINVAL. */
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b);
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x);
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x);

@@ -57,6 +57,7 @@
 #include <cholmod.h>
 #include <lapacke.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -365,14 +366,14 @@ static void sort_modes(gs_fe_reduced *b, int first)
     }
 }
 
-static gs_err compute_modes(gs_fe_reduced *b)
+static gs_err compute_modes(gs_fe_reduced *b, int solver)
 {
     int cap = 0;
     double w = 2.0 * GS_PI * b->fmax, lmax = isfinite(w) ? w * w : INFINITY;
     if (!b->held)
         GS_TRY(add_mode(b, &cap, NULL, 0.0));
     int first = b->N;
-    if (b->ne <= DENSE_MAX) {
+    if (solver == 1 || (solver == 0 && b->ne <= DENSE_MAX)) {
         GS_TRY(modes_dense(b, &cap, lmax));
     } else {
         if (!isfinite(lmax))
@@ -504,7 +505,7 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
     if (!out)
         return GS_EINVAL;
     *out = NULL;
-    if (!m || !o || !(o->f_max_hz > 0) || o->n_nodes < 0 || (o->n_nodes > 0 && !o->nodes))
+    if (!m || !o || !(o->f_max_hz > 0) || o->eigensolver < 0 || o->eigensolver > 2 || o->n_nodes < 0 || (o->n_nodes > 0 && !o->nodes))
         return GS_EINVAL;
     if (m->mat.damping_m != 0.0)
         return GS_ERANGE; /* mass-proportional damping: not supported */
@@ -570,8 +571,13 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
         else if (b->cc.status == CHOLMOD_NOT_POSDEF)
             e = GS_ESINGULAR;
     }
-    if (e == GS_OK)
-        e = compute_modes(b);
+    if (e == GS_OK) {
+        e = compute_modes(b, o->eigensolver);
+        if (e == GS_OK && getenv("GEARSIM_REDUCED_LOG"))
+            fprintf(stderr, "reduced body: %ld elastic unknowns, %d modes kept (f_max %.6g Hz, highest %.6g Hz), "
+                            "%ld candidate nodes\n",
+                    (long)b->ne, b->N, b->fmax, b->N ? sqrt(b->om2[b->N - 1]) / (2 * GS_PI) : 0.0, (long)nc);
+    }
     if (e == GS_OK) {
         int N = b->N;
         b->PR = gs_calloc((size_t)b->nr * (size_t)(N ? N : 1), sizeof *b->PR);
@@ -1193,29 +1199,38 @@ gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
     return e;
 }
 
+/* Snapshot layout (the same size on every rank of a scene: it does not
+ * depend on the modes): N, q (N), v (N), zeros up to 2 (ne + 1) + 1, then
+ * Y (nr), the residual amplitude. */
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b)
 {
-    return 2 * (size_t)b->N + (size_t)b->nr + 1;
+    return 2 * (size_t)b->n + (size_t)b->nr + 2;
 }
 
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x)
 {
-    memcpy(x, b->qm, (size_t)b->N * sizeof *x);
-    memcpy(x + b->N, b->vm, (size_t)b->N * sizeof *x);
-    memcpy(x + 2 * b->N, b->Y, (size_t)b->nr * sizeof *x);
-    x[2 * b->N + b->nr] = b->az;
+    size_t off = 2 * (size_t)b->n + 1;
+    memset(x, 0, gs_fe_reduced_state_size(b) * sizeof *x);
+    x[0] = (double)b->N;
+    memcpy(x + 1, b->qm, (size_t)b->N * sizeof *x);
+    memcpy(x + 1 + b->N, b->vm, (size_t)b->N * sizeof *x);
+    memcpy(x + off, b->Y, (size_t)b->nr * sizeof *x);
+    x[off + (size_t)b->nr] = b->az;
 }
 
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
 {
     if (!b || !x)
         return GS_EINVAL;
+    if (x[0] != (double)b->N)
+        return GS_EINVAL; /* another basis */
+    size_t off = 2 * (size_t)b->n + 1;
     gs_fe_reduced_cancel_step(b);
     y_clear(b);
-    memcpy(b->qm, x, (size_t)b->N * sizeof *x);
-    memcpy(b->vm, x + b->N, (size_t)b->N * sizeof *x);
+    memcpy(b->qm, x + 1, (size_t)b->N * sizeof *x);
+    memcpy(b->vm, x + 1 + b->N, (size_t)b->N * sizeof *x);
     for (gs_index r = 0; r < b->nr; r++) {
-        double y = x[2 * b->N + r];
+        double y = x[off + (size_t)r];
         if (y != 0.0) {
             GS_TRY(ensure_row(b, r));
             b->Y[r] = y;
@@ -1223,7 +1238,7 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
             b->ysup[b->nys++] = r;
         }
     }
-    double az = x[2 * b->N + b->nr];
+    double az = x[off + (size_t)b->nr];
     b->az = b->z0 ? az : 0.0;
     double T, V;
     gs_fe_reduced_energy(b, &T, &V);

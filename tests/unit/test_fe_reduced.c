@@ -18,6 +18,9 @@
  *   truncated_static   under a constant load with damping the reduced body
  *                    comes to rest at K^{-1} f (modal + residual = exact
  *                    statics; it fails without the residual flexibility).
+ *   lanczos_dense    the Lanczos eigensolver (deflated restarts) finds the
+ *                    dense solver's modes below f_max, the double ones of
+ *                    the annulus's cyclic symmetry included.
  *   save_load        a snapshot restores the state bit for bit.
  * Comparisons are relative to the largest value compared. */
 #include <setjmp.h>
@@ -87,7 +90,7 @@ static void run_compare(bool held, double beta, double brake)
     gs_fe_body *full = NULL;
     gs_fe_reduced *red = NULL;
     assert_int_equal(gs_fe_body_new(f.model, &full), GS_OK);
-    gs_fe_reduced_opts o = {INFINITY, held, 0, NULL};
+    gs_fe_reduced_opts o = {INFINITY, held, 0, NULL, 0};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_fe_reduced_info info;
     gs_fe_reduced_get_info(red, &info);
@@ -218,7 +221,7 @@ static void run_balance(double beta, double brake, bool held)
     fixture f;
     make(&f, beta);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, held, 0, NULL};
+    gs_fe_reduced_opts o = {60e3, held, 0, NULL, 0};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_fe_reduced_info info;
     gs_fe_reduced_get_info(red, &info);
@@ -275,7 +278,7 @@ static void truncated_static(void **state)
     fixture f;
     make(&f, 2e-5);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, true, 0, NULL};
+    gs_fe_reduced_opts o = {60e3, true, 0, NULL, 0};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_index nn = f.nn;
     double *fn = calloc((size_t)(2 * nn), sizeof *fn), *us = calloc((size_t)(2 * nn), sizeof *us);
@@ -313,7 +316,7 @@ static void save_load(void **state)
     fixture f;
     make(&f, 3e-7);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, false, 0, NULL};
+    gs_fe_reduced_opts o = {60e3, false, 0, NULL, 0};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_index nn = f.nn;
     double *fn = calloc((size_t)(2 * nn), sizeof *fn);
@@ -340,7 +343,7 @@ static void save_load(void **state)
     /* a load on a node that is not a candidate is refused */
     gs_fe_reduced *r2 = NULL;
     gs_index cand[1] = {nn - 1};
-    gs_fe_reduced_opts o2 = {60e3, false, 1, cand};
+    gs_fe_reduced_opts o2 = {60e3, false, 1, cand, 0};
     assert_int_equal(gs_fe_reduced_new(f.model, &o2, &r2), GS_OK);
     assert_int_equal(gs_fe_reduced_set_step(r2, 5e-6, 0.0), GS_OK);
     memset(fn, 0, (size_t)(2 * nn) * sizeof *fn);
@@ -355,13 +358,55 @@ static void save_load(void **state)
     unmake(&f);
 }
 
+static void lanczos_dense(void **state)
+{
+    (void)state;
+    gs_mesh *mesh = NULL;
+    gs_fe_model *model = NULL;
+    assert_int_equal(gsi_fe_mesh_annulus(0.02, 0.04, 4, 40, &mesh), GS_OK);
+    gs_material mat = gs_material_steel();
+    assert_int_equal(gs_fe_model_new(mesh, &mat, 0.01, 1e-4, &model), GS_OK);
+    for (int held = 0; held < 2; held++) {
+        gs_fe_reduced *a = NULL, *b = NULL;
+        gs_fe_reduced_opts oa = {90e3, held, 0, NULL, 1}, ob = {90e3, held, 0, NULL, 2};
+        assert_int_equal(gs_fe_reduced_new(model, &oa, &a), GS_OK);
+        assert_int_equal(gs_fe_reduced_new(model, &ob, &b), GS_OK);
+        gs_fe_reduced_info ia, ib;
+        gs_fe_reduced_get_info(a, &ia);
+        gs_fe_reduced_get_info(b, &ib);
+        print_message("held %d: dense %d modes (highest %.1f Hz), Lanczos %d (highest %.1f Hz)\n", held, ia.modes,
+                      ia.f_top_hz, ib.modes, ib.f_top_hz);
+        assert_true(ia.elastic_modes >= 10);
+        assert_int_equal(ia.modes, ib.modes);
+        assert_true(fabs(ia.f_top_hz - ib.f_top_hz) <= 1e-8 * ia.f_top_hz);
+        /* the same compliance at a few dofs (the same subspace) */
+        gs_index nn = mesh->n_nodes;
+        gs_index dofs[5] = {GS_FE_DOF_THETA, gs_fe_dof_node(nn - 1, 0), gs_fe_dof_node(nn - 1, 1),
+                            gs_fe_dof_node(nn - 21, 0), gs_fe_dof_node(nn - 21, 1)};
+        double Ca[25], Cb[25], e = 0, sc = 0;
+        assert_int_equal(gs_fe_reduced_set_step(a, 5e-6, 0), GS_OK);
+        assert_int_equal(gs_fe_reduced_set_step(b, 5e-6, 0), GS_OK);
+        assert_int_equal(gs_fe_reduced_compliance(a, 5, dofs, Ca), GS_OK);
+        assert_int_equal(gs_fe_reduced_compliance(b, 5, dofs, Cb), GS_OK);
+        for (int k = 0; k < 25; k++) {
+            e = fmax(e, fabs(Ca[k] - Cb[k]));
+            sc = fmax(sc, fabs(Ca[k]));
+        }
+        assert_true(e <= 1e-8 * sc);
+        gs_fe_reduced_free(&a);
+        gs_fe_reduced_free(&b);
+    }
+    gs_fe_model_free(&model);
+    gs_mesh_free(&mesh);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(all_modes_free),     cmocka_unit_test(all_modes_free_damped_brake),
         cmocka_unit_test(all_modes_held),     cmocka_unit_test(all_modes_held_damped),
         cmocka_unit_test(truncated_balance),  cmocka_unit_test(truncated_static),
-        cmocka_unit_test(save_load),
+        cmocka_unit_test(save_load),          cmocka_unit_test(lanczos_dense),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
