@@ -337,6 +337,7 @@ typedef struct gs_fe_reduced_info {
     gs_index cached_nodes;  /* nodes whose residual columns are computed */
     gs_index residual_support; /* rows with a residual force state now */
     uint64_t steps;
+    double column_cpu_s;    /* CPU seconds spent computing residual columns (once per node) */
 } gs_fe_reduced_info;
 
 /* Factorises K once and computes the modes (Lanczos above ~1600 unknowns).

@@ -60,6 +60,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "fe/fe_internal.h"
 #include "gearsim/util.h"
@@ -119,7 +120,15 @@ struct gs_fe_reduced {
     unsigned char *fin;   /* nr */
     double moment;
 
+    /* the last compliance block: raw G_res entries over rows blk_r (the
+     * next step's block shares most rows and copies them: the columns are
+     * far apart in memory) */
+    gs_index *blk_r, *blk_pos; /* blk_n rows; nr: position or -1 */
+    double *blk_G;
+    gs_index blk_n, blk_rows;
+
     double energy0, work_in, work_iface, dissipated, damped;
+    double col_cpu;       /* CPU seconds spent computing residual columns */
     uint64_t steps;
     double *scratch;      /* n */
 };
@@ -407,6 +416,7 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     free(b->Phi), free(b->om2), free(b->PR), free(b->cand_of), free(b->rowq), free(b->inv_a);
     free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
+    free(b->blk_r), free(b->blk_pos), free(b->blk_G);
     free(b);
     *pb = NULL;
 }
@@ -457,11 +467,38 @@ static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **
     return e;
 }
 
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* CPU seconds of residual columns over the process (for the benchmark). */
+static double col_cpu_total;
+
+double gsi_fe_reduced_column_cpu(void)
+{
+    return col_cpu_total;
+}
+
+static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k);
+
 /* Make the G_res columns of candidate node k's x and y rows present. */
 static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
 {
     if (b->col[k])
         return GS_OK;
+    double t0 = cpu_now();
+    gs_err e = ensure_node_now(b, k);
+    double dt = cpu_now() - t0;
+    b->col_cpu += dt;
+    col_cpu_total += dt;
+    return e;
+}
+
+static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
+{
     gs_index nr = b->nr, n = b->n;
     double *c = gs_calloc((size_t)(2 * nr), sizeof *c);
     double *f = gs_calloc((size_t)(2 * n), sizeof *f);
@@ -551,9 +588,12 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
         b->Rf = gs_calloc((size_t)b->nr, sizeof *b->Rf);
         b->fl = gs_calloc((size_t)b->nr, sizeof *b->fl);
         b->fin = gs_calloc((size_t)b->nr, 1);
+        b->blk_pos = gs_calloc((size_t)b->nr, sizeof *b->blk_pos);
         if (!b->rowq || !b->col || !b->tcol || !b->Y || !b->ysup || !b->yin || !b->z0R || !b->Fa || !b->Fi ||
-            !b->Rf || !b->fl || !b->fin)
+            !b->Rf || !b->fl || !b->fin || !b->blk_pos)
             e = GS_ENOMEM;
+        for (gs_index r = 0; e == GS_OK && r < b->nr; r++)
+            b->blk_pos[r] = -1;
     }
     if (e == GS_OK) {
         b->rowq[0] = b->held ? -1 : b->ne;
@@ -623,6 +663,7 @@ void gs_fe_reduced_get_info(const gs_fe_reduced *b, gs_fe_reduced_info *info)
     info->cached_nodes = b->ncols;
     info->residual_support = b->nys;
     info->steps = b->steps;
+    info->column_cpu_s = b->col_cpu;
 }
 
 /* ---- energies ----------------------------------------------------------- */
@@ -873,14 +914,16 @@ gs_err gs_fe_reduced_step(gs_fe_reduced *b, double moment_nm, const double *f_no
     return gs_fe_reduced_end_step(b);
 }
 
-/* The unbraked increment at row r for the forces so far. */
+/* The unbraked increment at row r for the forces so far (r's column
+ * present). */
 static double row_inc_bar(const gs_fe_reduced *b, gs_index r)
 {
     if (b->rowq[r] < 0)
         return 0.0;
     double v = dotn(b->N, b->PR + (size_t)r * (size_t)b->N, b->dqm);
+    /* column r (symmetric): its entries at the force rows lie close together */
     for (gs_index a = 0; a < b->nfl; a++)
-        v += gres(b, r, b->fl[a]) * b->Rf[b->fl[a]];
+        v += gres(b, b->fl[a], r) * b->Rf[b->fl[a]];
     if (b->az != 0.0)
         v += (b->r - 1.0) * b->az * b->z0R[r];
     return v;
@@ -913,6 +956,7 @@ gs_err gs_fe_reduced_increment(gs_fe_reduced *b, int n, const gs_index *dofs, do
             dq_out[k] = 0.0;
             continue;
         }
+        GS_TRY(ensure_row(b, r));
         dq_out[k] = row_inc_bar(b, r) - (b->kc != 0.0 ? b->kc * ycol(b, r) * ut : 0.0);
     }
     return GS_OK;
@@ -969,6 +1013,27 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
             rr[j] = -1;
         yy[j] = rr[j] >= 0 && b->kc != 0.0 ? ycol(b, rr[j]) : 0.0;
     }
+    /* raw G_res over the selected rows: copied from the last block where
+     * both rows were in it */
+    double *G = NULL;
+    gs_index *nrw = NULL;
+    if (e == GS_OK) {
+        G = gs_calloc((size_t)k * (size_t)k + 1, sizeof *G);
+        nrw = gs_calloc((size_t)k + 1, sizeof *nrw);
+        if (!G || !nrw)
+            e = GS_ENOMEM;
+    }
+    for (int j = 0; j < k && e == GS_OK; j++) {
+        gs_index pj = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
+        for (int i = 0; i <= j; i++) {
+            double g = 0;
+            if (rr[i] >= 0 && rr[j] >= 0) {
+                gs_index pi = b->blk_pos[rr[i]];
+                g = (pi >= 0 && pj >= 0) ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
+            }
+            G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
+        }
+    }
     for (int j = 0; j < k && e == GS_OK; j++)
         for (int i = 0; i <= j; i++) {
             double v = 0;
@@ -976,10 +1041,28 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                 const double *p = b->PR + (size_t)rr[i] * (size_t)b->N, *q = b->PR + (size_t)rr[j] * (size_t)b->N;
                 for (int t = 0; t < b->N; t++)
                     v += p[t] * q[t] * b->inv_a[t];
-                v += gres(b, rr[i], rr[j]) / b->d - b->kc * yy[i] * yy[j];
+                v += G[i + (size_t)j * (size_t)k] / b->d - b->kc * yy[i] * yy[j];
             }
             C[i + (size_t)j * (size_t)k] = C[j + (size_t)i * (size_t)k] = v;
         }
+    if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
+        for (gs_index t = 0; t < b->blk_rows; t++)
+            b->blk_pos[b->blk_r[t]] = -1;
+        free(b->blk_G);
+        free(b->blk_r);
+        b->blk_G = G;
+        b->blk_r = nrw;
+        b->blk_n = k;
+        b->blk_rows = 0;
+        for (int j = 0; j < k; j++)
+            if (rr[j] >= 0 && b->blk_pos[rr[j]] < 0) {
+                b->blk_pos[rr[j]] = j;
+                b->blk_r[b->blk_rows++] = rr[j];
+            }
+        G = NULL;
+        nrw = NULL;
+    }
+    free(G), free(nrw);
     free(rr), free(yy);
     return e;
 }
