@@ -70,6 +70,8 @@
 /* Lanczos vectors of one run (memory 2 ne of them); restarts go on */
 #define LANCZOS_MAX 600
 #define RESTARTS_MAX 40
+/* candidate nodes whose residual columns one solve computes */
+#define BATCH_NODES 8
 
 struct gs_fe_reduced {
     const gs_fe_model *m;
@@ -497,30 +499,56 @@ static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
     return e;
 }
 
+/* Node k's columns and those of the next missing candidates along the
+ * boundary (BATCH_NODES in one multi-column solve: the contact moves along
+ * a flank, and a solve of 16 columns costs far less than 8 of 2). */
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
 {
-    gs_index nr = b->nr, n = b->n;
-    double *c = gs_calloc((size_t)(2 * nr), sizeof *c);
-    double *f = gs_calloc((size_t)(2 * n), sizeof *f);
+    gs_index nr = b->nr, n = b->n, batch[BATCH_NODES];
+    int cnt = 0;
+    for (gs_index j = k; j < b->ncand && cnt < BATCH_NODES; j++)
+        if (!b->col[j])
+            batch[cnt++] = j;
+    double *c = gs_calloc((size_t)(2 * nr) * (size_t)cnt, sizeof *c);
+    double *f = gs_calloc((size_t)(2 * n) * (size_t)cnt, sizeof *f);
+    double *outs[2 * BATCH_NODES];
     if (!c || !f) {
         free(c), free(f);
         return GS_ENOMEM;
     }
-    for (int comp = 0; comp < 2; comp++) {
-        gs_index q = b->rowq[1 + 2 * k + comp];
-        if (q >= 0)
-            f[(size_t)comp * (size_t)n + (size_t)q] = 1.0;
-    }
-    double *outs[2] = {c, c + nr};
-    gs_err e = gres_column(b, 2, f, outs);
+    for (int t = 0; t < cnt; t++)
+        for (int comp = 0; comp < 2; comp++) {
+            gs_index q = b->rowq[1 + 2 * batch[t] + comp];
+            if (q >= 0)
+                f[(size_t)(2 * t + comp) * (size_t)n + (size_t)q] = 1.0;
+            outs[2 * t + comp] = c + (size_t)(2 * t + comp) * (size_t)nr;
+        }
+    gs_err e = gres_column(b, 2 * cnt, f, outs);
     free(f);
     if (e != GS_OK) {
         free(c);
         return e;
     }
-    b->col[k] = c;
-    b->ncols++;
-    return GS_OK;
+    /* each node owns a copy of its two columns (freed one by one) */
+    for (int t = 0; t < cnt && e == GS_OK; t++) {
+        double *own = t == 0 ? c : gs_calloc((size_t)(2 * nr), sizeof *own);
+        if (!own) {
+            e = GS_ENOMEM;
+            break;
+        }
+        if (t > 0)
+            memcpy(own, c + (size_t)(2 * t) * (size_t)nr, (size_t)(2 * nr) * sizeof *own);
+        b->col[batch[t]] = own;
+        b->ncols++;
+    }
+    if (e == GS_OK && cnt > 1) { /* node batch[0] keeps the head of the buffer */
+        double *sh = realloc(c, (size_t)(2 * nr) * sizeof *c);
+        if (sh)
+            b->col[batch[0]] = sh;
+    }
+    if (e != GS_OK && !b->col[batch[0]])
+        free(c);
+    return e;
 }
 
 /* G_res entry (row r, column c); column c's node must be present. */
