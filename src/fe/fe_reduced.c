@@ -127,6 +127,8 @@ struct gs_fe_reduced {
      * far apart in memory) */
     gs_index *blk_r, *blk_pos; /* blk_n rows; nr: position or -1 */
     double *blk_G;
+    double *blk_M;        /* the modal sums of the same entries, valid for h == blk_h */
+    double blk_h;
     gs_index blk_n, blk_rows;
 
     double energy0, work_in, work_iface, dissipated, damped;
@@ -418,7 +420,7 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     free(b->Phi), free(b->om2), free(b->PR), free(b->cand_of), free(b->rowq), free(b->inv_a);
     free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
-    free(b->blk_r), free(b->blk_pos), free(b->blk_G);
+    free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
     free(b);
     *pb = NULL;
 }
@@ -1041,44 +1043,56 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
             rr[j] = -1;
         yy[j] = rr[j] >= 0 && b->kc != 0.0 ? ycol(b, rr[j]) : 0.0;
     }
-    /* raw G_res over the selected rows: copied from the last block where
-     * both rows were in it */
-    double *G = NULL;
+    /* raw G_res and the modal sums over the selected rows: copied from the
+     * last block where both rows were in it (the modal sums only for the
+     * same h), else computed (bit for bit the same values) */
+    double *G = NULL, *Mm = NULL;
     gs_index *nrw = NULL;
     if (e == GS_OK) {
         G = gs_calloc((size_t)k * (size_t)k + 1, sizeof *G);
+        Mm = gs_calloc((size_t)k * (size_t)k + 1, sizeof *Mm);
         nrw = gs_calloc((size_t)k + 1, sizeof *nrw);
-        if (!G || !nrw)
+        if (!G || !Mm || !nrw)
             e = GS_ENOMEM;
     }
+    bool same_h = b->blk_M && b->blk_h == b->h;
     for (int j = 0; j < k && e == GS_OK; j++) {
         gs_index pj = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
         for (int i = 0; i <= j; i++) {
-            double g = 0;
+            double g = 0, v = 0;
             if (rr[i] >= 0 && rr[j] >= 0) {
                 gs_index pi = b->blk_pos[rr[i]];
-                g = (pi >= 0 && pj >= 0) ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
+                bool old = pi >= 0 && pj >= 0;
+                g = old ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
+                if (old && same_h) {
+                    v = b->blk_M[pi + pj * b->blk_n];
+                } else {
+                    const double *p = b->PR + (size_t)rr[i] * (size_t)b->N,
+                                 *q = b->PR + (size_t)rr[j] * (size_t)b->N;
+                    for (int t = 0; t < b->N; t++)
+                        v += p[t] * q[t] * b->inv_a[t];
+                }
             }
             G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
+            Mm[i + (size_t)j * (size_t)k] = Mm[j + (size_t)i * (size_t)k] = v;
         }
     }
     for (int j = 0; j < k && e == GS_OK; j++)
         for (int i = 0; i <= j; i++) {
             double v = 0;
-            if (rr[i] >= 0 && rr[j] >= 0) {
-                const double *p = b->PR + (size_t)rr[i] * (size_t)b->N, *q = b->PR + (size_t)rr[j] * (size_t)b->N;
-                for (int t = 0; t < b->N; t++)
-                    v += p[t] * q[t] * b->inv_a[t];
-                v += G[i + (size_t)j * (size_t)k] / b->d - b->kc * yy[i] * yy[j];
-            }
+            if (rr[i] >= 0 && rr[j] >= 0)
+                v = Mm[i + (size_t)j * (size_t)k] + G[i + (size_t)j * (size_t)k] / b->d - b->kc * yy[i] * yy[j];
             C[i + (size_t)j * (size_t)k] = C[j + (size_t)i * (size_t)k] = v;
         }
     if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
         for (gs_index t = 0; t < b->blk_rows; t++)
             b->blk_pos[b->blk_r[t]] = -1;
         free(b->blk_G);
+        free(b->blk_M);
         free(b->blk_r);
         b->blk_G = G;
+        b->blk_M = Mm;
+        b->blk_h = b->h;
         b->blk_r = nrw;
         b->blk_n = k;
         b->blk_rows = 0;
@@ -1088,8 +1102,10 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                 b->blk_r[b->blk_rows++] = rr[j];
             }
         G = NULL;
+        Mm = NULL;
         nrw = NULL;
     }
+    free(Mm);
     free(G), free(nrw);
     free(rr), free(yy);
     return e;
