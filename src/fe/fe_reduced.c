@@ -128,6 +128,10 @@ struct gs_fe_reduced {
     gs_index *blk_r, *blk_pos; /* blk_n rows; nr: position or -1 */
     double *blk_G;
     double *blk_M;        /* the modal sums of the same entries, valid for h == blk_h */
+    size_t blk_cap;       /* entries allocated in blk_G, blk_M, blk_r */
+    double *sp_G, *sp_M;  /* the spare block buffers (swapped with blk_*: no allocation per step) */
+    gs_index *sp_r;
+    size_t sp_cap;
     double blk_h;
     gs_index blk_n, blk_rows;
 
@@ -421,6 +425,7 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
     free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
+    free(b->sp_G), free(b->sp_M), free(b->sp_r);
     free(b);
     *pb = NULL;
 }
@@ -1048,12 +1053,20 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
      * same h), else computed (bit for bit the same values) */
     double *G = NULL, *Mm = NULL;
     gs_index *nrw = NULL;
-    if (e == GS_OK) {
-        G = gs_calloc((size_t)k * (size_t)k + 1, sizeof *G);
-        Mm = gs_calloc((size_t)k * (size_t)k + 1, sizeof *Mm);
-        nrw = gs_calloc((size_t)k + 1, sizeof *nrw);
-        if (!G || !Mm || !nrw)
+    size_t need = (size_t)k * (size_t)k + 1;
+    if (e == GS_OK && b->sp_cap < need) {
+        free(b->sp_G), free(b->sp_M), free(b->sp_r);
+        b->sp_G = malloc(need * sizeof *b->sp_G);
+        b->sp_M = malloc(need * sizeof *b->sp_M);
+        b->sp_r = malloc(need * sizeof *b->sp_r);
+        b->sp_cap = (b->sp_G && b->sp_M && b->sp_r) ? need : 0;
+        if (!b->sp_cap)
             e = GS_ENOMEM;
+    }
+    if (e == GS_OK) {
+        G = b->sp_G;
+        Mm = b->sp_M;
+        nrw = b->sp_r;
     }
     bool same_h = b->blk_M && b->blk_h == b->h;
     for (int j = 0; j < k && e == GS_OK; j++) {
@@ -1087,9 +1100,18 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
     if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
         for (gs_index t = 0; t < b->blk_rows; t++)
             b->blk_pos[b->blk_r[t]] = -1;
-        free(b->blk_G);
-        free(b->blk_M);
-        free(b->blk_r);
+        /* swap: the last block's buffers become the spares */
+        b->sp_G = b->blk_G;
+        b->sp_M = b->blk_M;
+        b->sp_r = b->blk_r;
+        size_t cap = b->blk_cap;
+        b->blk_cap = b->sp_cap;
+        b->sp_cap = b->sp_G && b->sp_M && b->sp_r ? cap : 0;
+        if (!b->sp_cap) {
+            free(b->sp_G), free(b->sp_M), free(b->sp_r);
+            b->sp_G = b->sp_M = NULL;
+            b->sp_r = NULL;
+        }
         b->blk_G = G;
         b->blk_M = Mm;
         b->blk_h = b->h;
@@ -1101,12 +1123,7 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                 b->blk_pos[rr[j]] = j;
                 b->blk_r[b->blk_rows++] = rr[j];
             }
-        G = NULL;
-        Mm = NULL;
-        nrw = NULL;
     }
-    free(Mm);
-    free(G), free(nrw);
     free(rr), free(yy);
     return e;
 }
