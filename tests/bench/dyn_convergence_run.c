@@ -32,6 +32,7 @@
 #include <time.h>
 
 #include "../common/dyn_window.h"
+#include "../common/json_child.h"
 #include "fe/fe_internal.h"
 #include "gearsim/mesh.h"
 #include "gearsim/scene.h"
@@ -61,16 +62,6 @@ static char *slurp(const char *path)
         t[n] = 0;
     fclose(f);
     return t;
-}
-
-static json_object *obj_child(json_object *o, const char *key)
-{
-    json_object *c;
-    if (!json_object_object_get_ex(o, key, &c)) {
-        c = json_object_new_object();
-        json_object_object_add(o, key, c);
-    }
-    return c;
 }
 
 int main(int argc, char **argv)
@@ -136,7 +127,7 @@ int main(int argc, char **argv)
         json_object *b = json_object_array_get_idx(bs, i), *t;
         if (!json_object_object_get_ex(b, "model", &t) || strcmp(json_object_get_string(t), "elastic"))
             continue;
-        json_object *m = obj_child(b, "mesh");
+        json_object *m = tj_child(b, "mesh");
         json_object_object_add(m, "order", json_object_new_int(order));
         json_object_object_add(m, "refine", json_object_new_int(refine));
         if (scale != 1) {
@@ -145,14 +136,14 @@ int main(int argc, char **argv)
             json_object_object_add(m, "rim", json_object_new_int(rim));
         }
         if (fmax > 0) /* the reduced body (docs/FE.md "Reduced elastic body") */
-            json_object_object_add(obj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
+            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
         if (zeta > 0) {
-            json_object *mat = obj_child(b, "material");
+            json_object *mat = tj_child(b, "material");
             json_object_object_add(mat, "damping_ratio", json_object_new_double(zeta));
             json_object_object_add(mat, "damping_hz", json_object_new_double(fhz));
         }
     }
-    json_object *num = obj_child(root, "numerics");
+    json_object *num = tj_child(root, "numerics");
     json_object_object_add(num, "time_step", json_object_new_double(h));
     json_object_object_add(num, "contact", json_object_new_string(contact));
     char in_name[GS_NAME_MAX] = "", out_name[GS_NAME_MAX] = "";

@@ -26,18 +26,9 @@
 #include <string.h>
 
 #include "../common/dyn_window.h"
+#include "../common/json_child.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
-
-static json_object *child(json_object *o, const char *key)
-{
-    json_object *c;
-    if (!json_object_object_get_ex(o, key, &c)) {
-        c = json_object_new_object();
-        json_object_object_add(o, key, c);
-    }
-    return c;
-}
 
 /* contact_drive at h 1e-5 with 2 % damping at 9.2 kHz; reduced to f_max
  * (0: full) on every elastic gear; extra: a material field set on gear 0. */
@@ -48,20 +39,20 @@ static gs_err make_system(double fmax, const char *extra, double extra_v, gs_sys
     json_object *bs = json_object_object_get(root, "bodies");
     for (size_t i = 0; i < json_object_array_length(bs); i++) {
         json_object *b = json_object_array_get_idx(bs, i);
-        json_object *mat = child(b, "material");
+        json_object *mat = tj_child(b, "material");
         json_object_object_add(mat, "damping_ratio", json_object_new_double(0.02));
         json_object_object_add(mat, "damping_hz", json_object_new_double(9200));
         if (extra && i == 0)
             json_object_object_add(mat, extra, json_object_new_double(extra_v));
         if (fmax > 0)
-            json_object_object_add(child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
+            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
         if (fmax < 0 && i == 0) /* reduction on a rigid gear */
             json_object_object_add(b, "model", json_object_new_string("rigid"));
         if (fmax < 0)
-            json_object_object_add(child(b, "reduction"), "f_max_hz", json_object_new_double(6e4));
+            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(6e4));
     }
-    json_object_object_add(child(root, "numerics"), "time_step", json_object_new_double(1e-5));
-    json_object_object_add(child(root, "numerics"), "contact", json_object_new_string("closure_energy"));
+    json_object_object_add(tj_child(root, "numerics"), "time_step", json_object_new_double(1e-5));
+    json_object_object_add(tj_child(root, "numerics"), "contact", json_object_new_string("closure_energy"));
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc = NULL;
     gs_err e = gs_scene_parse(txt, strlen(txt), &sc, d);
