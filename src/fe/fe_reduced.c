@@ -137,6 +137,7 @@ struct gs_fe_reduced {
 
     double energy0, work_in, work_iface, dissipated, damped;
     double col_cpu;       /* CPU seconds spent computing residual columns */
+    int lz_runs, lz_added[4]; /* Lanczos runs; modes the first ones added (the log) */
     uint64_t steps;
     double *scratch;      /* n */
 };
@@ -398,6 +399,9 @@ static gs_err compute_modes(gs_fe_reduced *b, int solver)
         for (unsigned run = 0; run < RESTARTS_MAX; run++) {
             int added = 0;
             GS_TRY(lanczos_run(b, &cap, first, lmax, run, &added));
+            if (run < 4)
+                b->lz_added[run] = added;
+            b->lz_runs = (int)run + 1;
             if (added == 0)
                 break;
         }
@@ -650,8 +654,9 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
         e = compute_modes(b, o->eigensolver);
         if (e == GS_OK && getenv("GEARSIM_REDUCED_LOG"))
             fprintf(stderr, "reduced body: %ld elastic unknowns, %d modes kept (f_max %.6g Hz, highest %.6g Hz), "
-                            "%ld candidate nodes\n",
-                    (long)b->ne, b->N, b->fmax, b->N ? sqrt(b->om2[b->N - 1]) / (2 * GS_PI) : 0.0, (long)nc);
+                            "%ld candidate nodes; Lanczos runs %d, modes added by the first %d %d %d\n",
+                    (long)b->ne, b->N, b->fmax, b->N ? sqrt(b->om2[b->N - 1]) / (2 * GS_PI) : 0.0, (long)nc,
+                    b->lz_runs, b->lz_added[0], b->lz_added[1], b->lz_added[2]);
     }
     if (e == GS_OK) {
         int N = b->N;
