@@ -302,4 +302,84 @@ void gs_fe_body_get_stats(const gs_fe_body *b, gs_fe_stats *out);
  * Errors: GS_EINVAL. */
 gs_err gs_fe_body_set_cache_limit(gs_fe_body *b, size_t max_bytes);
 
+/* ------------------------------------------------------------------------ */
+/* Reduced body (src/fe/fe_reduced.c, docs/FE.md "Reduced elastic body")     */
+/* ------------------------------------------------------------------------ */
+
+/* The FE body with its modes above f_max taken as massless: the rigid
+ * rotation and the elastic modes with f <= f_max are stepped exactly as the
+ * full body steps them (the same midpoint scheme, decoupled), the rest is a
+ * static residual flexibility with a force-like state on the nodes that
+ * carried force. The operations are those of gs_fe_body_* with the same
+ * meaning; a step costs O(N |I| + |I| |supp Y|) instead of a sparse solve.
+ * Differences: the residual carries no kinetic energy (its velocity in a
+ * set_state is dropped; gs_fe_reduced_nodal's velocities are the modes'),
+ * mass-proportional damping (material damping_m) is refused (GS_ERANGE),
+ * theta is held or free from creation on, and forces may act only on the
+ * candidate nodes named at creation (GS_EINVAL otherwise). */
+typedef struct gs_fe_reduced gs_fe_reduced;
+
+typedef struct gs_fe_reduced_opts {
+    double f_max_hz;        /* keep the elastic modes up to this frequency (> 0; INFINITY: all,
+                             * only for small models: dense eigensolver) */
+    bool held;              /* theta held (modes of the elastic block alone) */
+    gs_index n_nodes;       /* candidate nodes (mesh numbering) that may carry force */
+    const gs_index *nodes;  /* NULL: every node (small models) */
+    int eigensolver;        /* 0 (default): dense up to 1600 elastic unknowns, else Lanczos;
+                             * 1 dense; 2 Lanczos (for the tests) */
+} gs_fe_reduced_opts;
+
+typedef struct gs_fe_reduced_info {
+    int modes;              /* kept modes, the rigid rotation included for a free body */
+    int elastic_modes;      /* of which elastic */
+    double f_top_hz;        /* the highest kept */
+    gs_index rows;          /* 1 + 2 candidate nodes */
+    gs_index cached_nodes;  /* nodes whose residual columns are computed */
+    gs_index residual_support; /* rows with a residual force state now */
+    uint64_t steps;
+    double column_cpu_s;    /* CPU seconds spent computing residual columns (once per node) */
+} gs_fe_reduced_info;
+
+/* Factorises K once and computes the modes (Lanczos above ~1600 unknowns).
+ * Errors: GS_EINVAL, GS_ERANGE (damping_m != 0), GS_ESINGULAR, GS_ENOCONV,
+ * GS_ETOOBIG (more than 4000 modes below f_max), GS_ENOMEM. */
+gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_fe_reduced **out);
+void gs_fe_reduced_free(gs_fe_reduced **b);
+void gs_fe_reduced_get_info(const gs_fe_reduced *b, gs_fe_reduced_info *info);
+/* GS_EINVAL when held differs from the creation's. */
+gs_err gs_fe_reduced_hold_theta(gs_fe_reduced *b, bool held);
+gs_err gs_fe_reduced_set_state(gs_fe_reduced *b, double theta, double omega, const double *u_nodes,
+                               const double *v_nodes);
+gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c);
+gs_err gs_fe_reduced_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes);
+gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes);
+gs_err gs_fe_reduced_increment(gs_fe_reduced *b, int n, const gs_index *dofs, double *dq_out);
+gs_err gs_fe_reduced_compliance(gs_fe_reduced *b, int n, const gs_index *dofs, double *C);
+gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dofs, int k, const int *sel,
+                                    double *C);
+gs_err gs_fe_reduced_apply(gs_fe_reduced *b, int n, const gs_index *dofs, const double *f);
+gs_err gs_fe_reduced_end_step(gs_fe_reduced *b);
+void gs_fe_reduced_cancel_step(gs_fe_reduced *b);
+/* Current displacement (x, y, body frame) of a node (zero when fixed);
+ * GS_EINVAL for a node that is not a candidate. */
+gs_err gs_fe_reduced_node_displacement(const gs_fe_reduced *b, gs_index node, double u[2]);
+double gs_fe_reduced_theta(const gs_fe_reduced *b);
+/* The modes' share of theta' (the residual is massless). */
+double gs_fe_reduced_omega(const gs_fe_reduced *b);
+void gs_fe_reduced_energy(const gs_fe_reduced *b, double *kinetic, double *elastic);
+double gs_fe_reduced_damped(const gs_fe_reduced *b);
+double gs_fe_reduced_angular_momentum(const gs_fe_reduced *b);
+void gs_fe_reduced_spin(gs_fe_reduced *b, double dw);
+/* Nodal fields (2 * n_nodes each, either may be NULL); the displacement
+ * costs one solve with the factor of K when a residual state is present. */
+gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes);
+void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *out);
+/* Snapshot: modal q, v, the residual force state on the rows, the residual
+ * amplitude of the last set_state: 2 (ne + 1) + rows + 2 values, a size that
+ * does not depend on the modes (every rank knows it from the mesh; N <= ne
+ * + 1). Loading a snapshot of another basis (N differs): GS_EINVAL. */
+size_t gs_fe_reduced_state_size(const gs_fe_reduced *b);
+void gs_fe_reduced_save(const gs_fe_reduced *b, double *x);
+gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x);
+
 #endif

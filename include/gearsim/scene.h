@@ -79,6 +79,8 @@ typedef struct gs_scene_body {
     bool angle_given;          /* angle0 from the scene (else contact meshes phase the gear) */
     double tip_load;           /* N: elastic bodies start in the static deflection under a
                                 * tangential load on the tip of tooth 0 (0: undeformed) */
+    double reduce_f_max_hz;    /* bodies[i].reduction.f_max_hz: an elastic gear as the reduced
+                                * body of fe.h (modes up to it; 0: the full FE body) */
 } gs_scene_body;
 
 typedef struct gs_scene_mesh {

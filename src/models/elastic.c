@@ -23,23 +23,183 @@
 #include "gearsim/step.h"
 #include "gearsim/util.h"
 
-typedef struct elastic {
+typedef struct elastic elastic;
+
+/* The body in the step: the full FE body (gs_fe_body) or the reduced one
+ * (gs_fe_reduced, bodies[i].reduction); the same operations. */
+typedef struct elastic_backend {
+    const char *name;
+    void (*destroy)(elastic *el);
+    gs_err (*set_state)(elastic *el, double theta, double omega, const double *u, const double *v);
+    gs_err (*hold_theta)(elastic *el, bool held);
+    gs_err (*set_step)(elastic *el, double h, double c);
+    gs_err (*begin_step)(elastic *el, double moment);
+    void (*cancel_step)(elastic *el);
+    gs_err (*increment)(elastic *el, int n, const gs_index *dofs, double *dq);
+    /* current displacement of a node (body frame; zero when fixed) */
+    void (*node_u)(elastic *el, gs_index node, double u[2]);
+    gs_err (*compliance)(elastic *el, int n, const gs_index *dofs, double *C);
+    gs_err (*compliance_sub)(elastic *el, int n, const gs_index *dofs, int k, const int *sel, double *C);
+    gs_err (*apply)(elastic *el, int n, const gs_index *dofs, const double *f);
+    gs_err (*end_step)(elastic *el);
+    double (*damped)(const elastic *el);
+    double (*angular_momentum)(const elastic *el);
+    void (*spin)(elastic *el, double dw);
+    void (*energy)(const elastic *el, double *T, double *V);
+    void (*save)(const elastic *el, double *x);
+    gs_err (*load)(elastic *el, const double *x);
+    gs_err (*nodal)(elastic *el, double *u);
+} elastic_backend;
+
+struct elastic {
     gs_mesh *mesh;
     gs_fe_model *model;
-    gs_fe_body *body;       /* owner rank only */
+    const elastic_backend *be; /* owner rank only, with one of: */
+    gs_fe_body *body;       /* the full FE body */
+    gs_fe_reduced *red;     /* the reduced body */
+    bool reduced;           /* bodies[i].reduction given (every rank) */
     gs_index ne;            /* elastic unknowns */
     double h, c;            /* time step and brake the body is factorised for */
     gs_index *dofs;         /* interface dofs of this step (FE body names) */
     size_t cap_dofs;
     bool begun;             /* a step is begun in the FE body */
-} elastic;
+};
+
+/* ---- the full FE body --------------------------------------------------- */
+
+static void full_destroy(elastic *el) { gs_fe_body_free(&el->body); }
+static gs_err full_set_state(elastic *el, double th, double om, const double *u, const double *v)
+{
+    return gs_fe_body_set_state(el->body, th, om, u, v);
+}
+static gs_err full_hold(elastic *el, bool held) { return gs_fe_body_hold_theta(el->body, held); }
+static gs_err full_set_step(elastic *el, double h, double c) { return gs_fe_body_set_step(el->body, h, c); }
+static gs_err full_begin(elastic *el, double M) { return gs_fe_body_begin_step(el->body, M, NULL); }
+static void full_cancel(elastic *el) { gs_fe_body_cancel_step(el->body); }
+static gs_err full_increment(elastic *el, int n, const gs_index *dofs, double *dq)
+{
+    return gs_fe_body_increment(el->body, n, dofs, dq);
+}
+static void full_node_u(elastic *el, gs_index node, double u[2])
+{
+    const double *q = gs_fe_body_q(el->body);
+    for (int comp = 0; comp < 2; comp++) {
+        gs_index k = gs_fe_model_dof(el->model, node, comp);
+        u[comp] = k >= 0 ? q[k] : 0.0;
+    }
+}
+static gs_err full_compliance(elastic *el, int n, const gs_index *dofs, double *C)
+{
+    return gs_fe_body_compliance(el->body, n, dofs, C);
+}
+static gs_err full_compliance_sub(elastic *el, int n, const gs_index *dofs, int k, const int *sel, double *C)
+{
+    return gs_fe_body_compliance_sub(el->body, n, dofs, k, sel, C);
+}
+static gs_err full_apply(elastic *el, int n, const gs_index *dofs, const double *f)
+{
+    return gs_fe_body_apply(el->body, n, dofs, f);
+}
+static gs_err full_end(elastic *el) { return gs_fe_body_end_step(el->body); }
+static double full_damped(const elastic *el) { return gs_fe_body_damped(el->body); }
+static double full_L(const elastic *el) { return gs_fe_body_angular_momentum(el->body); }
+static void full_spin(elastic *el, double dw) { gs_fe_body_spin(el->body, dw); }
+static void full_energy(const elastic *el, double *T, double *V) { gs_fe_body_energy(el->body, T, V); }
+
+/* Snapshot state: q then w of the FE body (ne + 1 each, theta last). */
+static void full_save(const elastic *el, double *x)
+{
+    size_t n = (size_t)(el->ne + 1);
+    memcpy(x, gs_fe_body_q(el->body), n * sizeof(double));
+    memcpy(x + n, gs_fe_body_w(el->body), n * sizeof(double));
+}
+static gs_err full_load(elastic *el, const double *x)
+{
+    gs_index nn = el->mesh->n_nodes, ne = el->ne;
+    double *u = gs_calloc((size_t)(4 * nn), sizeof(double));
+    if (!u)
+        return GS_ENOMEM;
+    double *v = u + 2 * nn;
+    for (gs_index i = 0; i < nn; i++)
+        for (int c = 0; c < 2; c++) {
+            gs_index k = gs_fe_model_dof(el->model, i, c);
+            if (k >= 0) {
+                u[2 * i + c] = x[k];
+                v[2 * i + c] = x[ne + 1 + k];
+            }
+        }
+    gs_fe_body_cancel_step(el->body);
+    gs_err e = gs_fe_body_set_state(el->body, x[ne], x[2 * ne + 1], u, v);
+    free(u);
+    return e;
+}
+static gs_err full_nodal(elastic *el, double *u)
+{
+    gs_fe_body_nodal(el->body, u, NULL);
+    return GS_OK;
+}
+
+static const elastic_backend backend_full = {
+    "full", full_destroy, full_set_state, full_hold, full_set_step, full_begin, full_cancel, full_increment,
+    full_node_u, full_compliance, full_compliance_sub, full_apply, full_end, full_damped, full_L, full_spin,
+    full_energy, full_save, full_load, full_nodal,
+};
+
+/* ---- the reduced body ---------------------------------------------------- */
+
+static void red_destroy(elastic *el) { gs_fe_reduced_free(&el->red); }
+static gs_err red_set_state(elastic *el, double th, double om, const double *u, const double *v)
+{
+    return gs_fe_reduced_set_state(el->red, th, om, u, v);
+}
+static gs_err red_hold(elastic *el, bool held) { return gs_fe_reduced_hold_theta(el->red, held); }
+static gs_err red_set_step(elastic *el, double h, double c) { return gs_fe_reduced_set_step(el->red, h, c); }
+static gs_err red_begin(elastic *el, double M) { return gs_fe_reduced_begin_step(el->red, M, NULL); }
+static void red_cancel(elastic *el) { gs_fe_reduced_cancel_step(el->red); }
+static gs_err red_increment(elastic *el, int n, const gs_index *dofs, double *dq)
+{
+    return gs_fe_reduced_increment(el->red, n, dofs, dq);
+}
+static void red_node_u(elastic *el, gs_index node, double u[2])
+{
+    if (gs_fe_reduced_node_displacement(el->red, node, u) != GS_OK)
+        u[0] = u[1] = NAN;
+}
+static gs_err red_compliance(elastic *el, int n, const gs_index *dofs, double *C)
+{
+    return gs_fe_reduced_compliance(el->red, n, dofs, C);
+}
+static gs_err red_compliance_sub(elastic *el, int n, const gs_index *dofs, int k, const int *sel, double *C)
+{
+    return gs_fe_reduced_compliance_sub(el->red, n, dofs, k, sel, C);
+}
+static gs_err red_apply(elastic *el, int n, const gs_index *dofs, const double *f)
+{
+    return gs_fe_reduced_apply(el->red, n, dofs, f);
+}
+static gs_err red_end(elastic *el) { return gs_fe_reduced_end_step(el->red); }
+static double red_damped(const elastic *el) { return gs_fe_reduced_damped(el->red); }
+static double red_L(const elastic *el) { return gs_fe_reduced_angular_momentum(el->red); }
+static void red_spin(elastic *el, double dw) { gs_fe_reduced_spin(el->red, dw); }
+static void red_energy(const elastic *el, double *T, double *V) { gs_fe_reduced_energy(el->red, T, V); }
+/* Snapshot state: the reduced body's own (modal q, v, residual forces). */
+static void red_save(const elastic *el, double *x) { gs_fe_reduced_save(el->red, x); }
+static gs_err red_load(elastic *el, const double *x) { return gs_fe_reduced_load(el->red, x); }
+static gs_err red_nodal(elastic *el, double *u) { return gs_fe_reduced_nodal(el->red, u, NULL); }
+
+static const elastic_backend backend_reduced = {
+    "reduced", red_destroy, red_set_state, red_hold, red_set_step, red_begin, red_cancel, red_increment,
+    red_node_u, red_compliance, red_compliance_sub, red_apply, red_end, red_damped, red_L, red_spin,
+    red_energy, red_save, red_load, red_nodal,
+};
 
 static void elastic_destroy(gs_body_rt *b)
 {
     elastic *el = b->model;
     if (!el)
         return;
-    gs_fe_body_free(&el->body);
+    if (el->be)
+        el->be->destroy(el);
     gs_fe_model_free(&el->model);
     free(el->dofs);
     gs_mesh_free(&el->mesh);
@@ -133,10 +293,28 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
                            gs_strerror(e));
     gs_fe_model_get_info(el->model, &info);
     el->ne = info.n_elastic;
+    el->reduced = sb->reduce_f_max_hz > 0;
     b->inertia_eff = info.inertia_total;
     if (b->owner != sys->rank)
         return GS_OK;
-    GS_TRY(gs_fe_body_new(el->model, &el->body));
+    if (sb->reduce_f_max_hz > 0) {
+        /* candidate rows: the toothed boundary (every node a contact search may name) */
+        gs_fe_reduced_opts ro = {sb->reduce_f_max_hz, b->coord < 0, el->mesh->n_boundary, el->mesh->boundary, 0};
+        e = gs_fe_reduced_new(el->model, &ro, &el->red);
+        if (e != GS_OK) {
+            snprintf(field, sizeof field, "bodies[%d].%s", b->index,
+                     e == GS_ERANGE ? "material.damping_m" : "reduction.f_max_hz");
+            return gs_diag_set(d, e, field, e == GS_ERANGE ? "'%s': a reduced body takes no mass-proportional damping"
+                                                           : "'%s': the reduced body cannot be built (%s)",
+                               sb->name, gs_strerror(e));
+        }
+        el->be = &backend_reduced;
+        if (gs_fe_reduced_state_size(el->red) != 2 * (size_t)(el->ne + 1) + (size_t)(2 * el->mesh->n_boundary + 3))
+            return gs_diag_set(d, GS_EINTERNAL, field, "'%s': the boundary loop repeats a node", sb->name);
+    } else {
+        GS_TRY(gs_fe_body_new(el->model, &el->body));
+        el->be = &backend_full;
+    }
     double *u0 = NULL;
     if (sb->tip_load != 0.0) {
         u0 = gs_calloc((size_t)(2 * el->mesh->n_nodes), sizeof(double));
@@ -149,11 +327,10 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
             return gs_diag_set(d, e, field, "static deflection of '%s' failed", sb->name);
         }
     }
-    e = gs_fe_body_set_state(el->body, b->coord >= 0 ? sb->angle0 : 0.0,
-                             b->coord >= 0 ? sb->omega0 : 0.0, u0, NULL);
+    e = el->be->set_state(el, b->coord >= 0 ? sb->angle0 : 0.0, b->coord >= 0 ? sb->omega0 : 0.0, u0, NULL);
     free(u0);
     if (e == GS_OK && b->coord < 0)
-        e = gs_fe_body_hold_theta(el->body, true);
+        e = el->be->hold_theta(el, true);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot set the state of '%s'", sb->name);
     double T, V;
@@ -193,30 +370,26 @@ static gs_err interface_begin(const gs_system *sys, gs_body_rt *b, double h, dou
     if (b->coord >= 0)
         gs_system_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
     if (el->begun) /* the previous global solve failed: start again */
-        gs_fe_body_cancel_step(el->body);
+        el->be->cancel_step(el);
     el->begun = false;
     if (h != el->h || c != el->c) {
-        gs_err e = gs_fe_body_set_step(el->body, h, c);
+        gs_err e = el->be->set_step(el, h, c);
         el->h = e == GS_OK ? h : 0;
         if (e != GS_OK)
             return e;
         el->c = c;
     }
-    GS_TRY(gs_fe_body_begin_step(el->body, M, NULL));
+    GS_TRY(el->be->begin_step(el, M));
     el->begun = true;
     GS_TRY(interface_dofs(sys, b, el, n));
     if (*n == 0)
         return GS_OK;
-    GS_TRY(gs_fe_body_increment(el->body, *n, el->dofs, rec + (size_t)*n * *n));
+    GS_TRY(el->be->increment(el, *n, el->dofs, rec + (size_t)*n * *n));
     /* Current displacements of the nodes (body frame). */
-    const double *q = gs_fe_body_q(el->body);
     const gs_step_plan *p = &sys->plan;
     double *u = rec + (size_t)*n * *n + *n;
     for (int j = 0; j < p->n_nodes[b->index]; j++)
-        for (int comp = 0; comp < 2; comp++) {
-            gs_index k = gs_fe_model_dof(el->model, p->nodes[b->index][j], comp);
-            u[2 * j + comp] = k >= 0 ? q[k] : 0.0;
-        }
+        el->be->node_u(el, p->nodes[b->index][j], u + 2 * j);
     return GS_OK;
 }
 
@@ -226,7 +399,7 @@ static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, dou
     int n = 0;
     gs_err e = interface_begin(sys, b, h, rec, &n);
     if (e == GS_OK && n > 0)
-        e = gs_fe_body_compliance(el->body, n, el->dofs, rec);
+        e = el->be->compliance(el, n, el->dofs, rec);
     if (e != GS_OK || (n > 0 && !(rec[0] > 0)))
         rec[0] = NAN;
 }
@@ -247,7 +420,7 @@ static void elastic_compliance(const gs_system *sys, gs_body_rt *b, int k, const
     if (k == 0)
         return;
     /* The dofs are still those of interface_free() (the plan has not changed). */
-    gs_err e = el->begun ? gs_fe_body_compliance_sub(el->body, n, el->dofs, k, sel, Cs) : GS_ESTATE;
+    gs_err e = el->begun ? el->be->compliance_sub(el, n, el->dofs, k, sel, Cs) : GS_ESTATE;
     if (e != GS_OK || !(Cs[0] > 0))
         Cs[0] = NAN;
 }
@@ -263,74 +436,58 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
         any |= f[k] != 0.0;
     /* The dofs are still those of interface() (the plan has not changed). */
     if (any)
-        GS_TRY(gs_fe_body_apply(el->body, n, el->dofs, f));
+        GS_TRY(el->be->apply(el, n, el->dofs, f));
     el->begun = false;
-    double damped = gs_fe_body_damped(el->body);
-    GS_TRY(gs_fe_body_end_step(el->body));
-    b->D_step = gs_fe_body_damped(el->body) - damped;
+    double damped = el->be->damped(el);
+    GS_TRY(el->be->end_step(el));
+    b->D_step = el->be->damped(el) - damped;
     b->ops->energy(sys, b, &b->T, &b->V);
     /* The angular momentum (a pass over every elastic unknown) is read only
      * by closure_energy's velocity update (gs_step_contact_return). */
-    b->L = sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY ? gs_fe_body_angular_momentum(el->body) : 0.0;
+    b->L = sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY ? el->be->angular_momentum(el) : 0.0;
     return GS_OK;
 }
 
 static void elastic_spin(gs_body_rt *b, double dw)
 {
     elastic *el = b->model;
-    if (el->body)
-        gs_fe_body_spin(el->body, dw);
+    if (el->be)
+        el->be->spin(el, dw);
 }
 
 static void elastic_energy(const gs_system *sys, const gs_body_rt *b, double *T, double *V)
 {
     (void)sys;
     const elastic *el = b->model;
-    if (!el->body) { /* not the owner: the last reported values */
+    if (!el->be) { /* not the owner: the last reported values */
         *T = b->T;
         *V = b->V;
         return;
     }
-    gs_fe_body_energy(el->body, T, V);
+    el->be->energy(el, T, V);
 }
 
-/* Snapshot state: q then w of the FE body (ne + 1 each, theta last). */
+/* Snapshot state: the backend's (full: q then w, ne + 1 each, theta last). */
 static size_t elastic_state_size(const gs_body_rt *b)
 {
     const elastic *el = b->model;
-    return 2 * (size_t)(el->ne + 1);
+    /* the same on every rank: the reduced layout from the mesh's candidate rows */
+    return 2 * (size_t)(el->ne + 1) + (el->reduced ? (size_t)(2 * el->mesh->n_boundary + 3) : 0);
 }
 
 static void elastic_save(const gs_body_rt *b, double *x)
 {
     const elastic *el = b->model;
-    size_t n = (size_t)(el->ne + 1);
-    memcpy(x, gs_fe_body_q(el->body), n * sizeof(double));
-    memcpy(x + n, gs_fe_body_w(el->body), n * sizeof(double));
+    el->be->save(el, x);
 }
 
 static gs_err elastic_load(gs_body_rt *b, const double *x)
 {
     elastic *el = b->model;
-    gs_index nn = el->mesh->n_nodes, ne = el->ne;
-    double *u = gs_calloc((size_t)(4 * nn), sizeof(double));
-    if (!u)
-        return GS_ENOMEM;
-    double *v = u + 2 * nn;
-    for (gs_index i = 0; i < nn; i++)
-        for (int c = 0; c < 2; c++) {
-            gs_index k = gs_fe_model_dof(el->model, i, c);
-            if (k >= 0) {
-                u[2 * i + c] = x[k];
-                v[2 * i + c] = x[ne + 1 + k];
-            }
-        }
-    gs_fe_body_cancel_step(el->body);
+    el->be->cancel_step(el);
     el->begun = false;
     b->D_step = 0.0;
-    gs_err e = gs_fe_body_set_state(el->body, x[ne], x[2 * ne + 1], u, v);
-    free(u);
-    return e;
+    return el->be->load(el, x);
 }
 
 static gs_index elastic_field_nodes(const gs_body_rt *b)
@@ -341,9 +498,9 @@ static gs_index elastic_field_nodes(const gs_body_rt *b)
 
 static void elastic_fields(const gs_body_rt *b, double *u, double *vm)
 {
-    const elastic *el = b->model;
-    gs_fe_body_nodal(el->body, u, NULL);
-    gs_fe_model_stress(el->model, u, NULL, NULL, vm);
+    elastic *el = b->model;
+    if (el->be->nodal(el, u) == GS_OK)
+        gs_fe_model_stress(el->model, u, NULL, NULL, vm);
 }
 
 static const gs_mesh *elastic_mesh(const gs_body_rt *b)

@@ -27,7 +27,7 @@ static const char *const top_keys[] = {"name", "bodies", "joints", "meshes", "lo
 static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error",
-    "modification", "pitch_errors_um", "runout", NULL};
+    "modification", "pitch_errors_um", "runout", "reduction", NULL};
 /* material.damping_ratio zeta at material.damping_hz f: the stiffness-
  * proportional damping that gives zeta at f (zeta_k = beta w_k / 2, so
  * beta = zeta / (pi f)); not together with damping_s. */
@@ -195,6 +195,25 @@ static void mesh_density_defaults(gs_mesh_density *m, int order)
     *m = (gs_mesh_density){o.flank, o.across, o.rim, o.refine, o.grading, o.order, 0, 0, 0};
 }
 
+/* bodies[i].reduction: {"f_max_hz": F} makes an elastic gear the reduced
+ * body of fe.h (docs/FE.md "Reduced elastic body"). */
+static gs_err parse_reduction(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
+{
+    static const char *const keys[] = {"f_max_hz", NULL};
+    json_object *r;
+    char p[256];
+    b->reduce_f_max_hz = 0;
+    GS_TRY(gsi_json_object(o, "reduction", path, false, &r, d));
+    if (!r)
+        return GS_OK;
+    gsi_path(p, sizeof p, path, "reduction");
+    GS_TRY(gsi_json_only(r, p, keys, d));
+    if (b->type != GS_BODY_GEAR || b->model != GS_MODEL_ELASTIC)
+        return gs_diag_set(d, GS_ERANGE, p, "only an elastic gear can be reduced");
+    GS_TRY(gsi_json_positive(r, "f_max_hz", p, 1e8, true, 0, &b->reduce_f_max_hz, d));
+    return GS_OK;
+}
+
 static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
 {
     static const char *const types[] = {"gear", "carrier"};
@@ -218,6 +237,7 @@ static gs_err parse_body(json_object *o, const char *path, gs_scene_body *b, gs_
     b->inertia_given = json_object_object_get_ex(o, "inertia", NULL);
     GS_TRY(gsi_json_positive(o, "mass", path, 1e9, false, 0, &b->mass, d));
     GS_TRY(gsi_json_positive(o, "inertia", path, 1e9, false, 0, &b->inertia, d));
+    GS_TRY(parse_reduction(o, path, b, d));
     if (b->type == GS_BODY_CARRIER) {
         static const char *const gear_only[] = {"kind", "teeth", "module_mm", "pressure_angle_deg",
             "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm", "face_width_mm",

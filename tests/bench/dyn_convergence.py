@@ -20,7 +20,7 @@ two finest agree within the bar (2 % DTE rms and mean TE, 5 % peak force).
     dyn_convergence.py [--scene contact_drive] [--tool build/tests/bench/dyn_convergence_run]
         [--hs 2e-5 1e-5 5e-6] [--levels o1r0 o1r1 o1r2] [--zeta 0.02 0]
         [--fhz 9200] [--from 0.035] [--to 0.065] [--contact closure_energy]
-        [--extra seed:o1r0:1e-5 ...] [--static-mj 1.0]
+        [--extra seed:o1r0:1e-5 ...] [--static-mj 1.0] [--fmax F]
         [--reuse CSV] [--out-csv CSV] [--out-md MD] [--quick] [--no-run]
 
 A mesh level is `o<order>r<refine>` (uniform refinements of the order's
@@ -44,7 +44,7 @@ FIELDS = ["scene", "contact", "zeta", "fhz", "order", "refine", "scale", "level"
           "from", "to", "unknowns", "cycles", "mesh_hz", "dte_rms_um", "mean_te_um", "te_pp_um",
           "peak_force_n", "mean_force_n", "ratio", "balance_rel", "pen_max_um",
           "force_peak_over_mean", "strain_max_mj", "strain_mean_mj", "contact_work_j", "steps",
-          "cpu_s", "cpu_per_sim_s"]
+          "cpu_s", "cpu_per_sim_s", "fmax_hz"]
 
 # quantity, label, bar (relative agreement of the two finest), or None
 QUANTITIES = [("dte_rms_um", "DTE rms (um)", 0.02), ("mean_te_um", "mean TE (um)", 0.02),
@@ -145,9 +145,15 @@ def level_name(order, refine, scale):
     return f"o{order}r{refine}" if float(scale) == 1.0 else f"o{order}s{float(scale):g}"
 
 
+def fmax_of(r):
+    """reduction.f_max_hz of a run (0: the full FE bodies; older rows have none)."""
+    return float(r.get("fmax_hz") or 0)
+
+
 def key_of(r):
     return (r["scene"], r["contact"], f"{float(r['zeta']):g}", level_name(int(r["order"]), int(r["refine"]),
-            float(r["scale"])), f"{float(r['h']):g}", f"{float(r['from']):g}", f"{float(r['to']):g}")
+            float(r["scale"])), f"{float(r['h']):g}", f"{float(r['from']):g}", f"{float(r['to']):g}",
+            f"{fmax_of(r):g}")
 
 
 def normalise(d):
@@ -173,11 +179,13 @@ def load_rows(path):
     return rows
 
 
-def run_one(tool, scene, h, level, contact, zeta, fhz, t0, t1):
+def run_one(tool, scene, h, level, contact, zeta, fhz, t0, t1, fmax=0.0):
     order, refine, scale, _ = parse_level(level)
     cmd = [tool, scene, "--h", f"{h:g}", "--order", str(order), "--refine", str(refine), "--scale",
            f"{scale:g}", "--contact", contact, "--zeta", f"{zeta:g}", "--fhz", f"{fhz:g}", "--from",
            f"{t0:g}", "--to", f"{t1:g}"]
+    if fmax > 0:
+        cmd += ["--fmax", f"{fmax:g}"]
     print("# " + " ".join(cmd), file=sys.stderr, flush=True)
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     p = subprocess.run(["nice"] + cmd, capture_output=True, text=True, env=env)
@@ -324,12 +332,17 @@ def main():
     ap.add_argument("--out-md")
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--no-run", action="store_true", help="tables from --reuse only; run nothing")
+    ap.add_argument("--fmax", type=float, default=0.0,
+                    help="reduced elastic bodies with the modes up to FMAX Hz (0: full FE); the tables "
+                         "use the runs of this FMAX only")
     a = ap.parse_args()
     if a.quick:
         a.hs, a.levels, a.zeta, a.t0, a.t1, a.extra = [4e-5, 2e-5], ["o1r0"], [0.02], 0.016, 0.03, []
     for lv in a.levels:
         parse_level(lv)
     rows = load_rows(a.reuse)
+    others = [r for r in rows if fmax_of(r) != a.fmax]  # kept in --out-csv, not in the tables
+    rows = [r for r in rows if fmax_of(r) == a.fmax]
     have = {key_of(r) for r in rows}
     todo = []
     for zeta in a.zeta:
@@ -343,10 +356,10 @@ def main():
     new = []
     for c, lv, h, zeta in todo:
         o, rf, sc, _ = parse_level(lv)
-        k = (a.scene, c, f"{zeta:g}", level_name(o, rf, sc), f"{h:g}", f"{a.t0:g}", f"{a.t1:g}")
+        k = (a.scene, c, f"{zeta:g}", level_name(o, rf, sc), f"{h:g}", f"{a.t0:g}", f"{a.t1:g}", f"{a.fmax:g}")
         if k in have or a.no_run:
             continue
-        r = run_one(a.tool, a.scene, h, lv, c, zeta, a.fhz, a.t0, a.t1)
+        r = run_one(a.tool, a.scene, h, lv, c, zeta, a.fhz, a.t0, a.t1, a.fmax)
         rows.append(r)
         new.append(r)
         have.add(k)
@@ -354,12 +367,12 @@ def main():
             with open(a.out_csv, "w", newline="") as fo:
                 w = csv.DictWriter(fo, fieldnames=FIELDS)
                 w.writeheader()
-                w.writerows(rows)
+                w.writerows(others + rows)
     if a.out_csv and not new:
         with open(a.out_csv, "w", newline="") as fo:
             w = csv.DictWriter(fo, fieldnames=FIELDS)
             w.writeheader()
-            w.writerows(rows)
+            w.writerows(others + rows)
     text, verdicts = tables(rows, a.scene, a.hs, a.levels, a.contact, a.zeta, a.t0, a.t1, a.static_mj)
     if a.out_md:
         with open(a.out_md, "w") as fo:

@@ -13,10 +13,16 @@
  *
  *   dyn_convergence_run SCENE [--h 1e-5] [--order 2] [--refine 0]
  *       [--scale 1] [--contact closure_energy] [--zeta 0 --fhz 9200]
- *       [--from 0.04] [--to 0.08]
+ *       [--from 0.04] [--to 0.08] [--fmax F]
  *
  * --scale multiplies the flank/across/rim counts of the order's default
- * mesh (rounded; grading kept) on every elastic gear. Figures are taken
+ * mesh (rounded; grading kept) on every elastic gear. --fmax F makes every
+ * elastic gear the reduced body with the modes up to F Hz (reduction.f_max_hz);
+ * setup_cpu_s is the system's construction (modes, factor), and
+ * step_cpu_per_sim_s the cost per simulated second without it;
+ * column_cpu_s the reduced bodies' residual columns computed during the run
+ * (once per node that comes into contact: a one-off of a long run) and
+ * step_nocol_cpu_per_sim_s the steps' cost without them. Figures are taken
  * with tests/common/dyn_window.h. Not a test: runs take minutes. */
 #include <json-c/json.h>
 #include <math.h>
@@ -26,6 +32,8 @@
 #include <time.h>
 
 #include "../common/dyn_window.h"
+#include "../common/json_child.h"
+#include "fe/fe_internal.h"
 #include "gearsim/mesh.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
@@ -56,20 +64,10 @@ static char *slurp(const char *path)
     return t;
 }
 
-static json_object *obj_child(json_object *o, const char *key)
-{
-    json_object *c;
-    if (!json_object_object_get_ex(o, key, &c)) {
-        c = json_object_new_object();
-        json_object_object_add(o, key, c);
-    }
-    return c;
-}
-
 int main(int argc, char **argv)
 {
     const char *scene = NULL, *contact = "closure_energy";
-    double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08;
+    double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08, fmax = 0;
     int order = 2, refine = 0;
     for (int i = 1; i < argc; i++) {
         if (argv[i][0] != '-') {
@@ -99,6 +97,8 @@ int main(int argc, char **argv)
             t0 = atof(v);
         else if (!strcmp(k, "--to"))
             t1 = atof(v);
+        else if (!strcmp(k, "--fmax"))
+            fmax = atof(v);
         else {
             fprintf(stderr, "unknown option %s\n", k);
             return 2;
@@ -127,7 +127,7 @@ int main(int argc, char **argv)
         json_object *b = json_object_array_get_idx(bs, i), *t;
         if (!json_object_object_get_ex(b, "model", &t) || strcmp(json_object_get_string(t), "elastic"))
             continue;
-        json_object *m = obj_child(b, "mesh");
+        json_object *m = tj_child(b, "mesh");
         json_object_object_add(m, "order", json_object_new_int(order));
         json_object_object_add(m, "refine", json_object_new_int(refine));
         if (scale != 1) {
@@ -135,13 +135,15 @@ int main(int argc, char **argv)
             json_object_object_add(m, "across", json_object_new_int(across));
             json_object_object_add(m, "rim", json_object_new_int(rim));
         }
+        if (fmax > 0) /* the reduced body (docs/FE.md "Reduced elastic body") */
+            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
         if (zeta > 0) {
-            json_object *mat = obj_child(b, "material");
+            json_object *mat = tj_child(b, "material");
             json_object_object_add(mat, "damping_ratio", json_object_new_double(zeta));
             json_object_object_add(mat, "damping_hz", json_object_new_double(fhz));
         }
     }
-    json_object *num = obj_child(root, "numerics");
+    json_object *num = tj_child(root, "numerics");
     json_object_object_add(num, "time_step", json_object_new_double(h));
     json_object_object_add(num, "contact", json_object_new_string(contact));
     char in_name[GS_NAME_MAX] = "", out_name[GS_NAME_MAX] = "";
@@ -179,6 +181,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "system: %s: %s\n", d.field, d.message);
         return 1;
     }
+    double c_setup = cpu_now() - c0;
     int in = in_name[0] ? gs_scene_find_body(s->scene, in_name) : -1;
     int out = out_name[0] ? gs_scene_find_body(s->scene, out_name) : -1;
     dyn_window w = {0};
@@ -207,13 +210,16 @@ int main(int argc, char **argv)
            "\"mean_te_um\": %.6f, \"te_pp_um\": %.5f, \"peak_force_n\": %.3f, \"mean_force_n\": %.4f, "
            "\"ratio\": %.8f, \"balance_rel\": %.3e, \"pen_max_um\": %.6f, \"force_peak_over_mean\": %.4f, "
            "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
-           "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f}\n",
+           "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f, \"fmax_hz\": %.6g, "
+           "\"setup_cpu_s\": %.2f, \"step_cpu_per_sim_s\": %.2f, \"column_cpu_s\": %.2f, "
+           "\"step_nocol_cpu_per_sim_s\": %.2f}\n",
            scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
            (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
            fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
            f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
            f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
-           cpu / s->time);
+           cpu / s->time, fmax, c_setup, (cpu - c_setup) / s->time, gsi_fe_reduced_column_cpu(),
+           (cpu - c_setup - gsi_fe_reduced_column_cpu()) / s->time);
     dw_free(&w);
     gs_system_free(&s);
     return 0;

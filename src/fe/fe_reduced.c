@@ -1,0 +1,1397 @@
+/* SPDX-License-Identifier: MIT
+ * A reduced elastic body: the FE body of fe_body.c with its modes above
+ * f_max taken as massless (docs/FE.md "Reduced elastic body").
+ *
+ * The FE body is linear with constant matrices: x = [u; theta], mass
+ * M_f = [[M, s], [s^T, I]], stiffness K_f = [[K, 0], [0, 0]], damping
+ * beta K on u, brake c on theta. Its midpoint step, projected on the
+ * M_f-orthonormal modes phi_i (K_f phi_i = w_i^2 M_f phi_i), decouples:
+ *
+ *     a_i delta_i = g_i - w_i^2 (q_i + (h/2 + beta) v_i),
+ *     a_i = 2/h^2 + (1/2 + beta/h) w_i^2,   dq_i = h v_i + delta_i,
+ *
+ * g_i = phi_i^T F. Kept: the rigid rotation phi_0 = e_theta / sqrt(I) (a
+ * free body) and the elastic modes with f_i <= f_max, those of
+ * (K, M - s s^T / I) with theta = -s^T u / I (of (K, M) for a held body).
+ * The modes above are massless: their displacement is z = G_res Y with
+ *
+ *     G_res = G_ir - sum_{0 < i <= N} phi_i phi_i^T / w_i^2,
+ *
+ * G_ir the inertia-relief flexibility (K u = f_e - s f_t / I, theta =
+ * -s^T u / I; K^{-1} for a held body), and Y a force-like state over the
+ * dofs that ever carried force, stepped by the same midpoint rule
+ *
+ *     (Y_n + Y_{n+1}) / 2 + (beta / h) (Y_{n+1} - Y_n) = F_step,
+ *
+ * so dz = G_res (F_step - Y_n) / d, d = 1/2 + beta/h: free increment
+ * -G_res Y_n / d, compliance G_res / d. The potential 1/2 Y^T G_res Y and
+ * the dissipation (beta/h) dY^T G_res dY make the energy balance exact as
+ * in the full scheme. Y on a node no longer loaded decays by
+ * r = (beta/h - 1/2) / (beta/h + 1/2) per step and is dropped below 1e-15
+ * of the largest entry; undamped (r = -1) it alternates and stays.
+ *
+ * A state given by set_state (nodal fields) is projected: q = Phi^T M_f x,
+ * v = Phi^T M_f x'; the rest of x, z0 = x - Phi q, is a residual
+ * displacement that decays as r^n (a scalar times the stored z0, its
+ * force-like vector K z0 implicit); the rest of the velocity is dropped
+ * (massless). Mass-proportional damping is not supported (refused).
+ *
+ * The brake -c theta' is a force on theta: with y the (unbraked) column of
+ * the step's compliance at theta, dq = dq_bar - y k dq_bar_theta,
+ * C = C_bar - k y y^T, k = (c/h) / (1 + (c/h) y_theta) (Sherman-Morrison,
+ * as fe_body.c's Schur border). A held theta is not a coordinate of the
+ * modes; the body is created held or free (gs_fe_reduced_opts.held).
+ *
+ * Rows: the theta row and the x, y rows of the candidate nodes (those that
+ * may ever carry force; the tooth boundary of a gear). The modes are kept
+ * whole (fields, projection) and as a row table; the columns of G_res are
+ * computed per node when first needed (two solves with the factor of K)
+ * and kept on the rows only. A step is then O(N |I| + |I| |supp Y|).
+ *
+ * Modes: dense LAPACK (dsygvd) up to DENSE_MAX unknowns, else Lanczos with
+ * shift-invert on the factor of K (the operator K^{-1} Mbar, self-adjoint
+ * in the Mbar inner product, full reorthogonalisation), restarted deflated
+ * against the modes found until a run finds no more below f_max (a gear's
+ * cyclic symmetry makes double eigenvalues, which one Krylov space holds
+ * only once). */
+#include <cholmod.h>
+#include <lapacke.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "fe/fe_internal.h"
+#include "gearsim/util.h"
+
+#define DENSE_MAX 1600
+#define MODES_MAX 4000
+/* Lanczos vectors of one run (memory 2 ne of them); restarts go on */
+#define LANCZOS_MAX 600
+#define RESTARTS_MAX 40
+/* candidate nodes whose residual columns one solve computes */
+#define BATCH_NODES 8
+
+struct gs_fe_reduced {
+    const gs_fe_model *m;
+    gs_index ne, n;       /* elastic unknowns; n = ne + 1 */
+    bool held;
+    double fmax;
+    double Itot;          /* inertia_total */
+    double beta;
+
+    /* modes */
+    int N;                /* kept modes (rigid one included for a free body) */
+    double *Phi;          /* n x N column-major (theta last in each) */
+    double *om2;          /* N: w_i^2 */
+    double *PR;           /* nr x N, row-major: Phi at the rows */
+
+    /* rows */
+    gs_index nr;          /* 1 + 2 ncand */
+    gs_index ncand;
+    gs_index *cand_of;    /* n_nodes: candidate index or -1 */
+    gs_index *rowq;       /* nr: index in x, or -1 (fixed node, held theta) */
+    double **col;         /* ncand: 2 nr values (G_res columns x, y at the rows), or NULL */
+    double *tcol;         /* nr: G_res column of theta */
+    gs_index ncols;
+
+    cholmod_common cc;
+    cholmod_sparse *K;
+    cholmod_factor *L;
+
+    /* step */
+    double h, c, d, r, kc;
+    bool have_step, in_step;
+    double *inv_a;        /* N */
+
+    /* state */
+    double *qm, *vm;      /* N */
+    double *Y;            /* nr */
+    gs_index *ysup;       /* rows with Y != 0 */
+    gs_index nys;
+    unsigned char *yin;   /* nr: in ysup */
+    double az;            /* amplitude of z0 */
+    double *z0, *z0R, e0; /* n; at the rows; z0^T K z0 */
+
+    /* the begun step */
+    double *dqm;          /* N: modal increment for the forces so far */
+    double *Fa, *Fi, *Rf; /* nr: applied, interface forces; (F - Y)/d */
+    gs_index *fl;         /* rows in Rf's support */
+    gs_index nfl;
+    unsigned char *fin;   /* nr */
+    double moment;
+
+    /* the last compliance block: raw G_res entries over rows blk_r (the
+     * next step's block shares most rows and copies them: the columns are
+     * far apart in memory) */
+    gs_index *blk_r, *blk_pos; /* blk_n rows; nr: position or -1 */
+    double *blk_G;
+    double *blk_M;        /* the modal sums of the same entries, valid for h == blk_h */
+    size_t blk_cap;       /* entries allocated in blk_G, blk_M, blk_r */
+    double *sp_G, *sp_M;  /* the spare block buffers (swapped with blk_*: no allocation per step) */
+    gs_index *sp_r;
+    size_t sp_cap;
+    double blk_h;
+    gs_index blk_n, blk_rows;
+
+    double energy0, work_in, work_iface, dissipated, damped;
+    double col_cpu;       /* CPU seconds spent computing residual columns */
+    int lz_runs, lz_added[4]; /* Lanczos runs; modes the first ones added (the log) */
+    uint64_t steps;
+    double *scratch;      /* n */
+};
+
+/* ---- small helpers ------------------------------------------------------ */
+
+static double dotn(gs_index n, const double *a, const double *b)
+{
+    double s = 0;
+    for (gs_index i = 0; i < n; i++)
+        s += a[i] * b[i];
+    return s;
+}
+
+/* y = Mbar x on the elastic block (Mbar = M - s s^T / I, or M held). */
+static void mbar(const gs_fe_reduced *b, const double *x, double *y)
+{
+    memset(y, 0, (size_t)b->ne * sizeof *y);
+    gsi_fe_symv2(b->m, 1.0, x, 0.0, x, y);
+    if (!b->held) {
+        double st = dotn(b->ne, b->m->s, x) / b->Itot;
+        for (gs_index i = 0; i < b->ne; i++)
+            y[i] -= b->m->s[i] * st;
+    }
+}
+
+/* x = K^{-1} f (ncol right-hand sides of length ne, column-major). */
+static gs_err ksolve(gs_fe_reduced *b, int ncol, const double *f, double *x)
+{
+    cholmod_dense *B = cholmod_l_allocate_dense((size_t)b->ne, (size_t)ncol, (size_t)b->ne, CHOLMOD_REAL, &b->cc);
+    if (!B)
+        return GS_ENOMEM;
+    memcpy(B->x, f, (size_t)b->ne * (size_t)ncol * sizeof(double));
+    cholmod_dense *X = cholmod_l_solve(CHOLMOD_A, b->L, B, &b->cc);
+    cholmod_l_free_dense(&B, &b->cc);
+    if (!X)
+        return GS_ENOMEM;
+    memcpy(x, X->x, (size_t)b->ne * (size_t)ncol * sizeof(double));
+    cholmod_l_free_dense(&X, &b->cc);
+    return GS_OK;
+}
+
+/* The full mode of an elastic vector: theta = -s^T u / I (0 held). */
+static double theta_of(const gs_fe_reduced *b, const double *u)
+{
+    return b->held ? 0.0 : -dotn(b->ne, b->m->s, u) / b->Itot;
+}
+
+/* ---- modes -------------------------------------------------------------- */
+
+static gs_err add_mode(gs_fe_reduced *b, int *cap, const double *u, double lam)
+{
+    if (b->N >= MODES_MAX)
+        return GS_ETOOBIG;
+    if (b->N >= *cap) {
+        int nc = *cap ? 2 * *cap : 64;
+        double *P = realloc(b->Phi, (size_t)nc * (size_t)b->n * sizeof *P);
+        if (!P)
+            return GS_ENOMEM;
+        b->Phi = P;
+        double *o = realloc(b->om2, (size_t)nc * sizeof *o);
+        if (!o)
+            return GS_ENOMEM;
+        b->om2 = o;
+        *cap = nc;
+    }
+    double *p = b->Phi + (size_t)b->N * (size_t)b->n;
+    if (u) {
+        memcpy(p, u, (size_t)b->ne * sizeof *p);
+        p[b->ne] = theta_of(b, u);
+    } else { /* the rigid rotation */
+        memset(p, 0, (size_t)b->ne * sizeof *p);
+        p[b->ne] = 1.0 / sqrt(b->Itot);
+    }
+    b->om2[b->N++] = lam;
+    return GS_OK;
+}
+
+static gs_err modes_dense(gs_fe_reduced *b, int *cap, double lmax)
+{
+    gs_index ne = b->ne, n = b->n;
+    double *Kd = gs_calloc((size_t)(n * n), sizeof *Kd), *Md = gs_calloc((size_t)(n * n), sizeof *Md);
+    double *Ke = gs_calloc((size_t)(ne * ne), sizeof *Ke), *Me = gs_calloc((size_t)(ne * ne), sizeof *Me);
+    double *wv = gs_calloc((size_t)ne, sizeof *wv);
+    gs_err e = (!Kd || !Md || !Ke || !Me || !wv) ? GS_ENOMEM : gs_fe_model_dense(b->m, Kd, Md);
+    if (e == GS_OK) {
+        for (gs_index j = 0; j < ne; j++)
+            for (gs_index i = 0; i < ne; i++) {
+                Ke[i + j * ne] = Kd[i + j * n];
+                Me[i + j * ne] = Md[i + j * n] - (b->held ? 0.0 : b->m->s[i] * b->m->s[j] / b->Itot);
+            }
+        if (LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', (lapack_int)ne, Ke, (lapack_int)ne, Me,
+                           (lapack_int)ne, wv) != 0)
+            e = GS_ESINGULAR;
+    }
+    for (gs_index j = 0; e == GS_OK && j < ne && wv[j] <= lmax; j++)
+        e = add_mode(b, cap, Ke + j * ne, wv[j]);
+    free(Kd), free(Md), free(Ke), free(Me), free(wv);
+    return e;
+}
+
+/* One Lanczos run on K^{-1} Mbar, orthogonal to the modes b->Phi[first..N)
+ * (elastic parts) in Mbar; adds the converged Ritz pairs with lambda <= lmax.
+ * *added: how many. */
+static gs_err lanczos_run(gs_fe_reduced *b, int *cap, int first, double lmax, unsigned seed, int *added)
+{
+    gs_index ne = b->ne, n = b->n;
+    int nlock = b->N - first;
+    *added = 0;
+    int mmax = (int)(ne < LANCZOS_MAX ? ne : LANCZOS_MAX);
+    int m = 0, cv = 0;
+    double *V = NULL, *MV = NULL, *al = NULL, *be = NULL;
+    double *MX = gs_calloc((size_t)ne * (size_t)(nlock > 0 ? nlock : 1), sizeof *MX);
+    double *w = gs_calloc((size_t)ne, sizeof *w), *mw = gs_calloc((size_t)ne, sizeof *mw);
+    gs_err e = (!MX || !w || !mw) ? GS_ENOMEM : GS_OK;
+    for (int k = 0; e == GS_OK && k < nlock; k++)
+        mbar(b, b->Phi + (size_t)(first + k) * (size_t)n, MX + (size_t)k * (size_t)ne);
+    /* start vector: pseudo-random */
+    uint64_t st = 0x9E3779B97F4A7C15ULL * (seed + 1);
+    for (gs_index i = 0; i < ne; i++) {
+        st ^= st << 13, st ^= st >> 7, st ^= st << 17;
+        w[i] = (double)(st >> 11) / 9007199254740992.0 - 0.5;
+    }
+    double thmin = 1.0 / lmax;
+    double *S = NULL, *dd = NULL, *ee = NULL;
+    int done = 0;
+    while (e == GS_OK && !done) {
+        /* orthogonalise w against the locked modes and V (twice), in Mbar */
+        for (int pass = 0; pass < 2; pass++) {
+            for (int k = 0; k < nlock; k++) {
+                double cf = dotn(ne, MX + (size_t)k * (size_t)ne, w);
+                const double *x = b->Phi + (size_t)(first + k) * (size_t)n;
+                for (gs_index i = 0; i < ne; i++)
+                    w[i] -= cf * x[i];
+            }
+            for (int k = 0; k < m; k++) {
+                double cf = dotn(ne, MV + (size_t)k * (size_t)ne, w);
+                const double *x = V + (size_t)k * (size_t)ne;
+                for (gs_index i = 0; i < ne; i++)
+                    w[i] -= cf * x[i];
+            }
+        }
+        mbar(b, w, mw);
+        double bn = sqrt(fabs(dotn(ne, w, mw)));
+        if (m > 0)
+            be[m - 1] = bn;
+        if (m > 0 && (m % 20 == 0 || bn < 1e-12 * fabs(al[m - 1]) || m == mmax)) {
+            /* Ritz values of T_m: converged ones with theta >= thmin margin */
+            memcpy(dd, al, (size_t)m * sizeof *dd);
+            memcpy(ee, be, (size_t)m * sizeof *ee);
+            if (LAPACKE_dstev(LAPACK_COL_MAJOR, 'V', (lapack_int)m, dd, ee, S, (lapack_int)m) != 0) {
+                e = GS_ENOCONV;
+                break;
+            }
+            bool all = true;
+            cv = 0;
+            for (int i = m - 1; i >= 0; i--) {
+                if (dd[i] < 0.7 * thmin)
+                    break;
+                double res = fabs(bn * S[(size_t)i * (size_t)m + (size_t)(m - 1)]);
+                if (res > 1e-10 * dd[i]) {
+                    all = false;
+                    break;
+                }
+                if (dd[i] >= thmin)
+                    cv++;
+            }
+            if (all || bn < 1e-12 * fabs(al[m - 1]) || m == mmax)
+                done = 1;
+            if (done)
+                break;
+        }
+        if (m == mmax)
+            break;
+        /* new Lanczos vector */
+        if (m % 64 == 0) {
+            size_t nc = (size_t)m + 64;
+            double *t;
+            if (!(t = realloc(V, nc * (size_t)ne * sizeof *t)) || !((V = t), 1) ||
+                !(t = realloc(MV, nc * (size_t)ne * sizeof *t)) || !((MV = t), 1) ||
+                !(t = realloc(al, nc * sizeof *t)) || !((al = t), 1) || !(t = realloc(be, nc * sizeof *t)) ||
+                !((be = t), 1) || !(t = realloc(dd, nc * sizeof *t)) || !((dd = t), 1) ||
+                !(t = realloc(ee, nc * sizeof *t)) || !((ee = t), 1) ||
+                !(t = realloc(S, nc * nc * sizeof *t)) || !((S = t), 1)) {
+                e = GS_ENOMEM;
+                break;
+            }
+        }
+        if (!(bn > 0)) {
+            e = GS_ENOCONV;
+            break;
+        }
+        double *v = V + (size_t)m * (size_t)ne, *mv = MV + (size_t)m * (size_t)ne;
+        for (gs_index i = 0; i < ne; i++) {
+            v[i] = w[i] / bn;
+            mv[i] = mw[i] / bn;
+        }
+        e = ksolve(b, 1, mv, w);
+        if (e != GS_OK)
+            break;
+        double a = dotn(ne, mv, w);
+        al[m] = a;
+        for (gs_index i = 0; i < ne; i++)
+            w[i] -= a * v[i] + (m > 0 ? bn * V[(size_t)(m - 1) * (size_t)ne + (size_t)i] : 0.0);
+        m++;
+    }
+    /* Ritz vectors of the converged pairs below f_max */
+    for (int i = m - 1; e == GS_OK && i >= 0 && i >= m - cv; i--) {
+        memset(w, 0, (size_t)ne * sizeof *w);
+        const double *y = S + (size_t)i * (size_t)m;
+        for (int k = 0; k < m; k++) {
+            const double *x = V + (size_t)k * (size_t)ne;
+            for (gs_index j = 0; j < ne; j++)
+                w[j] += y[k] * x[j];
+        }
+        mbar(b, w, mw);
+        double nn = sqrt(dotn(ne, w, mw));
+        for (gs_index j = 0; j < ne; j++)
+            w[j] /= nn;
+        e = add_mode(b, cap, w, 1.0 / dd[i]);
+        if (e == GS_OK)
+            (*added)++;
+    }
+    free(V), free(MV), free(al), free(be), free(dd), free(ee), free(S), free(MX), free(w), free(mw);
+    return e;
+}
+
+/* Sort the elastic modes [first, N) by frequency (insertion: few). */
+static void sort_modes(gs_fe_reduced *b, int first)
+{
+    double *t = b->scratch;
+    for (int i = first + 1; i < b->N; i++) {
+        double lam = b->om2[i];
+        memcpy(t, b->Phi + (size_t)i * (size_t)b->n, (size_t)b->n * sizeof *t);
+        int j = i - 1;
+        while (j >= first && b->om2[j] > lam) {
+            b->om2[j + 1] = b->om2[j];
+            memcpy(b->Phi + (size_t)(j + 1) * (size_t)b->n, b->Phi + (size_t)j * (size_t)b->n,
+                   (size_t)b->n * sizeof *t);
+            j--;
+        }
+        b->om2[j + 1] = lam;
+        memcpy(b->Phi + (size_t)(j + 1) * (size_t)b->n, t, (size_t)b->n * sizeof *t);
+    }
+}
+
+static gs_err compute_modes(gs_fe_reduced *b, int solver)
+{
+    int cap = 0;
+    double w = 2.0 * GS_PI * b->fmax, lmax = isfinite(w) ? w * w : INFINITY;
+    if (!b->held)
+        GS_TRY(add_mode(b, &cap, NULL, 0.0));
+    int first = b->N;
+    if (solver == 1 || (solver == 0 && b->ne <= DENSE_MAX)) {
+        GS_TRY(modes_dense(b, &cap, lmax));
+    } else {
+        if (!isfinite(lmax))
+            return GS_ETOOBIG;
+        for (unsigned run = 0; run < RESTARTS_MAX; run++) {
+            int added = 0;
+            GS_TRY(lanczos_run(b, &cap, first, lmax, run, &added));
+            if (run < 4)
+                b->lz_added[run] = added;
+            b->lz_runs = (int)run + 1;
+            if (added == 0)
+                break;
+        }
+        sort_modes(b, first);
+    }
+    return GS_OK;
+}
+
+/* ---- lifecycle ---------------------------------------------------------- */
+
+void gs_fe_reduced_free(gs_fe_reduced **pb)
+{
+    if (!pb || !*pb)
+        return;
+    gs_fe_reduced *b = *pb;
+    if (b->col)
+        for (gs_index k = 0; k < b->ncand; k++)
+            free(b->col[k]);
+    free(b->col);
+    free(b->tcol);
+    cholmod_l_free_factor(&b->L, &b->cc);
+    cholmod_l_free_sparse(&b->K, &b->cc);
+    cholmod_l_finish(&b->cc);
+    free(b->Phi), free(b->om2), free(b->PR), free(b->cand_of), free(b->rowq), free(b->inv_a);
+    free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
+    free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
+    free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
+    free(b->sp_G), free(b->sp_M), free(b->sp_r);
+    free(b);
+    *pb = NULL;
+}
+
+/* G_res column of the force f (length n, x order) at the rows, into out (nr). */
+static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **out)
+{
+    gs_index ne = b->ne, n = b->n;
+    double *rhs = gs_calloc((size_t)ne * (size_t)ncol, sizeof *rhs);
+    double *x = gs_calloc((size_t)ne * (size_t)ncol, sizeof *x);
+    gs_err e = (!rhs || !x) ? GS_ENOMEM : GS_OK;
+    for (int c = 0; e == GS_OK && c < ncol; c++) {
+        const double *fc = f + (size_t)c * (size_t)n;
+        double ft = b->held ? 0.0 : fc[ne] / b->Itot;
+        for (gs_index i = 0; i < ne; i++)
+            rhs[(size_t)c * (size_t)ne + (size_t)i] = fc[i] - (b->held ? 0.0 : b->m->s[i] * ft);
+    }
+    if (e == GS_OK)
+        e = ksolve(b, ncol, rhs, x);
+    for (int c = 0; e == GS_OK && c < ncol; c++) {
+        const double *xc = x + (size_t)c * (size_t)ne, *fc = f + (size_t)c * (size_t)n;
+        double xt = theta_of(b, xc);
+        /* modal part phi_i^T f / w_i^2 of the kept elastic modes */
+        double *pf = b->scratch;
+        gs_index nz[8], nnz = 0;
+        for (gs_index j = 0; j < n && nnz < 8; j++)
+            if (fc[j] != 0.0)
+                nz[nnz++] = j;
+        for (int i = 0; i < b->N; i++) {
+            const double *p = b->Phi + (size_t)i * (size_t)n;
+            double v = 0;
+            if (nnz < 8)
+                for (gs_index t = 0; t < nnz; t++)
+                    v += p[nz[t]] * fc[nz[t]];
+            else
+                v = dotn(n, p, fc);
+            pf[i] = b->om2[i] > 0 ? v / b->om2[i] : 0.0;
+        }
+        for (gs_index r = 0; r < b->nr; r++) {
+            gs_index k = b->rowq[r];
+            double v = k < 0 ? 0.0 : (k == ne ? xt : xc[k]);
+            if (k >= 0)
+                v -= dotn(b->N, b->PR + (size_t)r * (size_t)b->N, pf);
+            out[c][r] = v;
+        }
+    }
+    free(rhs), free(x);
+    return e;
+}
+
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* CPU seconds of residual columns over the process (for the benchmark). */
+static double col_cpu_total;
+
+double gsi_fe_reduced_column_cpu(void)
+{
+    return col_cpu_total;
+}
+
+static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k);
+
+/* Make the G_res columns of candidate node k's x and y rows present. */
+static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
+{
+    if (b->col[k])
+        return GS_OK;
+    double t0 = cpu_now();
+    gs_err e = ensure_node_now(b, k);
+    double dt = cpu_now() - t0;
+    b->col_cpu += dt;
+    col_cpu_total += dt;
+    return e;
+}
+
+/* Node k's columns and those of the next missing candidates along the
+ * boundary (BATCH_NODES in one multi-column solve: the contact moves along
+ * a flank, and a solve of 16 columns costs far less than 8 of 2). */
+static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
+{
+    gs_index nr = b->nr, n = b->n, batch[BATCH_NODES];
+    int cnt = 0;
+    for (gs_index j = k; j < b->ncand && cnt < BATCH_NODES; j++)
+        if (!b->col[j])
+            batch[cnt++] = j;
+    double *c = gs_calloc((size_t)(2 * nr) * (size_t)cnt, sizeof *c);
+    double *f = gs_calloc((size_t)(2 * n) * (size_t)cnt, sizeof *f);
+    double *outs[2 * BATCH_NODES];
+    if (!c || !f) {
+        free(c), free(f);
+        return GS_ENOMEM;
+    }
+    for (int t = 0; t < cnt; t++)
+        for (int comp = 0; comp < 2; comp++) {
+            gs_index q = b->rowq[1 + 2 * batch[t] + comp];
+            if (q >= 0)
+                f[(size_t)(2 * t + comp) * (size_t)n + (size_t)q] = 1.0;
+            outs[2 * t + comp] = c + (size_t)(2 * t + comp) * (size_t)nr;
+        }
+    gs_err e = gres_column(b, 2 * cnt, f, outs);
+    free(f);
+    if (e != GS_OK) {
+        free(c);
+        return e;
+    }
+    /* each node owns a copy of its two columns (freed one by one) */
+    for (int t = 0; t < cnt && e == GS_OK; t++) {
+        double *own = t == 0 ? c : gs_calloc((size_t)(2 * nr), sizeof *own);
+        if (!own) {
+            e = GS_ENOMEM;
+            break;
+        }
+        if (t > 0)
+            memcpy(own, c + (size_t)(2 * t) * (size_t)nr, (size_t)(2 * nr) * sizeof *own);
+        b->col[batch[t]] = own;
+        b->ncols++;
+    }
+    if (e == GS_OK && cnt > 1) { /* node batch[0] keeps the head of the buffer */
+        double *sh = realloc(c, (size_t)(2 * nr) * sizeof *c);
+        if (sh)
+            b->col[batch[0]] = sh;
+    }
+    if (e != GS_OK && !b->col[batch[0]])
+        free(c);
+    return e;
+}
+
+/* G_res entry (row r, column c); column c's node must be present. */
+static inline double gres(const gs_fe_reduced *b, gs_index r, gs_index c)
+{
+    if (c == 0)
+        return b->tcol[r];
+    gs_index k = (c - 1) >> 1;
+    return b->col[k][(size_t)((c - 1) & 1) * (size_t)b->nr + (size_t)r];
+}
+
+static gs_err ensure_row(gs_fe_reduced *b, gs_index r)
+{
+    return r > 0 ? ensure_node(b, (r - 1) >> 1) : GS_OK;
+}
+
+gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_fe_reduced **out)
+{
+    if (!out)
+        return GS_EINVAL;
+    *out = NULL;
+    if (!m || !o || !(o->f_max_hz > 0) || o->eigensolver < 0 || o->eigensolver > 2 || o->n_nodes < 0 || (o->n_nodes > 0 && !o->nodes))
+        return GS_EINVAL;
+    if (m->mat.damping_m != 0.0)
+        return GS_ERANGE; /* mass-proportional damping: not supported */
+    gs_fe_reduced *b = gs_calloc(1, sizeof *b);
+    if (!b)
+        return GS_ENOMEM;
+    gsi_cholmod_start(&b->cc);
+    b->m = m;
+    b->ne = m->ne;
+    b->n = m->ne + 1;
+    b->held = o->held;
+    b->fmax = o->f_max_hz;
+    b->Itot = m->inertia_total;
+    b->beta = m->mat.damping_s;
+    gs_index nn = m->n_nodes;
+    b->cand_of = gs_calloc((size_t)nn + 1, sizeof *b->cand_of);
+    b->scratch = gs_calloc((size_t)(b->n > MODES_MAX ? b->n : MODES_MAX), sizeof *b->scratch);
+    gs_err e = (!b->cand_of || !b->scratch) ? GS_ENOMEM : GS_OK;
+    for (gs_index i = 0; e == GS_OK && i < nn; i++)
+        b->cand_of[i] = -1;
+    gs_index nc = 0;
+    for (gs_index j = 0; e == GS_OK && j < (o->nodes ? o->n_nodes : nn); j++) {
+        gs_index node = o->nodes ? o->nodes[j] : j;
+        if (node < 0 || node >= nn) {
+            e = GS_EINVAL;
+            break;
+        }
+        if (b->cand_of[node] < 0)
+            b->cand_of[node] = nc++;
+    }
+    b->ncand = nc;
+    b->nr = 1 + 2 * nc;
+    if (e == GS_OK) {
+        b->rowq = gs_calloc((size_t)b->nr, sizeof *b->rowq);
+        b->col = gs_calloc((size_t)nc + 1, sizeof *b->col);
+        b->tcol = gs_calloc((size_t)b->nr, sizeof *b->tcol);
+        b->Y = gs_calloc((size_t)b->nr, sizeof *b->Y);
+        b->ysup = gs_calloc((size_t)b->nr, sizeof *b->ysup);
+        b->yin = gs_calloc((size_t)b->nr, 1);
+        b->z0R = gs_calloc((size_t)b->nr, sizeof *b->z0R);
+        b->Fa = gs_calloc((size_t)b->nr, sizeof *b->Fa);
+        b->Fi = gs_calloc((size_t)b->nr, sizeof *b->Fi);
+        b->Rf = gs_calloc((size_t)b->nr, sizeof *b->Rf);
+        b->fl = gs_calloc((size_t)b->nr, sizeof *b->fl);
+        b->fin = gs_calloc((size_t)b->nr, 1);
+        b->blk_pos = gs_calloc((size_t)b->nr, sizeof *b->blk_pos);
+        if (!b->rowq || !b->col || !b->tcol || !b->Y || !b->ysup || !b->yin || !b->z0R || !b->Fa || !b->Fi ||
+            !b->Rf || !b->fl || !b->fin || !b->blk_pos)
+            e = GS_ENOMEM;
+        for (gs_index r = 0; e == GS_OK && r < b->nr; r++)
+            b->blk_pos[r] = -1;
+    }
+    if (e == GS_OK) {
+        b->rowq[0] = b->held ? -1 : b->ne;
+        for (gs_index i = 0; i < nn; i++) {
+            gs_index k = b->cand_of[i];
+            if (k >= 0) {
+                b->rowq[1 + 2 * k] = m->dof[2 * i];
+                b->rowq[2 + 2 * k] = m->dof[2 * i + 1];
+            }
+        }
+        b->K = gsi_fe_cholmod_matrix(m, 0.0, 1.0, &b->cc);
+        b->L = b->K ? cholmod_l_analyze(b->K, &b->cc) : NULL;
+        if (!b->L || !cholmod_l_factorize(b->K, b->L, &b->cc))
+            e = GS_ENOMEM;
+        else if (b->cc.status == CHOLMOD_NOT_POSDEF)
+            e = GS_ESINGULAR;
+    }
+    if (e == GS_OK) {
+        e = compute_modes(b, o->eigensolver);
+        if (e == GS_OK && getenv("GEARSIM_REDUCED_LOG"))
+            fprintf(stderr, "reduced body: %ld elastic unknowns, %d modes kept (f_max %.6g Hz, highest %.6g Hz), "
+                            "%ld candidate nodes; Lanczos runs %d, modes added by the first %d %d %d\n",
+                    (long)b->ne, b->N, b->fmax, b->N ? sqrt(b->om2[b->N - 1]) / (2 * GS_PI) : 0.0, (long)nc,
+                    b->lz_runs, b->lz_added[0], b->lz_added[1], b->lz_added[2]);
+    }
+    if (e == GS_OK) {
+        int N = b->N;
+        b->PR = gs_calloc((size_t)b->nr * (size_t)(N ? N : 1), sizeof *b->PR);
+        b->inv_a = gs_calloc((size_t)(N ? N : 1), sizeof *b->inv_a);
+        b->qm = gs_calloc((size_t)(N ? N : 1), sizeof *b->qm);
+        b->vm = gs_calloc((size_t)(N ? N : 1), sizeof *b->vm);
+        b->dqm = gs_calloc((size_t)(N ? N : 1), sizeof *b->dqm);
+        if (!b->PR || !b->inv_a || !b->qm || !b->vm || !b->dqm)
+            e = GS_ENOMEM;
+    }
+    if (e == GS_OK) {
+        for (gs_index r = 0; r < b->nr; r++)
+            for (int i = 0; i < b->N; i++)
+                b->PR[(size_t)r * (size_t)b->N + (size_t)i] =
+                    b->rowq[r] < 0 ? 0.0 : b->Phi[(size_t)i * (size_t)b->n + (size_t)b->rowq[r]];
+        if (!b->held) {
+            double *f = gs_calloc((size_t)b->n, sizeof *f);
+            if (!f)
+                e = GS_ENOMEM;
+            else {
+                f[b->ne] = 1.0;
+                double *outs[1] = {b->tcol};
+                e = gres_column(b, 1, f, outs);
+                free(f);
+            }
+        }
+    }
+    if (e != GS_OK) {
+        gs_fe_reduced_free(&b);
+        return e;
+    }
+    *out = b;
+    return GS_OK;
+}
+
+void gs_fe_reduced_get_info(const gs_fe_reduced *b, gs_fe_reduced_info *info)
+{
+    memset(info, 0, sizeof *info);
+    info->modes = b->N;
+    info->elastic_modes = b->held ? b->N : b->N - 1;
+    info->f_top_hz = b->N > 0 ? sqrt(b->om2[b->N - 1]) / (2 * GS_PI) : 0.0;
+    info->rows = b->nr;
+    info->cached_nodes = b->ncols;
+    info->residual_support = b->nys;
+    info->steps = b->steps;
+    info->column_cpu_s = b->col_cpu;
+}
+
+/* ---- energies ----------------------------------------------------------- */
+
+/* Y^T G_res Y over the support (columns present for every row of it). */
+static double ygy(const gs_fe_reduced *b, const double *Yv, const gs_index *sup, gs_index ns)
+{
+    double s = 0;
+    for (gs_index a = 0; a < ns; a++) {
+        gs_index c = sup[a];
+        double t = 0;
+        for (gs_index k = 0; k < ns; k++)
+            t += gres(b, sup[k], c) * Yv[sup[k]];
+        s += Yv[c] * t;
+    }
+    return s;
+}
+
+void gs_fe_reduced_energy(const gs_fe_reduced *b, double *T, double *V)
+{
+    double t = 0, v = 0;
+    for (int i = 0; i < b->N; i++) {
+        t += b->vm[i] * b->vm[i];
+        v += b->om2[i] * b->qm[i] * b->qm[i];
+    }
+    v += ygy(b, b->Y, b->ysup, b->nys);
+    if (b->az != 0.0) {
+        double zy = 0;
+        for (gs_index a = 0; a < b->nys; a++)
+            zy += b->z0R[b->ysup[a]] * b->Y[b->ysup[a]];
+        v += 2 * b->az * zy + b->az * b->az * b->e0;
+    }
+    *T = 0.5 * t;
+    *V = 0.5 * v;
+}
+
+double gs_fe_reduced_damped(const gs_fe_reduced *b)
+{
+    return b->damped;
+}
+
+void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *o)
+{
+    gs_fe_reduced_energy(b, &o->kinetic, &o->elastic);
+    o->energy0 = b->energy0;
+    o->work_in = b->work_in;
+    o->work_iface = b->work_iface;
+    o->dissipated = b->dissipated;
+    o->damped = b->damped;
+    o->residual = o->kinetic + o->elastic - b->energy0 - b->work_in - b->work_iface + b->dissipated;
+}
+
+double gs_fe_reduced_angular_momentum(const gs_fe_reduced *b)
+{
+    return b->held ? 0.0 : sqrt(b->Itot) * b->vm[0];
+}
+
+void gs_fe_reduced_spin(gs_fe_reduced *b, double dw)
+{
+    if (!b->held)
+        b->vm[0] += sqrt(b->Itot) * dw;
+}
+
+/* ---- state -------------------------------------------------------------- */
+
+static void y_clear(gs_fe_reduced *b)
+{
+    for (gs_index a = 0; a < b->nys; a++) {
+        b->Y[b->ysup[a]] = 0;
+        b->yin[b->ysup[a]] = 0;
+    }
+    b->nys = 0;
+}
+
+gs_err gs_fe_reduced_set_state(gs_fe_reduced *b, double theta, double omega, const double *u_nodes,
+                               const double *v_nodes)
+{
+    if (!b)
+        return GS_EINVAL;
+    if (b->in_step)
+        return GS_ESTATE;
+    gs_index n = b->n, ne = b->ne;
+    const gs_fe_model *m = b->m;
+    double *x = gs_calloc((size_t)(3 * n), sizeof *x);
+    if (!x)
+        return GS_ENOMEM;
+    double *mx = x + n, *z = x + 2 * n;
+    y_clear(b);
+    b->az = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        const double *src = pass ? v_nodes : u_nodes;
+        memset(x, 0, (size_t)n * sizeof *x);
+        for (gs_index i = 0; src && i < m->n_nodes; i++)
+            for (int c = 0; c < 2; c++)
+                if (m->dof[2 * i + c] >= 0)
+                    x[m->dof[2 * i + c]] = src[2 * i + c];
+        x[ne] = b->held ? 0.0 : (pass ? omega : theta);
+        memset(mx, 0, (size_t)n * sizeof *mx);
+        gsi_fe_symv2(m, 1.0, x, 0.0, x, mx);
+        double st = dotn(ne, m->s, x);
+        for (gs_index i = 0; i < ne; i++)
+            mx[i] += m->s[i] * x[ne];
+        mx[ne] = st + b->Itot * x[ne];
+        if (b->held)
+            mx[ne] = 0;
+        double *qv = pass ? b->vm : b->qm;
+        for (int i = 0; i < b->N; i++)
+            qv[i] = dotn(n, b->Phi + (size_t)i * (size_t)n, mx);
+        if (pass == 0) { /* the residual displacement z0 = x - Phi q */
+            memcpy(z, x, (size_t)n * sizeof *z);
+            for (int i = 0; i < b->N; i++) {
+                const double *p = b->Phi + (size_t)i * (size_t)n;
+                for (gs_index j = 0; j < n; j++)
+                    z[j] -= b->qm[i] * p[j];
+            }
+            double zn = 0, xn = 0;
+            for (gs_index j = 0; j < n; j++) {
+                zn = fmax(zn, fabs(z[j]));
+                xn = fmax(xn, fabs(x[j]));
+            }
+            if (zn > 1e-14 * xn && zn > 0) {
+                if (!b->z0 && !(b->z0 = gs_calloc((size_t)n, sizeof *b->z0))) {
+                    free(x);
+                    return GS_ENOMEM;
+                }
+                memcpy(b->z0, z, (size_t)n * sizeof *z);
+                b->e0 = gsi_fe_quadform(m, 0.0, 1.0, z);
+                for (gs_index r = 0; r < b->nr; r++)
+                    b->z0R[r] = b->rowq[r] < 0 ? 0.0 : z[b->rowq[r]];
+                b->az = 1.0;
+            }
+        }
+    }
+    free(x);
+    double T, V;
+    gs_fe_reduced_energy(b, &T, &V);
+    b->energy0 = T + V;
+    b->work_in = b->work_iface = b->dissipated = b->damped = 0;
+    return GS_OK;
+}
+
+gs_err gs_fe_reduced_hold_theta(gs_fe_reduced *b, bool held)
+{
+    if (!b)
+        return GS_EINVAL;
+    return held == b->held ? GS_OK : GS_EINVAL; /* the basis is made held or free */
+}
+
+gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c)
+{
+    if (!b || !(h > 0) || !isfinite(h) || !(brake_c >= 0) || !isfinite(brake_c))
+        return GS_EINVAL;
+    if (b->in_step)
+        return GS_ESTATE;
+    b->h = h;
+    b->c = brake_c;
+    b->d = 0.5 + b->beta / h;
+    b->r = (b->beta / h - 0.5) / b->d;
+    for (int i = 0; i < b->N; i++)
+        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i]);
+    /* the brake's Sherman-Morrison factor: y_theta = C_bar(theta, theta) */
+    double yt = b->held ? 0.0 : b->tcol[0] / b->d;
+    for (int i = 0; i < b->N; i++)
+        yt += b->PR[i] * b->PR[i] * b->inv_a[i];
+    b->kc = (b->held || brake_c == 0) ? 0.0 : (brake_c / h) / (1.0 + (brake_c / h) * yt);
+    b->have_step = true;
+    return GS_OK;
+}
+
+/* ---- the step ----------------------------------------------------------- */
+
+static void fl_add(gs_fe_reduced *b, gs_index r)
+{
+    if (!b->fin[r]) {
+        b->fin[r] = 1;
+        b->fl[b->nfl++] = r;
+    }
+}
+
+/* Row of a dof name: >= 0, -1 immovable (fixed node, held theta), -2 bad. */
+static gs_index row_of(const gs_fe_reduced *b, gs_index dof)
+{
+    if (dof == GS_FE_DOF_THETA)
+        return b->held ? -1 : 0;
+    if (dof < 0 || dof >= 2 * b->m->n_nodes)
+        return -2;
+    gs_index node = dof >> 1;
+    if (b->m->dof[dof] < 0)
+        return -1;
+    gs_index k = b->cand_of[node];
+    return k < 0 ? -2 : 1 + 2 * k + (dof & 1);
+}
+
+gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes)
+{
+    if (!b)
+        return GS_EINVAL;
+    if (!b->have_step || b->in_step)
+        return GS_ESTATE;
+    double h = b->h;
+    /* applied forces on the rows */
+    b->nfl = 0;
+    b->moment = b->held ? 0.0 : moment_nm;
+    if (b->moment != 0.0) {
+        b->Fa[0] = b->moment;
+        fl_add(b, 0);
+    }
+    for (gs_index i = 0; f_nodes && i < 2 * b->m->n_nodes; i++) {
+        if (f_nodes[i] == 0.0)
+            continue;
+        gs_index r = row_of(b, i);
+        if (r == -1)
+            continue;
+        if (r < 0) {
+            for (gs_index a = 0; a < b->nfl; a++)
+                b->Fa[b->fl[a]] = 0, b->fin[b->fl[a]] = 0;
+            b->nfl = 0;
+            return GS_EINVAL; /* a load on a node that is not a candidate */
+        }
+        GS_TRY(ensure_row(b, r));
+        b->Fa[r] += f_nodes[i];
+        fl_add(b, r);
+    }
+    for (gs_index a = 0; a < b->nys; a++)
+        fl_add(b, b->ysup[a]);
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        b->Rf[r] = (b->Fa[r] - b->Y[r]) / b->d;
+    }
+    /* modal free increments */
+    double hb = 0.5 * h + b->beta;
+    for (int i = 0; i < b->N; i++) {
+        double g = 0;
+        for (gs_index a = 0; a < b->nfl; a++) {
+            gs_index r = b->fl[a];
+            if (b->Fa[r] != 0.0)
+                g += b->PR[(size_t)r * (size_t)b->N + (size_t)i] * b->Fa[r];
+        }
+        b->dqm[i] = h * b->vm[i] + (g - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    }
+    b->in_step = true;
+    return GS_OK;
+}
+
+gs_err gs_fe_reduced_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes)
+{
+    GS_TRY(gs_fe_reduced_begin_step(b, moment_nm, f_nodes));
+    return gs_fe_reduced_end_step(b);
+}
+
+/* The unbraked increment at row r for the forces so far (r's column
+ * present). */
+static double row_inc_bar(const gs_fe_reduced *b, gs_index r)
+{
+    if (b->rowq[r] < 0)
+        return 0.0;
+    double v = dotn(b->N, b->PR + (size_t)r * (size_t)b->N, b->dqm);
+    /* column r (symmetric): its entries at the force rows lie close together */
+    for (gs_index a = 0; a < b->nfl; a++)
+        v += gres(b, b->fl[a], r) * b->Rf[b->fl[a]];
+    if (b->az != 0.0)
+        v += (b->r - 1.0) * b->az * b->z0R[r];
+    return v;
+}
+
+/* The unbraked compliance column of theta at row r. */
+static double ycol(const gs_fe_reduced *b, gs_index r)
+{
+    if (b->held || b->rowq[r] < 0)
+        return 0.0;
+    double v = b->tcol[r] / b->d;
+    const double *p = b->PR + (size_t)r * (size_t)b->N;
+    for (int i = 0; i < b->N; i++)
+        v += p[i] * b->PR[i] * b->inv_a[i];
+    return v;
+}
+
+gs_err gs_fe_reduced_increment(gs_fe_reduced *b, int n, const gs_index *dofs, double *dq_out)
+{
+    if (!b || n < 0 || (n > 0 && (!dofs || !dq_out)))
+        return GS_EINVAL;
+    if (!b->in_step)
+        return GS_ESTATE;
+    double ut = b->kc != 0.0 ? row_inc_bar(b, 0) : 0.0;
+    for (int k = 0; k < n; k++) {
+        gs_index r = row_of(b, dofs[k]);
+        if (r == -2)
+            return GS_EINVAL;
+        if (r < 0) {
+            dq_out[k] = 0.0;
+            continue;
+        }
+        GS_TRY(ensure_row(b, r));
+        dq_out[k] = row_inc_bar(b, r) - (b->kc != 0.0 ? b->kc * ycol(b, r) * ut : 0.0);
+    }
+    return GS_OK;
+}
+
+gs_err gs_fe_reduced_node_displacement(const gs_fe_reduced *b, gs_index node, double u[2])
+{
+    u[0] = u[1] = 0;
+    if (!b || node < 0 || node >= b->m->n_nodes)
+        return GS_EINVAL;
+    for (int c = 0; c < 2; c++) {
+        gs_index r = row_of(b, 2 * node + c);
+        if (r == -2)
+            return GS_EINVAL;
+        if (r < 0)
+            continue;
+        double v = dotn(b->N, b->PR + (size_t)r * (size_t)b->N, b->qm);
+        for (gs_index a = 0; a < b->nys; a++)
+            v += gres(b, r, b->ysup[a]) * b->Y[b->ysup[a]];
+        v += b->az * b->z0R[r];
+        u[c] = v;
+    }
+    return GS_OK;
+}
+
+gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dofs, int k, const int *sel,
+                                    double *C)
+{
+    if (!b || n < 0 || k < 0 || (n > 0 && !dofs) || (k > 0 && (!sel || !C)))
+        return GS_EINVAL;
+    if (!b->have_step)
+        return GS_ESTATE;
+    gs_index *rr = gs_calloc((size_t)(k > 0 ? k : 1), sizeof *rr);
+    double *yy = gs_calloc((size_t)(k > 0 ? k : 1), sizeof *yy);
+    if (!rr || !yy) {
+        free(rr), free(yy);
+        return GS_ENOMEM;
+    }
+    gs_err e = GS_OK;
+    for (int j = 0; j < n && e == GS_OK; j++) {
+        gs_index r = row_of(b, dofs[j]);
+        if (r == -2)
+            e = GS_EINVAL;
+        else if (r >= 0)
+            e = ensure_row(b, r);
+    }
+    for (int j = 0; j < k && e == GS_OK; j++) {
+        if (sel[j] < 0 || sel[j] >= n) {
+            e = GS_EINVAL;
+            break;
+        }
+        rr[j] = row_of(b, dofs[sel[j]]);
+        if (rr[j] >= 0 && b->rowq[rr[j]] < 0)
+            rr[j] = -1;
+        yy[j] = rr[j] >= 0 && b->kc != 0.0 ? ycol(b, rr[j]) : 0.0;
+    }
+    /* raw G_res and the modal sums over the selected rows: copied from the
+     * last block where both rows were in it (the modal sums only for the
+     * same h), else computed (bit for bit the same values) */
+    double *G = NULL, *Mm = NULL;
+    gs_index *nrw = NULL;
+    size_t need = (size_t)k * (size_t)k + 1;
+    if (e == GS_OK && b->sp_cap < need) {
+        free(b->sp_G), free(b->sp_M), free(b->sp_r);
+        b->sp_G = malloc(need * sizeof *b->sp_G);
+        b->sp_M = malloc(need * sizeof *b->sp_M);
+        b->sp_r = malloc(need * sizeof *b->sp_r);
+        b->sp_cap = (b->sp_G && b->sp_M && b->sp_r) ? need : 0;
+        if (!b->sp_cap)
+            e = GS_ENOMEM;
+    }
+    if (e == GS_OK) {
+        G = b->sp_G;
+        Mm = b->sp_M;
+        nrw = b->sp_r;
+    }
+    bool same_h = b->blk_M && b->blk_h == b->h;
+    for (int j = 0; j < k && e == GS_OK; j++) {
+        gs_index pj = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
+        for (int i = 0; i <= j; i++) {
+            double g = 0, v = 0;
+            if (rr[i] >= 0 && rr[j] >= 0) {
+                gs_index pi = b->blk_pos[rr[i]];
+                bool old = pi >= 0 && pj >= 0;
+                g = old ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
+                if (old && same_h) {
+                    v = b->blk_M[pi + pj * b->blk_n];
+                } else {
+                    const double *p = b->PR + (size_t)rr[i] * (size_t)b->N,
+                                 *q = b->PR + (size_t)rr[j] * (size_t)b->N;
+                    for (int t = 0; t < b->N; t++)
+                        v += p[t] * q[t] * b->inv_a[t];
+                }
+            }
+            G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
+            Mm[i + (size_t)j * (size_t)k] = Mm[j + (size_t)i * (size_t)k] = v;
+        }
+    }
+    for (int j = 0; j < k && e == GS_OK; j++)
+        for (int i = 0; i <= j; i++) {
+            double v = 0;
+            if (rr[i] >= 0 && rr[j] >= 0)
+                v = Mm[i + (size_t)j * (size_t)k] + G[i + (size_t)j * (size_t)k] / b->d - b->kc * yy[i] * yy[j];
+            C[i + (size_t)j * (size_t)k] = C[j + (size_t)i * (size_t)k] = v;
+        }
+    if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
+        for (gs_index t = 0; t < b->blk_rows; t++)
+            b->blk_pos[b->blk_r[t]] = -1;
+        /* swap: the last block's buffers become the spares */
+        b->sp_G = b->blk_G;
+        b->sp_M = b->blk_M;
+        b->sp_r = b->blk_r;
+        size_t cap = b->blk_cap;
+        b->blk_cap = b->sp_cap;
+        b->sp_cap = b->sp_G && b->sp_M && b->sp_r ? cap : 0;
+        if (!b->sp_cap) {
+            free(b->sp_G), free(b->sp_M), free(b->sp_r);
+            b->sp_G = b->sp_M = NULL;
+            b->sp_r = NULL;
+        }
+        b->blk_G = G;
+        b->blk_M = Mm;
+        b->blk_h = b->h;
+        b->blk_r = nrw;
+        b->blk_n = k;
+        b->blk_rows = 0;
+        for (int j = 0; j < k; j++)
+            if (rr[j] >= 0 && b->blk_pos[rr[j]] < 0) {
+                b->blk_pos[rr[j]] = j;
+                b->blk_r[b->blk_rows++] = rr[j];
+            }
+    }
+    free(rr), free(yy);
+    return e;
+}
+
+gs_err gs_fe_reduced_compliance(gs_fe_reduced *b, int n, const gs_index *dofs, double *C)
+{
+    int *sel = gs_calloc((size_t)(n > 0 ? n : 1), sizeof *sel);
+    if (!sel)
+        return GS_ENOMEM;
+    for (int j = 0; j < n; j++)
+        sel[j] = j;
+    gs_err e = gs_fe_reduced_compliance_sub(b, n, dofs, n, sel, C);
+    free(sel);
+    return e;
+}
+
+/* Add force f on row r to the step (modal and residual parts). */
+static void add_force(gs_fe_reduced *b, gs_index r, double f)
+{
+    const double *p = b->PR + (size_t)r * (size_t)b->N;
+    for (int i = 0; i < b->N; i++)
+        b->dqm[i] += p[i] * f * b->inv_a[i];
+    fl_add(b, r);
+    b->Rf[r] += f / b->d;
+}
+
+gs_err gs_fe_reduced_apply(gs_fe_reduced *b, int n, const gs_index *dofs, const double *f)
+{
+    if (!b || n < 0 || (n > 0 && (!dofs || !f)))
+        return GS_EINVAL;
+    if (!b->in_step)
+        return GS_ESTATE;
+    for (int k = 0; k < n; k++) {
+        gs_index r = row_of(b, dofs[k]);
+        if (r == -2)
+            return GS_EINVAL;
+    }
+    for (int k = 0; k < n; k++) {
+        gs_index r = row_of(b, dofs[k]);
+        if (r < 0 || b->rowq[r] < 0 || f[k] == 0.0)
+            continue;
+        GS_TRY(ensure_row(b, r));
+        b->Fi[r] += f[k];
+        add_force(b, r, f[k]);
+    }
+    return GS_OK;
+}
+
+static void step_clear(gs_fe_reduced *b)
+{
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        b->Fa[r] = b->Fi[r] = b->Rf[r] = 0;
+        b->fin[r] = 0;
+    }
+    b->nfl = 0;
+    b->in_step = false;
+}
+
+void gs_fe_reduced_cancel_step(gs_fe_reduced *b)
+{
+    if (b && b->in_step)
+        step_clear(b);
+}
+
+gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
+{
+    if (!b)
+        return GS_EINVAL;
+    if (!b->in_step)
+        return GS_ESTATE;
+    double h = b->h;
+    /* the brake: a force on theta from the unbraked increment */
+    double fb = 0;
+    if (b->kc != 0.0) {
+        fb = -b->kc * row_inc_bar(b, 0);
+        add_force(b, 0, fb);
+    }
+    /* increments at the force rows: work and the brake's dissipation */
+    double win = 0, wif = 0, dt = 0;
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        if (b->Fa[r] == 0.0 && b->Fi[r] == 0.0 && !(r == 0 && fb != 0.0))
+            continue;
+        double dq = row_inc_bar(b, r);
+        win += b->Fa[r] * dq;
+        wif += b->Fi[r] * dq;
+        if (r == 0)
+            dt = dq;
+    }
+    double dis = -fb * dt;
+    /* material damping: modal part and the residual's */
+    double dmp = 0;
+    for (int i = 0; i < b->N; i++)
+        dmp += b->om2[i] * b->dqm[i] * b->dqm[i];
+    double dres = ygy(b, b->Rf, b->fl, b->nfl);
+    if (b->az != 0.0) {
+        double zr = 0, f = (b->r - 1.0) * b->az;
+        for (gs_index a = 0; a < b->nfl; a++)
+            zr += b->z0R[b->fl[a]] * b->Rf[b->fl[a]];
+        dres += 2 * f * zr + f * f * b->e0;
+    }
+    dmp = b->beta / h * (dmp + dres);
+    /* the new state */
+    for (int i = 0; i < b->N; i++) {
+        b->qm[i] += b->dqm[i];
+        b->vm[i] = 2.0 * b->dqm[i] / h - b->vm[i];
+    }
+    double ymax = 0;
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        b->Y[r] += b->Rf[r];
+        ymax = fmax(ymax, fabs(b->Y[r]));
+    }
+    b->az *= b->r;
+    if (fabs(b->az) < 1e-300)
+        b->az = 0;
+    /* the support: rows with |Y| above round-off of the largest */
+    b->nys = 0;
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        if (fabs(b->Y[r]) > 1e-15 * ymax) {
+            b->ysup[b->nys++] = r;
+            b->yin[r] = 1;
+        } else {
+            b->Y[r] = 0;
+            b->yin[r] = 0;
+        }
+    }
+    b->work_in += win;
+    b->work_iface += wif;
+    b->damped += dmp;
+    b->dissipated += dis + dmp;
+    b->steps++;
+    step_clear(b);
+    return GS_OK;
+}
+
+/* ---- fields, snapshots -------------------------------------------------- */
+
+double gs_fe_reduced_theta(const gs_fe_reduced *b)
+{
+    if (b->held)
+        return 0.0;
+    double v = dotn(b->N, b->PR, b->qm);
+    for (gs_index a = 0; a < b->nys; a++)
+        v += gres(b, 0, b->ysup[a]) * b->Y[b->ysup[a]];
+    return v + b->az * b->z0R[0];
+}
+
+double gs_fe_reduced_omega(const gs_fe_reduced *b)
+{
+    return b->held ? 0.0 : dotn(b->N, b->PR, b->vm);
+}
+
+gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
+{
+    if (!b)
+        return GS_EINVAL;
+    gs_index n = b->n, ne = b->ne;
+    const gs_fe_model *m = b->m;
+    double *x = gs_calloc((size_t)(2 * n), sizeof *x);
+    if (!x)
+        return GS_ENOMEM;
+    double *v = x + n;
+    for (int i = 0; i < b->N; i++) {
+        const double *p = b->Phi + (size_t)i * (size_t)n;
+        for (gs_index j = 0; j < n; j++) {
+            x[j] += b->qm[i] * p[j];
+            v[j] += b->vm[i] * p[j];
+        }
+    }
+    if (b->az != 0.0)
+        for (gs_index j = 0; j < n; j++)
+            x[j] += b->az * b->z0[j];
+    gs_err e = GS_OK;
+    if (b->nys > 0 && u_nodes) { /* G_res Y: one solve */
+        double *f = gs_calloc((size_t)n, sizeof *f);
+        double *o = gs_calloc((size_t)n, sizeof *o);
+        if (!f || !o)
+            e = GS_ENOMEM;
+        for (gs_index a = 0; e == GS_OK && a < b->nys; a++)
+            f[b->rowq[b->ysup[a]]] = b->Y[b->ysup[a]];
+        if (e == GS_OK) {
+            double ft = b->held ? 0.0 : f[ne] / b->Itot;
+            for (gs_index i = 0; i < ne; i++)
+                f[i] -= b->held ? 0.0 : b->m->s[i] * ft;
+            e = ksolve(b, 1, f, o);
+        }
+        if (e == GS_OK) {
+            for (gs_index i = 0; i < ne; i++)
+                x[i] += o[i];
+            /* minus the kept elastic modes' share; Y on the rows */
+            for (int i = 0; i < b->N; i++) {
+                if (!(b->om2[i] > 0))
+                    continue;
+                double c = 0;
+                for (gs_index a = 0; a < b->nys; a++)
+                    c += b->PR[(size_t)b->ysup[a] * (size_t)b->N + (size_t)i] * b->Y[b->ysup[a]];
+                c /= b->om2[i];
+                const double *p = b->Phi + (size_t)i * (size_t)n;
+                for (gs_index j = 0; j < ne; j++)
+                    x[j] -= c * p[j];
+            }
+        }
+        free(f), free(o);
+    }
+    for (gs_index i = 0; e == GS_OK && i < m->n_nodes; i++)
+        for (int c = 0; c < 2; c++) {
+            gs_index k = m->dof[2 * i + c];
+            if (u_nodes)
+                u_nodes[2 * i + c] = k >= 0 ? x[k] : 0.0;
+            if (v_nodes)
+                v_nodes[2 * i + c] = k >= 0 ? v[k] : 0.0;
+        }
+    free(x);
+    return e;
+}
+
+/* Snapshot layout (the same size on every rank of a scene: it does not
+ * depend on the modes): N, q (N), v (N), zeros up to 2 (ne + 1) + 1, then
+ * Y (nr), the residual amplitude. */
+size_t gs_fe_reduced_state_size(const gs_fe_reduced *b)
+{
+    return 2 * (size_t)b->n + (size_t)b->nr + 2;
+}
+
+void gs_fe_reduced_save(const gs_fe_reduced *b, double *x)
+{
+    size_t off = 2 * (size_t)b->n + 1;
+    memset(x, 0, gs_fe_reduced_state_size(b) * sizeof *x);
+    x[0] = (double)b->N;
+    memcpy(x + 1, b->qm, (size_t)b->N * sizeof *x);
+    memcpy(x + 1 + b->N, b->vm, (size_t)b->N * sizeof *x);
+    memcpy(x + off, b->Y, (size_t)b->nr * sizeof *x);
+    x[off + (size_t)b->nr] = b->az;
+}
+
+gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
+{
+    if (!b || !x)
+        return GS_EINVAL;
+    if (x[0] != (double)b->N)
+        return GS_EINVAL; /* another basis */
+    size_t off = 2 * (size_t)b->n + 1;
+    gs_fe_reduced_cancel_step(b);
+    y_clear(b);
+    memcpy(b->qm, x + 1, (size_t)b->N * sizeof *x);
+    memcpy(b->vm, x + 1 + b->N, (size_t)b->N * sizeof *x);
+    for (gs_index r = 0; r < b->nr; r++) {
+        double y = x[off + (size_t)r];
+        if (y != 0.0) {
+            GS_TRY(ensure_row(b, r));
+            b->Y[r] = y;
+            b->yin[r] = 1;
+            b->ysup[b->nys++] = r;
+        }
+    }
+    double az = x[off + (size_t)b->nr];
+    b->az = b->z0 ? az : 0.0;
+    double T, V;
+    gs_fe_reduced_energy(b, &T, &V);
+    b->energy0 = T + V;
+    b->work_in = b->work_iface = b->dissipated = b->damped = 0;
+    return GS_OK;
+}
