@@ -327,6 +327,10 @@ typedef struct gs_fe_reduced_opts {
     const gs_index *nodes;  /* NULL: every node (small models) */
     int eigensolver;        /* 0 (default): dense up to 1600 elastic unknowns, else Lanczos;
                              * 1 dense; 2 Lanczos (for the tests) */
+    bool residual_static;   /* the residual's rule: false the midpoint rule of the modes (energy
+                             * exact; undamped it alternates from step to step), true static
+                             * (Y_{n+1} = F_step undamped: z follows the step's force; it loses
+                             * 1/2 dY^T G_res dY a step, booked as dissipation) */
 } gs_fe_reduced_opts;
 
 typedef struct gs_fe_reduced_info {
@@ -338,6 +342,7 @@ typedef struct gs_fe_reduced_info {
     gs_index residual_support; /* rows with a residual force state now */
     uint64_t steps;
     double column_cpu_s;    /* CPU seconds spent computing residual columns (once per node) */
+    double residual_loss;   /* J lost by the static residual rule (in the body's dissipation) */
 } gs_fe_reduced_info;
 
 /* Factorises K once and computes the modes (Lanczos above ~1600 unknowns).

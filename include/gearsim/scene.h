@@ -81,6 +81,7 @@ typedef struct gs_scene_body {
                                 * tangential load on the tip of tooth 0 (0: undeformed) */
     double reduce_f_max_hz;    /* bodies[i].reduction.f_max_hz: an elastic gear as the reduced
                                 * body of fe.h (modes up to it; 0: the full FE body) */
+    bool reduce_static;        /* bodies[i].reduction.residual "static" (else "midpoint") */
 } gs_scene_body;
 
 typedef struct gs_scene_mesh {

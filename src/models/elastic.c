@@ -299,7 +299,8 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
         return GS_OK;
     if (sb->reduce_f_max_hz > 0) {
         /* candidate rows: the toothed boundary (every node a contact search may name) */
-        gs_fe_reduced_opts ro = {sb->reduce_f_max_hz, b->coord < 0, el->mesh->n_boundary, el->mesh->boundary, 0};
+        gs_fe_reduced_opts ro = {sb->reduce_f_max_hz, b->coord < 0, el->mesh->n_boundary, el->mesh->boundary, 0,
+                                  sb->reduce_static};
         e = gs_fe_reduced_new(el->model, &ro, &el->red);
         if (e != GS_OK) {
             snprintf(field, sizeof field, "bodies[%d].%s", b->index,

@@ -195,14 +195,19 @@ static void mesh_density_defaults(gs_mesh_density *m, int order)
     *m = (gs_mesh_density){o.flank, o.across, o.rim, o.refine, o.grading, o.order, 0, 0, 0};
 }
 
+/* The residual rule of a reduced body when `residual` is not given (1: static). */
+#define REDUCE_STATIC_DEFAULT 1
+
 /* bodies[i].reduction: {"f_max_hz": F} makes an elastic gear the reduced
  * body of fe.h (docs/FE.md "Reduced elastic body"). */
 static gs_err parse_reduction(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
 {
-    static const char *const keys[] = {"f_max_hz", NULL};
+    static const char *const keys[] = {"f_max_hz", "residual", NULL};
+    static const char *const rules[] = {"midpoint", "static"};
     json_object *r;
     char p[256];
     b->reduce_f_max_hz = 0;
+    b->reduce_static = REDUCE_STATIC_DEFAULT;
     GS_TRY(gsi_json_object(o, "reduction", path, false, &r, d));
     if (!r)
         return GS_OK;
@@ -211,6 +216,9 @@ static gs_err parse_reduction(json_object *o, const char *path, gs_scene_body *b
     if (b->type != GS_BODY_GEAR || b->model != GS_MODEL_ELASTIC)
         return gs_diag_set(d, GS_ERANGE, p, "only an elastic gear can be reduced");
     GS_TRY(gsi_json_positive(r, "f_max_hz", p, 1e8, true, 0, &b->reduce_f_max_hz, d));
+    int rule = 0;
+    GS_TRY(enum_field(r, "residual", p, rules[REDUCE_STATIC_DEFAULT], rules, 2, &rule, d));
+    b->reduce_static = rule == 1;
     return GS_OK;
 }
 

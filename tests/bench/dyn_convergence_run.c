@@ -22,7 +22,8 @@
  * step_cpu_per_sim_s the cost per simulated second without it;
  * column_cpu_s the reduced bodies' residual columns computed during the run
  * (once per node that comes into contact: a one-off of a long run) and
- * step_nocol_cpu_per_sim_s the steps' cost without them. Figures are taken
+ * step_nocol_cpu_per_sim_s the steps' cost without them; residual_loss_w the
+ * mean power the static residual rule took over the run. Figures are taken
  * with tests/common/dyn_window.h. Not a test: runs take minutes. */
 #include <json-c/json.h>
 #include <math.h>
@@ -212,14 +213,14 @@ int main(int argc, char **argv)
            "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
            "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f, \"fmax_hz\": %.6g, "
            "\"setup_cpu_s\": %.2f, \"step_cpu_per_sim_s\": %.2f, \"column_cpu_s\": %.2f, "
-           "\"step_nocol_cpu_per_sim_s\": %.2f}\n",
+           "\"step_nocol_cpu_per_sim_s\": %.2f, \"residual_loss_w\": %.4g}\n",
            scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
            (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
            fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
            f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
            f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
            cpu / s->time, fmax, c_setup, (cpu - c_setup) / s->time, gsi_fe_reduced_column_cpu(),
-           (cpu - c_setup - gsi_fe_reduced_column_cpu()) / s->time);
+           (cpu - c_setup - gsi_fe_reduced_column_cpu()) / s->time, gsi_fe_reduced_residual_loss() / s->time);
     dw_free(&w);
     gs_system_free(&s);
     return 0;

@@ -90,7 +90,7 @@ static void run_compare(bool held, double beta, double brake)
     gs_fe_body *full = NULL;
     gs_fe_reduced *red = NULL;
     assert_int_equal(gs_fe_body_new(f.model, &full), GS_OK);
-    gs_fe_reduced_opts o = {INFINITY, held, 0, NULL, 0};
+    gs_fe_reduced_opts o = {INFINITY, held, 0, NULL, 0, false};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_fe_reduced_info info;
     gs_fe_reduced_get_info(red, &info);
@@ -216,12 +216,12 @@ static void all_modes_held_damped(void **state)
 }
 
 /* Truncated: energy balance at round-off. */
-static void run_balance(double beta, double brake, bool held)
+static void run_balance(double beta, double brake, bool held, bool stat)
 {
     fixture f;
     make(&f, beta);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, held, 0, NULL, 0};
+    gs_fe_reduced_opts o = {60e3, held, 0, NULL, 0, stat};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_fe_reduced_info info;
     gs_fe_reduced_get_info(red, &info);
@@ -251,11 +251,17 @@ static void run_balance(double beta, double brake, bool held)
     }
     gs_fe_balance b;
     gs_fe_reduced_get_balance(red, &b);
-    print_message("f_max 60 kHz (%d elastic modes of %ld), beta %g, brake %g, held %d: balance %.2e of %.3e J "
-                  "(damped %.3e J, residual support %ld rows)\n",
-                  info.elastic_modes, (long)mi.n_elastic, beta, brake, held, worst, scale, b.damped,
-                  (long)(gs_fe_reduced_get_info(red, &info), info.residual_support));
+    gs_fe_reduced_get_info(red, &info);
+    print_message("f_max 60 kHz (%d elastic modes of %ld), beta %g, brake %g, held %d, %s residual: balance %.2e "
+                  "of %.3e J (damped %.3e J, residual loss %.3e J, residual support %ld rows)\n",
+                  info.elastic_modes, (long)mi.n_elastic, beta, brake, held, stat ? "static" : "midpoint", worst,
+                  scale, b.damped, info.residual_loss, (long)info.residual_support);
     assert_true(worst <= 1e-12 * scale);
+    /* the static rule loses energy (booked), the midpoint rule none */
+    if (stat)
+        assert_true(info.residual_loss > 0);
+    else
+        assert_true(info.residual_loss == 0.0);
     if (beta > 0)
         assert_true(b.damped > 1e-6 * scale);
     free(u), free(v), free(fn);
@@ -266,9 +272,54 @@ static void run_balance(double beta, double brake, bool held)
 static void truncated_balance(void **state)
 {
     (void)state;
-    run_balance(0.0, 0.0, false);
-    run_balance(3e-7, 0.05, false);
-    run_balance(3e-7, 0.0, true);
+    for (int stat = 0; stat < 2; stat++) {
+        run_balance(0.0, 0.0, false, stat);
+        run_balance(3e-7, 0.05, false, stat);
+        run_balance(3e-7, 0.0, true, stat);
+    }
+}
+
+/* No mode kept (held, f_max far below the first mode): the body is its
+ * residual alone. Undamped under a constant load the static rule puts it at
+ * K^{-1} f from the first step on; the midpoint rule alternates between
+ * 2 K^{-1} f and 0 (the full scheme's highest modes do the same). */
+static void residual_rules(void **state)
+{
+    (void)state;
+    fixture f;
+    make(&f, 0.0);
+    gs_index nn = f.nn;
+    double *fn = calloc((size_t)(2 * nn), sizeof *fn), *us = calloc((size_t)(2 * nn), sizeof *us);
+    double *u = calloc((size_t)(2 * nn), sizeof *u);
+    fn[2 * (nn - 1)] = 100.0;
+    fn[2 * (nn - 6) + 1] = 200.0;
+    assert_int_equal(gs_fe_model_static(f.model, fn, us), GS_OK);
+    double um = maxabs(us, 2 * nn);
+    for (int stat = 0; stat < 2; stat++) {
+        gs_fe_reduced *red = NULL;
+        gs_fe_reduced_opts o = {1.0, true, 0, NULL, 0, stat};
+        assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
+        gs_fe_reduced_info info;
+        gs_fe_reduced_get_info(red, &info);
+        assert_int_equal(info.modes, 0);
+        assert_int_equal(gs_fe_reduced_set_step(red, 1e-5, 0.0), GS_OK);
+        for (int s = 1; s <= 4; s++) {
+            assert_int_equal(gs_fe_reduced_step(red, 0.0, fn), GS_OK);
+            assert_int_equal(gs_fe_reduced_nodal(red, u, NULL), GS_OK);
+            double want = stat ? 1.0 : (s % 2 ? 2.0 : 0.0), e = 0;
+            for (gs_index k = 0; k < 2 * nn; k++)
+                e = fmax(e, fabs(u[k] - want * us[k]));
+            print_message("%s rule, step %d: |u - %g K^-1 f| = %.2e of %.2e m\n", stat ? "static" : "midpoint", s,
+                          want, e, um);
+            assert_true(e <= 1e-9 * um);
+        }
+        gs_fe_balance b;
+        gs_fe_reduced_get_balance(red, &b);
+        assert_true(fabs(b.residual) <= 1e-12 * fabs(b.work_in));
+        gs_fe_reduced_free(&red);
+    }
+    free(fn), free(us), free(u);
+    unmake(&f);
 }
 
 /* Constant load, damped, held: the rest state is K^{-1} f. */
@@ -278,7 +329,7 @@ static void truncated_static(void **state)
     fixture f;
     make(&f, 2e-5);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, true, 0, NULL, 0};
+    gs_fe_reduced_opts o = {60e3, true, 0, NULL, 0, false};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_index nn = f.nn;
     double *fn = calloc((size_t)(2 * nn), sizeof *fn), *us = calloc((size_t)(2 * nn), sizeof *us);
@@ -316,7 +367,7 @@ static void save_load(void **state)
     fixture f;
     make(&f, 3e-7);
     gs_fe_reduced *red = NULL;
-    gs_fe_reduced_opts o = {60e3, false, 0, NULL, 0};
+    gs_fe_reduced_opts o = {60e3, false, 0, NULL, 0, false};
     assert_int_equal(gs_fe_reduced_new(f.model, &o, &red), GS_OK);
     gs_index nn = f.nn;
     double *fn = calloc((size_t)(2 * nn), sizeof *fn);
@@ -343,7 +394,7 @@ static void save_load(void **state)
     /* a load on a node that is not a candidate is refused */
     gs_fe_reduced *r2 = NULL;
     gs_index cand[1] = {nn - 1};
-    gs_fe_reduced_opts o2 = {60e3, false, 1, cand, 0};
+    gs_fe_reduced_opts o2 = {60e3, false, 1, cand, 0, false};
     assert_int_equal(gs_fe_reduced_new(f.model, &o2, &r2), GS_OK);
     assert_int_equal(gs_fe_reduced_set_step(r2, 5e-6, 0.0), GS_OK);
     memset(fn, 0, (size_t)(2 * nn) * sizeof *fn);
@@ -368,7 +419,7 @@ static void lanczos_dense(void **state)
     assert_int_equal(gs_fe_model_new(mesh, &mat, 0.01, 1e-4, &model), GS_OK);
     for (int held = 0; held < 2; held++) {
         gs_fe_reduced *a = NULL, *b = NULL;
-        gs_fe_reduced_opts oa = {90e3, held, 0, NULL, 1}, ob = {90e3, held, 0, NULL, 2};
+        gs_fe_reduced_opts oa = {90e3, held, 0, NULL, 1, false}, ob = {90e3, held, 0, NULL, 2, false};
         assert_int_equal(gs_fe_reduced_new(model, &oa, &a), GS_OK);
         assert_int_equal(gs_fe_reduced_new(model, &ob, &b), GS_OK);
         gs_fe_reduced_info ia, ib;
@@ -405,7 +456,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(all_modes_free),     cmocka_unit_test(all_modes_free_damped_brake),
         cmocka_unit_test(all_modes_held),     cmocka_unit_test(all_modes_held_damped),
-        cmocka_unit_test(truncated_balance),  cmocka_unit_test(truncated_static),
+        cmocka_unit_test(truncated_balance),  cmocka_unit_test(truncated_static), cmocka_unit_test(residual_rules),
         cmocka_unit_test(save_load),          cmocka_unit_test(lanczos_dense),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -3,17 +3,22 @@
  * body", docs/CONVERGENCE.md "Reduced elastic body"): contact_drive (both
  * gears elastic, quadratic default mesh, closure_energy, 2 % damping at
  * 9.2 kHz) from rest over the first 4 ms of the moment ramp at h = 1e-5 s,
- * once with the full FE bodies and once with both gears reduced to their
- * modes up to 60 kHz:
+ * once with the full FE bodies and twice with both gears reduced to their
+ * modes up to 60 kHz, with each residual rule (reduction.residual):
  *
- *   follows_full   the kinematic TE of the reduced run stays within 3 % of
- *                  the full run's TE range at every step (the study's
- *                  window figures agree to 0.3 % at this f_max), the
+ *   follows_full   the kinematic TE of the reduced runs stays within 3 %
+ *                  of the full run's TE range at every step (midpoint
+ *                  rule), within 0.3 % over the last ms (static rule,
+ *                  whose first impact at 1.25 ms rebounds less; the
+ *                  study's window figures agree to 0.3 % at 60 kHz), the
  *                  energy balance holds to 1e-12 of the energy scale and
- *                  the deepest penetration stays below 0.01 um;
+ *                  the deepest penetration stays below 0.01 um.
  *                  The reduced bodies' snapshots (save, load, save) restore
- *                  the state and energies, and their displacement fields
- *                  at 4 ms are the full bodies' within 1 %;
+ *                  the state and energies, and with the midpoint rule (the
+ *                  full scheme's own treatment of the high modes, so the
+ *                  same instantaneous high-frequency content) their
+ *                  displacement fields at 4 ms are the full bodies' within
+ *                  1 % (the static rule, without that ringing: 2.6 %);
  *   scene_errors   bodies[i].reduction on a rigid gear and with
  *                  mass-proportional damping are refused, naming the field.
  * About 15 CPU seconds (the full bodies' steps). */
@@ -34,8 +39,10 @@
 #include "gearsim/step.h"
 
 /* contact_drive at h 1e-5 with 2 % damping at 9.2 kHz; reduced to f_max
- * (0: full) on every elastic gear; extra: a material field set on gear 0. */
-static gs_err make_system(double fmax, const char *extra, double extra_v, gs_system **out, gs_diag *d)
+ * (0: full) on every elastic gear with the residual rule `rule` (NULL: the
+ * default); extra: a material field set on gear 0. */
+static gs_err make_system_rule(double fmax, const char *rule, const char *extra, double extra_v, gs_system **out,
+                               gs_diag *d)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
     assert_non_null(root);
@@ -49,6 +56,8 @@ static gs_err make_system(double fmax, const char *extra, double extra_v, gs_sys
             json_object_object_add(mat, extra, json_object_new_double(extra_v));
         if (fmax > 0)
             json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
+        if (fmax > 0 && rule)
+            json_object_object_add(tj_child(b, "reduction"), "residual", json_object_new_string(rule));
         if (fmax < 0 && i == 0) /* reduction on a rigid gear */
             json_object_object_add(b, "model", json_object_new_string("rigid"));
         if (fmax < 0)
@@ -65,16 +74,22 @@ static gs_err make_system(double fmax, const char *extra, double extra_v, gs_sys
     return gs_system_new(sc, 0, 1, out, d);
 }
 
+static gs_err make_system(double fmax, const char *extra, double extra_v, gs_system **out, gs_diag *d)
+{
+    return make_system_rule(fmax, NULL, extra, extra_v, out, d);
+}
+
 static void follows_full(void **state)
 {
     (void)state;
     const int steps = 400;
-    double *te[2], *ufull[2] = {NULL, NULL};
-    dyn_window w[2];
-    for (int run = 0; run < 2; run++) {
+    static const char *const rules[3] = {NULL, "midpoint", "static"};
+    double *te[3], *ufull[2] = {NULL, NULL};
+    dyn_window w[3];
+    for (int run = 0; run < 3; run++) {
         gs_system *s = NULL;
         gs_diag d;
-        gs_err e = make_system(run ? 6e4 : 0, NULL, 0, &s, &d);
+        gs_err e = make_system_rule(run ? 6e4 : 0, rules[run], NULL, 0, &s, &d);
         if (e != GS_OK)
             print_error("%s: %s\n", d.field, d.message);
         assert_int_equal(e, GS_OK);
@@ -97,7 +112,7 @@ static void follows_full(void **state)
             b->ops->fields(b, ufull[i], vm);
             free(vm);
         }
-        for (int i = 0; run == 1 && i < s->n_bodies; i++) {
+        for (int i = 0; run >= 1 && i < s->n_bodies; i++) {
             /* the backend's snapshot: save, load, save gives the same state and
              * energies; the fields (one solve) are finite and not zero */
             gs_body_rt *b = &s->bodies[i];
@@ -122,33 +137,43 @@ static void follows_full(void **state)
                 if (i < 2)
                     du = fmax(du, hypot(u[2 * j] - ufull[i][2 * j], u[2 * j + 1] - ufull[i][2 * j + 1]));
             }
-            print_message("body %d: snapshot of %zu values restored; fields: largest |u| %.3f um (reduced - full "
-                          "at most %.2f %% of it), von Mises %.1f MPa\n",
-                          i, ns, um * 1e6, 100 * du / um, vmm * 1e-6);
+            print_message("%s rule, body %d: snapshot of %zu values restored; fields: largest |u| %.3f um "
+                          "(reduced - full at most %.2f %% of it), von Mises %.1f MPa\n",
+                          rules[run], i, ns, um * 1e6, 100 * du / um, vmm * 1e-6);
             assert_true(um > 0 && vmm > 0);
-            assert_true(du <= 0.01 * um);
+            if (run == 1)
+                assert_true(du <= 0.01 * um);
             free(x), free(y), free(u), free(vm);
         }
         gs_system_free(&s);
     }
-    double dmax = 0, lo = INFINITY, hi = -INFINITY, pen = 0;
-    for (int k = 0; k < steps; k++) {
-        dmax = fmax(dmax, fabs(te[1][k] - te[0][k]));
-        lo = fmin(lo, te[0][k]);
-        hi = fmax(hi, te[0][k]);
-        pen = fmax(pen, w[1].s[k].pen);
+    for (int run = 1; run < 3; run++) {
+        double dmax = 0, lo = INFINITY, hi = -INFINITY, pen = 0;
+        for (int k = 0; k < steps; k++) {
+            if (run == 1 || k >= steps * 3 / 4)
+                dmax = fmax(dmax, fabs(te[run][k] - te[0][k]));
+            lo = fmin(lo, te[0][k]);
+            hi = fmax(hi, te[0][k]);
+            pen = fmax(pen, w[run].s[k].pen);
+        }
+        print_message("%s rule: TE over 4 ms: %.4f to %.4f um (full), reduced - full at most %.4f um (%.2f %% of "
+                      "the range) %s; balance %.2e (reduced), %.2e (full); deepest penetration %.5f um\n",
+                      rules[run], lo * 1e6, hi * 1e6, dmax * 1e6, 100 * dmax / (hi - lo),
+                      run == 1 ? "at every step" : "over the last ms", w[run].worst / w[run].scale,
+                      w[0].worst / w[0].scale, pen * 1e6);
+        assert_true(hi - lo > 1e-6); /* the teeth are loaded and vibrate */
+        /* midpoint: at every step. static: the backlash closes at 1.25 ms
+         * and the first impact rebounds less (the massless residual takes
+         * the impact's high-mode energy as a booked loss where the full
+         * body rings: 1.8 um apart just after it); the last ms agrees. */
+        assert_true(dmax <= (run == 1 ? 0.03 : 0.003) * (hi - lo));
+        assert_true(w[run].worst <= 1e-12 * w[run].scale);
+        assert_true(pen <= 1e-8);
     }
-    print_message("TE over 4 ms: %.4f to %.4f um (full), reduced - full at most %.4f um (%.2f %% of the range); "
-                  "balance %.2e (reduced), %.2e (full); deepest penetration %.5f um\n",
-                  lo * 1e6, hi * 1e6, dmax * 1e6, 100 * dmax / (hi - lo), w[1].worst / w[1].scale,
-                  w[0].worst / w[0].scale, pen * 1e6);
-    assert_true(hi - lo > 1e-6); /* the teeth are loaded and vibrate */
-    assert_true(dmax <= 0.03 * (hi - lo));
-    assert_true(w[1].worst <= 1e-12 * w[1].scale);
-    assert_true(pen <= 1e-8);
-    for (int run = 0; run < 2; run++) {
+    for (int run = 0; run < 3; run++) {
         free(te[run]);
-        free(ufull[run]);
+        if (run < 2)
+            free(ufull[run]);
         dw_free(&w[run]);
     }
 }
