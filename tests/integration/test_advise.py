@@ -152,7 +152,44 @@ def main():
             r.returncode == 1 and "force 0.567" in r.stderr, r.stderr)
     r = advise("contact_drive", "--target", "speed=1e-2", "--table", "/nonexistent.csv")
     R.check("missing table reported", r.returncode == 1 and "cannot read the table" in r.stderr, r.stderr)
+    measured_table()
     R.finish()
+
+
+def measured_table():
+    """The measured table itself (docs/tradeoff.csv, regenerated against the
+    converged references of docs/CONVERGENCE.md): per scene one reference
+    row, a closure_energy contact row; every other row's errors are its
+    figures against that row's; and advise, reading it by default, names
+    that reference and proposes the cheapest row meeting a DTE target."""
+    path = os.path.join(SOURCE_ROOT, "docs", "tradeoff.csv")
+    rows = list(csv.DictReader(open(path)))
+    cols = {"speed": "speed", "dte": "dte", "force": "force", "mesh": "mesh"}
+    for scene, alias in (("contact_drive", "contact_drive"), ("planetary_contact", "planetary")):
+        mine = [r for r in rows if r["scene"] == scene]
+        refs = [r for r in mine if all(float(r["err_" + o]) == 0 for o in cols)]
+        R.check(f"{scene}: one reference row, contact closure_energy", len(refs) == 1 and
+                (refs[0]["level"], refs[0]["scheme"]) == ("contact", "closure_energy"), refs)
+        if len(refs) != 1:
+            continue
+        ref = refs[0]
+        bad = []
+        for r in mine:
+            for o, c in cols.items():
+                a, b = float(r[c]), float(ref[c])
+                want = abs(a - b) / abs(b) if b else abs(a)
+                if abs(float(r["err_" + o]) - want) > 1e-3 * (1 + want):
+                    bad.append((r["level"], r["h"], o, r["err_" + o], want))
+        R.check(f"{scene}: every row's errors are against the reference row", not bad and len(mine) > 10, bad)
+        j = advise_json(alias, "--target", "dte=0.5", "--table", path)
+        R.check(f"{scene}: advise on the measured table names its reference",
+                j.get("reference", {}).get("h") == float(ref["h"])
+                and j.get("reference", {}).get("scheme") == "closure_energy", j.get("reference"))
+        cands = [r for r in mine if r is not ref and float(r["err_dte"]) <= 0.5]
+        want = min(cands, key=lambda r: float(r["cost"])) if cands else None
+        R.check(f"{scene}: advise dte 0.5 -> the cheapest row within it",
+                want is not None and (j.get("choice", {}).get("level"), j.get("choice", {}).get("h"))
+                == (want["level"], float(want["h"])), (j.get("choice"), want))
 
 
 if __name__ == "__main__":
