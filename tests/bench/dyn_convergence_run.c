@@ -13,11 +13,12 @@
  *
  *   dyn_convergence_run SCENE [--h 1e-5] [--order 2] [--refine 0]
  *       [--scale 1] [--contact closure_energy] [--zeta 0 --fhz 9200]
- *       [--from 0.04] [--to 0.08] [--fmax F]
+ *       [--from 0.04] [--to 0.08] [--fmax F] [--residual static|midpoint]
  *
  * --scale multiplies the flank/across/rim counts of the order's default
  * mesh (rounded; grading kept) on every elastic gear. --fmax F makes every
- * elastic gear the reduced body with the modes up to F Hz (reduction.f_max_hz);
+ * elastic gear the reduced body with the modes up to F Hz (reduction.f_max_hz;
+ * --residual its residual rule, default the scene's default "static");
  * setup_cpu_s is the system's construction (modes, factor), and
  * step_cpu_per_sim_s the cost per simulated second without it;
  * column_cpu_s the reduced bodies' residual columns computed during the run
@@ -69,6 +70,7 @@ int main(int argc, char **argv)
 {
     const char *scene = NULL, *contact = "closure_energy";
     double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08, fmax = 0;
+    const char *residual = NULL;
     int order = 2, refine = 0;
     for (int i = 1; i < argc; i++) {
         if (argv[i][0] != '-') {
@@ -100,6 +102,8 @@ int main(int argc, char **argv)
             t1 = atof(v);
         else if (!strcmp(k, "--fmax"))
             fmax = atof(v);
+        else if (!strcmp(k, "--residual"))
+            residual = v;
         else {
             fprintf(stderr, "unknown option %s\n", k);
             return 2;
@@ -138,6 +142,8 @@ int main(int argc, char **argv)
         }
         if (fmax > 0) /* the reduced body (docs/FE.md "Reduced elastic body") */
             json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
+        if (fmax > 0 && residual)
+            json_object_object_add(tj_child(b, "reduction"), "residual", json_object_new_string(residual));
         if (zeta > 0) {
             json_object *mat = tj_child(b, "material");
             json_object_object_add(mat, "damping_ratio", json_object_new_double(zeta));
