@@ -45,7 +45,8 @@ typedef struct gs_engine gs_engine;
  * parallel ones (search and records, compliance sub-blocks, apply) and
  * rank 0's in the serial ones (selection, solve): the time a step would
  * take with a core per rank and instant collectives, which neither
- * descheduling by other jobs nor spinning in a collective inflates. */
+ * descheduling by other jobs nor spinning in a collective inflates (timed
+ * for trains with bodies of their own state only; zero for the others). */
 typedef struct gs_step_timing {
     double prepare, records, reduce, solve, bcast, apply, sync;
     int64_t steps;

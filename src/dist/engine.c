@@ -32,6 +32,7 @@ struct gs_engine {
     double cpu_mark;        /* thread CPU time at the start of the current phase */
     double cpu_ph[3];       /* this substep's parallel phases (CPU s): records, compliance, apply */
     double cpu_own;         /* this substep's CPU s outside the collectives */
+    bool cpu_on;            /* time the phases (bodies with their own state only) */
     bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
 };
 
@@ -82,6 +83,8 @@ static double cpu_now(void)
  * own work; skip_lap restarts after a collective (its wait is not work). */
 static double cpu_lap(gs_engine *e)
 {
+    if (!e->cpu_on) /* a thread CPU clock is a system call: not on steps of microseconds */
+        return 0.0;
     double c = cpu_now(), d = c - e->cpu_mark;
     e->cpu_mark = c;
     e->cpu_own += d;
@@ -90,7 +93,8 @@ static double cpu_lap(gs_engine *e)
 
 static void skip_lap(gs_engine *e)
 {
-    e->cpu_mark = cpu_now();
+    if (e->cpu_on)
+        e->cpu_mark = cpu_now();
 }
 
 /* Slots for each rank's CPU time of a parallel phase behind a reduced
@@ -412,7 +416,7 @@ static gs_err dist_substep(gs_engine *e)
     gs_system *s = e->sys;
     gs_step_timing *tm = &e->timing;
     double t0 = gs_now(), t1;
-    e->cpu_mark = cpu_now();
+    skip_lap(e);
     e->cpu_own = e->cpu_ph[0] = e->cpu_ph[1] = e->cpu_ph[2] = 0;
     /* The plan is the same on every rank (contact search from the rigid
      * state); a failure there is too, so ranks stay in step. */
@@ -554,6 +558,7 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
      * steps alone (assembling every body's records, as one process does)
      * and the others take its state once per chunk. */
     e->solo = e->size > 1 && !gs_system_has_body_state(e->sys);
+    e->cpu_on = gs_system_has_body_state(e->sys);
     if (e->solo && e->rank != 0) {
         sync_solo(e);
         if (done)
