@@ -38,10 +38,19 @@ typedef struct gs_engine gs_engine;
  * (free-motion solves, compliance blocks); reduce and bcast = the two
  * collectives of a step (waiting for the slowest owner included); solve =
  * the coupled problem (Newton or QP); apply = back-substitution and the end
- * of its bodies' steps; sync = energy reports and field gathering. */
+ * of its bodies' steps; sync = energy reports and field gathering.
+ * CPU time of the thread, summed over the substeps: cpu_work = this rank's
+ * outside the step's collectives; cpu_path (rank 0) = the step's critical
+ * path, the sum over its phases of the slowest rank's CPU time in the
+ * parallel ones (search and records, compliance sub-blocks, apply) and
+ * rank 0's in the serial ones (selection, solve): the time a step would
+ * take with a core per rank and instant collectives, which neither
+ * descheduling by other jobs nor spinning in a collective inflates (timed
+ * for trains with bodies of their own state only; zero for the others). */
 typedef struct gs_step_timing {
     double prepare, records, reduce, solve, bcast, apply, sync;
     int64_t steps;
+    double cpu_work, cpu_path;
 } gs_step_timing;
 
 /* Called on rank 0 after every step of a GS_OP_STEP; return false to stop

@@ -29,6 +29,10 @@ struct gs_engine {
     double *states;         /* rank 0: gathered body states for a snapshot */
     size_t n_states;
     gs_step_timing timing;  /* this rank's, since load */
+    double cpu_mark;        /* thread CPU time at the start of the current phase */
+    double cpu_ph[3];       /* this substep's parallel phases (CPU s): records, compliance, apply */
+    double cpu_own;         /* this substep's CPU s outside the collectives */
+    bool cpu_on;            /* time the phases (bodies with their own state only) */
     bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
 };
 
@@ -65,19 +69,67 @@ static void unload(gs_engine *e)
     e->pk_n = e->mask_n = 0;
 }
 
+/* CPU seconds of the calling thread: the step's critical path is summed
+ * from these (struct gs_step_timing), so that a rank descheduled by other
+ * jobs, or spinning in a collective, does not count. */
+static double cpu_now(void)
+{
+    struct timespec t;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* CPU seconds since the last mark (and a new mark), counted as this rank's
+ * own work; skip_lap restarts after a collective (its wait is not work). */
+static double cpu_lap(gs_engine *e)
+{
+    if (!e->cpu_on) /* a thread CPU clock is a system call: not on steps of microseconds */
+        return 0.0;
+    double c = cpu_now(), d = c - e->cpu_mark;
+    e->cpu_mark = c;
+    e->cpu_own += d;
+    return d;
+}
+
+static void skip_lap(gs_engine *e)
+{
+    if (e->cpu_on)
+        e->cpu_mark = cpu_now();
+}
+
+/* Slots for each rank's CPU time of a parallel phase behind a reduced
+ * buffer: own slot set, the others zero; after the sum rank 0 reads the
+ * slowest (max_slot). */
+static void put_slot(const gs_engine *e, double *slots, double v)
+{
+    for (int r = 0; r < e->size; r++)
+        slots[r] = r == e->rank ? v : 0.0;
+}
+
+static double max_slot(const gs_engine *e, const double *slots)
+{
+    double m = 0;
+    for (int r = 0; r < e->size; r++)
+        m = slots[r] > m ? slots[r] : m;
+    return m;
+}
+
 /* Owners report the energies of bodies with their own state; every rank
  * adopts the sum (one value is non-zero per body: the sum is exact). */
-static gs_err sync_energy(gs_engine *e, gs_err err)
+static gs_err sync_energy(gs_engine *e, gs_err err, double cpu_apply)
 {
     gs_system *s = e->sys;
     if (e->size == 1 || !gs_system_has_body_state(s))
         return err;
-    /* The last slot carries a failure of any owner, so that every rank stops
-     * at the same step. */
+    /* The slot after the reports carries a failure of any owner, so that
+     * every rank stops at the same step; then each rank's CPU time of its
+     * apply phase (the critical path, gs_step_timing). */
     int n = GS_ENERGY_REPORT * s->n_bodies;
     gs_system_energy_report(s, e->ebuf);
     e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
-    MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1, MPI_DOUBLE, MPI_SUM, e->comm);
+    put_slot(e, e->ebuf + n + 1, cpu_apply);
+    MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1 + e->size, MPI_DOUBLE, MPI_SUM, e->comm);
+    e->cpu_ph[2] = max_slot(e, e->ebuf + n + 1);
     gs_system_energy_adopt(s, e->ebuf);
     if (err == GS_OK && e->ebuf[n] != 0.0)
         err = GS_EINTERNAL;
@@ -218,7 +270,7 @@ static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
     e->sol_n = sys->plan.sol_size + 1;
     e->rec = gs_calloc(e->rec_n, sizeof(double));
     e->sol = gs_calloc(e->sol_n, sizeof(double));
-    e->ebuf = gs_calloc((size_t)(GS_ENERGY_REPORT * sys->n_bodies + 1), sizeof(double));
+    e->ebuf = gs_calloc((size_t)(GS_ENERGY_REPORT * sys->n_bodies + 1 + e->size), sizeof(double));
     e->field = gs_calloc((size_t)sys->n_bodies, sizeof(double *));
     e->field_step = -1;
     memset(&e->timing, 0, sizeof e->timing);
@@ -238,7 +290,7 @@ static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
     }
     /* The initial energy of bodies with their own state is known to their
      * owners only. */
-    gs_err err = sync_energy(e, GS_OK);
+    gs_err err = sync_energy(e, GS_OK, 0.0);
     if (err != GS_OK) {
         unload(e);
         return err;
@@ -276,7 +328,7 @@ static gs_err reserve(gs_engine *e)
         if (!m)
             return GS_ENOMEM;
         e->mask = m;
-        if (e->size > 1 && !grow_pk(e, gs_step_free_size(e->sys)))
+        if (e->size > 1 && !grow_pk(e, gs_step_free_size(e->sys) + (size_t)e->size))
             return GS_ENOMEM;
     }
     return GS_OK;
@@ -305,15 +357,21 @@ static gs_err two_phase(gs_engine *e, gs_err *root)
     if (e->size > 1) {
         size_t n = gs_step_free_size(s);
         gs_step_free_pack(s, e->rec, e->pk, false);
-        reduce_pk(e, n);
-        if (e->rank == 0)
+        e->cpu_ph[0] += cpu_lap(e); /* this rank's records, with the free parts packed */
+        put_slot(e, e->pk + n, e->cpu_ph[0]);
+        reduce_pk(e, n + (size_t)e->size);
+        if (e->rank == 0) {
             gs_step_free_pack(s, e->rec, e->pk, true);
+            e->cpu_ph[0] = max_slot(e, e->pk + n);
+        }
     }
     t1 = gs_now();
     tm->reduce += t1 - t0;
+    skip_lap(e);
     size_t nm = gs_step_mask_size(s);
     if (e->rank == 0)
         e->mask[nm - 1] = (int)gs_step_select(s, e->rec, e->mask);
+    double cpu_select = cpu_lap(e);
     t0 = gs_now();
     tm->solve += t0 - t1;
     if (e->size > 1)
@@ -323,34 +381,49 @@ static gs_err two_phase(gs_engine *e, gs_err *root)
     gs_err err = (gs_err)e->mask[nm - 1];
     if (err != GS_OK)
         return err;
+    skip_lap(e);
     size_t nc = gs_step_compliance_size(s, e->mask);
-    if (!grow_pk(e, nc))
+    if (!grow_pk(e, nc + (size_t)e->size))
         MPI_Abort(e->comm, 3); /* a collective cannot be left half-way */
     if (gs_step_compliance(s, e->mask, e->pk) != GS_OK)
         for (size_t k = 0; k < nc; k++) /* out of memory: the solve refuses NaN */
             e->pk[k] = NAN;
+    e->cpu_ph[1] = cpu_lap(e);
     t0 = gs_now();
     tm->records += t0 - t1;
-    if (e->size > 1)
-        reduce_pk(e, nc);
+    if (e->size > 1) {
+        put_slot(e, e->pk + nc, e->cpu_ph[1]);
+        reduce_pk(e, nc + (size_t)e->size);
+        e->cpu_ph[1] = e->rank == 0 ? max_slot(e, e->pk + nc) : e->cpu_ph[1];
+    }
+    skip_lap(e);
     if (e->rank == 0)
         *root = gs_step_compliance_unpack(s, e->mask, e->pk, e->rec);
+    e->cpu_ph[1] += cpu_select + cpu_lap(e); /* rank 0's serial parts */
     tm->reduce += gs_now() - t0;
     return GS_OK;
 }
 
 static gs_err two_phase(gs_engine *e, gs_err *root);
 
+/* The critical path of a substep (gs_step_timing cpu_path) is summed as
+ * cpu_ph[0] (the slowest rank's prepare and records) + cpu_ph[1] (rank 0's
+ * selection, the slowest rank's compliance sub-blocks, rank 0's unpacking)
+ * + rank 0's solve + cpu_ph[2] (the slowest rank's apply) + the replicated
+ * end (energy adoption, damping, closure's velocity update). */
 static gs_err dist_substep(gs_engine *e)
 {
     gs_system *s = e->sys;
     gs_step_timing *tm = &e->timing;
     double t0 = gs_now(), t1;
+    skip_lap(e);
+    e->cpu_own = e->cpu_ph[0] = e->cpu_ph[1] = e->cpu_ph[2] = 0;
     /* The plan is the same on every rank (contact search from the rigid
      * state); a failure there is too, so ranks stay in step. */
     gs_err err = gs_step_prepare(s);
     if (err == GS_OK)
         err = reserve(e);
+    e->cpu_ph[0] = cpu_lap(e);
     if (e->size > 1) {
         int bad = err != GS_OK;
         MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
@@ -359,10 +432,12 @@ static gs_err dist_substep(gs_engine *e)
     } else if (err != GS_OK) {
         return err;
     }
+    skip_lap(e);
     int rn = (int)s->plan.rec_size, n = (int)s->plan.sol_size;
     t1 = gs_now();
     tm->prepare += t1 - t0;
     gs_step_records(s, e->rec);
+    e->cpu_ph[0] += cpu_lap(e);
     t0 = gs_now();
     tm->records += t0 - t1;
     /* Elastic gears record in two phases (step.h); the others' records go
@@ -381,10 +456,12 @@ static gs_err dist_substep(gs_engine *e)
         GS_TRY(two_phase(e, &perr));
         t1 = gs_now();
     }
+    skip_lap(e);
     if (e->rank == 0) {
         err = perr != GS_OK ? perr : gs_step_solve(s, e->rec, e->sol);
         e->sol[n] = (double)err;
     }
+    double cpu_solve = cpu_lap(e);
     t0 = gs_now();
     tm->solve += t0 - t1;
     if (e->size > 1)
@@ -394,14 +471,21 @@ static gs_err dist_substep(gs_engine *e)
     err = (gs_err)(int)e->sol[n];
     if (err != GS_OK)
         return err;
+    skip_lap(e);
     err = gs_step_apply(s, e->sol);
+    double cpu_apply = cpu_lap(e);
     t0 = gs_now();
     tm->apply += t0 - t1;
-    err = sync_energy(e, err);
+    e->cpu_ph[2] = cpu_apply; /* sync_energy takes the slowest rank's */
+    err = sync_energy(e, err, cpu_apply);
+    skip_lap(e);
     gs_system_book_damping(s);
     if (err == GS_OK) /* numerics.contact closure_energy: every rank alike */
         gs_step_contact_return(s, e->sol);
+    double cpu_end = cpu_lap(e);
     tm->sync += gs_now() - t0;
+    tm->cpu_work += e->cpu_own;
+    tm->cpu_path += e->cpu_ph[0] + e->cpu_ph[1] + cpu_solve + e->cpu_ph[2] + cpu_end;
     return err;
 }
 
@@ -474,6 +558,7 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
      * steps alone (assembling every body's records, as one process does)
      * and the others take its state once per chunk. */
     e->solo = e->size > 1 && !gs_system_has_body_state(e->sys);
+    e->cpu_on = gs_system_has_body_state(e->sys);
     if (e->solo && e->rank != 0) {
         sync_solo(e);
         if (done)
@@ -705,7 +790,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         }
         off += (int)b->ops->state_size(b);
     }
-    lerr = sync_energy(e, lerr);
+    lerr = sync_energy(e, lerr, 0.0);
     if (lerr != GS_OK) {
         unload(e);
         return gs_diag_set(d, lerr, "path", "the checkpoint's body states could not be restored");

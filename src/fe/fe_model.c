@@ -414,35 +414,113 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
     *qk = diagk + 2.0 * offk;
 }
 
+/* The sums of gsi_fe_step_pass, kept in this order. */
+typedef struct pass_sums {
+    double offm, diagm, offk, diagk;
+} pass_sums;
+
+/* The entry j of q, w, x at the start of column j. */
+static inline void pass_entry(gs_index j, double h, double c, const double *restrict delta, double *restrict q,
+                              double *restrict w, double *restrict x)
+{
+    q[j] += h * w[j] + delta[j];
+    w[j] += 2.0 * delta[j] / h;
+    x[j] = q[j] + c * w[j];
+}
+
+/* Column j alone (entry j already updated). */
+static inline void pass_column(const gs_fe_model *m, gs_index j, const double *restrict q, const double *restrict w,
+                               const double *restrict x, double *restrict y, pass_sums *restrict s)
+{
+    const gs_index *restrict ri = m->rowi;
+    const double *restrict mx = m->mx, *restrict kx = m->kx;
+    gs_index end = m->colp[j + 1] - 1;
+    double bx = -1.0 * x[j], acc = 0, am = 0, ak = 0;
+    for (gs_index p = m->colp[j]; p < end; p++) {
+        gs_index i = ri[p];
+        double k = kx[p];
+        y[i] += k * bx;
+        acc += k * x[i];
+        am += mx[p] * w[i];
+        ak += k * q[i];
+    }
+    y[j] = 0.0 + (-1.0 * acc + kx[end] * bx);
+    s->offm += am * w[j];
+    s->diagm += mx[end] * w[j] * w[j];
+    s->offk += ak * q[j];
+    s->diagk += kx[end] * q[j] * q[j];
+}
+
+/* The two columns of free node k, j = 2k and j + 1, together: assemble()
+ * lays out column j + 1 as the rows of column j (the node pairs above the
+ * node) followed by row j, then its diagonal. Every sum and every entry of
+ * y receives the same terms in the same order as column j then column
+ * j + 1 one after the other (each y[i] gets column j's term first; y[j],
+ * born at the end of column j, then column j + 1's), so the result is the
+ * same bit for bit; the two columns' independent sums run interleaved, and
+ * each row index and vector entry is read once for both. */
+static inline void pass_node(const gs_fe_model *m, gs_index j, const double *restrict q, const double *restrict w,
+                             const double *restrict x, double *restrict y, pass_sums *restrict s)
+{
+    const gs_index *restrict ri = m->rowi;
+    const double *restrict mx = m->mx, *restrict kx = m->kx;
+    const gs_index a = m->colp[j], ea = m->colp[j + 1] - 1, b = m->colp[j + 1], eb = m->colp[j + 2] - 1;
+    const gs_index len = ea - a;
+    const double *restrict k0 = kx + a, *restrict k1 = kx + b, *restrict m0 = mx + a, *restrict m1 = mx + b;
+    const gs_index *restrict r0 = ri + a;
+    double bx0 = -1.0 * x[j], bx1 = -1.0 * x[j + 1];
+    double acc0 = 0, am0 = 0, ak0 = 0, acc1 = 0, am1 = 0, ak1 = 0;
+    for (gs_index t = 0; t < len; t++) {
+        gs_index i = r0[t];
+        double ka = k0[t], kb = k1[t], xi = x[i], wi = w[i], qi = q[i];
+        y[i] = (y[i] + ka * bx0) + kb * bx1;
+        acc0 += ka * xi;
+        am0 += m0[t] * wi;
+        ak0 += ka * qi;
+        acc1 += kb * xi;
+        am1 += m1[t] * wi;
+        ak1 += kb * qi;
+    }
+    y[j] = 0.0 + (-1.0 * acc0 + kx[ea] * bx0);
+    s->offm += am0 * w[j];
+    s->diagm += mx[ea] * w[j] * w[j];
+    s->offk += ak0 * q[j];
+    s->diagk += kx[ea] * q[j] * q[j];
+    gs_index p = eb - 1; /* column j + 1, row j */
+    y[j] += kx[p] * bx1;
+    acc1 += kx[p] * x[j];
+    am1 += mx[p] * w[j];
+    ak1 += kx[p] * q[j];
+    y[j + 1] = 0.0 + (-1.0 * acc1 + kx[eb] * bx1);
+    s->offm += am1 * w[j + 1];
+    s->diagm += mx[eb] * w[j + 1] * w[j + 1];
+    s->offk += ak1 * q[j + 1];
+    s->diagk += kx[eb] * q[j + 1] * q[j + 1];
+}
+
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
                       double *w, double *x, double *y, double *qm, double *qk)
 {
     const gs_index *cp = m->colp, *ri = m->rowi;
-    const double *mx = m->mx, *kx = m->kx;
-    double offm = 0, diagm = 0, offk = 0, diagk = 0;
-    for (gs_index j = 0; j < m->ne; j++) {
-        /* column j reads rows i < j only (diagonal last): those entries of
-         * q, w and x are final, and y[i] holds its own term */
-        q[j] += h * w[j] + delta[j];
-        w[j] += 2.0 * delta[j] / h;
-        x[j] = q[j] + c * w[j];
-        gs_index end = cp[j + 1] - 1;
-        double bx = -1.0 * x[j], acc = 0, am = 0, ak = 0;
-        for (gs_index p = cp[j]; p < end; p++) {
-            gs_index i = ri[p];
-            y[i] += kx[p] * bx;
-            acc += kx[p] * x[i];
-            am += mx[p] * w[i];
-            ak += kx[p] * q[i];
+    pass_sums s = {0, 0, 0, 0};
+    gs_index j = 0;
+    for (; j + 1 < m->ne; j += 2) {
+        pass_entry(j, h, c, delta, q, w, x);
+        pass_entry(j + 1, h, c, delta, q, w, x);
+        /* column j + 1 is column j's rows, then row j (assemble()) */
+        if (cp[j + 2] - cp[j + 1] == cp[j + 1] - cp[j] + 1 && ri[cp[j + 2] - 2] == j) {
+            pass_node(m, j, q, w, x, y, &s);
+        } else {
+            pass_column(m, j, q, w, x, y, &s);
+            pass_column(m, j + 1, q, w, x, y, &s);
         }
-        y[j] = 0.0 + (-1.0 * acc + kx[end] * bx);
-        offm += am * w[j];
-        diagm += mx[end] * w[j] * w[j];
-        offk += ak * q[j];
-        diagk += kx[end] * q[j] * q[j];
     }
-    *qm = diagm + 2.0 * offm;
-    *qk = diagk + 2.0 * offk;
+    for (; j < m->ne; j++) {
+        pass_entry(j, h, c, delta, q, w, x);
+        pass_column(m, j, q, w, x, y, &s);
+    }
+    *qm = s.diagm + 2.0 * s.offm;
+    *qk = s.diagk + 2.0 * s.offk;
 }
 
 gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M)
