@@ -72,7 +72,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
 Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
-          "dynamic_factor", "balance_rel", "seconds", "cpu_seconds"]
+          "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
+          "contact_work_rel"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
 
 
@@ -125,24 +126,37 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
     rpm = f * 60.0 / Z_DRIVER
-    exe = os.path.join(build, "src", "tools", "gearsim-sweep")
     import resource
     import time
     t0 = time.time()
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
-                        "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
-                       capture_output=True, text=True)
+    # The contact model's points go through tests/bench/freq_point (the
+    # sweep's point and meter, so the same row) when it is built: it also
+    # counts the steps without contact and the closure's losses.
+    point = os.path.join(build, "tests", "bench", "freq_point")
+    if model == "contact" and os.path.exists(point):
+        r = subprocess.run(["nice", point, path, "--rpm", repr(rpm), "--settle", repr(settle), "--measure",
+                            repr(measure), "--h", repr(h)], capture_output=True, text=True)
+        row = json.loads(r.stdout) if r.returncode == 0 else {}
+    else:
+        exe = os.path.join(build, "src", "tools", "gearsim-sweep")
+        r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
+                            "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
+                           capture_output=True, text=True)
+        row = list(csv.DictReader(r.stdout.splitlines()))[0] if r.returncode == 0 else {}
     c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         sys.exit("freq_response: %s at %.1f Hz failed: %s" % (model, f, r.stderr.strip()))
-    rows = list(csv.DictReader(r.stdout.splitlines()))
-    row = rows[0]
-    return {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
-            "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
-            "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
-            "seconds": time.time() - t0,
-            "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
+    out = {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
+           "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
+           "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
+           "seconds": time.time() - t0,
+           "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
+    if "separated_fraction" in row:
+        out["separated_fraction"] = row["separated_fraction"]
+        out["low_force_fraction"] = row["low_force_fraction"]
+        out["contact_work_rel"] = row["contact_work_j"] / row["work_in_j"] if row["work_in_j"] else float("nan")
+    return out
 
 
 def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20, push_only=False):
@@ -331,15 +345,15 @@ def main():
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
-                new = not os.path.exists(cachefile)
-                with open(cachefile, "a", newline="") as fh:
+                with open(cachefile + ".new", "w", newline="") as fh:  # whole file: older caches lack columns
                     w = csv.DictWriter(fh, fieldnames=FIELDS)
-                    if new:
-                        w.writeheader()
-                    w.writerow(r)
-                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s (%.1f s CPU)" %
+                    w.writeheader()
+                    w.writerows(cache)
+                os.replace(cachefile + ".new", cachefile)
+                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s (%.1f s CPU)%s" %
                       (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"],
-                       r["cpu_seconds"]),
+                       r["cpu_seconds"], "  no contact %.1f %% of steps" % (100 * r["separated_fraction"])
+                       if "separated_fraction" in r else ""),
                       flush=True)
     found = {}
     for m in MODELS:
@@ -361,9 +375,19 @@ def main():
         fl, yl = linear_peak(mode, a.damping, a.torque or 20.0)
         print("| FE eigenproblem's damped time-varying mesh (linear_parametric) | %.1f | %.3f | %+.2f %% | %+.2f %% | "
               "%+.2f %% |" % (fl, yl, 100 * (fl / f0 - 1), 100 * (fl / fc - 1), 100 * (fl / fm - 1)))
+        fpo, ypo = linear_peak(mode, a.damping, a.torque or 20.0, lo=0.75, push_only=True)
+        print("| the same with a spring that only pushes (push_only: the flanks part) | %.1f | %.3f | %+.2f %% | "
+              "%+.2f %% | %+.2f %% |" % (fpo, ypo, 100 * (fpo / f0 - 1), 100 * (fpo / fc - 1), 100 * (fpo / fm - 1)))
         for m, lst in found.items():
             if lst:
                 print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
+    sep = [r for r in cache if r["model"] == "contact" and r.get("separated_fraction") == r.get("separated_fraction")]
+    if found.get("contact") and sep:
+        near = min(sep, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0]))
+        print("contact: steps without contact %.1f %% at the point nearest its peak (%.1f Hz), %.1f - %.1f %% over "
+              "the points" % (100 * near["separated_fraction"], near["mesh_hz"],
+                              100 * min(r["separated_fraction"] for r in sep),
+                              100 * max(r["separated_fraction"] for r in sep)))
     if a.peaks_json:
         json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"), "linear_parametric_hz": fl,
                    "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
@@ -393,6 +417,9 @@ def main():
             rel = [lo + (hi - lo) * k / 119 for k in range(120)]
             ax[0].plot([r * f0 for r in rel], linear_parametric(mode, a.damping, a.torque or 20.0, rel) * 1e6, "m--",
                        lw=1, label="FE modes, linear time-varying")
+            ax[0].plot([r * f0 for r in rel], linear_parametric(mode, a.damping, a.torque or 20.0, rel,
+                                                                push_only=True) * 1e6, "m:",
+                       lw=1, label="the same, flanks free to part")
         ax[0].set_yscale("log")
         ax[1].set_yscale("log")
         fl = mode.get("lumped_mean_hz")
