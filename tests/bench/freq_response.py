@@ -274,6 +274,46 @@ def peaks(pts):
     return sorted(out, key=lambda p: -p[1])
 
 
+def compare_plot(specs, out):
+    """The contact model's DTE rms and steps without contact against the
+    mesh frequency relative to each run's FE mode, one curve per work
+    directory (spec DIR:DAMPING:TORQUE:LABEL), with the FE eigenproblem's
+    time-varying mesh with a spring that only pushes (dotted) for each."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for k, spec in enumerate(specs):
+        d, zeta, torque, label = spec.split(":", 3)
+        mode = json.load(open(os.path.join(d, "fe_mode.json")))
+        f0 = mode["mean_hz"]
+        pts = sorted((r for r in load_cache(os.path.join(d, "points.csv")) if r["model"] == "contact"),
+                     key=lambda r: r["mesh_hz"])
+        col = "C%d" % k
+        x = [r["mesh_hz"] / f0 for r in pts]
+        ax[0].plot(x, [r["dte_rms_um"] for r in pts], "-o", color=col, ms=4, label="contact, " + label)
+        sep = [(r["mesh_hz"] / f0, 100 * r["separated_fraction"]) for r in pts
+               if r["separated_fraction"] == r["separated_fraction"]]
+        if sep:
+            ax[1].plot([p[0] for p in sep], [p[1] for p in sep], "-o", color=col, ms=4, label=label)
+        rel = [0.75 + 0.35 * i / 140 for i in range(141)]
+        ax[0].plot(rel, linear_parametric(mode, float(zeta), float(torque), rel, push_only=True) * 1e6, ":",
+                   color=col, lw=1)
+    for k in range(2):
+        ax[k].axvline(1.0, color="m", ls="--", lw=1)
+        ax[k].axvspan(0.97, 1.03, color="m", alpha=0.08)
+        ax[k].grid(alpha=0.3)
+    ax[0].set_ylabel("DTE rms (um)")
+    ax[1].set_ylabel("steps without contact (%)")
+    ax[1].set_xlabel("mesh frequency / FE mesh mode (the band: +-3 %)")
+    ax[0].legend(fontsize=8)
+    ax[0].set_title("contact_drive, order 2, closure: damping and contact loss\n"
+                    "(dotted: the FE modes' time-varying mesh, flanks free to part)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    print("plot:", out)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
@@ -303,7 +343,13 @@ def main():
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
+    ap.add_argument("--compare", default=None,
+                    help="only plot the contact curves of several work directories, DIR:DAMPING:TORQUE:LABEL;...")
+    ap.add_argument("--compare-plot", default="freq_response_damping.png")
     a = ap.parse_args()
+    if a.compare:
+        compare_plot(a.compare.split(";"), a.compare_plot)
+        return
     if a.quick:
         quick = {"order": 1, "torque": 80.0, "damping": 0.12, "contact": "closure", "grid": 7, "grid_from": 0.7,
                  "grid_to": 1.3, "dense": 0, "positions": 4, "settle": 2e-3, "min_measure": 1.2e-3,
