@@ -427,9 +427,17 @@ def main():
         for m, lst in found.items():
             if lst:
                 print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
-    sep = [r for r in cache if r["model"] == "contact" and r.get("separated_fraction") == r.get("separated_fraction")]
-    if found.get("contact") and sep:
-        near = min(sep, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0]))
+    for m in MODELS:  # with contact loss the curve jumps: the largest point and its lower neighbour bracket it
+        pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
+        if pts:
+            i = max(range(len(pts)), key=lambda i: pts[i]["dte_rms_um"])
+            print("%s: largest DTE rms measured %.3f um at %.1f Hz (%+.2f %%), the point below at %s Hz" %
+                  (m, pts[i]["dte_rms_um"], pts[i]["mesh_hz"], 100 * (pts[i]["mesh_hz"] / f0 - 1),
+                   "%.1f" % pts[i - 1]["mesh_hz"] if i > 0 else "-"))
+    con = [r for r in cache if r["model"] == "contact"]
+    sep = [r for r in con if r.get("separated_fraction") == r.get("separated_fraction")]
+    near = min(con, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0])) if found.get("contact") else None
+    if near and near in sep:
         print("contact: steps without contact %.1f %% at the point nearest its peak (%.1f Hz), %.1f - %.1f %% over "
               "the points" % (100 * near["separated_fraction"], near["mesh_hz"],
                               100 * min(r["separated_fraction"] for r in sep),
