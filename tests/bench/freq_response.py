@@ -302,6 +302,7 @@ def compare_plot(specs, out):
     for k in range(2):
         ax[k].axvline(1.0, color="m", ls="--", lw=1)
         ax[k].axvspan(0.97, 1.03, color="m", alpha=0.08)
+        ax[k].set_xlim(0.75, 1.2)
         ax[k].grid(alpha=0.3)
     ax[0].set_ylabel("DTE rms (um)")
     ax[1].set_ylabel("steps without contact (%)")
