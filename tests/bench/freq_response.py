@@ -58,6 +58,18 @@ of their own): --order 2 --torque 80 --damping 0.12 --settle 0.002
 1.0 --dense 0 --extra-rel 0.8,0.86,0.9,0.94,0.955,0.97,0.985,1.03,1.06,1.1,1.14,1.2;
 the same with --models modal on 0.86-1.06; the lumped models with the
 default grid and those points.
+
+The damping study (docs/MODAL.md "Damping and contact loss"): the same
+with --damping 0.08 / 0.05 (and --torque 200), --grid 1 --grid-from 0.97
+--extra-rel 0.86,...,1.06, one --work directory each; then
+--compare "DIR:DAMPING:TORQUE:LABEL;..." --compare-plot
+docs/img/freq_response_damping.png draws their contact curves and steps
+without contact against the mesh frequency over each run's FE mode. When
+tests/bench/freq_point is built the contact points run through it (the
+sweep's point and meter, the same row) and points.csv also gets
+separated_fraction (steps without an active contact row),
+low_force_fraction and contact_work_rel (the closure's losses over the
+driver's work).
 """
 import argparse
 import csv
