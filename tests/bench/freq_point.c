@@ -18,7 +18,9 @@
  *
  * --csv writes t, DTE (deflection about nothing: s - s_ref, um), force (N)
  * and active rows per measured step, for a spectrum. Prints one JSON object.
- * Not a test: an order-2 point is 1000-2000 steps of the elastic pair. */
+ * freq_response.py runs its contact points through this tool when it is
+ * built (the same row, plus these fractions in points.csv). Not a test: an
+ * order-2 point is 1000-2000 steps of the elastic pair. */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>

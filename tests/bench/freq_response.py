@@ -58,6 +58,18 @@ of their own): --order 2 --torque 80 --damping 0.12 --settle 0.002
 1.0 --dense 0 --extra-rel 0.8,0.86,0.9,0.94,0.955,0.97,0.985,1.03,1.06,1.1,1.14,1.2;
 the same with --models modal on 0.86-1.06; the lumped models with the
 default grid and those points.
+
+The damping study (docs/MODAL.md "Damping and contact loss"): the same
+with --damping 0.08 / 0.05 (and --torque 200), --grid 1 --grid-from 0.97
+--extra-rel 0.86,...,1.06, one --work directory each; then
+--compare "DIR:DAMPING:TORQUE:LABEL;..." --compare-plot
+docs/img/freq_response_damping.png draws their contact curves and steps
+without contact against the mesh frequency over each run's FE mode. When
+tests/bench/freq_point is built the contact points run through it (the
+sweep's point and meter, the same row) and points.csv also gets
+separated_fraction (steps without an active contact row),
+low_force_fraction and contact_work_rel (the closure's losses over the
+driver's work).
 """
 import argparse
 import csv
@@ -72,7 +84,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
 Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
-          "dynamic_factor", "balance_rel", "seconds", "cpu_seconds"]
+          "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
+          "contact_work_rel"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
 
 
@@ -125,24 +138,37 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
     rpm = f * 60.0 / Z_DRIVER
-    exe = os.path.join(build, "src", "tools", "gearsim-sweep")
     import resource
     import time
     t0 = time.time()
     c0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
-                        "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
-                       capture_output=True, text=True)
+    # The contact model's points go through tests/bench/freq_point (the
+    # sweep's point and meter, so the same row) when it is built: it also
+    # counts the steps without contact and the closure's losses.
+    point = os.path.join(build, "tests", "bench", "freq_point")
+    if model == "contact" and os.path.exists(point):
+        r = subprocess.run(["nice", point, path, "--rpm", repr(rpm), "--settle", repr(settle), "--measure",
+                            repr(measure), "--h", repr(h)], capture_output=True, text=True)
+        row = json.loads(r.stdout) if r.returncode == 0 else {}
+    else:
+        exe = os.path.join(build, "src", "tools", "gearsim-sweep")
+        r = subprocess.run(["nice", exe, path, "--from", repr(rpm), "--to", repr(rpm), "--points", "1",
+                            "--settle", repr(settle), "--measure", repr(measure), "--time-step", repr(h)],
+                           capture_output=True, text=True)
+        row = list(csv.DictReader(r.stdout.splitlines()))[0] if r.returncode == 0 else {}
     c1 = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode != 0:
         sys.exit("freq_response: %s at %.1f Hz failed: %s" % (model, f, r.stderr.strip()))
-    rows = list(csv.DictReader(r.stdout.splitlines()))
-    row = rows[0]
-    return {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
-            "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
-            "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
-            "seconds": time.time() - t0,
-            "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
+    out = {"model": model, "mesh_hz_target": f, "driver_rpm": rpm, "time_step": h, "settle": settle,
+           "measure": measure, "mesh_hz": float(row["mesh_hz"]), "dte_rms_um": float(row["dte_rms_um"]),
+           "dynamic_factor": float(row["dynamic_factor"]), "balance_rel": float(row["balance_rel"]),
+           "seconds": time.time() - t0,
+           "cpu_seconds": (c1.ru_utime + c1.ru_stime) - (c0.ru_utime + c0.ru_stime)}
+    if "separated_fraction" in row:
+        out["separated_fraction"] = row["separated_fraction"]
+        out["low_force_fraction"] = row["low_force_fraction"]
+        out["contact_work_rel"] = row["contact_work_j"] / row["work_in_j"] if row["work_in_j"] else float("nan")
+    return out
 
 
 def linear_parametric(mode, zeta, torque, rel, steps=240, cycles=60, measure=20, push_only=False):
@@ -260,6 +286,47 @@ def peaks(pts):
     return sorted(out, key=lambda p: -p[1])
 
 
+def compare_plot(specs, out):
+    """The contact model's DTE rms and steps without contact against the
+    mesh frequency relative to each run's FE mode, one curve per work
+    directory (spec DIR:DAMPING:TORQUE:LABEL), with the FE eigenproblem's
+    time-varying mesh with a spring that only pushes (dotted) for each."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for k, spec in enumerate(specs):
+        d, zeta, torque, label = spec.split(":", 3)
+        mode = json.load(open(os.path.join(d, "fe_mode.json")))
+        f0 = mode["mean_hz"]
+        pts = sorted((r for r in load_cache(os.path.join(d, "points.csv")) if r["model"] == "contact"),
+                     key=lambda r: r["mesh_hz"])
+        col = "C%d" % k
+        x = [r["mesh_hz"] / f0 for r in pts]
+        ax[0].plot(x, [r["dte_rms_um"] for r in pts], "-o", color=col, ms=4, label="contact, " + label)
+        sep = [(r["mesh_hz"] / f0, 100 * r["separated_fraction"]) for r in pts
+               if r["separated_fraction"] == r["separated_fraction"]]
+        if sep:
+            ax[1].plot([p[0] for p in sep], [p[1] for p in sep], "-o", color=col, ms=4, label=label)
+        rel = [0.75 + 0.35 * i / 140 for i in range(141)]
+        ax[0].plot(rel, linear_parametric(mode, float(zeta), float(torque), rel, push_only=True) * 1e6, ":",
+                   color=col, lw=1)
+    for k in range(2):
+        ax[k].axvline(1.0, color="m", ls="--", lw=1)
+        ax[k].axvspan(0.97, 1.03, color="m", alpha=0.08)
+        ax[k].set_xlim(0.75, 1.2)
+        ax[k].grid(alpha=0.3)
+    ax[0].set_ylabel("DTE rms (um)")
+    ax[1].set_ylabel("steps without contact (%)")
+    ax[1].set_xlabel("mesh frequency / FE mesh mode (the band: +-3 %)")
+    ax[0].legend(fontsize=8)
+    ax[0].set_title("contact_drive, order 2, closure: damping and contact loss\n"
+                    "(dotted: the FE modes' time-varying mesh, flanks free to part)")
+    fig.tight_layout()
+    fig.savefig(out, dpi=110)
+    print("plot:", out)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--build", default=os.path.join(ROOT, "build"))
@@ -289,7 +356,13 @@ def main():
     ap.add_argument("--plot", default=None)
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
+    ap.add_argument("--compare", default=None,
+                    help="only plot the contact curves of several work directories, DIR:DAMPING:TORQUE:LABEL;...")
+    ap.add_argument("--compare-plot", default="freq_response_damping.png")
     a = ap.parse_args()
+    if a.compare:
+        compare_plot(a.compare.split(";"), a.compare_plot)
+        return
     if a.quick:
         quick = {"order": 1, "torque": 80.0, "damping": 0.12, "contact": "closure", "grid": 7, "grid_from": 0.7,
                  "grid_to": 1.3, "dense": 0, "positions": 4, "settle": 2e-3, "min_measure": 1.2e-3,
@@ -331,15 +404,15 @@ def main():
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
-                new = not os.path.exists(cachefile)
-                with open(cachefile, "a", newline="") as fh:
+                with open(cachefile + ".new", "w", newline="") as fh:  # whole file: older caches lack columns
                     w = csv.DictWriter(fh, fieldnames=FIELDS)
-                    if new:
-                        w.writeheader()
-                    w.writerow(r)
-                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s (%.1f s CPU)" %
+                    w.writeheader()
+                    w.writerows(cache)
+                os.replace(cachefile + ".new", cachefile)
+                print("%-10s %8.1f Hz  DTE rms %7.3f um  DF %6.3f  balance %.1e  %.0f s (%.1f s CPU)%s" %
                       (m, r["mesh_hz"], r["dte_rms_um"], r["dynamic_factor"], r["balance_rel"], r["seconds"],
-                       r["cpu_seconds"]),
+                       r["cpu_seconds"], "  no contact %.1f %% of steps" % (100 * r["separated_fraction"])
+                       if "separated_fraction" in r else ""),
                       flush=True)
     found = {}
     for m in MODELS:
@@ -361,9 +434,27 @@ def main():
         fl, yl = linear_peak(mode, a.damping, a.torque or 20.0)
         print("| FE eigenproblem's damped time-varying mesh (linear_parametric) | %.1f | %.3f | %+.2f %% | %+.2f %% | "
               "%+.2f %% |" % (fl, yl, 100 * (fl / f0 - 1), 100 * (fl / fc - 1), 100 * (fl / fm - 1)))
+        fpo, ypo = linear_peak(mode, a.damping, a.torque or 20.0, lo=0.75, push_only=True)
+        print("| the same with a spring that only pushes (push_only: the flanks part) | %.1f | %.3f | %+.2f %% | "
+              "%+.2f %% | %+.2f %% |" % (fpo, ypo, 100 * (fpo / f0 - 1), 100 * (fpo / fc - 1), 100 * (fpo / fm - 1)))
         for m, lst in found.items():
             if lst:
                 print("%s peak against it: %+.2f %%" % (m, 100 * (lst[0][0] / fl - 1)))
+    for m in MODELS:  # with contact loss the curve jumps: the largest point and its lower neighbour bracket it
+        pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
+        if pts:
+            i = max(range(len(pts)), key=lambda i: pts[i]["dte_rms_um"])
+            print("%s: largest DTE rms measured %.3f um at %.1f Hz (%+.2f %%), the point below at %s Hz" %
+                  (m, pts[i]["dte_rms_um"], pts[i]["mesh_hz"], 100 * (pts[i]["mesh_hz"] / f0 - 1),
+                   "%.1f" % pts[i - 1]["mesh_hz"] if i > 0 else "-"))
+    con = [r for r in cache if r["model"] == "contact"]
+    sep = [r for r in con if r.get("separated_fraction") == r.get("separated_fraction")]
+    near = min(con, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0])) if found.get("contact") else None
+    if near and near in sep:
+        print("contact: steps without contact %.1f %% at the point nearest its peak (%.1f Hz), %.1f - %.1f %% over "
+              "the points" % (100 * near["separated_fraction"], near["mesh_hz"],
+                              100 * min(r["separated_fraction"] for r in sep),
+                              100 * max(r["separated_fraction"] for r in sep)))
     if a.peaks_json:
         json.dump({"fe_mode_hz": f0, "lumped_mean_hz": mode.get("lumped_mean_hz"), "linear_parametric_hz": fl,
                    "peaks": {m: [{"hz": fp, "dte_rms_um": yp} for fp, yp in lst] for m, lst in found.items()}},
@@ -393,6 +484,9 @@ def main():
             rel = [lo + (hi - lo) * k / 119 for k in range(120)]
             ax[0].plot([r * f0 for r in rel], linear_parametric(mode, a.damping, a.torque or 20.0, rel) * 1e6, "m--",
                        lw=1, label="FE modes, linear time-varying")
+            ax[0].plot([r * f0 for r in rel], linear_parametric(mode, a.damping, a.torque or 20.0, rel,
+                                                                push_only=True) * 1e6, "m:",
+                       lw=1, label="the same, flanks free to part")
         ax[0].set_yscale("log")
         ax[1].set_yscale("log")
         fl = mode.get("lumped_mean_hz")

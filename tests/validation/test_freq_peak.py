@@ -20,7 +20,10 @@ GEARSIM_LONG=1 runs the default order-2 mesh instead (about 16 CPU minutes;
 docs/MODAL.md "The frequency response on the default order-2 mesh"): the
 contact model at 11 points from 0.8 to 1.2 times the FE mode (12 roll
 positions) and the modal-calibrated lumped mesh (the same eigenproblem's
-modes per position) at 8, 80 N m, 12 %. Checks there:
+modes per position) at 8, 80 N m, 12 % (the condition of docs/MODAL.md
+"Damping and contact loss": at 8 % and 5 % the flanks part near resonance
+and the peak falls 5-12 % below the mode). Checks there:
+  - the contact peak within 3 % of the FE mode (the issue's bar, as above);
   - the contact peak within 3 % of the resonance the FE eigenproblem gives
     the damped, time-varying mesh (linear_parametric in freq_response.py:
     the eigenproblem's per-position modes as a stiffness over the mesh
@@ -83,9 +86,12 @@ pk = res["peaks"].get("contact", [])
 if R.check("the contact model's DTE rms has a peak", len(pk) >= 1, pk):
     fp = pk[0]["hz"]
     R.note("contact peak %.1f Hz, FE mode %.1f Hz: %+.2f %% (bar %.0f %%)" % (fp, f0, 100 * (fp / f0 - 1), 100 * BAR))
-    if not LONG:
-        R.check("peak within %.0f %% of the FE mode" % (100 * BAR), abs(fp / f0 - 1) <= BAR, (fp, f0))
-    else:
+    # The bar, against the mean undamped mode itself (in the long
+    # mode, 80 N m and 12 %, it holds with 0.07 % to spare: docs/MODAL.md
+    # "Damping and contact loss"; at 8 % and 5 % the flanks part and it fails).
+    R.check("peak within %.0f %% of the FE mode (%+.2f %%)" % (100 * BAR, 100 * (fp / f0 - 1)),
+            abs(fp / f0 - 1) <= BAR, (fp, f0))
+    if LONG:
         mode = json.load(open(os.path.join(work, "fe_mode.json")))
         # The prediction's solver against the closed form of a weakly varying
         # stiffness (the excitation then a force at the mesh frequency).
