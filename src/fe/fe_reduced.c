@@ -19,16 +19,19 @@
  *
  * G_ir the inertia-relief flexibility (K u = f_e - s f_t / I, theta =
  * -s^T u / I; K^{-1} for a held body), and Y a force-like state over the
- * dofs that ever carried force, stepped by the same midpoint rule
+ * dofs that ever carried force, stepped by the rule (gs_fe_reduced_opts
+ * residual_static: g = 1, else the midpoint rule g = 1/2)
  *
- *     (Y_n + Y_{n+1}) / 2 + (beta / h) (Y_{n+1} - Y_n) = F_step,
+ *     (1 - g) Y_n + g Y_{n+1} + (beta / h) (Y_{n+1} - Y_n) = F_step,
  *
- * so dz = G_res (F_step - Y_n) / d, d = 1/2 + beta/h: free increment
+ * so dz = G_res (F_step - Y_n) / d, d = g + beta/h: free increment
  * -G_res Y_n / d, compliance G_res / d. The potential 1/2 Y^T G_res Y and
- * the dissipation (beta/h) dY^T G_res dY make the energy balance exact as
- * in the full scheme. Y on a node no longer loaded decays by
- * r = (beta/h - 1/2) / (beta/h + 1/2) per step and is dropped below 1e-15
- * of the largest entry; undamped (r = -1) it alternates and stays.
+ * the dissipation (g - 1/2 + beta/h) dY^T G_res dY make the energy balance
+ * exact (the g - 1/2 part is the static rule's loss, booked with the
+ * material damping). Y on a node no longer loaded decays by
+ * r = (beta/h + g - 1) / (beta/h + g) per step and is dropped below 1e-15
+ * of the largest entry; midpoint and undamped (r = -1) it alternates and
+ * stays, static and undamped (r = 0) it follows F_step.
  *
  * A state given by set_state (nodal fields) is projected: q = Phi^T M_f x,
  * v = Phi^T M_f x'; the rest of x, z0 = x - Phi q, is a residual
