@@ -949,17 +949,20 @@ gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double
         gs_index r = b->fl[a];
         b->Rf[r] = (b->Fa[r] - b->Y[r]) / b->dr;
     }
-    /* modal free increments */
+    /* modal free increments: g = Phi_rows^T Fa row by row (each row's modes
+     * contiguous; the same order of sums per mode), then the scheme */
     double hb = 0.5 * h + b->beta;
-    for (int i = 0; i < b->N; i++) {
-        double g = 0;
-        for (gs_index a = 0; a < b->nfl; a++) {
-            gs_index r = b->fl[a];
-            if (b->Fa[r] != 0.0)
-                g += b->PR[(size_t)r * (size_t)b->N + (size_t)i] * b->Fa[r];
-        }
-        b->dqm[i] = h * b->vm[i] + (g - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    memset(b->dqm, 0, (size_t)b->N * sizeof *b->dqm);
+    for (gs_index a = 0; a < b->nfl; a++) {
+        gs_index r = b->fl[a];
+        if (b->Fa[r] == 0.0)
+            continue;
+        const double *p = b->PR + (size_t)r * (size_t)b->N;
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] += p[i] * b->Fa[r];
     }
+    for (int i = 0; i < b->N; i++)
+        b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
     b->in_step = true;
     return GS_OK;
 }
