@@ -379,10 +379,16 @@ void gs_fe_reduced_spin(gs_fe_reduced *b, double dw);
  * costs one solve with the factor of K when a residual state is present. */
 gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes);
 void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *out);
-/* Snapshot: modal q, v, the residual force state on the rows, the residual
- * amplitude of the last set_state: 2 (ne + 1) + rows + 2 values, a size that
- * does not depend on the modes (every rank knows it from the mesh; N <= ne
- * + 1). Loading a snapshot of another basis (N differs): GS_EINVAL. */
+/* Snapshot: modal q, v, the residual force state on the rows and the order
+ * of its support, the amplitude of the residual displacement of the last
+ * set_state, the energy books (energy0, work, dissipation, damping, the
+ * static rule's loss) and the step count: a body loaded from it steps on
+ * bit for bit as the saved one would have (docs/FE.md "Reduced elastic
+ * body"). Its size does not depend on the modes (every rank knows it from
+ * the mesh: gs_fe_reduced_state_size_for(ne, candidate nodes); N <= ne + 1).
+ * Loading a snapshot of another basis (N differs), a damaged support, or a
+ * residual displacement into a body whose set_state left none: GS_EINVAL. */
+size_t gs_fe_reduced_state_size_for(gs_index ne, gs_index n_candidates);
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b);
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x);
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x);

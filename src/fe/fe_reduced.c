@@ -523,14 +523,19 @@ static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
     return e;
 }
 
-/* Node k's columns and those of the next missing candidates along the
- * boundary (BATCH_NODES in one multi-column solve: the contact moves along
- * a flank, and a solve of 16 columns costs far less than 8 of 2). */
+/* Node k's columns and those of its group of BATCH_NODES consecutive
+ * candidates along the boundary in one multi-column solve (the contact
+ * moves along a flank, and a solve of 16 columns costs far less than 8 of
+ * 2). */
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
 {
     gs_index nr = b->nr, n = b->n, batch[BATCH_NODES];
     int cnt = 0;
-    for (gs_index j = k; j < b->ncand && cnt < BATCH_NODES; j++)
+    /* the group of BATCH_NODES candidates k belongs to, always computed
+     * whole: a column's bits do not depend on which nodes were needed
+     * first (a run resumed from a checkpoint computes the same columns) */
+    gs_index g0 = k - k % BATCH_NODES;
+    for (gs_index j = g0; j < b->ncand && j < g0 + BATCH_NODES; j++)
         if (!b->col[j])
             batch[cnt++] = j;
     double *c = gs_calloc((size_t)(2 * nr) * (size_t)cnt, sizeof *c);
@@ -1373,21 +1378,43 @@ gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
 
 /* Snapshot layout (the same size on every rank of a scene: it does not
  * depend on the modes): N, q (N), v (N), zeros up to 2 (ne + 1) + 1, then
- * Y (nr), the residual amplitude. */
+ * Y (nr, by row), the residual amplitude, the support's size and its rows
+ * in their order (nr slots; the sums over the support run in that order),
+ * then the body's books: energy0, work_in, work_iface, dissipated, damped,
+ * residual_loss and the step count (a resumed run books on from them). */
+#define SNAP_BOOKS 7
+
+size_t gs_fe_reduced_state_size_for(gs_index ne, gs_index n_candidates)
+{
+    size_t nr = 1 + 2 * (size_t)n_candidates;
+    return 2 * ((size_t)ne + 1) + 2 * nr + 3 + SNAP_BOOKS;
+}
+
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b)
 {
-    return 2 * (size_t)b->n + (size_t)b->nr + 2;
+    return gs_fe_reduced_state_size_for(b->ne, b->ncand);
 }
 
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x)
 {
-    size_t off = 2 * (size_t)b->n + 1;
+    size_t off = 2 * (size_t)b->n + 1, nr = (size_t)b->nr;
     memset(x, 0, gs_fe_reduced_state_size(b) * sizeof *x);
     x[0] = (double)b->N;
     memcpy(x + 1, b->qm, (size_t)b->N * sizeof *x);
     memcpy(x + 1 + b->N, b->vm, (size_t)b->N * sizeof *x);
-    memcpy(x + off, b->Y, (size_t)b->nr * sizeof *x);
-    x[off + (size_t)b->nr] = b->az;
+    memcpy(x + off, b->Y, nr * sizeof *x);
+    x[off + nr] = b->az;
+    x[off + nr + 1] = (double)b->nys;
+    for (gs_index a = 0; a < b->nys; a++)
+        x[off + nr + 2 + (size_t)a] = (double)b->ysup[a];
+    double *bk = x + off + 2 * nr + 2;
+    bk[0] = b->energy0;
+    bk[1] = b->work_in;
+    bk[2] = b->work_iface;
+    bk[3] = b->dissipated;
+    bk[4] = b->damped;
+    bk[5] = b->residual_loss;
+    bk[6] = (double)b->steps;
 }
 
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
@@ -1396,25 +1423,53 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
         return GS_EINVAL;
     if (x[0] != (double)b->N)
         return GS_EINVAL; /* another basis */
-    size_t off = 2 * (size_t)b->n + 1;
+    size_t off = 2 * (size_t)b->n + 1, nr = (size_t)b->nr;
+    double nys = x[off + nr + 1];
+    if (!(nys >= 0 && nys <= (double)nr))
+        return GS_EINVAL;
+    /* the support: rows in range, each once, Y nonzero exactly there */
+    gs_index ns = (gs_index)nys;
+    unsigned char *seen = gs_calloc(nr, 1);
+    if (!seen)
+        return GS_ENOMEM;
+    gs_err e = GS_OK;
+    for (gs_index a = 0; a < ns && e == GS_OK; a++) {
+        double rv = x[off + nr + 2 + (size_t)a];
+        if (!(rv >= 0 && rv < (double)nr) || rv != floor(rv) || seen[(size_t)rv] || x[off + (size_t)rv] == 0.0)
+            e = GS_EINVAL;
+        else
+            seen[(size_t)rv] = 1;
+    }
+    for (size_t r = 0; r < nr && e == GS_OK; r++)
+        if (x[off + r] != 0.0 && !seen[r])
+            e = GS_EINVAL;
+    free(seen);
+    if (e != GS_OK)
+        return e;
     gs_fe_reduced_cancel_step(b);
     y_clear(b);
     memcpy(b->qm, x + 1, (size_t)b->N * sizeof *x);
     memcpy(b->vm, x + 1 + b->N, (size_t)b->N * sizeof *x);
-    for (gs_index r = 0; r < b->nr; r++) {
-        double y = x[off + (size_t)r];
-        if (y != 0.0) {
-            GS_TRY(ensure_row(b, r));
-            b->Y[r] = y;
-            b->yin[r] = 1;
-            b->ysup[b->nys++] = r;
-        }
+    for (gs_index a = 0; a < ns; a++) {
+        gs_index r = (gs_index)x[off + nr + 2 + (size_t)a];
+        GS_TRY(ensure_row(b, r));
+        b->Y[r] = x[off + (size_t)r];
+        b->yin[r] = 1;
+        b->ysup[b->nys++] = r;
     }
-    double az = x[off + (size_t)b->nr];
-    b->az = b->z0 ? az : 0.0;
-    double T, V;
-    gs_fe_reduced_energy(b, &T, &V);
-    b->energy0 = T + V;
-    b->work_in = b->work_iface = b->dissipated = b->damped = b->residual_loss = 0;
+    /* the residual displacement z0 is that of the initial state (set_state
+     * at creation, the same in a new process for the same scene) */
+    double az = x[off + nr];
+    if (az != 0.0 && !b->z0)
+        return GS_EINVAL; /* a residual displacement this body was not given */
+    b->az = az;
+    const double *bk = x + off + 2 * nr + 2;
+    b->energy0 = bk[0];
+    b->work_in = bk[1];
+    b->work_iface = bk[2];
+    b->dissipated = bk[3];
+    b->damped = bk[4];
+    b->residual_loss = bk[5];
+    b->steps = bk[6] >= 0 ? (uint64_t)bk[6] : 0;
     return GS_OK;
 }

@@ -182,7 +182,7 @@ static double red_damped(const elastic *el) { return gs_fe_reduced_damped(el->re
 static double red_L(const elastic *el) { return gs_fe_reduced_angular_momentum(el->red); }
 static void red_spin(elastic *el, double dw) { gs_fe_reduced_spin(el->red, dw); }
 static void red_energy(const elastic *el, double *T, double *V) { gs_fe_reduced_energy(el->red, T, V); }
-/* Snapshot state: the reduced body's own (modal q, v, residual forces). */
+/* Snapshot state: the reduced body's own (modal q, v, residual forces, books). */
 static void red_save(const elastic *el, double *x) { gs_fe_reduced_save(el->red, x); }
 static gs_err red_load(elastic *el, const double *x) { return gs_fe_reduced_load(el->red, x); }
 static gs_err red_nodal(elastic *el, double *u) { return gs_fe_reduced_nodal(el->red, u, NULL); }
@@ -310,7 +310,7 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
                                sb->name, gs_strerror(e));
         }
         el->be = &backend_reduced;
-        if (gs_fe_reduced_state_size(el->red) != 2 * (size_t)(el->ne + 1) + (size_t)(2 * el->mesh->n_boundary + 3))
+        if (gs_fe_reduced_state_size(el->red) != gs_fe_reduced_state_size_for(el->ne, el->mesh->n_boundary))
             return gs_diag_set(d, GS_EINTERNAL, field, "'%s': the boundary loop repeats a node", sb->name);
     } else {
         GS_TRY(gs_fe_body_new(el->model, &el->body));
@@ -473,7 +473,7 @@ static size_t elastic_state_size(const gs_body_rt *b)
 {
     const elastic *el = b->model;
     /* the same on every rank: the reduced layout from the mesh's candidate rows */
-    return 2 * (size_t)(el->ne + 1) + (el->reduced ? (size_t)(2 * el->mesh->n_boundary + 3) : 0);
+    return el->reduced ? gs_fe_reduced_state_size_for(el->ne, el->mesh->n_boundary) : 2 * (size_t)(el->ne + 1);
 }
 
 static void elastic_save(const gs_body_rt *b, double *x)
