@@ -83,6 +83,7 @@ struct gs_fe_reduced {
     double fmax;
     double Itot;          /* inertia_total */
     double beta;
+    double alpha;         /* mass-proportional damping (material damping_m) */
 
     /* modes */
     int N;                /* kept modes (rigid one included for a free body) */
@@ -108,6 +109,12 @@ struct gs_fe_reduced {
     double gamma, dr;       /* residual rule: gamma 1/2 midpoint, 1 static; dr = gamma + beta/h */
     bool have_step, in_step;
     double *inv_a;        /* N */
+    /* alpha M on u' in the modes: alpha (E + t t^T), E = 1 on the elastic
+     * modes, t_i = sqrt(I) theta_i (free body; 0 held); the step's modal
+     * matrix diag(a) + (alpha/h)(E + t t^T) is inverted by Sherman-Morrison:
+     * H = diag(inv_a) - kap w w^T, w_i = t_i inv_a_i (kap 0: diagonal) */
+    double *tt, *ww;      /* N */
+    double kap;
 
     /* state */
     double *qm, *vm;      /* N */
@@ -148,6 +155,12 @@ struct gs_fe_reduced {
 };
 
 /* ---- small helpers ------------------------------------------------------ */
+
+/* Mode i carries elastic displacement u (not the free body's rigid rotation). */
+static inline bool is_elastic(const gs_fe_reduced *b, int i)
+{
+    return b->held || i > 0;
+}
 
 static double dotn(gs_index n, const double *a, const double *b)
 {
@@ -431,6 +444,7 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     cholmod_l_free_sparse(&b->K, &b->cc);
     cholmod_l_finish(&b->cc);
     free(b->Phi), free(b->om2), free(b->PR), free(b->cand_of), free(b->rowq), free(b->inv_a);
+    free(b->tt), free(b->ww);
     free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
     free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
@@ -601,8 +615,8 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
     *out = NULL;
     if (!m || !o || !(o->f_max_hz > 0) || o->eigensolver < 0 || o->eigensolver > 2 || o->n_nodes < 0 || (o->n_nodes > 0 && !o->nodes))
         return GS_EINVAL;
-    if (m->mat.damping_m != 0.0)
-        return GS_ERANGE; /* mass-proportional damping: not supported */
+    if (!(m->mat.damping_m >= 0.0) || !isfinite(m->mat.damping_m))
+        return GS_ERANGE;
     gs_fe_reduced *b = gs_calloc(1, sizeof *b);
     if (!b)
         return GS_ENOMEM;
@@ -614,6 +628,7 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
     b->fmax = o->f_max_hz;
     b->Itot = m->inertia_total;
     b->beta = m->mat.damping_s;
+    b->alpha = m->mat.damping_m;
     b->gamma = o->residual_static ? 1.0 : 0.5;
     gs_index nn = m->n_nodes;
     b->cand_of = gs_calloc((size_t)nn + 1, sizeof *b->cand_of);
@@ -684,8 +699,13 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
         b->qm = gs_calloc((size_t)(N ? N : 1), sizeof *b->qm);
         b->vm = gs_calloc((size_t)(N ? N : 1), sizeof *b->vm);
         b->dqm = gs_calloc((size_t)(N ? N : 1), sizeof *b->dqm);
-        if (!b->PR || !b->inv_a || !b->qm || !b->vm || !b->dqm)
+        b->tt = gs_calloc((size_t)(N ? N : 1), sizeof *b->tt);
+        b->ww = gs_calloc((size_t)(N ? N : 1), sizeof *b->ww);
+        if (!b->PR || !b->inv_a || !b->qm || !b->vm || !b->dqm || !b->tt || !b->ww)
             e = GS_ENOMEM;
+        /* the rotation of the free body's elastic modes (the rigid one, 0, has no u) */
+        for (int i = 1; e == GS_OK && !b->held && i < N; i++)
+            b->tt[i] = sqrt(b->Itot) * b->Phi[(size_t)i * (size_t)b->n + (size_t)b->ne];
     }
     if (e == GS_OK) {
         for (gs_index r = 0; r < b->nr; r++)
@@ -884,11 +904,24 @@ gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c)
     b->dr = b->gamma + b->beta / h;
     b->r = (b->beta / h + b->gamma - 1.0) / b->dr;
     for (int i = 0; i < b->N; i++)
-        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i]);
+        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i] + (b->alpha > 0 && is_elastic(b, i) ? b->alpha / h : 0.0));
+    b->kap = 0;
+    if (b->alpha > 0 && !b->held) {
+        double tw = 0;
+        for (int i = 0; i < b->N; i++) {
+            b->ww[i] = b->tt[i] * b->inv_a[i];
+            tw += b->tt[i] * b->ww[i];
+        }
+        b->kap = (b->alpha / h) / (1.0 + (b->alpha / h) * tw);
+    }
     /* the brake's Sherman-Morrison factor: y_theta = C_bar(theta, theta) */
     double yt = b->held ? 0.0 : b->tcol[0] / b->dr;
     for (int i = 0; i < b->N; i++)
         yt += b->PR[i] * b->PR[i] * b->inv_a[i];
+    if (b->kap != 0.0) {
+        double w0 = dotn(b->N, b->ww, b->PR);
+        yt -= b->kap * w0 * w0;
+    }
     b->kc = (b->held || brake_c == 0) ? 0.0 : (brake_c / h) / (1.0 + (brake_c / h) * yt);
     b->have_step = true;
     return GS_OK;
@@ -966,8 +999,20 @@ gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double
         for (int i = 0; i < b->N; i++)
             b->dqm[i] += p[i] * b->Fa[r];
     }
-    for (int i = 0; i < b->N; i++)
-        b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    if (b->alpha > 0) { /* - alpha (E + t t^T) v on the right-hand side, then H */
+        double tv = dotn(b->N, b->tt, b->vm);
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] -= b->alpha * ((is_elastic(b, i) ? b->vm[i] : 0.0) + b->tt[i] * tv);
+        double wr = 0;
+        for (int i = 0; i < b->N; i++)
+            wr += b->ww[i] * (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i]));
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i] -
+                        b->kap * b->ww[i] * wr;
+    } else {
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    }
     b->in_step = true;
     return GS_OK;
 }
@@ -1002,6 +1047,8 @@ static double ycol(const gs_fe_reduced *b, gs_index r)
     const double *p = b->PR + (size_t)r * (size_t)b->N;
     for (int i = 0; i < b->N; i++)
         v += p[i] * b->PR[i] * b->inv_a[i];
+    if (b->kap != 0.0)
+        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, b->PR);
     return v;
 }
 
@@ -1113,6 +1160,8 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                                  *q = b->PR + (size_t)rr[j] * (size_t)b->N;
                     for (int t = 0; t < b->N; t++)
                         v += p[t] * q[t] * b->inv_a[t];
+                    if (b->kap != 0.0)
+                        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, q);
                 }
             }
             G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
@@ -1175,6 +1224,11 @@ static void add_force(gs_fe_reduced *b, gs_index r, double f)
     const double *p = b->PR + (size_t)r * (size_t)b->N;
     for (int i = 0; i < b->N; i++)
         b->dqm[i] += p[i] * f * b->inv_a[i];
+    if (b->kap != 0.0) {
+        double c = b->kap * dotn(b->N, b->ww, p) * f;
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] -= c * b->ww[i];
+    }
     fl_add(b, r);
     b->Rf[r] += f / b->dr;
 }
@@ -1258,6 +1312,12 @@ gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
     /* the static rule's own loss (gamma - 1/2) dY^T G_res dY, booked */
     double rloss = (b->gamma - 0.5) * dres;
     dmp = b->beta / h * (dmp + dres);
+    if (b->alpha > 0) { /* dq^T alpha (E + t t^T) dq / h on the modes */
+        double me = 0, td = dotn(b->N, b->tt, b->dqm);
+        for (int i = 0; i < b->N; i++)
+            me += is_elastic(b, i) ? b->dqm[i] * b->dqm[i] : 0.0;
+        dmp += b->alpha / h * (me + td * td);
+    }
     /* the new state */
     for (int i = 0; i < b->N; i++) {
         b->qm[i] += b->dqm[i];

@@ -303,11 +303,9 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
                                   sb->reduce_static};
         e = gs_fe_reduced_new(el->model, &ro, &el->red);
         if (e != GS_OK) {
-            snprintf(field, sizeof field, "bodies[%d].%s", b->index,
-                     e == GS_ERANGE ? "material.damping_m" : "reduction.f_max_hz");
-            return gs_diag_set(d, e, field, e == GS_ERANGE ? "'%s': a reduced body takes no mass-proportional damping"
-                                                           : "'%s': the reduced body cannot be built (%s)",
-                               sb->name, gs_strerror(e));
+            snprintf(field, sizeof field, "bodies[%d].reduction.f_max_hz", b->index);
+            return gs_diag_set(d, e, field, "'%s': the reduced body cannot be built (%s)", sb->name,
+                               gs_strerror(e));
         }
         el->be = &backend_reduced;
         if (gs_fe_reduced_state_size(el->red) != gs_fe_reduced_state_size_for(el->ne, el->mesh->n_boundary))

@@ -10,9 +10,13 @@
  *                    two are different algorithms (a sparse step solve
  *                    against a modal sum), so this fails if any modal term
  *                    or the brake's rank-one update is wrong.
+ *   all_modes_rayleigh  the same with mass-proportional damping (damping_m):
+ *                    diagonal in a held body's modes, with a rank-one
+ *                    coupling through the rotation in a free body's.
  *   truncated_balance  few modes kept: the energy balance (kinetic +
  *                    elastic - work + dissipation) holds to round-off,
- *                    damped and undamped, with a set_state whose residual
+ *                    damped (stiffness- and mass-proportional) and
+ *                    undamped, with a set_state whose residual
  *                    part is not zero (it fails if the residual's potential
  *                    or dissipation is dropped).
  *   truncated_static   under a constant load with damping the reduced body
@@ -41,12 +45,16 @@ typedef struct fixture {
     gs_index nn;
 } fixture;
 
+/* Rayleigh alpha (damping_m) of the next make(): 0 unless a test sets it. */
+static double make_alpha;
+
 static void make(fixture *f, double beta)
 {
     memset(f, 0, sizeof *f);
     assert_int_equal(gsi_fe_mesh_annulus(0.02, 0.04, 3, 14, &f->mesh), GS_OK);
     gs_material mat = gs_material_steel();
     mat.damping_s = beta;
+    mat.damping_m = make_alpha;
     assert_int_equal(gs_fe_model_new(f->mesh, &mat, 0.01, 1e-4, &f->model), GS_OK);
     f->nn = f->mesh->n_nodes;
 }
@@ -181,7 +189,7 @@ static void run_compare(bool held, double beta, double brake)
     assert_true(et <= 1e-10 * fmax(se, 1.0));
     assert_true(fabs(b1.damped - b2.damped) <= 1e-9 * fmax(b1.damped, 1e-300) + 1e-18);
     assert_true(fabs(b1.dissipated - b2.dissipated) <= 1e-9 * fmax(b1.dissipated, 1e-300) + 1e-18);
-    if (beta > 0)
+    if (beta > 0 || make_alpha > 0)
         assert_true(b2.damped > 0);
     if (brake > 0 && !held)
         assert_true(b2.dissipated - b2.damped > 0);
@@ -213,6 +221,19 @@ static void all_modes_held_damped(void **state)
 {
     (void)state;
     run_compare(true, 2e-7, 0.0);
+}
+
+/* Mass-proportional damping (alpha M on u'): diagonal in a held body's
+ * modes, diagonal plus the rank-one coupling through the rotation in a free
+ * body's; every mode kept, the reduced body is the full one. */
+static void all_modes_rayleigh(void **state)
+{
+    (void)state;
+    make_alpha = 3000.0;
+    run_compare(false, 0.0, 0.0);
+    run_compare(false, 2e-7, 0.05);
+    run_compare(true, 2e-7, 0.0);
+    make_alpha = 0.0;
 }
 
 /* Truncated: energy balance at round-off. */
@@ -247,6 +268,7 @@ static void run_balance(double beta, double brake, bool held, bool stat)
         gs_fe_balance b;
         gs_fe_reduced_get_balance(red, &b);
         scale = fmax(scale, fmax(fabs(b.kinetic) + fabs(b.elastic), fabs(b.work_in) + fabs(b.work_iface)));
+        scale = fmax(scale, fabs(b.dissipated)); /* every term of the balance */
         worst = fmax(worst, fabs(b.residual));
     }
     gs_fe_balance b;
@@ -262,7 +284,7 @@ static void run_balance(double beta, double brake, bool held, bool stat)
         assert_true(info.residual_loss > 0);
     else
         assert_true(info.residual_loss == 0.0);
-    if (beta > 0)
+    if (beta > 0 || make_alpha > 0)
         assert_true(b.damped > 1e-6 * scale);
     free(u), free(v), free(fn);
     gs_fe_reduced_free(&red);
@@ -276,6 +298,11 @@ static void truncated_balance(void **state)
         run_balance(0.0, 0.0, false, stat);
         run_balance(3e-7, 0.05, false, stat);
         run_balance(3e-7, 0.0, true, stat);
+        make_alpha = 3000.0; /* mass-proportional damping too */
+        run_balance(0.0, 0.0, false, stat);
+        run_balance(3e-7, 0.05, false, stat);
+        run_balance(0.0, 0.0, true, stat);
+        make_alpha = 0.0;
     }
 }
 
@@ -456,6 +483,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(all_modes_free),     cmocka_unit_test(all_modes_free_damped_brake),
         cmocka_unit_test(all_modes_held),     cmocka_unit_test(all_modes_held_damped),
+        cmocka_unit_test(all_modes_rayleigh),
         cmocka_unit_test(truncated_balance),  cmocka_unit_test(truncated_static), cmocka_unit_test(residual_rules),
         cmocka_unit_test(save_load),          cmocka_unit_test(lanczos_dense),
     };

@@ -187,7 +187,7 @@ static void static_rule(void **state)
 static void midpoint_tip(void **state)
 {
     (void)state;
-    resume_case("midpoint", 0.0, 50.0, 200, 60);
+    resume_case("midpoint", 200.0, 50.0, 200, 60);
 }
 
 int main(int argc, char **argv)
