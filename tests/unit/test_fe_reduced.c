@@ -26,6 +26,10 @@
  *                    dense solver's modes below f_max, the double ones of
  *                    the annulus's cyclic symmetry included.
  *   save_load        a snapshot restores the state bit for bit.
+ *   state_round_trip  the state read back (theta, omega, nodal u, v) and
+ *                    set again reads back the same and steps on alike; a
+ *                    velocity outside the kept modes keeps its projection;
+ *                    switching held/free after creation is refused.
  * Comparisons are relative to the largest value compared. */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -436,6 +440,115 @@ static void save_load(void **state)
     unmake(&f);
 }
 
+/* What the body carries round-trips: the state read back (theta, omega,
+ * nodal u and v) of a truncated body with residual forces and a decaying
+ * residual displacement, given to a second body by set_state, reads back
+ * the same and steps on as the first (the residual as a displacement
+ * instead of forces: the same field, decaying at the same rate). A
+ * velocity outside the kept modes is dropped (massless): what is kept is
+ * the M-orthogonal projection, whose kinetic energy is below the full
+ * body's and which a second set_state keeps whole. */
+static void state_round_trip(void **state)
+{
+    (void)state;
+    fixture f;
+    make(&f, 3e-7);
+    gs_index nn = f.nn;
+    size_t n2 = (size_t)(2 * nn);
+    gs_fe_reduced *a = NULL, *b = NULL;
+    gs_fe_reduced_opts o = {60e3, false, 0, NULL, 0, false};
+    assert_int_equal(gs_fe_reduced_new(f.model, &o, &a), GS_OK);
+    assert_int_equal(gs_fe_reduced_new(f.model, &o, &b), GS_OK);
+    double *u = calloc(n2, sizeof *u), *v = calloc(n2, sizeof *v), *u2 = calloc(n2, sizeof *u2),
+           *v2 = calloc(n2, sizeof *v2), *fn = calloc(n2, sizeof *fn);
+    wavy(nn, u, v);
+    assert_int_equal(gs_fe_reduced_set_state(a, 0.1, 3.0, u, v), GS_OK);
+    assert_int_equal(gs_fe_reduced_set_step(a, 5e-6, 0.02), GS_OK);
+    assert_int_equal(gs_fe_reduced_set_step(b, 5e-6, 0.02), GS_OK);
+    for (int s = 0; s < 30; s++) {
+        loads(&f, s, fn);
+        assert_int_equal(gs_fe_reduced_step(a, 1.0, fn), GS_OK);
+    }
+    gs_fe_reduced_info info;
+    gs_fe_reduced_get_info(a, &info);
+    assert_true(info.residual_support > 0);
+    double th = gs_fe_reduced_theta(a), om = gs_fe_reduced_omega(a), T1, V1, T2, V2;
+    assert_int_equal(gs_fe_reduced_nodal(a, u, v), GS_OK);
+    gs_fe_reduced_energy(a, &T1, &V1);
+    assert_int_equal(gs_fe_reduced_set_state(b, th, om, u, v), GS_OK);
+    assert_int_equal(gs_fe_reduced_nodal(b, u2, v2), GS_OK);
+    gs_fe_reduced_energy(b, &T2, &V2);
+    double eu = 0, ev = 0;
+    for (size_t k = 0; k < n2; k++) {
+        eu = fmax(eu, fabs(u2[k] - u[k]));
+        ev = fmax(ev, fabs(v2[k] - v[k]));
+    }
+    double et = fabs(gs_fe_reduced_theta(b) - th), eo = fabs(gs_fe_reduced_omega(b) - om);
+    print_message("read back: u %.2e of %.2e m, v %.2e of %.2e m/s, theta %.2e, omega %.2e; T %.2e, V %.2e "
+                  "(relative)\n", eu, maxabs(u, 2 * nn), ev, maxabs(v, 2 * nn), et, eo, fabs(T2 - T1) / T1,
+                  fabs(V2 - V1) / V1);
+    assert_true(eu <= 1e-10 * maxabs(u, 2 * nn) && ev <= 1e-10 * maxabs(v, 2 * nn));
+    assert_true(et <= 1e-10 * fabs(th) && eo <= 1e-10 * fabs(om));
+    /* the residual's energy two ways: 1/2 Y^T G_res Y (the first body's, its
+     * forces) and 1/2 z^T K z (the second's, a displacement): equal to the
+     * accuracy of the modes G_res = G_ir - sum phi phi^T / w^2 rests on
+     * (measured 1.6e-10 of V, the residual more than half of it) */
+    assert_true(fabs(T2 - T1) <= 1e-10 * T1 && fabs(V2 - V1) <= 1e-9 * V1);
+    /* both step on alike */
+    for (int s = 30; s < 60; s++) {
+        loads(&f, s, fn);
+        assert_int_equal(gs_fe_reduced_step(a, 1.0, fn), GS_OK);
+        assert_int_equal(gs_fe_reduced_step(b, 1.0, fn), GS_OK);
+    }
+    assert_int_equal(gs_fe_reduced_nodal(a, u, v), GS_OK);
+    assert_int_equal(gs_fe_reduced_nodal(b, u2, v2), GS_OK);
+    eu = ev = 0;
+    for (size_t k = 0; k < n2; k++) {
+        eu = fmax(eu, fabs(u2[k] - u[k]));
+        ev = fmax(ev, fabs(v2[k] - v[k]));
+    }
+    print_message("30 steps on: u %.2e of %.2e m, v %.2e of %.2e m/s apart\n", eu, maxabs(u, 2 * nn), ev,
+                  maxabs(v, 2 * nn));
+    assert_true(eu <= 1e-9 * maxabs(u, 2 * nn) && ev <= 1e-9 * maxabs(v, 2 * nn));
+    /* a velocity field outside the kept modes: its projection is kept */
+    gs_fe_body *full = NULL;
+    assert_int_equal(gs_fe_body_new(f.model, &full), GS_OK);
+    wavy(nn, u, v);
+    memset(u, 0, n2 * sizeof *u);
+    double Tf, Vf, Tr, Vr, Tr2;
+    assert_int_equal(gs_fe_body_set_state(full, 0.0, 3.0, u, v), GS_OK);
+    gs_fe_body_energy(full, &Tf, &Vf);
+    assert_int_equal(gs_fe_reduced_set_state(a, 0.0, 3.0, u, v), GS_OK);
+    gs_fe_reduced_energy(a, &Tr, &Vr);
+    assert_int_equal(gs_fe_reduced_nodal(a, NULL, v2), GS_OK);
+    assert_int_equal(gs_fe_reduced_set_state(b, 0.0, gs_fe_reduced_omega(a), u, v2), GS_OK);
+    gs_fe_reduced_energy(b, &Tr2, &Vr);
+    print_message("kinetic energy of a wavy velocity: full %.6e J, reduced (kept modes) %.6e J, once more %.6e J\n",
+                  Tf, Tr, Tr2);
+    assert_true(Tr < Tf && Tr > 0);
+    assert_true(fabs(Tr2 - Tr) <= 1e-10 * Tr);
+    gs_fe_body_free(&full);
+    /* held or free is the basis's: switching is refused, the state untouched */
+    size_t ns = gs_fe_reduced_state_size(a);
+    double *x = calloc(ns, sizeof *x), *y = calloc(ns, sizeof *y);
+    gs_fe_reduced_save(a, x);
+    assert_int_equal(gs_fe_reduced_hold_theta(a, false), GS_OK);
+    assert_int_equal(gs_fe_reduced_hold_theta(a, true), GS_EINVAL);
+    gs_fe_reduced_save(a, y);
+    assert_memory_equal(x, y, ns * sizeof *x);
+    gs_fe_reduced *c = NULL;
+    gs_fe_reduced_opts oh = {60e3, true, 0, NULL, 0, false};
+    assert_int_equal(gs_fe_reduced_new(f.model, &oh, &c), GS_OK);
+    assert_int_equal(gs_fe_reduced_hold_theta(c, true), GS_OK);
+    assert_int_equal(gs_fe_reduced_hold_theta(c, false), GS_EINVAL);
+    gs_fe_reduced_free(&c);
+    free(x), free(y);
+    free(u), free(v), free(u2), free(v2), free(fn);
+    gs_fe_reduced_free(&a);
+    gs_fe_reduced_free(&b);
+    unmake(&f);
+}
+
 static void lanczos_dense(void **state)
 {
     (void)state;
@@ -486,6 +599,7 @@ int main(void)
         cmocka_unit_test(all_modes_rayleigh),
         cmocka_unit_test(truncated_balance),  cmocka_unit_test(truncated_static), cmocka_unit_test(residual_rules),
         cmocka_unit_test(save_load),          cmocka_unit_test(lanczos_dense),
+        cmocka_unit_test(state_round_trip),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
