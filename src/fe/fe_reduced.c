@@ -506,22 +506,6 @@ static double cpu_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* CPU seconds of residual columns over the process (for the benchmark). */
-static double col_cpu_total;
-
-double gsi_fe_reduced_column_cpu(void)
-{
-    return col_cpu_total;
-}
-
-/* Energy the static residual rule took over the process (for the benchmark). */
-static double residual_loss_total;
-
-double gsi_fe_reduced_residual_loss(void)
-{
-    return residual_loss_total;
-}
-
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k);
 
 /* Make the G_res columns of candidate node k's x and y rows present. */
@@ -531,9 +515,7 @@ static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
         return GS_OK;
     double t0 = cpu_now();
     gs_err e = ensure_node_now(b, k);
-    double dt = cpu_now() - t0;
-    b->col_cpu += dt;
-    col_cpu_total += dt;
+    b->col_cpu += cpu_now() - t0;
     return e;
 }
 
@@ -1349,7 +1331,6 @@ gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
     b->damped += dmp + rloss; /* the body's own dissipation, as the step books it */
     b->dissipated += dis + dmp + rloss;
     b->residual_loss += rloss;
-    residual_loss_total += rloss;
     b->steps++;
     step_clear(b);
     return GS_OK;

@@ -525,3 +525,14 @@ const gs_body_ops gsi_body_elastic = {
     .fields = elastic_fields,
     .mesh = elastic_mesh,
 };
+
+bool gs_elastic_reduced_info(const gs_body_rt *b, gs_fe_reduced_info *out)
+{
+    if (!b || !out || b->ops != &gsi_body_elastic || !b->model)
+        return false;
+    const elastic *el = b->model;
+    if (!el->red)
+        return false;
+    gs_fe_reduced_get_info(el->red, out);
+    return true;
+}
