@@ -37,7 +37,11 @@
  * v = Phi^T M_f x'; the rest of x, z0 = x - Phi q, is a residual
  * displacement that decays as r^n (a scalar times the stored z0, its
  * force-like vector K z0 implicit); the rest of the velocity is dropped
- * (massless). Mass-proportional damping is not supported (refused).
+ * (massless). Mass-proportional damping alpha M on u' is, in the modes,
+ * alpha (E + t t^T) (E: 1 on the elastic modes; t_i = sqrt(I) theta_i,
+ * zero held): the step's modal matrix is diagonal plus rank one and is
+ * inverted by Sherman-Morrison (H = diag(1/a') - kap w w^T); the massless
+ * residual carries none.
  *
  * The brake -c theta' is a force on theta: with y the (unbraked) column of
  * the step's compliance at theta, dq = dq_bar - y k dq_bar_theta,
@@ -48,8 +52,14 @@
  * Rows: the theta row and the x, y rows of the candidate nodes (those that
  * may ever carry force; the tooth boundary of a gear). The modes are kept
  * whole (fields, projection) and as a row table; the columns of G_res are
- * computed per node when first needed (two solves with the factor of K)
- * and kept on the rows only. A step is then O(N |I| + |I| |supp Y|).
+ * computed per node when first needed (two solves with the factor of K, in
+ * fixed groups of 8 candidates: bits independent of the history) and kept
+ * on the rows only. A step is then O(N |I| + |I| |supp Y|).
+ *
+ * Snapshots hold q, v, Y with the order of its support, the initial
+ * residual amplitude and the energy books: a body loaded from one in a new
+ * process steps on bit for bit. No process-wide state: a body's figures
+ * are in its gs_fe_reduced_info.
  *
  * Modes: dense LAPACK (dsygvd) up to DENSE_MAX unknowns, else Lanczos with
  * shift-invert on the factor of K (the operator K^{-1} Mbar, self-adjoint
