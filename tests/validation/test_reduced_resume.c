@@ -15,8 +15,8 @@
  *   static_rule    the recommended setting: static residual, f_max 30 kHz,
  *                  2 % damping at 9.2 kHz; the checkpoint falls after the
  *                  backlash has closed (contact, residual forces present);
- *   midpoint_tip   the midpoint rule with mass-proportional damping and a
- *                  tip load on the wheel (a residual displacement from the
+ *   midpoint_tip   the midpoint rule with mass-proportional damping on
+ *                  the wheel and a tip load on it (a residual displacement from the
  *                  initial state, decaying), checkpointed during the
  *                  first impacts.
  * A few CPU seconds (the modes of the two gears, twice per engine). */
@@ -35,6 +35,7 @@
 #include <unistd.h>
 
 #include "../common/json_child.h"
+#include "../common/reduced_scene.h"
 #include "gearsim/engine.h"
 #include "gearsim/fe.h"
 #include "gearsim/models.h"
@@ -44,24 +45,11 @@
 
 static char *scene_text(const char *rule, double damping_m, double tip_load)
 {
-    json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
+    json_object *root = reduced_drive_scene(3e4, rule, damping_m > 0 ? "damping_m" : NULL, damping_m);
     assert_non_null(root);
-    json_object *bs = json_object_object_get(root, "bodies");
-    for (size_t i = 0; i < json_object_array_length(bs); i++) {
-        json_object *b = json_object_array_get_idx(bs, i);
-        json_object *mat = tj_child(b, "material");
-        json_object_object_add(mat, "damping_ratio", json_object_new_double(0.02));
-        json_object_object_add(mat, "damping_hz", json_object_new_double(9200));
-        if (damping_m > 0)
-            json_object_object_add(mat, "damping_m", json_object_new_double(damping_m));
-        json_object *red = tj_child(b, "reduction");
-        json_object_object_add(red, "f_max_hz", json_object_new_double(3e4));
-        json_object_object_add(red, "residual", json_object_new_string(rule));
-    }
     if (tip_load != 0)
         json_object_object_add(tj_child(tj_child(root, "initial"), "wheel"), "tip_load",
                                json_object_new_double(tip_load));
-    json_object_object_add(tj_child(root, "numerics"), "contact", json_object_new_string("closure_energy"));
     char *txt = strdup(json_object_to_json_string(root));
     json_object_put(root);
     return txt;
