@@ -313,10 +313,12 @@ gs_err gs_fe_body_set_cache_limit(gs_fe_body *b, size_t max_bytes);
  * carried force. The operations are those of gs_fe_body_* with the same
  * meaning; a step costs O(N |I| + |I| |supp Y|) instead of a sparse solve.
  * Differences: the residual carries no kinetic energy (its velocity in a
- * set_state is dropped; gs_fe_reduced_nodal's velocities are the modes'),
- * mass-proportional damping (material damping_m) is refused (GS_ERANGE),
- * theta is held or free from creation on, and forces may act only on the
- * candidate nodes named at creation (GS_EINVAL otherwise). */
+ * set_state is dropped: the M_f-orthogonal projection on the kept modes is
+ * kept; gs_fe_reduced_nodal's velocities are the modes'), nor
+ * mass-proportional damping (material damping_m acts on the kept modes,
+ * exactly: diagonal held, with a rank-one coupling through the rotation
+ * free), theta is held or free from creation on, and forces may act only
+ * on the candidate nodes named at creation (GS_EINVAL otherwise). */
 typedef struct gs_fe_reduced gs_fe_reduced;
 
 typedef struct gs_fe_reduced_opts {
@@ -346,7 +348,7 @@ typedef struct gs_fe_reduced_info {
 } gs_fe_reduced_info;
 
 /* Factorises K once and computes the modes (Lanczos above ~1600 unknowns).
- * Errors: GS_EINVAL, GS_ERANGE (damping_m != 0), GS_ESINGULAR, GS_ENOCONV,
+ * Errors: GS_EINVAL, GS_ERANGE (damping_m < 0), GS_ESINGULAR, GS_ENOCONV,
  * GS_ETOOBIG (more than 4000 modes below f_max), GS_ENOMEM. */
 gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_fe_reduced **out);
 void gs_fe_reduced_free(gs_fe_reduced **b);
@@ -379,10 +381,16 @@ void gs_fe_reduced_spin(gs_fe_reduced *b, double dw);
  * costs one solve with the factor of K when a residual state is present. */
 gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes);
 void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *out);
-/* Snapshot: modal q, v, the residual force state on the rows, the residual
- * amplitude of the last set_state: 2 (ne + 1) + rows + 2 values, a size that
- * does not depend on the modes (every rank knows it from the mesh; N <= ne
- * + 1). Loading a snapshot of another basis (N differs): GS_EINVAL. */
+/* Snapshot: modal q, v, the residual force state on the rows and the order
+ * of its support, the amplitude of the residual displacement of the last
+ * set_state, the energy books (energy0, work, dissipation, damping, the
+ * static rule's loss) and the step count: a body loaded from it steps on
+ * bit for bit as the saved one would have (docs/FE.md "Reduced elastic
+ * body"). Its size does not depend on the modes (every rank knows it from
+ * the mesh: gs_fe_reduced_state_size_for(ne, candidate nodes); N <= ne + 1).
+ * Loading a snapshot of another basis (N differs), a damaged support, or a
+ * residual displacement into a body whose set_state left none: GS_EINVAL. */
+size_t gs_fe_reduced_state_size_for(gs_index ne, gs_index n_candidates);
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b);
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x);
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x);

@@ -143,6 +143,12 @@ gs_err gs_scene_gear_mesh_refined(const gs_scene_body *sb, int refine, struct gs
 gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, struct gs_mesh **out,
                                   gs_diag *d);
 
+/* The reduced elastic body's figures (gs_fe_reduced_info: modes, cached
+ * residual columns and their CPU seconds, the static rule's loss) of body
+ * b: false when b is not a reduced elastic body or lives on another rank. */
+struct gs_fe_reduced_info;
+bool gs_elastic_reduced_info(const gs_body_rt *b, struct gs_fe_reduced_info *out);
+
 /* Registered implementations, by name (the scene's `model`). */
 const gs_body_ops *gs_body_ops_find(const char *name);
 const gs_gmesh_ops *gs_gmesh_ops_find(const char *name);

@@ -110,12 +110,4 @@ gs_err gsi_fe_mesh_annulus_order(double r_in, double r_out, int n_r, int n_t, in
  * negative value if no factor exists. For the benchmark. */
 double gsi_fe_body_time_bare_solve(gs_fe_body *b, int reps);
 
-/* CPU seconds all reduced bodies of the process spent computing residual
- * columns (src/fe/fe_reduced.c; a one-off per candidate node): the
- * benchmark separates it from the step's cost. Not thread-safe. */
-double gsi_fe_reduced_column_cpu(void);
-/* Joules all reduced bodies of the process lost to the static residual rule
- * (reduction.residual "static"; booked in their dissipation). Not thread-safe. */
-double gsi_fe_reduced_residual_loss(void);
-
 #endif

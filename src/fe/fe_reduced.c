@@ -37,7 +37,11 @@
  * v = Phi^T M_f x'; the rest of x, z0 = x - Phi q, is a residual
  * displacement that decays as r^n (a scalar times the stored z0, its
  * force-like vector K z0 implicit); the rest of the velocity is dropped
- * (massless). Mass-proportional damping is not supported (refused).
+ * (massless). Mass-proportional damping alpha M on u' is, in the modes,
+ * alpha (E + t t^T) (E: 1 on the elastic modes; t_i = sqrt(I) theta_i,
+ * zero held): the step's modal matrix is diagonal plus rank one and is
+ * inverted by Sherman-Morrison (H = diag(1/a') - kap w w^T); the massless
+ * residual carries none.
  *
  * The brake -c theta' is a force on theta: with y the (unbraked) column of
  * the step's compliance at theta, dq = dq_bar - y k dq_bar_theta,
@@ -48,8 +52,14 @@
  * Rows: the theta row and the x, y rows of the candidate nodes (those that
  * may ever carry force; the tooth boundary of a gear). The modes are kept
  * whole (fields, projection) and as a row table; the columns of G_res are
- * computed per node when first needed (two solves with the factor of K)
- * and kept on the rows only. A step is then O(N |I| + |I| |supp Y|).
+ * computed per node when first needed (two solves with the factor of K, in
+ * fixed groups of 8 candidates: bits independent of the history) and kept
+ * on the rows only. A step is then O(N |I| + |I| |supp Y|).
+ *
+ * Snapshots hold q, v, Y with the order of its support, the initial
+ * residual amplitude and the energy books: a body loaded from one in a new
+ * process steps on bit for bit. No process-wide state: a body's figures
+ * are in its gs_fe_reduced_info.
  *
  * Modes: dense LAPACK (dsygvd) up to DENSE_MAX unknowns, else Lanczos with
  * shift-invert on the factor of K (the operator K^{-1} Mbar, self-adjoint
@@ -83,6 +93,7 @@ struct gs_fe_reduced {
     double fmax;
     double Itot;          /* inertia_total */
     double beta;
+    double alpha;         /* mass-proportional damping (material damping_m) */
 
     /* modes */
     int N;                /* kept modes (rigid one included for a free body) */
@@ -108,6 +119,12 @@ struct gs_fe_reduced {
     double gamma, dr;       /* residual rule: gamma 1/2 midpoint, 1 static; dr = gamma + beta/h */
     bool have_step, in_step;
     double *inv_a;        /* N */
+    /* alpha M on u' in the modes: alpha (E + t t^T), E = 1 on the elastic
+     * modes, t_i = sqrt(I) theta_i (free body; 0 held); the step's modal
+     * matrix diag(a) + (alpha/h)(E + t t^T) is inverted by Sherman-Morrison:
+     * H = diag(inv_a) - kap w w^T, w_i = t_i inv_a_i (kap 0: diagonal) */
+    double *tt, *ww;      /* N */
+    double kap;
 
     /* state */
     double *qm, *vm;      /* N */
@@ -148,6 +165,12 @@ struct gs_fe_reduced {
 };
 
 /* ---- small helpers ------------------------------------------------------ */
+
+/* Mode i carries elastic displacement u (not the free body's rigid rotation). */
+static inline bool is_elastic(const gs_fe_reduced *b, int i)
+{
+    return b->held || i > 0;
+}
 
 static double dotn(gs_index n, const double *a, const double *b)
 {
@@ -431,6 +454,7 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     cholmod_l_free_sparse(&b->K, &b->cc);
     cholmod_l_finish(&b->cc);
     free(b->Phi), free(b->om2), free(b->PR), free(b->cand_of), free(b->rowq), free(b->inv_a);
+    free(b->tt), free(b->ww);
     free(b->qm), free(b->vm), free(b->Y), free(b->ysup), free(b->yin), free(b->z0), free(b->z0R);
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
     free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
@@ -492,22 +516,6 @@ static double cpu_now(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* CPU seconds of residual columns over the process (for the benchmark). */
-static double col_cpu_total;
-
-double gsi_fe_reduced_column_cpu(void)
-{
-    return col_cpu_total;
-}
-
-/* Energy the static residual rule took over the process (for the benchmark). */
-static double residual_loss_total;
-
-double gsi_fe_reduced_residual_loss(void)
-{
-    return residual_loss_total;
-}
-
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k);
 
 /* Make the G_res columns of candidate node k's x and y rows present. */
@@ -517,20 +525,23 @@ static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
         return GS_OK;
     double t0 = cpu_now();
     gs_err e = ensure_node_now(b, k);
-    double dt = cpu_now() - t0;
-    b->col_cpu += dt;
-    col_cpu_total += dt;
+    b->col_cpu += cpu_now() - t0;
     return e;
 }
 
-/* Node k's columns and those of the next missing candidates along the
- * boundary (BATCH_NODES in one multi-column solve: the contact moves along
- * a flank, and a solve of 16 columns costs far less than 8 of 2). */
+/* Node k's columns and those of its group of BATCH_NODES consecutive
+ * candidates along the boundary in one multi-column solve (the contact
+ * moves along a flank, and a solve of 16 columns costs far less than 8 of
+ * 2). */
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
 {
     gs_index nr = b->nr, n = b->n, batch[BATCH_NODES];
     int cnt = 0;
-    for (gs_index j = k; j < b->ncand && cnt < BATCH_NODES; j++)
+    /* the group of BATCH_NODES candidates k belongs to, always computed
+     * whole: a column's bits do not depend on which nodes were needed
+     * first (a run resumed from a checkpoint computes the same columns) */
+    gs_index g0 = k - k % BATCH_NODES;
+    for (gs_index j = g0; j < b->ncand && j < g0 + BATCH_NODES; j++)
         if (!b->col[j])
             batch[cnt++] = j;
     double *c = gs_calloc((size_t)(2 * nr) * (size_t)cnt, sizeof *c);
@@ -596,8 +607,8 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
     *out = NULL;
     if (!m || !o || !(o->f_max_hz > 0) || o->eigensolver < 0 || o->eigensolver > 2 || o->n_nodes < 0 || (o->n_nodes > 0 && !o->nodes))
         return GS_EINVAL;
-    if (m->mat.damping_m != 0.0)
-        return GS_ERANGE; /* mass-proportional damping: not supported */
+    if (!(m->mat.damping_m >= 0.0) || !isfinite(m->mat.damping_m))
+        return GS_ERANGE;
     gs_fe_reduced *b = gs_calloc(1, sizeof *b);
     if (!b)
         return GS_ENOMEM;
@@ -609,6 +620,7 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
     b->fmax = o->f_max_hz;
     b->Itot = m->inertia_total;
     b->beta = m->mat.damping_s;
+    b->alpha = m->mat.damping_m;
     b->gamma = o->residual_static ? 1.0 : 0.5;
     gs_index nn = m->n_nodes;
     b->cand_of = gs_calloc((size_t)nn + 1, sizeof *b->cand_of);
@@ -679,8 +691,13 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
         b->qm = gs_calloc((size_t)(N ? N : 1), sizeof *b->qm);
         b->vm = gs_calloc((size_t)(N ? N : 1), sizeof *b->vm);
         b->dqm = gs_calloc((size_t)(N ? N : 1), sizeof *b->dqm);
-        if (!b->PR || !b->inv_a || !b->qm || !b->vm || !b->dqm)
+        b->tt = gs_calloc((size_t)(N ? N : 1), sizeof *b->tt);
+        b->ww = gs_calloc((size_t)(N ? N : 1), sizeof *b->ww);
+        if (!b->PR || !b->inv_a || !b->qm || !b->vm || !b->dqm || !b->tt || !b->ww)
             e = GS_ENOMEM;
+        /* the rotation of the free body's elastic modes (the rigid one, 0, has no u) */
+        for (int i = 1; e == GS_OK && !b->held && i < N; i++)
+            b->tt[i] = sqrt(b->Itot) * b->Phi[(size_t)i * (size_t)b->n + (size_t)b->ne];
     }
     if (e == GS_OK) {
         for (gs_index r = 0; r < b->nr; r++)
@@ -879,11 +896,24 @@ gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c)
     b->dr = b->gamma + b->beta / h;
     b->r = (b->beta / h + b->gamma - 1.0) / b->dr;
     for (int i = 0; i < b->N; i++)
-        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i]);
+        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i] + (b->alpha > 0 && is_elastic(b, i) ? b->alpha / h : 0.0));
+    b->kap = 0;
+    if (b->alpha > 0 && !b->held) {
+        double tw = 0;
+        for (int i = 0; i < b->N; i++) {
+            b->ww[i] = b->tt[i] * b->inv_a[i];
+            tw += b->tt[i] * b->ww[i];
+        }
+        b->kap = (b->alpha / h) / (1.0 + (b->alpha / h) * tw);
+    }
     /* the brake's Sherman-Morrison factor: y_theta = C_bar(theta, theta) */
     double yt = b->held ? 0.0 : b->tcol[0] / b->dr;
     for (int i = 0; i < b->N; i++)
         yt += b->PR[i] * b->PR[i] * b->inv_a[i];
+    if (b->kap != 0.0) {
+        double w0 = dotn(b->N, b->ww, b->PR);
+        yt -= b->kap * w0 * w0;
+    }
     b->kc = (b->held || brake_c == 0) ? 0.0 : (brake_c / h) / (1.0 + (brake_c / h) * yt);
     b->have_step = true;
     return GS_OK;
@@ -961,8 +991,20 @@ gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double
         for (int i = 0; i < b->N; i++)
             b->dqm[i] += p[i] * b->Fa[r];
     }
-    for (int i = 0; i < b->N; i++)
-        b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    if (b->alpha > 0) { /* - alpha (E + t t^T) v on the right-hand side, then H */
+        double tv = dotn(b->N, b->tt, b->vm);
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] -= b->alpha * ((is_elastic(b, i) ? b->vm[i] : 0.0) + b->tt[i] * tv);
+        double wr = 0;
+        for (int i = 0; i < b->N; i++)
+            wr += b->ww[i] * (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i]));
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i] -
+                        b->kap * b->ww[i] * wr;
+    } else {
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
+    }
     b->in_step = true;
     return GS_OK;
 }
@@ -997,6 +1039,8 @@ static double ycol(const gs_fe_reduced *b, gs_index r)
     const double *p = b->PR + (size_t)r * (size_t)b->N;
     for (int i = 0; i < b->N; i++)
         v += p[i] * b->PR[i] * b->inv_a[i];
+    if (b->kap != 0.0)
+        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, b->PR);
     return v;
 }
 
@@ -1108,6 +1152,8 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                                  *q = b->PR + (size_t)rr[j] * (size_t)b->N;
                     for (int t = 0; t < b->N; t++)
                         v += p[t] * q[t] * b->inv_a[t];
+                    if (b->kap != 0.0)
+                        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, q);
                 }
             }
             G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
@@ -1170,6 +1216,11 @@ static void add_force(gs_fe_reduced *b, gs_index r, double f)
     const double *p = b->PR + (size_t)r * (size_t)b->N;
     for (int i = 0; i < b->N; i++)
         b->dqm[i] += p[i] * f * b->inv_a[i];
+    if (b->kap != 0.0) {
+        double c = b->kap * dotn(b->N, b->ww, p) * f;
+        for (int i = 0; i < b->N; i++)
+            b->dqm[i] -= c * b->ww[i];
+    }
     fl_add(b, r);
     b->Rf[r] += f / b->dr;
 }
@@ -1253,6 +1304,12 @@ gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
     /* the static rule's own loss (gamma - 1/2) dY^T G_res dY, booked */
     double rloss = (b->gamma - 0.5) * dres;
     dmp = b->beta / h * (dmp + dres);
+    if (b->alpha > 0) { /* dq^T alpha (E + t t^T) dq / h on the modes */
+        double me = 0, td = dotn(b->N, b->tt, b->dqm);
+        for (int i = 0; i < b->N; i++)
+            me += is_elastic(b, i) ? b->dqm[i] * b->dqm[i] : 0.0;
+        dmp += b->alpha / h * (me + td * td);
+    }
     /* the new state */
     for (int i = 0; i < b->N; i++) {
         b->qm[i] += b->dqm[i];
@@ -1284,7 +1341,6 @@ gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
     b->damped += dmp + rloss; /* the body's own dissipation, as the step books it */
     b->dissipated += dis + dmp + rloss;
     b->residual_loss += rloss;
-    residual_loss_total += rloss;
     b->steps++;
     step_clear(b);
     return GS_OK;
@@ -1373,21 +1429,43 @@ gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
 
 /* Snapshot layout (the same size on every rank of a scene: it does not
  * depend on the modes): N, q (N), v (N), zeros up to 2 (ne + 1) + 1, then
- * Y (nr), the residual amplitude. */
+ * Y (nr, by row), the residual amplitude, the support's size and its rows
+ * in their order (nr slots; the sums over the support run in that order),
+ * then the body's books: energy0, work_in, work_iface, dissipated, damped,
+ * residual_loss and the step count (a resumed run books on from them). */
+#define SNAP_BOOKS 7
+
+size_t gs_fe_reduced_state_size_for(gs_index ne, gs_index n_candidates)
+{
+    size_t nr = 1 + 2 * (size_t)n_candidates;
+    return 2 * ((size_t)ne + 1) + 2 * nr + 3 + SNAP_BOOKS;
+}
+
 size_t gs_fe_reduced_state_size(const gs_fe_reduced *b)
 {
-    return 2 * (size_t)b->n + (size_t)b->nr + 2;
+    return gs_fe_reduced_state_size_for(b->ne, b->ncand);
 }
 
 void gs_fe_reduced_save(const gs_fe_reduced *b, double *x)
 {
-    size_t off = 2 * (size_t)b->n + 1;
+    size_t off = 2 * (size_t)b->n + 1, nr = (size_t)b->nr;
     memset(x, 0, gs_fe_reduced_state_size(b) * sizeof *x);
     x[0] = (double)b->N;
     memcpy(x + 1, b->qm, (size_t)b->N * sizeof *x);
     memcpy(x + 1 + b->N, b->vm, (size_t)b->N * sizeof *x);
-    memcpy(x + off, b->Y, (size_t)b->nr * sizeof *x);
-    x[off + (size_t)b->nr] = b->az;
+    memcpy(x + off, b->Y, nr * sizeof *x);
+    x[off + nr] = b->az;
+    x[off + nr + 1] = (double)b->nys;
+    for (gs_index a = 0; a < b->nys; a++)
+        x[off + nr + 2 + (size_t)a] = (double)b->ysup[a];
+    double *bk = x + off + 2 * nr + 2;
+    bk[0] = b->energy0;
+    bk[1] = b->work_in;
+    bk[2] = b->work_iface;
+    bk[3] = b->dissipated;
+    bk[4] = b->damped;
+    bk[5] = b->residual_loss;
+    bk[6] = (double)b->steps;
 }
 
 gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
@@ -1396,25 +1474,53 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
         return GS_EINVAL;
     if (x[0] != (double)b->N)
         return GS_EINVAL; /* another basis */
-    size_t off = 2 * (size_t)b->n + 1;
+    size_t off = 2 * (size_t)b->n + 1, nr = (size_t)b->nr;
+    double nys = x[off + nr + 1];
+    if (!(nys >= 0 && nys <= (double)nr))
+        return GS_EINVAL;
+    /* the support: rows in range, each once, Y nonzero exactly there */
+    gs_index ns = (gs_index)nys;
+    unsigned char *seen = gs_calloc(nr, 1);
+    if (!seen)
+        return GS_ENOMEM;
+    gs_err e = GS_OK;
+    for (gs_index a = 0; a < ns && e == GS_OK; a++) {
+        double rv = x[off + nr + 2 + (size_t)a];
+        if (!(rv >= 0 && rv < (double)nr) || rv != floor(rv) || seen[(size_t)rv] || x[off + (size_t)rv] == 0.0)
+            e = GS_EINVAL;
+        else
+            seen[(size_t)rv] = 1;
+    }
+    for (size_t r = 0; r < nr && e == GS_OK; r++)
+        if (x[off + r] != 0.0 && !seen[r])
+            e = GS_EINVAL;
+    free(seen);
+    if (e != GS_OK)
+        return e;
     gs_fe_reduced_cancel_step(b);
     y_clear(b);
     memcpy(b->qm, x + 1, (size_t)b->N * sizeof *x);
     memcpy(b->vm, x + 1 + b->N, (size_t)b->N * sizeof *x);
-    for (gs_index r = 0; r < b->nr; r++) {
-        double y = x[off + (size_t)r];
-        if (y != 0.0) {
-            GS_TRY(ensure_row(b, r));
-            b->Y[r] = y;
-            b->yin[r] = 1;
-            b->ysup[b->nys++] = r;
-        }
+    for (gs_index a = 0; a < ns; a++) {
+        gs_index r = (gs_index)x[off + nr + 2 + (size_t)a];
+        GS_TRY(ensure_row(b, r));
+        b->Y[r] = x[off + (size_t)r];
+        b->yin[r] = 1;
+        b->ysup[b->nys++] = r;
     }
-    double az = x[off + (size_t)b->nr];
-    b->az = b->z0 ? az : 0.0;
-    double T, V;
-    gs_fe_reduced_energy(b, &T, &V);
-    b->energy0 = T + V;
-    b->work_in = b->work_iface = b->dissipated = b->damped = b->residual_loss = 0;
+    /* the residual displacement z0 is that of the initial state (set_state
+     * at creation, the same in a new process for the same scene) */
+    double az = x[off + nr];
+    if (az != 0.0 && !b->z0)
+        return GS_EINVAL; /* a residual displacement this body was not given */
+    b->az = az;
+    const double *bk = x + off + 2 * nr + 2;
+    b->energy0 = bk[0];
+    b->work_in = bk[1];
+    b->work_iface = bk[2];
+    b->dissipated = bk[3];
+    b->damped = bk[4];
+    b->residual_loss = bk[5];
+    b->steps = bk[6] >= 0 ? (uint64_t)bk[6] : 0;
     return GS_OK;
 }

@@ -182,7 +182,7 @@ static double red_damped(const elastic *el) { return gs_fe_reduced_damped(el->re
 static double red_L(const elastic *el) { return gs_fe_reduced_angular_momentum(el->red); }
 static void red_spin(elastic *el, double dw) { gs_fe_reduced_spin(el->red, dw); }
 static void red_energy(const elastic *el, double *T, double *V) { gs_fe_reduced_energy(el->red, T, V); }
-/* Snapshot state: the reduced body's own (modal q, v, residual forces). */
+/* Snapshot state: the reduced body's own (modal q, v, residual forces, books). */
 static void red_save(const elastic *el, double *x) { gs_fe_reduced_save(el->red, x); }
 static gs_err red_load(elastic *el, const double *x) { return gs_fe_reduced_load(el->red, x); }
 static gs_err red_nodal(elastic *el, double *u) { return gs_fe_reduced_nodal(el->red, u, NULL); }
@@ -303,14 +303,12 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
                                   sb->reduce_static};
         e = gs_fe_reduced_new(el->model, &ro, &el->red);
         if (e != GS_OK) {
-            snprintf(field, sizeof field, "bodies[%d].%s", b->index,
-                     e == GS_ERANGE ? "material.damping_m" : "reduction.f_max_hz");
-            return gs_diag_set(d, e, field, e == GS_ERANGE ? "'%s': a reduced body takes no mass-proportional damping"
-                                                           : "'%s': the reduced body cannot be built (%s)",
-                               sb->name, gs_strerror(e));
+            snprintf(field, sizeof field, "bodies[%d].reduction.f_max_hz", b->index);
+            return gs_diag_set(d, e, field, "'%s': the reduced body cannot be built (%s)", sb->name,
+                               gs_strerror(e));
         }
         el->be = &backend_reduced;
-        if (gs_fe_reduced_state_size(el->red) != 2 * (size_t)(el->ne + 1) + (size_t)(2 * el->mesh->n_boundary + 3))
+        if (gs_fe_reduced_state_size(el->red) != gs_fe_reduced_state_size_for(el->ne, el->mesh->n_boundary))
             return gs_diag_set(d, GS_EINTERNAL, field, "'%s': the boundary loop repeats a node", sb->name);
     } else {
         GS_TRY(gs_fe_body_new(el->model, &el->body));
@@ -473,7 +471,7 @@ static size_t elastic_state_size(const gs_body_rt *b)
 {
     const elastic *el = b->model;
     /* the same on every rank: the reduced layout from the mesh's candidate rows */
-    return 2 * (size_t)(el->ne + 1) + (el->reduced ? (size_t)(2 * el->mesh->n_boundary + 3) : 0);
+    return el->reduced ? gs_fe_reduced_state_size_for(el->ne, el->mesh->n_boundary) : 2 * (size_t)(el->ne + 1);
 }
 
 static void elastic_save(const gs_body_rt *b, double *x)
@@ -527,3 +525,14 @@ const gs_body_ops gsi_body_elastic = {
     .fields = elastic_fields,
     .mesh = elastic_mesh,
 };
+
+bool gs_elastic_reduced_info(const gs_body_rt *b, gs_fe_reduced_info *out)
+{
+    if (!b || !out || b->ops != &gsi_body_elastic || !b->model)
+        return false;
+    const elastic *el = b->model;
+    if (!el->red)
+        return false;
+    gs_fe_reduced_get_info(el->red, out);
+    return true;
+}

@@ -9,7 +9,8 @@ size limits (docs/RELIABILITY.md).
   to its target step. The final state equals an uninterrupted run's bit for
   bit, and the record equals the uninterrupted run's record: no row lost, no
   row twice, steps strictly increasing without a gap. Scenes: `pair` (rigid,
-  one rank) and `elastic_pair` (elastic bodies on two ranks, field snapshots).
+  one rank) and `elastic_pair` (elastic bodies on two ranks, field snapshots),
+  `contact_drive` with both gears reduced (bodies[i].reduction, two ranks).
   The seed is printed; GEARSIM_RESUME_SEED replays it.
 * disk full: RLIMIT_FSIZE on the daemon's processes makes record writes fail
   (EFBIG, SIGXFSZ ignored): one error event, status.recording null, the
@@ -341,9 +342,24 @@ def client_limit():
             R.check("--max-clients 3: the admitted ones still work", "limits" in a.hello() and "limits" in b.hello())
 
 
+def resume_reduced():
+    """contact_drive with both gears reduced (bodies[i].reduction, the static
+    residual at 30 kHz, 2 % damping) on two ranks: modal and residual state,
+    the residual's support order and the energy books come back bit for bit
+    in the new processes (docs/FE.md "Reduced elastic body", "Checkpoints")."""
+    scene = dmod.load_scene("contact_drive")
+    for b in scene["bodies"]:
+        b["material"] = dict(b.get("material", {}), damping_ratio=0.02, damping_hz=9200)
+        b["reduction"] = {"f_max_hz": 3e4, "residual": "static"}
+    scene["numerics"]["contact"] = "closure_energy"
+    scene["outputs"] = {"telemetry_every": 50, "record_every": 10, "fields_every": 250, "checkpoint_every": 250}
+    kill_and_resume("contact_drive reduced", scene, 2, 2000)
+
+
 CASES = [("scene size limits", size_limits), ("record size limit", record_limit), ("client limit", client_limit), ("kill and resume: pair", resume_pair),
          ("kill and resume: elastic_pair", resume_elastic),
-         ("kill and resume: elastic_pair order 1", resume_elastic_linear), ("disk full while recording", disk_full)]
+         ("kill and resume: elastic_pair order 1", resume_elastic_linear), ("disk full while recording", disk_full),
+         ("kill and resume: contact_drive reduced", resume_reduced)]
 ONLY = os.environ.get("GEARSIM_RESUME_ONLY")   # e.g. "pair" to run one case while debugging
 for name, fn in CASES:
     if not ONLY or ONLY in name:

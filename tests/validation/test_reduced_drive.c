@@ -19,9 +19,10 @@
  *                  same instantaneous high-frequency content) their
  *                  displacement fields at 4 ms are the full bodies' within
  *                  1 % (the static rule, without that ringing: 2.6 %);
- *   scene_errors   bodies[i].reduction on a rigid gear, with
- *                  mass-proportional damping and with an unknown residual
- *                  rule are refused, naming the field.
+ *   scene_errors   bodies[i].reduction on a rigid gear and with an
+ *                  unknown residual rule are refused, naming the field
+ *                  (mass-proportional damping is taken: test_fe_reduced,
+ *                  test_reduced_resume).
  * About 15 CPU seconds (the full bodies' steps). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -36,6 +37,7 @@
 
 #include "../common/dyn_window.h"
 #include "../common/json_child.h"
+#include "../common/reduced_scene.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 
@@ -45,27 +47,15 @@
 static gs_err make_system_rule(double fmax, const char *rule, const char *extra, double extra_v, gs_system **out,
                                gs_diag *d)
 {
-    json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
+    json_object *root = reduced_drive_scene(fmax, rule, extra, extra_v);
     assert_non_null(root);
     json_object *bs = json_object_object_get(root, "bodies");
-    for (size_t i = 0; i < json_object_array_length(bs); i++) {
+    for (size_t i = 0; fmax < 0 && i < json_object_array_length(bs); i++) {
         json_object *b = json_object_array_get_idx(bs, i);
-        json_object *mat = tj_child(b, "material");
-        json_object_object_add(mat, "damping_ratio", json_object_new_double(0.02));
-        json_object_object_add(mat, "damping_hz", json_object_new_double(9200));
-        if (extra && i == 0)
-            json_object_object_add(mat, extra, json_object_new_double(extra_v));
-        if (fmax > 0)
-            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
-        if (fmax > 0 && rule)
-            json_object_object_add(tj_child(b, "reduction"), "residual", json_object_new_string(rule));
-        if (fmax < 0 && i == 0) /* reduction on a rigid gear */
+        if (i == 0) /* reduction on a rigid gear */
             json_object_object_add(b, "model", json_object_new_string("rigid"));
-        if (fmax < 0)
-            json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(6e4));
+        json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(6e4));
     }
-    json_object_object_add(tj_child(root, "numerics"), "time_step", json_object_new_double(1e-5));
-    json_object_object_add(tj_child(root, "numerics"), "contact", json_object_new_string("closure_energy"));
     const char *txt = json_object_to_json_string(root);
     gs_scene *sc = NULL;
     gs_err e = gs_scene_parse(txt, strlen(txt), &sc, d);
@@ -186,8 +176,6 @@ static void scene_errors(void **state)
     gs_diag d;
     assert_int_equal(make_system(-1, NULL, 0, &s, &d), GS_ERANGE);
     assert_string_equal(d.field, "bodies[0].reduction");
-    assert_int_equal(make_system(6e4, "damping_m", 10.0, &s, &d), GS_ERANGE);
-    assert_string_equal(d.field, "bodies[0].material.damping_m");
     assert_int_equal(make_system_rule(6e4, "implicit", NULL, 0, &s, &d), GS_ERANGE);
     assert_string_equal(d.field, "bodies[0].reduction.residual");
     assert_non_null(strstr(d.message, "static"));
