@@ -46,7 +46,8 @@ typedef struct gs_engine gs_engine;
  * rank 0's in the serial ones (selection, solve): the time a step would
  * take with a core per rank and instant collectives, which neither
  * descheduling by other jobs nor spinning in a collective inflates (timed
- * for trains with bodies of their own state only; zero for the others). */
+ * for trains with bodies of their own state only, and only with
+ * gs_engine_set_cpu_timing on; zero otherwise). */
 typedef struct gs_step_timing {
     double prepare, records, reduce, solve, bcast, apply, sync;
     int64_t steps;
@@ -64,6 +65,23 @@ int gs_engine_size(const gs_engine *e);
 gs_system *gs_engine_system(gs_engine *e);   /* NULL when nothing is loaded */
 MPI_Comm gs_engine_comm(const gs_engine *e);
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);
+/* Energy schedule (set on rank 0, the driver; it travels with each
+ * GS_OP_STEP to the other ranks). Off (default): the bodies of their own
+ * state (elastic gears) sum their kinetic and strain energies at the end of
+ * every step. On: only at the end of steps whose number is a multiple of
+ * the scene's outputs.telemetry_every or record_every (the steps the
+ * daemon's hook publishes or records) and of the last step of each
+ * GS_OP_STEP, so that whatever reads gs_system_energy between operations
+ * sees the current values; numerics.contact "closure_energy" books against
+ * them and keeps them every step. The values are those of every step bit
+ * for bit (they are functions of the state); the steps in between skip a
+ * third of the end-of-step pass's memory traffic (the mass matrix). A hook
+ * that reads the energies on other steps must leave it off. */
+void gs_engine_set_energy_schedule(gs_engine *e, bool on);
+/* Time the step's phases in thread CPU (gs_step_timing cpu_work and
+ * cpu_path: a clock read, a system call, per phase and substep). Off by
+ * default; set on every rank that should time (the benchmarks do). */
+void gs_engine_set_cpu_timing(gs_engine *e, bool on);
 
 /* Rank 0: broadcast an operation and execute it here too. Errors name the
  * field in d. For GS_OP_STEP, *steps_done (may be NULL) receives the number

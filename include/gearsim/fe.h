@@ -276,8 +276,14 @@ double gs_fe_body_omega(const gs_fe_body *b);
 double gs_fe_body_kinetic(const gs_fe_body *b);
 /* 1/2 u^T K u (J). */
 double gs_fe_body_elastic(const gs_fe_body *b);
-/* Both of the above in one pass over the matrices (the same values). */
+/* Both of the above in one pass over the matrices (the same values); after
+ * a step, the values its end-of-step pass summed. */
 void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic);
+/* With defer true, the following steps' end skips the energies (its pass
+ * over the matrices reads K alone); gs_fe_body_energy then sums them from
+ * the state when asked: the same values bit for bit, at the cost of a pass
+ * over K and M. Off by default. */
+void gs_fe_body_defer_energy(gs_fe_body *b, bool defer);
 /* Energy dissipated by material damping since the last set_state, J. */
 double gs_fe_body_damped(const gs_fe_body *b);
 /* I theta' + s . u' (body frame, about the axis; N m s). */

@@ -146,6 +146,12 @@ struct gs_system {
     int64_t refinements;     /* substeps refused by the solve and taken again finer */
     bool refined;            /* a refinement happened in the current step of h */
     double work_in, dissipated, energy0;
+    /* Set by the engine on steps whose energies nothing reads (its energy
+     * schedule, gs_engine_set_energy_schedule): bodies of their own state
+     * then skip them at the end of the step and report NaN; the engine
+     * sums them from the state before anyone reads them. False (every
+     * step) unless the engine sets it. */
+    bool energy_deferred;
     double contact_work;     /* sum of the meshes' contact_work */
     double last_residual;    /* Newton residual of the last step */
     int last_iterations;

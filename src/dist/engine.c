@@ -33,6 +33,8 @@ struct gs_engine {
     double cpu_ph[3];       /* this substep's parallel phases (CPU s): records, compliance, apply */
     double cpu_own;         /* this substep's CPU s outside the collectives */
     bool cpu_on;            /* time the phases (bodies with their own state only) */
+    bool cpu_timing;        /* gs_engine_set_cpu_timing: cpu_on allowed */
+    bool energy_sched;      /* gs_engine_set_energy_schedule (rank 0's travels with GS_OP_STEP) */
     bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
 };
 
@@ -246,6 +248,38 @@ void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user)
 {
     e->hook = hook;
     e->hook_user = user;
+}
+
+void gs_engine_set_energy_schedule(gs_engine *e, bool on)
+{
+    e->energy_sched = on;
+}
+
+void gs_engine_set_cpu_timing(gs_engine *e, bool on)
+{
+    e->cpu_timing = on;
+}
+
+/* On the energy schedule: are the energies read after the next step? */
+static bool energy_due(const gs_system *s, bool last)
+{
+    int64_t k = s->step + 1;
+    const gs_scene *sc = s->scene;
+    return last || sc->contact_scheme == GS_CONTACT_CLOSURE_ENERGY || k % sc->telemetry_every == 0 ||
+           k % sc->record_every == 0;
+}
+
+/* The energies of the bodies with their own state, summed by their owners
+ * from the state and reported to every rank (collective). */
+static gs_err refresh_energy(gs_engine *e, gs_err err)
+{
+    gs_system *s = e->sys;
+    for (int i = 0; i < s->n_bodies; i++) {
+        gs_body_rt *b = &s->bodies[i];
+        if (b->ops->state_size && b->owner == e->rank)
+            b->ops->energy(s, b, &b->T, &b->V);
+    }
+    return sync_energy(e, err, 0.0);
 }
 
 static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
@@ -548,7 +582,10 @@ static void sync_solo(gs_engine *e)
     free(b);
 }
 
-static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
+static gs_err refresh_energy(gs_engine *e, gs_err err);
+static bool energy_due(const gs_system *s, bool last);
+
+static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
 {
     int64_t i = 0;
     gs_err err = GS_OK;
@@ -558,7 +595,11 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
      * steps alone (assembling every body's records, as one process does)
      * and the others take its state once per chunk. */
     e->solo = e->size > 1 && !gs_system_has_body_state(e->sys);
-    e->cpu_on = gs_system_has_body_state(e->sys);
+    e->cpu_on = e->cpu_timing && gs_system_has_body_state(e->sys);
+    /* The energy schedule decides the same on every rank (rank 0's flag,
+     * the scene, the step count). */
+    sched = sched && !e->solo && gs_system_has_body_state(e->sys);
+    bool stale = false;
     if (e->solo && e->rank != 0) {
         sync_solo(e);
         if (done)
@@ -570,7 +611,11 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
             err = gs_step_serial(e->sys);
             e->timing.steps++;
         } else {
+            e->sys->energy_deferred = sched && !energy_due(e->sys, i + 1 == n);
+            stale = stale || e->sys->energy_deferred;
             err = dist_step(e);
+            if (err == GS_OK && !e->sys->energy_deferred)
+                stale = false;
         }
         if (err != GS_OK)
             break;
@@ -581,6 +626,9 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done)
     }
     if (e->solo)
         sync_solo(e);
+    e->sys->energy_deferred = false;
+    if (stale) /* a step failed after deferred ones: every rank alike */
+        err = refresh_energy(e, err);
     if (done)
         *done = i;
     return err;
@@ -842,11 +890,11 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         unload(e);
         return GS_OK;
     case GS_OP_STEP: {
-        int64_t n;
-        if (!e->sys || len != sizeof n)
+        int64_t n[2] = {0, e->energy_sched}; /* count, rank 0's energy schedule */
+        if (!e->sys || (len != sizeof n[0] && len != sizeof n))
             return GS_ESTATE;
-        memcpy(&n, payload, sizeof n);
-        return run_steps(e, n, done);
+        memcpy(n, payload, len);
+        return run_steps(e, n[0], done, n[1] != 0);
     }
     case GS_OP_SET_LOAD: {
         if (!e->sys)
@@ -880,6 +928,13 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
 gs_err gs_engine_run(gs_engine *e, gs_op op, const void *payload, size_t len, gs_diag *d,
                      int64_t *done)
 {
+    int64_t st[2];
+    if (op == GS_OP_STEP && len == sizeof st[0]) { /* the energy schedule travels with it */
+        memcpy(st, payload, sizeof st[0]);
+        st[1] = e->energy_sched;
+        payload = st;
+        len = sizeof st;
+    }
     if (e->size > 1) {
         int64_t hdr[2] = {op, (int64_t)len};
         MPI_Request rq;

@@ -121,9 +121,13 @@ struct gs_fe_body {
     /* Computed at the end of a step from the new state, in the one pass
      * over the matrices that the energies need anyway: -K (q + (h/2 +
      * beta) w), the next step's right-hand side without loads (valid for
-     * next_h), and the energies. Invalid after any change of state. */
+     * next_h), and the energies. Invalid after any change of state.
+     * next_energy: next_T and next_V hold (with next_valid); not when the
+     * step was ended with the energies deferred (defer_energy, set by
+     * gs_fe_body_defer_energy): gs_fe_body_energy then sums them from the
+     * state, the same values bit for bit. */
     double *next_r, next_h, next_T, next_V;
-    bool next_valid;
+    bool next_valid, next_energy, defer_energy;
     double *blk_C;
     size_t cap_blk_q, cap_blk_C;
     bool blk_valid;
@@ -423,12 +427,12 @@ void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
         *kinetic = *elastic = 0;
         return;
     }
-    if (b->next_valid) {
+    if (b->next_valid && b->next_energy) {
         *kinetic = b->next_T;
         *elastic = b->next_V;
         return;
     }
-    double wmw, qkq;
+    double wmw, qkq; /* the pass's sums, in its order (gsi_fe_step_pass) */
     gsi_fe_quadform2(b->m, b->w, b->q, &wmw, &qkq);
     *kinetic = kinetic_of(b, wmw);
     *elastic = 0.5 * qkq;
@@ -468,8 +472,14 @@ void gs_fe_body_spin(gs_fe_body *b, double dw)
     b->w[b->ne] += dw;
     /* The next right-hand side does not use theta' (K acts on the elastic
      * unknowns); the kinetic energy does. */
-    if (b->next_valid)
+    if (b->next_valid && b->next_energy)
         b->next_T = gs_fe_body_kinetic(b);
+}
+
+void gs_fe_body_defer_energy(gs_fe_body *b, bool defer)
+{
+    if (b)
+        b->defer_energy = defer;
 }
 
 double gs_fe_body_theta(const gs_fe_body *b)
@@ -651,12 +661,18 @@ static void advance(gs_fe_body *b)
         return;
     }
     double wmw, qkq;
-    /* dq: q + (h/2 + beta) w, as begin_step forms it */
-    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->dq, b->next_r, &wmw, &qkq);
+    const bool en = !b->defer_energy;
+    /* dq: q + (h/2 + beta) w, as begin_step forms it; the energies (and the
+     * M stream, a third of the pass's memory traffic) only when wanted */
+    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->dq, b->next_r, en ? &wmw : NULL,
+                     en ? &qkq : NULL);
     b->q[ne] += h * b->w[ne] + b->delta[ne];
     b->w[ne] += 2.0 * b->delta[ne] / h;
-    b->next_T = kinetic_of(b, wmw);
-    b->next_V = 0.5 * qkq;
+    if (en) {
+        b->next_T = kinetic_of(b, wmw);
+        b->next_V = 0.5 * qkq;
+    }
+    b->next_energy = en;
     b->next_h = h;
     b->next_valid = true;
 }

@@ -76,7 +76,9 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
  * q += h w + delta, then w += 2 delta / h, x = q + c w, y = -K x (y needs no
  * initial value), *qm = w^T M w and *qk = q^T K q of the new q, w: bit for
  * bit the values of those loops, gsi_fe_symv2(m, 0, x, -1, x, y) on a zero
- * y and gsi_fe_quadform2(m, w, q, qm, qk) taken one after the other. */
+ * y and gsi_fe_quadform2(m, w, q, qm, qk) taken one after the other. With
+ * qm or qk NULL the energies are not summed and M is not read (q, w, x, y
+ * the same bit for bit). */
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
                       double *w, double *x, double *y, double *qm, double *qk);
 

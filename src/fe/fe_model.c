@@ -428,9 +428,12 @@ static inline void pass_entry(gs_index j, double h, double c, const double *rest
     x[j] = q[j] + c * w[j];
 }
 
-/* Column j alone (entry j already updated). */
-static inline void pass_column(const gs_fe_model *m, gs_index j, const double *restrict q, const double *restrict w,
-                               const double *restrict x, double *restrict y, pass_sums *restrict s)
+/* Column j alone (entry j already updated); the energy sums only when en
+ * (a constant at each call: the compiler drops the M stream without). */
+static inline __attribute__((always_inline)) void pass_column(const gs_fe_model *m, gs_index j,
+                                                              const double *restrict q, const double *restrict w,
+                                                              const double *restrict x, double *restrict y,
+                                                              pass_sums *restrict s, const bool en)
 {
     const gs_index *restrict ri = m->rowi;
     const double *restrict mx = m->mx, *restrict kx = m->kx;
@@ -441,10 +444,14 @@ static inline void pass_column(const gs_fe_model *m, gs_index j, const double *r
         double k = kx[p];
         y[i] += k * bx;
         acc += k * x[i];
-        am += mx[p] * w[i];
-        ak += k * q[i];
+        if (en) {
+            am += mx[p] * w[i];
+            ak += k * q[i];
+        }
     }
     y[j] = 0.0 + (-1.0 * acc + kx[end] * bx);
+    if (!en)
+        return;
     s->offm += am * w[j];
     s->diagm += mx[end] * w[j] * w[j];
     s->offk += ak * q[j];
@@ -458,9 +465,12 @@ static inline void pass_column(const gs_fe_model *m, gs_index j, const double *r
  * j + 1 one after the other (each y[i] gets column j's term first; y[j],
  * born at the end of column j, then column j + 1's), so the result is the
  * same bit for bit; the two columns' independent sums run interleaved, and
- * each row index and vector entry is read once for both. */
-static inline void pass_node(const gs_fe_model *m, gs_index j, const double *restrict q, const double *restrict w,
-                             const double *restrict x, double *restrict y, pass_sums *restrict s)
+ * each row index and vector entry is read once for both. Without en, y
+ * alone (the same entries: the energy sums never enter y). */
+static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m, gs_index j,
+                                                            const double *restrict q, const double *restrict w,
+                                                            const double *restrict x, double *restrict y,
+                                                            pass_sums *restrict s, const bool en)
 {
     const gs_index *restrict ri = m->rowi;
     const double *restrict mx = m->mx, *restrict kx = m->kx;
@@ -472,53 +482,72 @@ static inline void pass_node(const gs_fe_model *m, gs_index j, const double *res
     double acc0 = 0, am0 = 0, ak0 = 0, acc1 = 0, am1 = 0, ak1 = 0;
     for (gs_index t = 0; t < len; t++) {
         gs_index i = r0[t];
-        double ka = k0[t], kb = k1[t], xi = x[i], wi = w[i], qi = q[i];
+        double ka = k0[t], kb = k1[t], xi = x[i];
         y[i] = (y[i] + ka * bx0) + kb * bx1;
         acc0 += ka * xi;
-        am0 += m0[t] * wi;
-        ak0 += ka * qi;
         acc1 += kb * xi;
-        am1 += m1[t] * wi;
-        ak1 += kb * qi;
+        if (en) {
+            double wi = w[i], qi = q[i];
+            am0 += m0[t] * wi;
+            ak0 += ka * qi;
+            am1 += m1[t] * wi;
+            ak1 += kb * qi;
+        }
     }
     y[j] = 0.0 + (-1.0 * acc0 + kx[ea] * bx0);
-    s->offm += am0 * w[j];
-    s->diagm += mx[ea] * w[j] * w[j];
-    s->offk += ak0 * q[j];
-    s->diagk += kx[ea] * q[j] * q[j];
+    if (en) {
+        s->offm += am0 * w[j];
+        s->diagm += mx[ea] * w[j] * w[j];
+        s->offk += ak0 * q[j];
+        s->diagk += kx[ea] * q[j] * q[j];
+    }
     gs_index p = eb - 1; /* column j + 1, row j */
     y[j] += kx[p] * bx1;
     acc1 += kx[p] * x[j];
+    y[j + 1] = 0.0 + (-1.0 * acc1 + kx[eb] * bx1);
+    if (!en)
+        return;
     am1 += mx[p] * w[j];
     ak1 += kx[p] * q[j];
-    y[j + 1] = 0.0 + (-1.0 * acc1 + kx[eb] * bx1);
     s->offm += am1 * w[j + 1];
     s->diagm += mx[eb] * w[j + 1] * w[j + 1];
     s->offk += ak1 * q[j + 1];
     s->diagk += kx[eb] * q[j + 1] * q[j + 1];
 }
 
-void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
-                      double *w, double *x, double *y, double *qm, double *qk)
+/* The pass with (en) or without the energy sums. */
+static inline __attribute__((always_inline)) void step_pass(const gs_fe_model *m, double h, double c,
+                                                            const double *delta, double *q, double *w, double *x,
+                                                            double *y, pass_sums *s, const bool en)
 {
     const gs_index *cp = m->colp, *ri = m->rowi;
-    pass_sums s = {0, 0, 0, 0};
     gs_index j = 0;
     for (; j + 1 < m->ne; j += 2) {
         pass_entry(j, h, c, delta, q, w, x);
         pass_entry(j + 1, h, c, delta, q, w, x);
         /* column j + 1 is column j's rows, then row j (assemble()) */
         if (cp[j + 2] - cp[j + 1] == cp[j + 1] - cp[j] + 1 && ri[cp[j + 2] - 2] == j) {
-            pass_node(m, j, q, w, x, y, &s);
+            pass_node(m, j, q, w, x, y, s, en);
         } else {
-            pass_column(m, j, q, w, x, y, &s);
-            pass_column(m, j + 1, q, w, x, y, &s);
+            pass_column(m, j, q, w, x, y, s, en);
+            pass_column(m, j + 1, q, w, x, y, s, en);
         }
     }
     for (; j < m->ne; j++) {
         pass_entry(j, h, c, delta, q, w, x);
-        pass_column(m, j, q, w, x, y, &s);
+        pass_column(m, j, q, w, x, y, s, en);
     }
+}
+
+void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
+                      double *w, double *x, double *y, double *qm, double *qk)
+{
+    pass_sums s = {0, 0, 0, 0};
+    if (!qm || !qk) { /* no energies: K alone, the M stream not read */
+        step_pass(m, h, c, delta, q, w, x, y, &s, false);
+        return;
+    }
+    step_pass(m, h, c, delta, q, w, x, y, &s, true);
     *qm = s.diagm + 2.0 * s.offm;
     *qk = s.diagk + 2.0 * s.offk;
 }

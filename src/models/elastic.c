@@ -438,9 +438,17 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
         GS_TRY(el->be->apply(el, n, el->dofs, f));
     el->begun = false;
     double damped = el->be->damped(el);
+    /* Energies on the engine's schedule only (gs_system energy_deferred);
+     * closure_energy's velocity update books against them every step. */
+    bool due = !sys->energy_deferred || sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY;
+    if (el->body)
+        gs_fe_body_defer_energy(el->body, !due);
     GS_TRY(el->be->end_step(el));
     b->D_step = el->be->damped(el) - damped;
-    b->ops->energy(sys, b, &b->T, &b->V);
+    if (due)
+        b->ops->energy(sys, b, &b->T, &b->V);
+    else
+        b->T = b->V = NAN;
     /* The angular momentum (a pass over every elastic unknown) is read only
      * by closure_energy's velocity update (gs_step_contact_return). */
     b->L = sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY ? el->be->angular_momentum(el) : 0.0;

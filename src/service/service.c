@@ -934,6 +934,7 @@ gs_err gsi_service_init(gs_service *s, gs_engine *eng, const gs_service_config *
     for (int i = 0; i < 16; i++)
         snprintf(s->session + 2 * i, 3, "%02x", rnd[i]);
     gs_engine_set_hook(eng, step_hook, s);
+    gs_engine_set_energy_schedule(eng, true); /* step_hook reads them on its steps only */
     return GS_OK;
 }
 

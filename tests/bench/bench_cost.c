@@ -242,6 +242,8 @@ static void perf_ctl(const char *cmd)
     }
 }
 
+static bool energy_every_step; /* GEARSIM_ENERGY_EVERY_STEP=1 */
+
 static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
@@ -323,6 +325,12 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     double ifl = interleaved_floor(sys, 0, 1000);
     printf("rank 0's gears solved in turn (CPU ms per round) %.4f: CPU ratio against it %.2f\n", 1e3 * ifl,
            cpu / ifl);
+    /* Both floors side by side: the bar is judged on the hot loop. */
+    printf("RESULT_FLOORS scene %s order %d contact %s ranks %d: CPU ms_per_step %.4f; floor (hot loop, each gear's "
+           "solve repeated) %.4f ms, ratio %.2f; floor in turn (rank 0's gears one after the other, as the step "
+           "takes them) %.4f ms, ratio %.2f; energies %s\n",
+           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * cpu, 1e3 * cfl,
+           cpu / cfl, 1e3 * ifl, cpu / ifl, energy_every_step ? "every step" : "on the daemon's schedule");
     printf("RESULT scene %s order %d contact %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
            "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
            c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
@@ -352,6 +360,14 @@ int main(int argc, char **argv)
         return 1;
     }
     int rank = gs_engine_rank(e), size = gs_engine_size(e), rc = 0;
+    /* The critical path (thread CPU clock reads per phase) on every rank;
+     * the energies on the daemon's schedule (gs_engine_set_energy_schedule:
+     * telemetry steps and chunk ends), or every step with
+     * GEARSIM_ENERGY_EVERY_STEP=1. */
+    gs_engine_set_cpu_timing(e, true);
+    const char *every = getenv("GEARSIM_ENERGY_EVERY_STEP");
+    energy_every_step = every && every[0] == '1';
+    gs_engine_set_energy_schedule(e, !energy_every_step);
     if (rank != 0) {
         rc = gs_engine_serve(e) != GS_OK;
     } else {

@@ -407,6 +407,16 @@ static void step_pass_matches_separate_loops(void **state)
     assert_memory_equal(&qm1, &qm2, sizeof qm1);
     assert_memory_equal(&qk1, &qk2, sizeof qk1);
     assert_true(qm1 > 0 && qk1 > 0);
+    /* without the energies (qm, qk NULL): the same state and y */
+    memcpy(q2, q0, (size_t)ne * sizeof *q2);
+    memcpy(w2, w0, (size_t)ne * sizeof *w2);
+    for (gs_index i = 0; i < ne; i++)
+        x2[i] = y2[i] = NAN;
+    gsi_fe_step_pass(m, h, c, dl, q2, w2, x2, y2, NULL, NULL);
+    assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
+    assert_memory_equal(w1, w2, (size_t)ne * sizeof *w1);
+    assert_memory_equal(x1, x2, (size_t)ne * sizeof *x1);
+    assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
     free(q0), free(w0), free(dl), free(q1), free(w1), free(x1), free(y1);
     free(q2), free(w2), free(x2), free(y2);
     gs_fe_model_free(&m);
