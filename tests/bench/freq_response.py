@@ -82,15 +82,51 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
-Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
 
 
-def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False):
-    s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
+DEFAULT_SCENE = os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")
+
+
+def base_scene(path=None, thinning=None):
+    """The pair the points run: contact_drive (default) or the scene at path.
+    A scene without loads (e.g. pair_relief.json) gets contact_drive's: the
+    moment ramping to 20 N m on the gear with more teeth (the driver), the
+    brake of 0.3 N m s on the other. The mesh's gears are put driver first,
+    so that gearsim-modal --fe --torque T loads the driver as the sweep does
+    and linear_parametric's force is T / rb of the first. thinning (mm):
+    every gear's thinning_mm (the backlash; contact_drive has 0.05)."""
+    s = json.load(open(path or DEFAULT_SCENE))
+    gears = [b for b in s["bodies"] if b.get("type") == "gear"]
+    if len(gears) != 2 or len(s.get("meshes", [])) != 1:
+        sys.exit("freq_response: the scene must be one pair (two gears, one mesh)")
+    if not s.get("loads"):
+        drv, out = sorted(gears, key=lambda b: -b["teeth"])
+        s["loads"] = [{"body": drv["name"], "type": "ramp", "moment": 20.0, "ramp_time": 0.02},
+                      {"body": out["name"], "type": "brake", "coefficient": 0.3}]
+    drv = s["loads"][0]["body"]
+    m = s["meshes"][0]
+    if m["gears"][0] != drv:
+        m["gears"] = list(reversed(m["gears"]))
+    if thinning is not None:
+        for b in gears:
+            b["thinning_mm"] = thinning
+    return s
+
+
+def driver_teeth(s):
+    """Teeth of the driver (the body of the first moment load): the mesh
+    frequency is driver rpm / 60 * teeth."""
+    drv = s["loads"][0]["body"]
+    return next(b["teeth"] for b in s["bodies"] if b["name"] == drv)
+
+
+def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False, scene=None,
+              thinning=None):
+    s = base_scene(scene, thinning)
     if torque:
         s["loads"][0]["moment"] = torque
     s["outputs"] = {"telemetry_every": 100000}
@@ -118,11 +154,12 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
     return s
 
 
-def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False):
+def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=None, thinning=None):
     """The FE mode of the contact model's own gears (its mesh as scene_for
     writes it; the damping does not enter)."""
     path = os.path.join(work, "scene_fe.json")
-    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse), open(path, "w"))
+    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse, scene=scene, thinning=thinning),
+              open(path, "w"))
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
     out = subprocess.run([exe, "--fe", "--positions", str(positions), "--torque", repr(torque), "--json", path],
                          check=True, capture_output=True, text=True).stdout
@@ -130,14 +167,14 @@ def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False):
 
 
 def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False,
-              settle=5e-3, min_measure=2.5e-3, min_cycles=12):
+              settle=5e-3, min_measure=2.5e-3, min_cycles=12, scene=None, thinning=None, h_max=2.5e-6):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse), open(path, "w"))
-    h = min(2.5e-6, 1.0 / f / 24)
+        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning), open(path, "w"))
+    h = min(h_max, 1.0 / f / 24)
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
-    rpm = f * 60.0 / Z_DRIVER
+    rpm = f * 60.0 / driver_teeth(json.load(open(path)))
     import resource
     import time
     t0 = time.time()
@@ -346,6 +383,11 @@ def main():
                     help="element order of the contact model's gears (and of the FE mode)")
     ap.add_argument("--torque", type=float, default=0.0, help="moment on the wheel, N m (0: the scene's 20)")
     ap.add_argument("--contact", default="closure_energy", help="numerics.contact of the scenes")
+    ap.add_argument("--scene", default=None,
+                    help="the pair (default deploy/scenes/contact_drive.json); without loads it gets contact_drive's")
+    ap.add_argument("--thinning", type=float, default=None,
+                    help="thinning_mm of both gears (the backlash; default the scene's)")
+    ap.add_argument("--h-max", type=float, default=2.5e-6, help="largest time step, s (h = min(this, period / 24))")
     ap.add_argument("--coarse", action="store_true", help="the contact model on the coarse mesh (flank 2, across 1, rim 1)")
     ap.add_argument("--settle", type=float, default=5e-3, help="settling time per point, s")
     ap.add_argument("--min-measure", type=float, default=2.5e-3, help="measured at least this long, s")
@@ -377,7 +419,7 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse)
+        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse, a.scene, a.thinning)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
@@ -400,7 +442,7 @@ def main():
                 if (m, f) in have:
                     continue
                 r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque, a.contact, a.coarse, a.settle,
-                              a.min_measure, a.min_cycles)
+                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -511,8 +553,9 @@ def main():
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
         ax[0].legend(loc="lower left", fontsize=8)
-        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
-                        (a.torque or 20, 100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
+        ax[0].set_title("%s: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
+                        (os.path.splitext(os.path.basename(a.scene or DEFAULT_SCENE))[0], a.torque or 20,
+                         100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
         print("plot:", a.plot)
