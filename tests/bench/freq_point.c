@@ -12,7 +12,11 @@
  *   spike   steps whose mesh force exceeds twice its window mean,
  *   closure the contact work booked over the window (the gap closure's
  *           impact losses, numerics.contact "closure") against the driver's
- *           work over it.
+ *           work over it,
+ *   h1      the amplitude of the DTE's first mesh harmonic (its Fourier
+ *           coefficient at the row's measured mesh frequency over the
+ *           window, um): the resonant part of the DTE rms, without the
+ *           higher harmonics of the flanks' chords.
  *
  *   freq_point SCENE.json --rpm RPM --settle S --measure S --h H [--csv FILE]
  *
@@ -116,9 +120,10 @@ int main(int argc, char **argv)
         fprintf(out, "t_s,dte_um,force_n,active\n");
     /* Forces are kept to compare them with the window's mean at the end. */
     int64_t cap = gs_sweep_meter_steps_total(m) + 1, n = 0;
-    double *F = calloc((size_t)cap, sizeof(double));
+    double *F = calloc((size_t)cap, sizeof(double)), *X = calloc((size_t)cap, sizeof(double)),
+           *T = calloc((size_t)cap, sizeof(double));
     int *act = calloc((size_t)cap, sizeof(int));
-    if (!F || !act)
+    if (!F || !act || !X || !T)
         return 1;
     double cw0 = 0, win0 = 0, t0 = 0, cpu0 = cpu_now();
     for (int64_t k = 0; gs_sweep_meter_steps_left(m) > 0; k++) {
@@ -136,6 +141,8 @@ int main(int argc, char **argv)
         }
         if (k >= n_settle) {
             F[n] = fabs(g->force);
+            X[n] = g->deflection;
+            T[n] = s->time;
             act[n] = g->n_active;
             n++;
             if (out)
@@ -158,8 +165,24 @@ int main(int argc, char **argv)
     double row[GS_SWEEP_MAX_COLUMNS];
     gs_sweep_meter_row(m, row);
     json_object *o = json_object_new_object();
-    for (int c = 0; c < gs_sweep_columns(sw); c++)
+    double fmesh = NAN;
+    for (int c = 0; c < gs_sweep_columns(sw); c++) {
         json_object_object_add(o, gs_sweep_column(sw, c), json_object_new_double(row[c]));
+        if (!strcmp(gs_sweep_column(sw, c), "mesh_hz"))
+            fmesh = row[c];
+    }
+    /* First mesh harmonic of the DTE over the window (the mean taken out;
+     * the window holds whole cycles at the nominal speed). */
+    double xm = 0, ac = 0, as = 0;
+    for (int64_t i = 0; i < n; i++)
+        xm += X[i] / (double)n;
+    for (int64_t i = 0; i < n; i++) {
+        double w = 2.0 * 3.14159265358979323846 * fmesh * T[i];
+        ac += (X[i] - xm) * cos(w);
+        as += (X[i] - xm) * sin(w);
+    }
+    json_object_object_add(o, "dte_h1_um",
+                           json_object_new_double(n > 0 ? 2.0 * hypot(ac, as) / (double)n * 1e6 : NAN));
     json_object_object_add(o, "steps", json_object_new_int64(n));
     json_object_object_add(o, "force_mean_n", json_object_new_double(fmean));
     json_object_object_add(o, "separated_fraction", json_object_new_double((double)sep / (double)n));
@@ -174,6 +197,8 @@ int main(int argc, char **argv)
     if (out)
         fclose(out);
     free(F);
+    free(X);
+    free(T);
     free(act);
     gs_sweep_meter_free(&m);
     gs_system_free(&s);

@@ -7,6 +7,7 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
 (gearsim-modal --fe) marked.
 
     tests/bench/freq_response.py [--build build] [--work DIR] [--models contact,lumped,...]
+                                 [--scene SCENE.json] [--thinning MM] [--h-max H]
                                  [--torque T] [--damping Z] [--order 1|2] [--grid N]
                                  [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
                                  [--contact closure_energy|closure|seed] [--coarse]
@@ -28,6 +29,17 @@ The order-1 figures of docs/MODAL.md (contact "closure"): the defaults (20 N m, 
 --damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
 --grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
 then --grid 10 (0.2 to 2), each in its own --work directory.
+
+The pair (--scene, default deploy/scenes/contact_drive.json) is one mesh
+of two gears; a scene without loads (deploy/scenes/pair_relief.json) gets
+contact_drive's: the moment (ramp to 20 N m, --torque sets it) on the gear
+with more teeth, the brake on the other; the mesh's gears are put driver
+first (gearsim-modal --fe --torque loads the mesh's first gear). The relief
+pair at its design load (docs/MODAL.md "The relief pair at its design
+load"): --scene deploy/scenes/pair_relief.json --thinning 0.05 --order 2
+--torque 70.5 --damping 0.05 --settle 0.002 --min-measure 0.0012 --contact
+closure --models contact --grid 1 --grid-from 1.0 --dense 0 --extra-rel ...
+(--thinning 0.05: contact_drive's backlash; pair_relief has none).
 
 Every point is one run of gearsim-sweep (its own settle and a whole number
 of mesh cycles measured), cached in WORK/points.csv: a rerun computes only
@@ -82,15 +94,51 @@ import sys
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
-Z_DRIVER = 30  # the wheel of contact_drive drives
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
-          "contact_work_rel"]
+          "contact_work_rel", "dte_h1_um"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
 
 
-def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False):
-    s = json.load(open(os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")))
+DEFAULT_SCENE = os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")
+
+
+def base_scene(path=None, thinning=None):
+    """The pair the points run: contact_drive (default) or the scene at path.
+    A scene without loads (e.g. pair_relief.json) gets contact_drive's: the
+    moment ramping to 20 N m on the gear with more teeth (the driver), the
+    brake of 0.3 N m s on the other. The mesh's gears are put driver first,
+    so that gearsim-modal --fe --torque T loads the driver as the sweep does
+    and linear_parametric's force is T / rb of the first. thinning (mm):
+    every gear's thinning_mm (the backlash; contact_drive has 0.05)."""
+    s = json.load(open(path or DEFAULT_SCENE))
+    gears = [b for b in s["bodies"] if b.get("type") == "gear"]
+    if len(gears) != 2 or len(s.get("meshes", [])) != 1:
+        sys.exit("freq_response: the scene must be one pair (two gears, one mesh)")
+    if not s.get("loads"):
+        drv, out = sorted(gears, key=lambda b: -b["teeth"])
+        s["loads"] = [{"body": drv["name"], "type": "ramp", "moment": 20.0, "ramp_time": 0.02},
+                      {"body": out["name"], "type": "brake", "coefficient": 0.3}]
+    drv = s["loads"][0]["body"]
+    m = s["meshes"][0]
+    if m["gears"][0] != drv:
+        m["gears"] = list(reversed(m["gears"]))
+    if thinning is not None:
+        for b in gears:
+            b["thinning_mm"] = thinning
+    return s
+
+
+def driver_teeth(s):
+    """Teeth of the driver (the body of the first moment load): the mesh
+    frequency is driver rpm / 60 * teeth."""
+    drv = s["loads"][0]["body"]
+    return next(b["teeth"] for b in s["bodies"] if b["name"] == drv)
+
+
+def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False, scene=None,
+              thinning=None):
+    s = base_scene(scene, thinning)
     if torque:
         s["loads"][0]["moment"] = torque
     s["outputs"] = {"telemetry_every": 100000}
@@ -118,11 +166,12 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
     return s
 
 
-def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False):
+def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=None, thinning=None):
     """The FE mode of the contact model's own gears (its mesh as scene_for
     writes it; the damping does not enter)."""
     path = os.path.join(work, "scene_fe.json")
-    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse), open(path, "w"))
+    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse, scene=scene, thinning=thinning),
+              open(path, "w"))
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
     out = subprocess.run([exe, "--fe", "--positions", str(positions), "--torque", repr(torque), "--json", path],
                          check=True, capture_output=True, text=True).stdout
@@ -130,14 +179,14 @@ def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False):
 
 
 def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False,
-              settle=5e-3, min_measure=2.5e-3, min_cycles=12):
+              settle=5e-3, min_measure=2.5e-3, min_cycles=12, scene=None, thinning=None, h_max=2.5e-6):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse), open(path, "w"))
-    h = min(2.5e-6, 1.0 / f / 24)
+        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning), open(path, "w"))
+    h = min(h_max, 1.0 / f / 24)
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
-    rpm = f * 60.0 / Z_DRIVER
+    rpm = f * 60.0 / driver_teeth(json.load(open(path)))
     import resource
     import time
     t0 = time.time()
@@ -168,6 +217,8 @@ def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact
         out["separated_fraction"] = row["separated_fraction"]
         out["low_force_fraction"] = row["low_force_fraction"]
         out["contact_work_rel"] = row["contact_work_j"] / row["work_in_j"] if row["work_in_j"] else float("nan")
+    if "dte_h1_um" in row:
+        out["dte_h1_um"] = row["dte_h1_um"]
     return out
 
 
@@ -286,6 +337,40 @@ def peaks(pts):
     return sorted(out, key=lambda p: -p[1])
 
 
+def lsq_peak(x, y, centre, half):
+    """Vertex of the least-squares parabola through the points within
+    centre +- half (at least 4 of them; None otherwise or if it opens up)."""
+    import numpy as np
+    sel = [(a, b) for a, b in zip(x, y) if abs(a - centre) <= half]
+    if len(sel) < 4:
+        return None
+    c = np.polyfit([a - centre for a, _ in sel], [b for _, b in sel], 2)
+    if c[0] >= 0:
+        return None
+    v = centre - c[1] / (2 * c[0])
+    return v if min(a for a, _ in sel) <= v <= max(a for a, _ in sel) else None
+
+
+def fit_report(cache, f0):
+    """Peak estimates of every model's largest point: the three-point parabola
+    and least-squares parabolas through the points within +-3, 4 and 6 % of
+    the mode around it; for the contact model also of the DTE's first mesh
+    harmonic (dte_h1_um, when freq_point measured it)."""
+    for m in MODELS:
+        for col in ("dte_rms_um", "dte_h1_um"):
+            pts = sorted((r for r in cache if r["model"] == m and r.get(col) == r.get(col)), key=lambda r: r["mesh_hz"])
+            if len(pts) < 4:
+                continue
+            x = [r["mesh_hz"] for r in pts]
+            y = [r[col] for r in pts]
+            i = max(range(len(y)), key=lambda i: y[i])
+            est = [("parabola", parabola(x, y, i))]
+            for hw in (0.03, 0.04, 0.06):
+                est.append(("lsq +-%g %%" % (100 * hw), lsq_peak(x, y, x[i], hw * f0)))
+            print("%s %s: %s" % (m, col, ", ".join("%s %s" % (k, "%.1f Hz (%+.2f %%)" % (v, 100 * (v / f0 - 1))
+                                                                  if v else "-") for k, v in est)))
+
+
 def compare_plot(specs, out):
     """The contact model's DTE rms and steps without contact against the
     mesh frequency relative to each run's FE mode, one curve per work
@@ -346,6 +431,11 @@ def main():
                     help="element order of the contact model's gears (and of the FE mode)")
     ap.add_argument("--torque", type=float, default=0.0, help="moment on the wheel, N m (0: the scene's 20)")
     ap.add_argument("--contact", default="closure_energy", help="numerics.contact of the scenes")
+    ap.add_argument("--scene", default=None,
+                    help="the pair (default deploy/scenes/contact_drive.json); without loads it gets contact_drive's")
+    ap.add_argument("--thinning", type=float, default=None,
+                    help="thinning_mm of both gears (the backlash; default the scene's)")
+    ap.add_argument("--h-max", type=float, default=2.5e-6, help="largest time step, s (h = min(this, period / 24))")
     ap.add_argument("--coarse", action="store_true", help="the contact model on the coarse mesh (flank 2, across 1, rim 1)")
     ap.add_argument("--settle", type=float, default=5e-3, help="settling time per point, s")
     ap.add_argument("--min-measure", type=float, default=2.5e-3, help="measured at least this long, s")
@@ -354,6 +444,11 @@ def main():
                     help="order 1, closure, 80 N m, 12 %%, 7 points 0.7-1.3, 4 positions, settle 2 ms")
     ap.add_argument("--peaks-json", default=None, help="write the peaks and the FE mode to this file")
     ap.add_argument("--plot", default=None)
+    ap.add_argument("--no-sdof", action="store_true",
+                    help="plot without linear_parametric's curves (it has no profile modification's excitation)")
+    ap.add_argument("--overlay", default=None,
+                    help="with --plot: the contact curves of more work directories, DIR:LABEL;...")
+    ap.add_argument("--title", default=None, help="with --plot: the title")
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
     ap.add_argument("--compare", default=None,
@@ -377,7 +472,7 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse)
+        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse, a.scene, a.thinning)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
@@ -400,7 +495,7 @@ def main():
                 if (m, f) in have:
                     continue
                 r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque, a.contact, a.coarse, a.settle,
-                              a.min_measure, a.min_cycles)
+                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -447,6 +542,7 @@ def main():
             print("%s: largest DTE rms measured %.3f um at %.1f Hz (%+.2f %%), the point below at %s Hz" %
                   (m, pts[i]["dte_rms_um"], pts[i]["mesh_hz"], 100 * (pts[i]["mesh_hz"] / f0 - 1),
                    "%.1f" % pts[i - 1]["mesh_hz"] if i > 0 else "-"))
+    fit_report(cache, f0)
     con = [r for r in cache if r["model"] == "contact"]
     sep = [r for r in con if r.get("separated_fraction") == r.get("separated_fraction")]
     near = min(con, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0])) if found.get("contact") else None
@@ -478,7 +574,21 @@ def main():
             x = [r["mesh_hz"] for r in pts]
             ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
             ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
-        if fl == fl:
+        for k, spec in enumerate(o for o in (a.overlay or "").split(";") if o):
+            d, label = spec.split(":", 1)
+            pts = sorted((r for r in load_cache(os.path.join(d, "points.csv")) if r["model"] == "contact"),
+                         key=lambda r: r["mesh_hz"])
+            x = [r["mesh_hz"] for r in pts]
+            ax[0].plot(x, [r["dte_rms_um"] for r in pts], "-o", color="C%d" % (k + 5), ms=3, lw=1,
+                       label="contact, " + label)
+            ax[1].plot(x, [r["dynamic_factor"] for r in pts], "-o", color="C%d" % (k + 5), ms=3, lw=1,
+                       label="contact, " + label)
+        h1 = sorted((r for r in cache if r["model"] == "contact" and r.get("dte_h1_um") == r.get("dte_h1_um")),
+                    key=lambda r: r["mesh_hz"])
+        if h1:
+            ax[0].plot([r["mesh_hz"] for r in h1], [r["dte_h1_um"] / math.sqrt(2) for r in h1], "k--x", ms=4, lw=1,
+                       label="contact, first mesh harmonic / sqrt 2")
+        if fl == fl and not a.no_sdof:
             lo = min(r["mesh_hz"] for r in cache) / f0
             hi = max(r["mesh_hz"] for r in cache) / f0
             rel = [lo + (hi - lo) * k / 119 for k in range(120)]
@@ -511,8 +621,10 @@ def main():
         ax[1].set_ylabel("dynamic factor (peak / mean force)")
         ax[1].set_xlabel("mesh frequency (Hz)")
         ax[0].legend(loc="lower left", fontsize=8)
-        ax[0].set_title("contact_drive: frequency response (%g N m, %g %% damping, order %d%s, %s)" %
-                        (a.torque or 20, 100 * a.damping, a.order, ", coarse" if a.coarse else "", a.contact))
+        title = "%s: frequency response (%g N m, %g %% damping, order %d%s, %s)" % (
+            os.path.splitext(os.path.basename(a.scene or DEFAULT_SCENE))[0], a.torque or 20, 100 * a.damping, a.order,
+            ", coarse" if a.coarse else "", a.contact)
+        ax[0].set_title(a.title.replace("\\n", "\n") if a.title else title, fontsize=10)
         fig.tight_layout()
         fig.savefig(a.plot, dpi=110)
         print("plot:", a.plot)
