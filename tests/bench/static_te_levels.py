@@ -4,7 +4,9 @@
 convergence study (docs/CONVERGENCE.md "planetary_contact: what moves the
 DTE rms"): for every level (o<order>r<refine> or o<order>s<scale>, as
 tests/bench/dyn_convergence_run names them) and mesh it writes a scene with
-that mesh density on every elastic gear, runs gearsim-stiffness (plain FE
+that mesh density on every elastic gear (o<order>f<n>: the order's default
+mesh with the three teeth in contact refined n times, mesh.fine_teeth 3 and
+mesh.fine_refine n, placed by the tool at the mesh's contact), runs gearsim-stiffness (plain FE
 contact, --no-nearfield: what the dynamic model has) over one mesh cycle and
 reduces the loaded TE (te_raw = te0 + te: the rigid closing of the
 discretised flanks plus the elastic deflection, the static counterpart of
@@ -35,12 +37,14 @@ DEFAULTS = {1: (8, 4, 3), 2: (8, 4, 2)}  # flank, across, rim of each order's de
 
 
 def level_mesh(level):
-    m = re.fullmatch(r"o([12])(r(\d+)|s([0-9.]+))", level)
+    m = re.fullmatch(r"o([12])(r(\d+)|s([0-9.]+)|f(\d))", level)
     if not m:
-        sys.exit(f"level {level}: expected o<order>r<refine> or o<order>s<scale>")
+        sys.exit(f"level {level}: expected o<order>r<refine>, o<order>s<scale> or o<order>f<fine_refine>")
     order = int(m.group(1))
     mesh = {"order": order}
-    if m.group(3) is not None:
+    if m.group(5) is not None:  # the default counts, the 3 teeth in contact refined fine_refine times
+        mesh.update(fine_teeth=3, fine_refine=int(m.group(5)))
+    elif m.group(3) is not None:
         mesh["refine"] = int(m.group(3))
     else:
         s = float(m.group(4))
