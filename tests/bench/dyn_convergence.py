@@ -44,7 +44,7 @@ FIELDS = ["scene", "contact", "zeta", "fhz", "order", "refine", "scale", "level"
           "from", "to", "unknowns", "cycles", "mesh_hz", "dte_rms_um", "mean_te_um", "te_pp_um",
           "peak_force_n", "mean_force_n", "ratio", "balance_rel", "pen_max_um",
           "force_peak_over_mean", "strain_max_mj", "strain_mean_mj", "contact_work_j", "steps",
-          "cpu_s", "cpu_per_sim_s", "fmax_hz"]
+          "cpu_s", "cpu_per_sim_s", "fmax_hz", "mesh_dte_rms_um"]
 
 # quantity, label, bar (relative agreement of the two finest), or None
 QUANTITIES = [("dte_rms_um", "DTE rms (um)", 0.02), ("mean_te_um", "mean TE (um)", 0.02),
@@ -157,6 +157,10 @@ def key_of(r):
 
 
 def normalise(d):
+    """A run (JSON line of dyn_convergence_run or CSV row) as a row of FIELDS;
+    the per-mesh DTE rms ("meshes") kept as `name=value` pairs joined by ';'."""
+    if isinstance(d.get("meshes"), list):
+        d["mesh_dte_rms_um"] = ";".join(f"{m['name']}={m['dte_rms_um']:.6f}" for m in d["meshes"])
     order, refine, scale = int(d["order"]), int(d["refine"]), float(d["scale"])
     d["level"] = level_name(order, refine, scale)
     d["size"] = 1.0 / (scale * 2 ** refine)
@@ -230,6 +234,22 @@ def tables(rows, scene, hs, levels, contact, zetas, t0, t1, static_mj):
             f"{f(r['ratio']):.6f}", f"{f(r['balance_rel']):.1e}", f"{f(r['pen_max_um']):.4f}",
             f"{f(r['force_peak_over_mean']):.2f}",
             f"{sm:.2f}" + (f" ({sm / static_mj:.1f}x)" if static_mj else ""), f"{f(r['cpu_per_sim_s']):.0f}"]) + " |")
+    per = [r for r in sel if r.get("mesh_dte_rms_um")]
+    if per:
+        names = []
+        for r in per:
+            for kv in r["mesh_dte_rms_um"].split(";"):
+                if kv.split("=")[0] not in names:
+                    names.append(kv.split("=")[0])
+        out.append(f"\n#### {scene}: DTE rms of every mesh (um; runs that report it)\n")
+        hdr = ["contact", "damping", "mesh", "h (s)"] + names
+        out.append("| " + " | ".join(hdr) + " |")
+        out.append("|" + "---|" * len(hdr))
+        for r in sorted(per, key=lambda r: (r["contact"], f(r["zeta"]), -f(r["size"]), -f(r["h"]))):
+            v = dict(kv.split("=") for kv in r["mesh_dte_rms_um"].split(";"))
+            out.append("| " + " | ".join([r["contact"], f"{f(r['zeta']) * 100:g} %" if f(r["zeta"]) else "none",
+                                          r["level"], f"{f(r['h']):g}"] +
+                                         [f"{float(v[n]):.4f}" if n in v else "" for n in names]) + " |")
     verdicts = {}
     levels = [level_name(*parse_level(lv)[:3]) for lv in levels]  # o1s1 is o1r0
     finest_lv = levels[-1]

@@ -25,7 +25,10 @@
  * (once per node that comes into contact: a one-off of a long run) and
  * step_nocol_cpu_per_sim_s the steps' cost without them; residual_loss_w the
  * mean power the static residual rule took over the run. Figures are taken
- * with tests/common/dyn_window.h. Not a test: runs take minutes. */
+ * with tests/common/dyn_window.h. "meshes" lists, for every mesh of the
+ * scene, the same TE and force figures over the first mesh's whole cycles
+ * (in a planetary train every mesh has the same tooth-mesh frequency).
+ * Not a test: runs take minutes. */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -45,6 +48,74 @@ static double cpu_now(void)
     struct timespec ts;
     clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Kinematic TE and |force| of every mesh, per sample of the window. */
+typedef struct per_mesh {
+    double *te, *force; /* n_meshes x cap, sample-major */
+    long n, cap;
+    int nm;
+} per_mesh;
+
+static int pm_sample(per_mesh *p, const gs_system *s)
+{
+    if (p->n == p->cap) {
+        long cap = p->cap ? 2 * p->cap : 8192;
+        double *a = realloc(p->te, sizeof *a * (size_t)cap * (size_t)p->nm);
+        if (!a)
+            return -1;
+        p->te = a;
+        double *b = realloc(p->force, sizeof *b * (size_t)cap * (size_t)p->nm);
+        if (!b)
+            return -1;
+        p->force = b, p->cap = cap;
+    }
+    for (int j = 0; j < p->nm; j++) {
+        const gs_gmesh_rt *m = &s->meshes[j];
+        double te = -m->s_ref;
+        for (int k = 0; k < s->n_coords; k++)
+            te += m->a[k] * s->q[k];
+        p->te[p->n * p->nm + j] = te;
+        p->force[p->n * p->nm + j] = fabs(m->force);
+    }
+    p->n++;
+    return 0;
+}
+
+/* A number printed with format `fmt` in the JSON text. */
+static json_object *jnum(double v, const char *fmt)
+{
+    char b[64];
+    snprintf(b, sizeof b, fmt, v);
+    return json_object_new_double_s(v, b);
+}
+
+/* The figures of every mesh over the first `used` samples, as a JSON array. */
+static json_object *pm_json(const per_mesh *p, const gs_system *s, long used)
+{
+    json_object *arr = json_object_new_array();
+    for (int j = 0; j < p->nm && used > 0; j++) {
+        double sx = 0, fs = 0, fp = 0, lo = INFINITY, hi = -INFINITY;
+        for (long i = 0; i < used; i++) {
+            double te = p->te[i * p->nm + j], f = p->force[i * p->nm + j];
+            sx += te, fs += f, fp = fmax(fp, f);
+            lo = fmin(lo, te), hi = fmax(hi, te);
+        }
+        double mean = sx / (double)used, sxx = 0;
+        for (long i = 0; i < used; i++) {
+            double d = p->te[i * p->nm + j] - mean;
+            sxx += d * d;
+        }
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "name", json_object_new_string(s->scene->meshes[s->meshes[j].index].name));
+        json_object_object_add(o, "dte_rms_um", jnum(1e6 * sqrt(sxx / (double)used), "%.6f"));
+        json_object_object_add(o, "mean_te_um", jnum(1e6 * mean, "%.6f"));
+        json_object_object_add(o, "te_pp_um", jnum(1e6 * (hi - lo), "%.5f"));
+        json_object_object_add(o, "peak_force_n", jnum(fp, "%.3f"));
+        json_object_object_add(o, "mean_force_n", jnum(fs / (double)used, "%.4f"));
+        json_object_array_add(arr, o);
+    }
+    return arr;
 }
 
 static char *slurp(const char *path)
@@ -192,6 +263,7 @@ int main(int argc, char **argv)
     int in = in_name[0] ? gs_scene_find_body(s->scene, in_name) : -1;
     int out = out_name[0] ? gs_scene_find_body(s->scene, out_name) : -1;
     dyn_window w = {0};
+    per_mesh pm = {.nm = s->n_meshes};
     long steps = 0;
     while (s->time < t1 - 0.5 * s->h) {
         if (gs_step_serial(s) != GS_OK) {
@@ -200,7 +272,7 @@ int main(int argc, char **argv)
         }
         steps++;
         dw_energy(&w, s);
-        if (s->time >= t0 - 0.5 * s->h && dw_sample(&w, s, 0, in, out) != 0) {
+        if (s->time >= t0 - 0.5 * s->h && (dw_sample(&w, s, 0, in, out) != 0 || pm_sample(&pm, s) != 0)) {
             fprintf(stderr, "out of memory\n");
             return 1;
         }
@@ -220,6 +292,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "the window [%g, %g] s holds no whole mesh cycle\n", t0, t1);
         return 1;
     }
+    json_object *pmj = pm_json(&pm, s, f.used);
     printf("{\"scene\": \"%s\", \"h\": %.6g, \"order\": %d, \"refine\": %d, \"scale\": %.4g, \"flank\": %d, "
            "\"across\": %d, \"rim\": %d, \"unknowns\": %ld, \"contact\": \"%s\", \"zeta\": %.4g, \"fhz\": %.6g, "
            "\"from\": %.5g, \"to\": %.5g, \"cycles\": %d, \"mesh_hz\": %.3f, \"dte_rms_um\": %.6f, "
@@ -228,14 +301,18 @@ int main(int argc, char **argv)
            "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
            "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f, \"fmax_hz\": %.6g, "
            "\"setup_cpu_s\": %.2f, \"step_cpu_per_sim_s\": %.2f, \"column_cpu_s\": %.2f, "
-           "\"step_nocol_cpu_per_sim_s\": %.2f, \"residual_loss_w\": %.4g}\n",
+           "\"step_nocol_cpu_per_sim_s\": %.2f, \"residual_loss_w\": %.4g, \"meshes\": %s}\n",
            scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
            (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
            fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
            f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
            f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
            cpu / s->time, fmax, c_setup, (cpu - c_setup) / s->time, col_cpu,
-           (cpu - c_setup - col_cpu) / s->time, res_loss / s->time);
+           (cpu - c_setup - col_cpu) / s->time, res_loss / s->time,
+           json_object_to_json_string_ext(pmj, JSON_C_TO_STRING_PLAIN));
+    json_object_put(pmj);
+    free(pm.te);
+    free(pm.force);
     dw_free(&w);
     gs_system_free(&s);
     return 0;

@@ -132,6 +132,18 @@ check("reference marked not converged", "NOT converged" in text2)
 check("no cheapest setting when not converged", "No converged value" in text2 and "Cheapest" not in text2)
 check("cheapest setting when converged", "Cheapest run within 2 % of both: o1r2 at h = 1e-05 s" in text)
 
+# every mesh's DTE rms (dyn_convergence_run's "meshes") kept through normalise
+# and listed in its own table
+j = dict(rows[0], meshes=[{"name": "sun-planet1", "dte_rms_um": 0.30924}, {"name": "planet1-ring",
+                                                                          "dte_rms_um": 0.2268}])
+n = dc.normalise(j)
+check("per-mesh DTE kept", n["mesh_dte_rms_um"] == "sun-planet1=0.309240;planet1-ring=0.226800",
+      n["mesh_dte_rms_um"])
+text3, _ = dc.tables([n] + rows[1:], "syn", hs, levels, "closure_energy", [0.02], 0.035, 0.065, 1.0)
+check("per-mesh table", "| sun-planet1 | planet1-ring |" in text3 and "| 0.3092 | 0.2268 |" in text3,
+      text3[:600])
+check("no per-mesh table without it", "DTE rms of every mesh" not in text)
+
 if failures:
     print(f"FAILED: {len(failures)}: {', '.join(failures)}")
     sys.exit(1)
