@@ -582,9 +582,6 @@ static void sync_solo(gs_engine *e)
     free(b);
 }
 
-static gs_err refresh_energy(gs_engine *e, gs_err err);
-static bool energy_due(const gs_system *s, bool last);
-
 static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
 {
     int64_t i = 0;
@@ -890,8 +887,8 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         unload(e);
         return GS_OK;
     case GS_OP_STEP: {
-        int64_t n[2] = {0, e->energy_sched}; /* count, rank 0's energy schedule */
-        if (!e->sys || (len != sizeof n[0] && len != sizeof n))
+        int64_t n[2]; /* count, rank 0's energy schedule (gs_engine_run adds it) */
+        if (!e->sys || len != sizeof n)
             return GS_ESTATE;
         memcpy(n, payload, len);
         return run_steps(e, n[0], done, n[1] != 0);

@@ -419,6 +419,16 @@ typedef struct pass_sums {
     double offm, diagm, offk, diagk;
 } pass_sums;
 
+/* A column's end: its off-diagonal sums am (M) and ak (K) and its diagonal
+ * entries md, kd against its own w_j, q_j. */
+static inline void pass_close(pass_sums *restrict s, double am, double ak, double md, double kd, double wj, double qj)
+{
+    s->offm += am * wj;
+    s->diagm += md * wj * wj;
+    s->offk += ak * qj;
+    s->diagk += kd * qj * qj;
+}
+
 /* The entry j of q, w, x at the start of column j. */
 static inline void pass_entry(gs_index j, double h, double c, const double *restrict delta, double *restrict q,
                               double *restrict w, double *restrict x)
@@ -452,10 +462,7 @@ static inline __attribute__((always_inline)) void pass_column(const gs_fe_model 
     y[j] = 0.0 + (-1.0 * acc + kx[end] * bx);
     if (!en)
         return;
-    s->offm += am * w[j];
-    s->diagm += mx[end] * w[j] * w[j];
-    s->offk += ak * q[j];
-    s->diagk += kx[end] * q[j] * q[j];
+    pass_close(s, am, ak, mx[end], kx[end], w[j], q[j]);
 }
 
 /* The two columns of free node k, j = 2k and j + 1, together: assemble()
@@ -496,10 +503,7 @@ static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m
     }
     y[j] = 0.0 + (-1.0 * acc0 + kx[ea] * bx0);
     if (en) {
-        s->offm += am0 * w[j];
-        s->diagm += mx[ea] * w[j] * w[j];
-        s->offk += ak0 * q[j];
-        s->diagk += kx[ea] * q[j] * q[j];
+        pass_close(s, am0, ak0, mx[ea], kx[ea], w[j], q[j]);
     }
     gs_index p = eb - 1; /* column j + 1, row j */
     y[j] += kx[p] * bx1;
@@ -509,10 +513,7 @@ static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m
         return;
     am1 += mx[p] * w[j];
     ak1 += kx[p] * q[j];
-    s->offm += am1 * w[j + 1];
-    s->diagm += mx[eb] * w[j + 1] * w[j + 1];
-    s->offk += ak1 * q[j + 1];
-    s->diagk += kx[eb] * q[j + 1] * q[j + 1];
+    pass_close(s, am1, ak1, mx[eb], kx[eb], w[j + 1], q[j + 1]);
 }
 
 /* The pass with (en) or without the energy sums. */

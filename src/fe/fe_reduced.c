@@ -1497,6 +1497,11 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
     free(seen);
     if (e != GS_OK)
         return e;
+    /* the residual displacement z0 is that of the initial state (set_state
+     * at creation, the same in a new process for the same scene) */
+    double az = x[off + nr];
+    if (az != 0.0 && !b->z0)
+        return GS_EINVAL; /* a residual displacement this body was not given */
     gs_fe_reduced_cancel_step(b);
     y_clear(b);
     memcpy(b->qm, x + 1, (size_t)b->N * sizeof *x);
@@ -1508,11 +1513,6 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
         b->yin[r] = 1;
         b->ysup[b->nys++] = r;
     }
-    /* the residual displacement z0 is that of the initial state (set_state
-     * at creation, the same in a new process for the same scene) */
-    double az = x[off + nr];
-    if (az != 0.0 && !b->z0)
-        return GS_EINVAL; /* a residual displacement this body was not given */
     b->az = az;
     const double *bk = x + off + 2 * nr + 2;
     b->energy0 = bk[0];

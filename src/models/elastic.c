@@ -41,7 +41,7 @@ typedef struct elastic_backend {
     gs_err (*compliance)(elastic *el, int n, const gs_index *dofs, double *C);
     gs_err (*compliance_sub)(elastic *el, int n, const gs_index *dofs, int k, const int *sel, double *C);
     gs_err (*apply)(elastic *el, int n, const gs_index *dofs, const double *f);
-    gs_err (*end_step)(elastic *el);
+    gs_err (*end_step)(elastic *el, bool energies);
     double (*damped)(const elastic *el);
     double (*angular_momentum)(const elastic *el);
     void (*spin)(elastic *el, double dw);
@@ -100,7 +100,12 @@ static gs_err full_apply(elastic *el, int n, const gs_index *dofs, const double 
 {
     return gs_fe_body_apply(el->body, n, dofs, f);
 }
-static gs_err full_end(elastic *el) { return gs_fe_body_end_step(el->body); }
+/* Without energies the end-of-step pass skips the M stream (fe_body.c). */
+static gs_err full_end(elastic *el, bool energies)
+{
+    gs_fe_body_defer_energy(el->body, !energies);
+    return gs_fe_body_end_step(el->body);
+}
 static double full_damped(const elastic *el) { return gs_fe_body_damped(el->body); }
 static double full_L(const elastic *el) { return gs_fe_body_angular_momentum(el->body); }
 static void full_spin(elastic *el, double dw) { gs_fe_body_spin(el->body, dw); }
@@ -177,7 +182,12 @@ static gs_err red_apply(elastic *el, int n, const gs_index *dofs, const double *
 {
     return gs_fe_reduced_apply(el->red, n, dofs, f);
 }
-static gs_err red_end(elastic *el) { return gs_fe_reduced_end_step(el->red); }
+/* The reduced body sums its energies only when asked (red_energy). */
+static gs_err red_end(elastic *el, bool energies)
+{
+    (void)energies;
+    return gs_fe_reduced_end_step(el->red);
+}
 static double red_damped(const elastic *el) { return gs_fe_reduced_damped(el->red); }
 static double red_L(const elastic *el) { return gs_fe_reduced_angular_momentum(el->red); }
 static void red_spin(elastic *el, double dw) { gs_fe_reduced_spin(el->red, dw); }
@@ -438,12 +448,10 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
         GS_TRY(el->be->apply(el, n, el->dofs, f));
     el->begun = false;
     double damped = el->be->damped(el);
-    /* Energies on the engine's schedule only (gs_system energy_deferred);
-     * closure_energy's velocity update books against them every step. */
-    bool due = !sys->energy_deferred || sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY;
-    if (el->body)
-        gs_fe_body_defer_energy(el->body, !due);
-    GS_TRY(el->be->end_step(el));
+    /* Energies on the engine's schedule only (gs_system energy_deferred;
+     * the engine keeps every step of closure_energy, which books on them). */
+    const bool due = !sys->energy_deferred;
+    GS_TRY(el->be->end_step(el, due));
     b->D_step = el->be->damped(el) - damped;
     if (due)
         b->ops->energy(sys, b, &b->T, &b->V);

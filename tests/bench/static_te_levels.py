@@ -33,26 +33,28 @@ import sys
 import tempfile
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from dyn_convergence import parse_level  # noqa: E402  (the study's level names)
+
 DEFAULTS = {1: (8, 4, 3), 2: (8, 4, 2)}  # flank, across, rim of each order's default mesh
 
 
 def level_mesh(level):
-    m = re.fullmatch(r"o([12])(r(\d+)|s([0-9.]+)|f(\d))", level)
-    if not m:
+    m = re.fullmatch(r"o([12])f(\d)", level)
+    if m:  # the default counts, the 3 teeth in contact refined fine_refine times
+        return {"order": int(m.group(1)), "fine_teeth": 3, "fine_refine": int(m.group(2))}
+    try:
+        order, refine, scale, _ = parse_level(level)
+    except ValueError:
+        order = None
+    if order not in DEFAULTS:
         sys.exit(f"level {level}: expected o<order>r<refine>, o<order>s<scale> or o<order>f<fine_refine>")
-    order = int(m.group(1))
-    mesh = {"order": order}
-    if m.group(5) is not None:  # the default counts, the 3 teeth in contact refined fine_refine times
-        mesh.update(fine_teeth=3, fine_refine=int(m.group(5)))
-    elif m.group(3) is not None:
-        mesh["refine"] = int(m.group(3))
-    else:
-        s = float(m.group(4))
-        f, a, r = DEFAULTS[order]
-        # dyn_convergence_run rounds with lround (half away from zero)
-        mesh.update(flank=int(math.floor(f * s + 0.5)), across=int(math.floor(a * s + 0.5)),
-                    rim=int(math.floor(r * s + 0.5)))
-    return mesh
+    if scale == 1.0:
+        return {"order": order, "refine": refine}
+    f, a, r = DEFAULTS[order]
+    # dyn_convergence_run rounds with lround (half away from zero)
+    return {"order": order, "flank": int(math.floor(f * scale + 0.5)), "across": int(math.floor(a * scale + 0.5)),
+            "rim": int(math.floor(r * scale + 0.5))}
 
 
 def stats(v):
