@@ -591,7 +591,10 @@ typedef struct work {
     double nf_depth;       /* depth d, m */
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
-    int nf_conj;           /* perfect flanks touch at the kinematic angle (nf_offsets) */
+    int nf_conj;           /* conjugate involute flanks (nf_offsets) */
+    double nf_dc;          /* the driver's turn from the kinematic angle that closes
+                            * their backlash (0 at the tight mesh), rad: nf_offsets
+                            * evaluates the rows there */
     double nf_rform[2];    /* form radius of each body (involute above it), m */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
@@ -620,6 +623,8 @@ typedef struct work {
         double xv;         /* the touching point from the corner (corner_loa), m */
         int has_x;         /* the flanks' contact point found: */
         double xb[2];      /* it, in the driver's body frame, m */
+        double ref;        /* the flanks' gap at the kinematic angle (offset taken
+                            * off), m: the reference of the rows' rigid gaps */
     } go[2 * GS_STIFF_MAX_PAIRS];
 } work;
 
@@ -979,7 +984,7 @@ static int corner_exact_gap(const work *w, int kf, const gs_contact_row *r,
     const gs_gear_params *gp = &b->sb->gear;
     double rb = gs_gear_base_radius(gp), ra = gs_gear_tip_radius(gp), rf = w->nf_rform[kf];
     double rlo = fmin(rf, ra), rhi = fmax(rf, ra);
-    double th = w->theta0[kf], cs = cos(th), sn = sin(th);
+    double th = w->theta0[kf] + (kf == 0 ? w->nf_dc : 0.0), cs = cos(th), sn = sin(th);
     double best = INFINITY, phi0 = 0.0;
     int sbest = 0;
     for (int sg = -1; sg <= 1; sg += 2) {
@@ -1118,7 +1123,7 @@ static gs_err nf_offsets(work *w)
     w->n_go = 0;
     int nr;
     double gmin;
-    GS_TRY(collect(w, 0.0, INFINITY, &nr, &gmin));
+    GS_TRY(collect(w, w->nf_dc, INFINITY, &nr, &gmin));
     for (int i = 0; i < nr; i++) {
         const int *t = w->teeth[i];
         if (gap_off_find(w, t) || w->n_go == (int)(sizeof w->go / sizeof w->go[0]))
@@ -1229,9 +1234,10 @@ static gs_err nf_offsets(work *w)
         w->go[w->n_go].kc = okc;
         w->go[w->n_go].xv = oxv;
         w->go[w->n_go].has_x = ng0 > 0;
+        w->go[w->n_go].ref = rm->gap.g - off;
         if (ng0 > 0) {
-            /* Driver's body frame at the kinematic angle (delta 0). */
-            double th = w->theta0[0], cs = cos(th), sn = sin(th);
+            /* Driver's body frame at the rows' angle. */
+            double th = w->theta0[0] + w->nf_dc, cs = cos(th), sn = sin(th);
             double dx = xv[0] - w->b[0].c[0], dy = xv[1] - w->b[0].c[1];
             w->go[w->n_go].xb[0] = cs * dx + sn * dy;
             w->go[w->n_go].xb[1] = -sn * dx + cs * dy;
@@ -1444,7 +1450,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
                     const sbody *b = &w->b[r->body[t] == w->si[0] ? 0 : 1];
                     du += r->dg_du[t][0] * b->u[2 * r->node[t]] + r->dg_du[t][1] * b->u[2 * r->node[t] + 1];
                 }
-                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * delta);
+                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * (delta - w->nf_dc) - go->ref);
             }
             c -= gs / (lam * lam);
             L += gs / (lam * lam);
@@ -1907,6 +1913,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
      * unconverged, and on modified flanks it doubled the relieved TE of the
      * Harris map against the plain FE without a reference to decide
      * (docs/STIFFNESS.md). */
+    double nf_gap = 0.0; /* conjugate flanks' gap at the kinematic angle, m */
     w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2 &&
                                   !w.b[0].xy_ref && !w.b[1].xy_ref
                             : o.nearfield;
@@ -1932,17 +1939,20 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         }
         if (e != GS_OK)
             goto done;
-        /* Unmodified gears at their tight-mesh centre distance (to 0.01 um:
-         * the common gap that leaves is below 0.01 um): conjugate involutes,
-         * whose every flank pair touches at the kinematic angle
-         * (nf_offsets). */
-        double at = 0.0;
+        /* Unmodified gears are conjugate involutes at any centre distance
+         * they mesh at: the kinematic angles (gs_pair_mesh_phase) share the
+         * backlash equally, so every loaded flank pair is apart by half the
+         * normal backlash along the line of action, the same for all (0 at
+         * the tight-mesh distance, to 0.01 um; nf_offsets). Thinning and
+         * profile shift change the backlash, not the conjugacy. */
+        gs_pair_info pinfo;
         gs_diag td;
         gs_diag_clear(&td);
+        double ac = hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]);
         w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref &&
-                    gs_pair_tight_centre_distance(gA, gB, &at, &td) == GS_OK &&
-                    fabs(hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]) - at) <
-                        1e-8;
+                    gs_pair_analyse(gA, gB, ac, &pinfo, &td) == GS_OK;
+        if (w.nf_conj && fabs(ac - pinfo.a_tight) >= 1e-8)
+            nf_gap = 0.5 * pinfo.backlash_normal;
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;
         w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
@@ -1955,6 +1965,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     double bw = fmin(gA->face_width_m, gB->face_width_m);
     double T = r->T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
     w.sgn = T > 0 ? 1.0 : -1.0;
+    w.nf_dc = w.sgn * nf_gap / w.rb;
     double F = r->F = fabs(T) / w.rb, bmm = r->bmm = bw * 1e3;
     snprintf(out->mesh_name, sizeof out->mesh_name, "%s", sm->name);
     out->mesh_index = mesh_index;
