@@ -44,6 +44,10 @@
 #define GS_NF_CORNER 0.02
 /* Near-field correction: half-width of the gap fit along the flank, module. */
 #define GS_NF_FIT 0.25
+/* ... and whose parabola is no more curved than this many times the
+ * flanks' own relative curvature (a neighbour whose foot lies beyond the
+ * master's tip or form point is far off the flanks' gap: no vertex). */
+#define GS_NF_FIT_CURV 2.0
 
 /* CPU seconds of the process (the cost split of the result: CPU time is
  * the comparable figure on a shared machine). */
@@ -1169,7 +1173,10 @@ static gs_err nf_offsets(work *w)
             if (jl < 0 || jh < 0)
                 continue;
             double gm = w->row[jm].gap.g, sv, g0;
-            if (!gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
+            double dl = w->row[jl].gap.g - gm, dh = w->row[jh].gap.g - gm;
+            double cfit = (sl * dh - sh * dl) / (sl * sh * (sh - sl)); /* g'' / 2 */
+            if (!(cfit <= GS_NF_FIT_CURV * 0.5 * curv) ||
+                !gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
                 continue;
             /* The pass whose master flank is the flatter (larger involute
              * radius: its parabolic edges follow it more closely) wins. */
