@@ -627,8 +627,9 @@ typedef struct work {
         double xv;         /* the touching point from the corner (corner_loa), m */
         int has_x;         /* the flanks' contact point found: */
         double xb[2];      /* it, in the driver's body frame, m */
-        double ref;        /* the flanks' gap at the kinematic angle (offset taken
-                            * off), m: the reference of the rows' rigid gaps */
+        double ref;        /* the flanks' gap where nf_offsets evaluates the rows
+                            * (offset taken off; 0 for conjugate flanks), m: the
+                            * reference of the rows' rigid gaps */
     } go[2 * GS_STIFF_MAX_PAIRS];
 } work;
 
@@ -1106,8 +1107,9 @@ static int corner_loa(const work *w, int kc, const double P[2], const double nre
     return rcv >= w->nf_rform[kc] && rfv >= w->nf_rform[1 - kc] && rfv <= raf;
 }
 
-/* Near-field correction, rigid bodies at the kinematic position (delta 0,
- * u = 0): per tooth pair the part of its rows' gap that comes from sampling
+/* Near-field correction, rigid bodies at the kinematic position turned by
+ * nf_dc (conjugate flanks with backlash: where every pair touches; else
+ * delta 0), u = 0: per tooth pair the part of its rows' gap that comes from sampling
  * the flanks at nodes. The rows of one pass sample the gap between the two
  * flanks at the slave nodes along the common tangent (coordinate s); near a
  * line contact it is smooth and convex, g(s) = g0 + (s - s0)^2 / (2 R) to
