@@ -50,6 +50,18 @@
 
 #define POSITIONS 24
 
+static gs_scene *parse_scene(const char *txt)
+{
+    gs_scene *s = NULL;
+    gs_diag d;
+    gs_diag_clear(&d);
+    gs_err e = gs_scene_parse(txt, strlen(txt), &s, &d);
+    if (e != GS_OK)
+        print_error("scene: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    return s;
+}
+
 static gs_scene *scene(double px_mm, double py_mm, double turn_deg)
 {
     char txt[2048];
@@ -69,14 +81,7 @@ static gs_scene *scene(double px_mm, double py_mm, double turn_deg)
              " \"meshes\": [{\"name\": \"pw\", \"gears\": [\"pinion\", \"wheel\"], \"model\": \"contact\"}],"
              " \"initial\": {\"pinion\": {\"angle\": %.17g}, \"wheel\": {\"angle\": %.17g}}}",
              px_mm, py_mm, px_mm + 62.5 * cos(t), py_mm + 62.5 * sin(t), t, t);
-    gs_scene *s = NULL;
-    gs_diag d;
-    gs_diag_clear(&d);
-    gs_err e = gs_scene_parse(txt, strlen(txt), &s, &d);
-    if (e != GS_OK)
-        print_error("scene: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    return s;
+    return parse_scene(txt);
 }
 
 static void run(const gs_scene *s, int refine, double torque, double phase, gs_stiffness_result *r)
@@ -297,6 +302,19 @@ static void bad_input(void **state)
     gs_scene_free(&s);
 }
 
+/* Scene s analysed with options o, plain FE (nearfield 0) and the
+ * correction forced (nearfield 1; o keeps it). */
+static void plain_then_nf(const gs_scene *s, gs_stiffness_opts *o, gs_stiffness_result *plain,
+                          gs_stiffness_result *nf)
+{
+    gs_diag d;
+    gs_diag_clear(&d);
+    o->nearfield = 0;
+    assert_int_equal(gs_stiffness_analyse(s, 0, o, plain, &d), GS_OK);
+    o->nearfield = 1;
+    assert_int_equal(gs_stiffness_analyse(s, 0, o, nf, &d), GS_OK);
+}
+
 /* The near-field correction (docs/STIFFNESS.md) adds a non-negative
  * compliance in series per tooth pair: on the quadratic default density it
  * softens the pair at every position (the FE's point load is stiffer than
@@ -308,16 +326,13 @@ static void nearfield_softens(void **state)
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
     assert_int_equal(o.nearfield, 2); /* the default: auto, on with quadratic elements */
-    o.nearfield = 0;
     o.positions = 6;
     o.tangent = 0;
     o.order = 2;
     gs_stiffness_result plain, nf;
     gs_diag d;
     gs_diag_clear(&d);
-    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &plain, &d), GS_OK);
-    o.nearfield = 1;
-    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &nf, &d), GS_OK);
+    plain_then_nf(s, &o, &plain, &nf);
     for (int j = 0; j < o.positions; j++) {
         double ratio = nf.pt[j].te_um / plain.pt[j].te_um;
         printf("# roll %.3f: TE %.4f um plain, %.4f um near-field (x%.4f)\n", nf.pt[j].roll,
@@ -373,14 +388,7 @@ static gs_scene *relief_pair(double thin_mm, double relief_um)
              " \"meshes\": [{\"name\": \"pw\", \"gears\": [\"wheel\", \"pinion\"], \"model\": \"contact\"}],"
              " \"initial\": {\"wheel\": {\"angle\": 0.10471975511965977}}}",
              thin_mm, mod, thin_mm, mod);
-    gs_scene *s = NULL;
-    gs_diag d;
-    gs_diag_clear(&d);
-    gs_err e = gs_scene_parse(txt, strlen(txt), &s, &d);
-    if (e != GS_OK)
-        print_error("scene: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    return s;
+    return parse_scene(txt);
 }
 
 /* The near-field default on a pair with backlash (thinned teeth at the
@@ -456,13 +464,8 @@ static void nearfield_relief(void **state)
     o.positions = 12;
     o.tangent = 0;
     o.torque_nm = 70.5;
-    o.nearfield = 0;
     gs_stiffness_result plain, nf;
-    gs_diag d;
-    gs_diag_clear(&d);
-    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &plain, &d), GS_OK);
-    o.nearfield = 1;
-    assert_int_equal(gs_stiffness_analyse(s, 0, &o, &nf, &d), GS_OK);
+    plain_then_nf(s, &o, &plain, &nf);
     assert_true(nf.modified);
     for (int j = 0; j < o.positions; j++) {
         double q = nf.pt[j].te_loaded_um / plain.pt[j].te_loaded_um;
