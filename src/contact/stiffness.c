@@ -1919,9 +1919,10 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     w.rb = gs_gear_base_radius(gA);
     /* auto (2): on quadratic meshes of unmodified gears, where it is
      * validated against the reference; on linear triangles it left positions
-     * unconverged, and on modified flanks it doubled the relieved TE of the
-     * Harris map against the plain FE without a reference to decide
-     * (docs/STIFFNESS.md). */
+     * unconverged, and on modified flanks there is no reference (it doubled
+     * the relieved TE of the Harris map against the plain FE before the
+     * vertex fit's curvature bound and the rigid gaps against the flank
+     * gap; 0.89 times it since: docs/STIFFNESS.md). */
     double nf_gap = 0.0; /* conjugate flanks' gap at the kinematic angle, m */
     w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2 &&
                                   !w.b[0].xy_ref && !w.b[1].xy_ref
