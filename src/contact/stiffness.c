@@ -44,6 +44,10 @@
 #define GS_NF_CORNER 0.02
 /* Near-field correction: half-width of the gap fit along the flank, module. */
 #define GS_NF_FIT 0.25
+/* ... and whose parabola is no more curved than this many times the
+ * flanks' own relative curvature (a neighbour whose foot lies beyond the
+ * master's tip or form point is far off the flanks' gap: no vertex). */
+#define GS_NF_FIT_CURV 2.0
 
 /* CPU seconds of the process (the cost split of the result: CPU time is
  * the comparable figure on a shared machine). */
@@ -591,7 +595,10 @@ typedef struct work {
     double nf_depth;       /* depth d, m */
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
-    int nf_conj;           /* perfect flanks touch at the kinematic angle (nf_offsets) */
+    int nf_conj;           /* conjugate involute flanks (nf_offsets) */
+    double nf_dc;          /* the driver's turn from the kinematic angle that closes
+                            * their backlash (0 at the tight mesh), rad: nf_offsets
+                            * evaluates the rows there */
     double nf_rform[2];    /* form radius of each body (involute above it), m */
     double ftot;           /* the load case's force T / r_b1, N (pairs below 1e-6 of it: none) */
     int n_pc;
@@ -620,6 +627,9 @@ typedef struct work {
         double xv;         /* the touching point from the corner (corner_loa), m */
         int has_x;         /* the flanks' contact point found: */
         double xb[2];      /* it, in the driver's body frame, m */
+        double ref;        /* the flanks' gap where nf_offsets evaluates the rows
+                            * (offset taken off; 0 for conjugate flanks), m: the
+                            * reference of the rows' rigid gaps */
     } go[2 * GS_STIFF_MAX_PAIRS];
 } work;
 
@@ -979,7 +989,7 @@ static int corner_exact_gap(const work *w, int kf, const gs_contact_row *r,
     const gs_gear_params *gp = &b->sb->gear;
     double rb = gs_gear_base_radius(gp), ra = gs_gear_tip_radius(gp), rf = w->nf_rform[kf];
     double rlo = fmin(rf, ra), rhi = fmax(rf, ra);
-    double th = w->theta0[kf], cs = cos(th), sn = sin(th);
+    double th = w->theta0[kf] + (kf == 0 ? w->nf_dc : 0.0), cs = cos(th), sn = sin(th);
     double best = INFINITY, phi0 = 0.0;
     int sbest = 0;
     for (int sg = -1; sg <= 1; sg += 2) {
@@ -1097,8 +1107,9 @@ static int corner_loa(const work *w, int kc, const double P[2], const double nre
     return rcv >= w->nf_rform[kc] && rfv >= w->nf_rform[1 - kc] && rfv <= raf;
 }
 
-/* Near-field correction, rigid bodies at the kinematic position (delta 0,
- * u = 0): per tooth pair the part of its rows' gap that comes from sampling
+/* Near-field correction, rigid bodies at the kinematic position turned by
+ * nf_dc (conjugate flanks with backlash: where every pair touches; else
+ * delta 0), u = 0: per tooth pair the part of its rows' gap that comes from sampling
  * the flanks at nodes. The rows of one pass sample the gap between the two
  * flanks at the slave nodes along the common tangent (coordinate s); near a
  * line contact it is smooth and convex, g(s) = g0 + (s - s0)^2 / (2 R) to
@@ -1118,7 +1129,7 @@ static gs_err nf_offsets(work *w)
     w->n_go = 0;
     int nr;
     double gmin;
-    GS_TRY(collect(w, 0.0, INFINITY, &nr, &gmin));
+    GS_TRY(collect(w, w->nf_dc, INFINITY, &nr, &gmin));
     for (int i = 0; i < nr; i++) {
         const int *t = w->teeth[i];
         if (gap_off_find(w, t) || w->n_go == (int)(sizeof w->go / sizeof w->go[0]))
@@ -1164,7 +1175,10 @@ static gs_err nf_offsets(work *w)
             if (jl < 0 || jh < 0)
                 continue;
             double gm = w->row[jm].gap.g, sv, g0;
-            if (!gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
+            double dl = w->row[jl].gap.g - gm, dh = w->row[jh].gap.g - gm;
+            double cfit = (sl * dh - sh * dl) / (sl * sh * (sh - sl)); /* g'' / 2 */
+            if (!(cfit <= GS_NF_FIT_CURV * 0.5 * curv) ||
+                !gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
                 continue;
             /* The pass whose master flank is the flatter (larger involute
              * radius: its parabolic edges follow it more closely) wins. */
@@ -1229,9 +1243,10 @@ static gs_err nf_offsets(work *w)
         w->go[w->n_go].kc = okc;
         w->go[w->n_go].xv = oxv;
         w->go[w->n_go].has_x = ng0 > 0;
+        w->go[w->n_go].ref = rm->gap.g - off;
         if (ng0 > 0) {
-            /* Driver's body frame at the kinematic angle (delta 0). */
-            double th = w->theta0[0], cs = cos(th), sn = sin(th);
+            /* Driver's body frame at the rows' angle. */
+            double th = w->theta0[0] + w->nf_dc, cs = cos(th), sn = sin(th);
             double dx = xv[0] - w->b[0].c[0], dy = xv[1] - w->b[0].c[1];
             w->go[w->n_go].xb[0] = cs * dx + sn * dy;
             w->go[w->n_go].xb[1] = -sn * dx + cs * dy;
@@ -1444,7 +1459,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
                     const sbody *b = &w->b[r->body[t] == w->si[0] ? 0 : 1];
                     du += r->dg_du[t][0] * b->u[2 * r->node[t]] + r->dg_du[t][1] * b->u[2 * r->node[t] + 1];
                 }
-                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * delta);
+                gs += w->x[i] * (r->gap.g - du - r->dg_dtheta[w->si[0]] * (delta - w->nf_dc) - go->ref);
             }
             c -= gs / (lam * lam);
             L += gs / (lam * lam);
@@ -1904,9 +1919,11 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     w.rb = gs_gear_base_radius(gA);
     /* auto (2): on quadratic meshes of unmodified gears, where it is
      * validated against the reference; on linear triangles it left positions
-     * unconverged, and on modified flanks it doubled the relieved TE of the
-     * Harris map against the plain FE without a reference to decide
-     * (docs/STIFFNESS.md). */
+     * unconverged, and on modified flanks there is no reference (it doubled
+     * the relieved TE of the Harris map against the plain FE before the
+     * vertex fit's curvature bound and the rigid gaps against the flank
+     * gap; 0.89 times it since: docs/STIFFNESS.md). */
+    double nf_gap = 0.0; /* conjugate flanks' gap at the kinematic angle, m */
     w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2 &&
                                   !w.b[0].xy_ref && !w.b[1].xy_ref
                             : o.nearfield;
@@ -1932,17 +1949,20 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         }
         if (e != GS_OK)
             goto done;
-        /* Unmodified gears at their tight-mesh centre distance (to 0.01 um:
-         * the common gap that leaves is below 0.01 um): conjugate involutes,
-         * whose every flank pair touches at the kinematic angle
-         * (nf_offsets). */
-        double at = 0.0;
+        /* Unmodified gears are conjugate involutes at any centre distance
+         * they mesh at: the kinematic angles (gs_pair_mesh_phase) share the
+         * backlash equally, so every loaded flank pair is apart by half the
+         * normal backlash along the line of action, the same for all (0 at
+         * the tight-mesh distance, to 0.01 um; nf_offsets). Thinning and
+         * profile shift change the backlash, not the conjugacy. */
+        gs_pair_info pinfo;
         gs_diag td;
         gs_diag_clear(&td);
+        double ac = hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]);
         w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref &&
-                    gs_pair_tight_centre_distance(gA, gB, &at, &td) == GS_OK &&
-                    fabs(hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]) - at) <
-                        1e-8;
+                    gs_pair_analyse(gA, gB, ac, &pinfo, &td) == GS_OK;
+        if (w.nf_conj && fabs(ac - pinfo.a_tight) >= 1e-8)
+            nf_gap = 0.5 * pinfo.backlash_normal;
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;
         w.fq = malloc((size_t)(2 * nmax) * sizeof *w.fq);
@@ -1955,6 +1975,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     double bw = fmin(gA->face_width_m, gB->face_width_m);
     double T = r->T = o.torque_nm != 0.0 ? o.torque_nm : default_torque(sc, bidx[0], w.rb, bw);
     w.sgn = T > 0 ? 1.0 : -1.0;
+    w.nf_dc = w.sgn * nf_gap / w.rb;
     double F = r->F = fabs(T) / w.rb, bmm = r->bmm = bw * 1e3;
     snprintf(out->mesh_name, sizeof out->mesh_name, "%s", sm->name);
     out->mesh_index = mesh_index;
