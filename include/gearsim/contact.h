@@ -215,7 +215,8 @@ typedef struct gs_contact_candidate {
                                              * order-2 master: whole parabolic edges,
                                              * corners at even positions */
     double distance;        /* distance to the master boundary at search time, m */
-    double gap;             /* gs_gap_eval of the window at search time, m */
+    double gap;             /* gs_gap_eval of the window at search time, m, for a
+                             * node beyond the band (the depth test); NAN within it */
 } gs_contact_candidate;
 
 /* What the last search did (for logs and tests). */

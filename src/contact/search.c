@@ -396,10 +396,15 @@ static gs_err try_node(pass_ctx *pc, gs_index nd, int tooth, int where, bool cor
     gs_contact_candidate c;
     memset(&c, 0, sizeof c);
     double pts[2 * GS_CONTACT_WINDOW_MAX];
-    gs_gap gap;
+    /* Within the band the node is a candidate whatever its gap: the gap is
+     * evaluated only for the depth test beyond it (the rows evaluate their
+     * own, with the displacements; most of a search's cost was this). */
+    bool need_gap = dist > s->band;
+    gs_gap gap = {.g = NAN};
     if (gb->order == 2) {
         make_window_quad(gb, pb, j, y, s->o.window, &c, pts);
-        GS_TRY(gs_gap_eval_quad(y, pts, c.n_window, &gap));
+        if (need_gap)
+            GS_TRY(gs_gap_eval_quad(y, pts, c.n_window, &gap));
     } else {
         double a[2], b[2];
         body_pos(gb, pb, gb->m->boundary[j], a);
@@ -408,10 +413,12 @@ static gs_err try_node(pass_ctx *pc, gs_index nd, int tooth, int where, bool cor
                           ? j
                           : wrapi(j + 1, gb->nb);
         make_window(gb, pb, j0, s->o.window, &c, pts);
-        GS_TRY(gs_gap_eval(y, pts, c.n_window, &gap));
-        GS_TRY(tip_corner_distance(gb, pts, &c, y, &gap));
+        if (need_gap) {
+            GS_TRY(gs_gap_eval(y, pts, c.n_window, &gap));
+            GS_TRY(tip_corner_distance(gb, pts, &c, y, &gap));
+        }
     }
-    if (dist > s->band && !(gap.g < 0.0 && dist <= s->depth))
+    if (need_gap && !(gap.g < 0.0 && dist <= s->depth))
         return GS_OK;
     c.slave = pc->ia;
     c.master = pc->ib;

@@ -113,6 +113,11 @@ struct gs_fe_reduced {
     cholmod_common cc;
     cholmod_sparse *K;
     cholmod_factor *L;
+    /* the residual columns' solve: right-hand sides, solution and CHOLMOD's
+     * workspace, kept between groups (tens of MB that were allocated and
+     * zeroed by the kernel once per group) */
+    cholmod_dense *cB, *cX, *cY, *cE;
+    double *cf;           /* 2 BATCH_NODES columns of length n: the unit forces */
 
     /* step */
     double h, c, d, r, kc;
@@ -155,6 +160,13 @@ struct gs_fe_reduced {
     size_t sp_cap;
     double blk_h;
     gs_index blk_n, blk_rows;
+    /* the last block as returned (C) and its selected rows in order (-1:
+     * immovable): a step whose rows, h and brake are the same copies C
+     * whole (the plan changes every few steps only) */
+    double *blk_C, *sp_C;
+    gs_index *blk_rr, *sp_rr;
+    double blk_dr, blk_kc;
+    bool blk_C_ok;
 
     double energy0, work_in, work_iface, dissipated, damped;
     double residual_loss;   /* the static rule's loss (in damped and dissipated) */
@@ -450,6 +462,11 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
             free(b->col[k]);
     free(b->col);
     free(b->tcol);
+    cholmod_l_free_dense(&b->cB, &b->cc);
+    cholmod_l_free_dense(&b->cX, &b->cc);
+    cholmod_l_free_dense(&b->cY, &b->cc);
+    cholmod_l_free_dense(&b->cE, &b->cc);
+    free(b->cf);
     cholmod_l_free_factor(&b->L, &b->cc);
     cholmod_l_free_sparse(&b->K, &b->cc);
     cholmod_l_finish(&b->cc);
@@ -459,26 +476,35 @@ void gs_fe_reduced_free(gs_fe_reduced **pb)
     free(b->dqm), free(b->Fa), free(b->Fi), free(b->Rf), free(b->fl), free(b->fin), free(b->scratch);
     free(b->blk_r), free(b->blk_pos), free(b->blk_G), free(b->blk_M);
     free(b->sp_G), free(b->sp_M), free(b->sp_r);
+    free(b->blk_C), free(b->sp_C), free(b->blk_rr), free(b->sp_rr);
     free(b);
     *pb = NULL;
 }
 
-/* G_res column of the force f (length n, x order) at the rows, into out (nr). */
+/* G_res column of the force f (length n, x order) at the rows, into out (nr).
+ * The solve runs in the body's kept dense arrays (cholmod_l_solve2 reuses
+ * them when their size fits): the same arithmetic as a fresh
+ * cholmod_l_solve, without tens of MB allocated per group of columns. */
 static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **out)
 {
     gs_index ne = b->ne, n = b->n;
-    double *rhs = gs_calloc((size_t)ne * (size_t)ncol, sizeof *rhs);
-    double *x = gs_calloc((size_t)ne * (size_t)ncol, sizeof *x);
-    gs_err e = (!rhs || !x) ? GS_ENOMEM : GS_OK;
-    for (int c = 0; e == GS_OK && c < ncol; c++) {
+    if (b->cB && b->cB->ncol != (size_t)ncol)
+        cholmod_l_free_dense(&b->cB, &b->cc);
+    if (!b->cB)
+        b->cB = cholmod_l_allocate_dense((size_t)ne, (size_t)ncol, (size_t)ne, CHOLMOD_REAL, &b->cc);
+    if (!b->cB)
+        return GS_ENOMEM;
+    double *rhs = b->cB->x;
+    for (int c = 0; c < ncol; c++) {
         const double *fc = f + (size_t)c * (size_t)n;
         double ft = b->held ? 0.0 : fc[ne] / b->Itot;
         for (gs_index i = 0; i < ne; i++)
             rhs[(size_t)c * (size_t)ne + (size_t)i] = fc[i] - (b->held ? 0.0 : b->m->s[i] * ft);
     }
-    if (e == GS_OK)
-        e = ksolve(b, ncol, rhs, x);
-    for (int c = 0; e == GS_OK && c < ncol; c++) {
+    if (!cholmod_l_solve2(CHOLMOD_A, b->L, b->cB, NULL, &b->cX, NULL, &b->cY, &b->cE, &b->cc) || !b->cX)
+        return GS_ENOMEM;
+    const double *x = b->cX->x;
+    for (int c = 0; c < ncol; c++) {
         const double *xc = x + (size_t)c * (size_t)ne, *fc = f + (size_t)c * (size_t)n;
         double xt = theta_of(b, xc);
         /* modal part phi_i^T f / w_i^2 of the kept elastic modes */
@@ -505,8 +531,7 @@ static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **
             out[c][r] = v;
         }
     }
-    free(rhs), free(x);
-    return e;
+    return GS_OK;
 }
 
 static double cpu_now(void)
@@ -545,10 +570,12 @@ static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
         if (!b->col[j])
             batch[cnt++] = j;
     double *c = gs_calloc((size_t)(2 * nr) * (size_t)cnt, sizeof *c);
-    double *f = gs_calloc((size_t)(2 * n) * (size_t)cnt, sizeof *f);
+    if (!b->cf)
+        b->cf = gs_calloc((size_t)(2 * n) * BATCH_NODES, sizeof *b->cf); /* zero between groups */
+    double *f = b->cf;
     double *outs[2 * BATCH_NODES];
     if (!c || !f) {
-        free(c), free(f);
+        free(c);
         return GS_ENOMEM;
     }
     for (int t = 0; t < cnt; t++)
@@ -559,7 +586,12 @@ static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
             outs[2 * t + comp] = c + (size_t)(2 * t + comp) * (size_t)nr;
         }
     gs_err e = gres_column(b, 2 * cnt, f, outs);
-    free(f);
+    for (int t = 0; t < cnt; t++) /* back to zero */
+        for (int comp = 0; comp < 2; comp++) {
+            gs_index q = b->rowq[1 + 2 * batch[t] + comp];
+            if (q >= 0)
+                f[(size_t)(2 * t + comp) * (size_t)n + (size_t)q] = 0.0;
+        }
     if (e != GS_OK) {
         free(c);
         return e;
@@ -1122,12 +1154,25 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
     double *G = NULL, *Mm = NULL;
     gs_index *nrw = NULL;
     size_t need = (size_t)k * (size_t)k + 1;
+    bool same_h = b->blk_M && b->blk_h == b->h;
+    /* the same rows in the same order, h and brake as the last block: its C */
+    bool same = e == GS_OK && b->blk_C_ok && same_h && (gs_index)k == b->blk_n && b->blk_dr == b->dr &&
+                b->blk_kc == b->kc;
+    for (int j = 0; same && j < k; j++)
+        same = rr[j] == b->blk_rr[j];
+    if (same) {
+        memcpy(C, b->blk_C, (size_t)k * (size_t)k * sizeof *C);
+        free(rr), free(yy);
+        return GS_OK;
+    }
     if (e == GS_OK && b->sp_cap < need) {
-        free(b->sp_G), free(b->sp_M), free(b->sp_r);
+        free(b->sp_G), free(b->sp_M), free(b->sp_r), free(b->sp_C), free(b->sp_rr);
         b->sp_G = malloc(need * sizeof *b->sp_G);
         b->sp_M = malloc(need * sizeof *b->sp_M);
         b->sp_r = malloc(need * sizeof *b->sp_r);
-        b->sp_cap = (b->sp_G && b->sp_M && b->sp_r) ? need : 0;
+        b->sp_C = malloc(need * sizeof *b->sp_C);
+        b->sp_rr = malloc(need * sizeof *b->sp_rr);
+        b->sp_cap = (b->sp_G && b->sp_M && b->sp_r && b->sp_C && b->sp_rr) ? need : 0;
         if (!b->sp_cap)
             e = GS_ENOMEM;
     }
@@ -1136,13 +1181,17 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
         Mm = b->sp_M;
         nrw = b->sp_r;
     }
-    bool same_h = b->blk_M && b->blk_h == b->h;
+    /* positions in the last block (-1: new or immovable) */
+    gs_index *pos = e == GS_OK ? b->sp_rr : NULL;
+    for (int j = 0; j < k && e == GS_OK; j++)
+        pos[j] = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
     for (int j = 0; j < k && e == GS_OK; j++) {
-        gs_index pj = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
+        gs_index pj = pos[j];
+        double *Gj = G + (size_t)j * (size_t)k, *Mj = Mm + (size_t)j * (size_t)k, *Cj = C + (size_t)j * (size_t)k;
         for (int i = 0; i <= j; i++) {
-            double g = 0, v = 0;
+            double g = 0, v = 0, cv = 0;
             if (rr[i] >= 0 && rr[j] >= 0) {
-                gs_index pi = b->blk_pos[rr[i]];
+                gs_index pi = pos[i];
                 bool old = pi >= 0 && pj >= 0;
                 g = old ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
                 if (old && same_h) {
@@ -1155,19 +1204,25 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
                     if (b->kap != 0.0)
                         v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, q);
                 }
+                cv = v + g / b->dr - b->kc * yy[i] * yy[j];
             }
-            G[i + (size_t)j * (size_t)k] = G[j + (size_t)i * (size_t)k] = g;
-            Mm[i + (size_t)j * (size_t)k] = Mm[j + (size_t)i * (size_t)k] = v;
+            Gj[i] = G[j + (size_t)i * (size_t)k] = g;
+            Mj[i] = Mm[j + (size_t)i * (size_t)k] = v;
+            Cj[i] = C[j + (size_t)i * (size_t)k] = cv;
         }
     }
-    for (int j = 0; j < k && e == GS_OK; j++)
-        for (int i = 0; i <= j; i++) {
-            double v = 0;
-            if (rr[i] >= 0 && rr[j] >= 0)
-                v = Mm[i + (size_t)j * (size_t)k] + G[i + (size_t)j * (size_t)k] / b->dr - b->kc * yy[i] * yy[j];
-            C[i + (size_t)j * (size_t)k] = C[j + (size_t)i * (size_t)k] = v;
-        }
     if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
+        double *tc = b->blk_C;
+        b->blk_C = b->sp_C;
+        b->sp_C = tc;
+        gs_index *tr = b->blk_rr;
+        b->blk_rr = b->sp_rr;
+        b->sp_rr = tr;
+        memcpy(b->blk_C, C, (size_t)k * (size_t)k * sizeof *C);
+        memcpy(b->blk_rr, rr, (size_t)k * sizeof *rr);
+        b->blk_dr = b->dr;
+        b->blk_kc = b->kc;
+        b->blk_C_ok = true;
         for (gs_index t = 0; t < b->blk_rows; t++)
             b->blk_pos[b->blk_r[t]] = -1;
         /* swap: the last block's buffers become the spares */
@@ -1176,11 +1231,11 @@ gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dof
         b->sp_r = b->blk_r;
         size_t cap = b->blk_cap;
         b->blk_cap = b->sp_cap;
-        b->sp_cap = b->sp_G && b->sp_M && b->sp_r ? cap : 0;
+        b->sp_cap = b->sp_G && b->sp_M && b->sp_r && b->sp_C && b->sp_rr ? cap : 0;
         if (!b->sp_cap) {
-            free(b->sp_G), free(b->sp_M), free(b->sp_r);
-            b->sp_G = b->sp_M = NULL;
-            b->sp_r = NULL;
+            free(b->sp_G), free(b->sp_M), free(b->sp_r), free(b->sp_C), free(b->sp_rr);
+            b->sp_G = b->sp_M = b->sp_C = NULL;
+            b->sp_r = b->sp_rr = NULL;
         }
         b->blk_G = G;
         b->blk_M = Mm;

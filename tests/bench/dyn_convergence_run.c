@@ -24,7 +24,9 @@
  * column_cpu_s the reduced bodies' residual columns computed during the run
  * (once per node that comes into contact: a one-off of a long run) and
  * step_nocol_cpu_per_sim_s the steps' cost without them; residual_loss_w the
- * mean power the static residual rule took over the run. Figures are taken
+ * mean power the static residual rule took over the run; column_nodes the
+ * candidate nodes whose columns were computed, candidate_nodes all of them
+ * (the columns stop at those that ever come into contact). Figures are taken
  * with tests/common/dyn_window.h. "meshes" lists, for every mesh of the
  * scene, the same TE and force figures over the first mesh's whole cycles
  * (in a planetary train every mesh has the same tooth-mesh frequency).
@@ -280,11 +282,14 @@ int main(int argc, char **argv)
     double cpu = cpu_now() - c0;
     /* the reduced bodies' own figures, summed */
     double col_cpu = 0, res_loss = 0;
+    long col_nodes = 0, cand_nodes = 0;
     for (int i = 0; i < s->n_bodies; i++) {
         gs_fe_reduced_info ri;
         if (gs_elastic_reduced_info(&s->bodies[i], &ri)) {
             col_cpu += ri.column_cpu_s;
             res_loss += ri.residual_loss;
+            col_nodes += (long)ri.cached_nodes;
+            cand_nodes += (long)(ri.rows - 1) / 2;
         }
     }
     dyn_figures f;
@@ -301,14 +306,15 @@ int main(int argc, char **argv)
            "\"strain_max_mj\": %.5f, \"strain_mean_mj\": %.5f, \"strain_max_over_mean\": %.4f, "
            "\"contact_work_j\": %.3e, \"steps\": %ld, \"cpu_s\": %.2f, \"cpu_per_sim_s\": %.2f, \"fmax_hz\": %.6g, "
            "\"setup_cpu_s\": %.2f, \"step_cpu_per_sim_s\": %.2f, \"column_cpu_s\": %.2f, "
-           "\"step_nocol_cpu_per_sim_s\": %.2f, \"residual_loss_w\": %.4g, \"meshes\": %s}\n",
+           "\"step_nocol_cpu_per_sim_s\": %.2f, \"residual_loss_w\": %.4g, \"column_nodes\": %ld, "
+           "\"candidate_nodes\": %ld, \"meshes\": %s}\n",
            scene, h, order, refine, scale, (int)(s->scene->bodies[0].mesh.flank),
            (int)(s->scene->bodies[0].mesh.across), (int)(s->scene->bodies[0].mesh.rim), unknowns, contact, zeta,
            fhz, t0, t1, f.cycles, f.mesh_hz, f.te_rms * 1e6, f.te_mean * 1e6, f.te_pp * 1e6, f.f_peak, f.f_mean,
            f.ratio, f.balance_rel, f.pen_max * 1e6, f.f_mean > 0 ? f.f_peak / f.f_mean : 0, f.strain_max * 1e3,
            f.strain_mean * 1e3, f.strain_mean > 0 ? f.strain_max / f.strain_mean : 0, w.contact_work, steps, cpu,
            cpu / s->time, fmax, c_setup, (cpu - c_setup) / s->time, col_cpu,
-           (cpu - c_setup - col_cpu) / s->time, res_loss / s->time,
+           (cpu - c_setup - col_cpu) / s->time, res_loss / s->time, col_nodes, cand_nodes,
            json_object_to_json_string_ext(pmj, JSON_C_TO_STRING_PLAIN));
     json_object_put(pmj);
     free(pm.te);
