@@ -8,7 +8,8 @@
  * and with fixed steps — at several time steps (and mesh densities for
  * contact), one process. Each run covers the ramp and the
  * steady state; the figures are taken over the second half:
- *   cost      wall seconds per simulated second
+ *   cost      process CPU seconds per simulated second (the reduced
+ *             bodies' one-off residual columns included)
  *   speed     mean speed of the output gear (closed form M0 ratio / c)
  *   ratio     mean speed ratio error against the tooth counts
  *   dte       dynamic transmission error amplitude: rms of the first mesh's
@@ -20,11 +21,14 @@
  *             gear on a fixed axis, C the mate's carrier if any: order
  *             tracking, so speed fluctuations do not smear it), m
  *   balance   worst energy balance residual / energy scale
- * and the errors of speed, dte, force and mesh against the richest run (contact,
- * finest setting). Output: a Markdown table on stdout and a CSV file
+ * and the errors of speed, dte, force and mesh against the reference: the
+ * last row of the scene, the converged setting of docs/CONVERGENCE.md
+ * (reduced bodies at h 1e-5 s, damped, on the mesh o2s3 for the pair and
+ * o2r2 for the planetary train: within 1-2 % of the mesh limits). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
- * argv[2] (optional): a comma-separated list of levels; only those rows at
- * refine 0 run (`LEVEL:R`: the level's rows at refine R), the errors then
+ * argv[2] (optional): a comma-separated list of levels; only those rows on
+ * the default mesh run (`LEVEL:R`: the level's rows at refine R;
+ * `LEVEL:sS`: at the default counts times S, the study's o2sS), the errors then
  * against the last row run (a partial table: e.g. "calibrated,contact" after
  * a change of the default mesh; "" for every row). argv[3] (optional): one
  * scene (contact_drive or planetary_contact). Every row is also printed to
@@ -33,8 +37,9 @@
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
  * elastic gear the reduced body (bodies[i].reduction, static residual) with
  * f_max = 0.3 / h (15, 30, 60 kHz at 2e-5, 1e-5, 5e-6 s: near 1 / (2 pi h),
- * docs/CONVERGENCE.md "The static residual rule").
- * Wall times are ratios in one run on one machine; rerun to compare. */
+ * docs/CONVERGENCE.md "The static residual rule"). Every elastic row runs
+ * with the study's damping (ELASTIC_ZETA at ELASTIC_FHZ on the elastic
+ * gears' material); the rigid-gear meshes keep their default damping. */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
