@@ -8,7 +8,8 @@
  * and with fixed steps — at several time steps (and mesh densities for
  * contact), one process. Each run covers the ramp and the
  * steady state; the figures are taken over the second half:
- *   cost      wall seconds per simulated second
+ *   cost      process CPU seconds per simulated second (the reduced
+ *             bodies' one-off residual columns included)
  *   speed     mean speed of the output gear (closed form M0 ratio / c)
  *   ratio     mean speed ratio error against the tooth counts
  *   dte       dynamic transmission error amplitude: rms of the first mesh's
@@ -20,11 +21,14 @@
  *             gear on a fixed axis, C the mate's carrier if any: order
  *             tracking, so speed fluctuations do not smear it), m
  *   balance   worst energy balance residual / energy scale
- * and the errors of speed, dte, force and mesh against the richest run (contact,
- * finest setting). Output: a Markdown table on stdout and a CSV file
+ * and the errors of speed, dte, force and mesh against the reference: the
+ * last row of the scene, the converged setting of docs/CONVERGENCE.md
+ * (reduced bodies at h 1e-5 s, damped, on the mesh o2s3 for the pair and
+ * o2r2 for the planetary train: within 1-2 % of the mesh limits). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
- * argv[2] (optional): a comma-separated list of levels; only those rows at
- * refine 0 run (`LEVEL:R`: the level's rows at refine R), the errors then
+ * argv[2] (optional): a comma-separated list of levels; only those rows on
+ * the default mesh run (`LEVEL:R`: the level's rows at refine R;
+ * `LEVEL:sS`: at the default counts times S, the study's o2sS), the errors then
  * against the last row run (a partial table: e.g. "calibrated,contact" after
  * a change of the default mesh; "" for every row). argv[3] (optional): one
  * scene (contact_drive or planetary_contact). Every row is also printed to
@@ -33,14 +37,17 @@
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
  * elastic gear the reduced body (bodies[i].reduction, static residual) with
  * f_max = 0.3 / h (15, 30, 60 kHz at 2e-5, 1e-5, 5e-6 s: near 1 / (2 pi h),
- * docs/CONVERGENCE.md "The static residual rule").
- * Wall times are ratios in one run on one machine; rerun to compare. */
+ * docs/CONVERGENCE.md "The static residual rule"). Every elastic row runs
+ * with the study's damping (ELASTIC_ZETA at ELASTIC_FHZ on the elastic
+ * gears' material); the rigid-gear meshes keep their default damping. */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
+#include "gearsim/mesh.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
 
@@ -48,7 +55,21 @@ typedef struct spec {
     const char *scene, *level;
     double h;
     int refine;
+    double scale; /* counts scale of the order's default mesh (1: the default) */
 } spec;
+
+/* The damping of every elastic row (the convergence study's): Rayleigh,
+ * 2 % at 9.2 kHz on the elastic gears' material (docs/CONVERGENCE.md).
+ * Undamped, the tooth and body vibration a coarse step excites does not
+ * settle and the DTE rms moves with h; the rigid-gear levels keep their
+ * meshes' default damping (5 % of the mesh mode). */
+#define ELASTIC_ZETA 0.02
+#define ELASTIC_FHZ 9200.0
+
+static double scale_of(const spec *s)
+{
+    return s->scale;
+}
 
 /* The contact scheme (numerics.contact) of a level's elastic rows:
  * `contact` steps with the energy-exact closure, `contact_seed` and
@@ -89,10 +110,30 @@ static gs_system *build(const spec *s)
             json_object_object_add(rd, "f_max_hz", json_object_new_double(0.3 / s->h));
             json_object_object_add(b, "reduction", rd);
         }
-        if (contact && s->refine > 0) {
+        if (contact && (s->refine > 0 || scale_of(s) != 1)) {
+            /* refine R, or the order's default counts times the scale
+             * (dyn_convergence_run's --scale: grading kept) */
             json_object *m = json_object_new_object();
             json_object_object_add(m, "refine", json_object_new_int(s->refine));
+            if (scale_of(s) != 1) {
+                gs_gear_mesh_opts def;
+                gs_gear_mesh_opts_for_order(&def, 2);
+                json_object_object_add(m, "order", json_object_new_int(2));
+                json_object_object_add(m, "flank", json_object_new_int((int)lround(def.flank * s->scale)));
+                json_object_object_add(m, "across", json_object_new_int((int)lround(def.across * s->scale)));
+                json_object_object_add(m, "rim", json_object_new_int((int)lround(def.rim * s->scale)));
+            }
             json_object_object_add(b, "mesh", m);
+        }
+        if (contact) {
+            json_object *mat;
+            if (!json_object_object_get_ex(b, "material", &mat)) {
+                mat = json_object_new_object();
+                json_object_object_add(b, "material", mat);
+            }
+            json_object_object_del(mat, "damping_s");
+            json_object_object_add(mat, "damping_ratio", json_object_new_double(ELASTIC_ZETA));
+            json_object_object_add(mat, "damping_hz", json_object_new_double(ELASTIC_FHZ));
         }
     }
     for (size_t i = 0; i < json_object_array_length(ms); i++) {
@@ -132,6 +173,14 @@ static gs_system *build(const spec *s)
     return sys;
 }
 
+/* Process CPU seconds (the machine is shared: wall clocks are inflated). */
+static double cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
 static result run(const spec *s, double duration, const char *out_body, const char *in_body, double ratio_expect)
 {
     result r = {0};
@@ -153,7 +202,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     int gc = sys->scene->bodies[gb].joint == GS_JOINT_ON_CARRIER ? sys->scene->bodies[gb].carrier : -1;
     double za = sys->scene->bodies[ga].gear.teeth, xc = 0, xs = 0, c1 = 0, s1 = 0;
     gs_energy e;
-    double t0 = gs_now();
+    double t0 = cpu_now();
     for (int i = 0; i < n; i++) {
         if (i == n - half) {
             th_o = gs_system_angle(sys, o);
@@ -178,8 +227,8 @@ static result run(const spec *s, double duration, const char *out_body, const ch
             fmaxv = fmax(fmaxv, fabs(sys->meshes[0].force));
         }
     }
-    double wall = gs_now() - t0, T = half * s->h;
-    r.cost = wall / duration;
+    double cpu = cpu_now() - t0, T = half * s->h;
+    r.cost = cpu / duration;
     r.speed = fabs(gs_system_angle(sys, o) - th_o) / T;
     r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
     double mean = d1 / half;
@@ -198,16 +247,21 @@ static double rel(double a, double ref)
 }
 
 /* Is the row in the comma-separated list `list`? An entry `LEVEL` names
- * the level's rows at refine 0, `LEVEL:R` those at refine R. */
+ * the level's rows on the default mesh (refine 0, counts scale 1),
+ * `LEVEL:R` those at refine R, `LEVEL:sS` those at counts scale S
+ * (refine 0: the convergence study's o2sS). */
 static int row_listed(const char *list, const spec *s)
 {
     size_t n = strlen(s->level);
+    int plain = scale_of(s) == 1;
     for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL) {
         if (strncmp(p, s->level, n))
             continue;
-        if ((p[n] == ',' || p[n] == '\0') && s->refine == 0)
+        if ((p[n] == ',' || p[n] == '\0') && s->refine == 0 && plain)
             return 1;
-        if (p[n] == ':' && atoi(p + n + 1) == s->refine)
+        if (p[n] == ':' && p[n + 1] == 's' && s->refine == 0 && fabs(atof(p + n + 2) - scale_of(s)) < 1e-9)
+            return 1;
+        if (p[n] == ':' && p[n + 1] != 's' && atoi(p + n + 1) == s->refine && plain)
             return 1;
     }
     return 0;
@@ -228,35 +282,39 @@ int main(int argc, char **argv)
         perror(csv);
         return 1;
     }
-    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh,scheme\n");
+    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh,scheme,scale,zeta\n");
     const spec pair[] = {
-        {"contact_drive", "kinematic", 1e-4, 0},  {"contact_drive", "kinematic", 1e-5, 0},
-        {"contact_drive", "kinematic", 1e-6, 0},  {"contact_drive", "impact", 1e-4, 0},
-        {"contact_drive", "impact", 1e-5, 0},     {"contact_drive", "impact", 1e-6, 0},
-        {"contact_drive", "lumped", 1e-4, 0},     {"contact_drive", "lumped", 1e-5, 0},
-        {"contact_drive", "lumped", 1e-6, 0},     {"contact_drive", "calibrated", 1e-4, 0},
-        {"contact_drive", "calibrated", 1e-5, 0}, {"contact_drive", "calibrated", 1e-6, 0},
-        {"contact_drive", "compliant", 1e-4, 0},  {"contact_drive", "compliant", 1e-5, 0},
-        {"contact_drive", "compliant", 1e-6, 0},  {"contact_drive", "adaptive", 2e-5, 0},
-        {"contact_drive", "adaptive", 1e-5, 0},   {"contact_drive", "contact_seed", 2e-5, 0},
-        {"contact_drive", "contact_seed", 1e-5, 0}, {"contact_drive", "reduced", 2e-5, 0},
-        {"contact_drive", "reduced", 1e-5, 0},    {"contact_drive", "reduced", 5e-6, 0},
-        {"contact_drive", "contact", 2e-5, 0},
-        {"contact_drive", "contact", 1e-5, 0},    {"contact_drive", "contact", 5e-6, 0},
-        {"contact_drive", "contact", 1e-5, 1},    {"contact_drive", "contact", 5e-6, 1},
+        {"contact_drive", "kinematic", 1e-4, 0, 1},  {"contact_drive", "kinematic", 1e-5, 0, 1},
+        {"contact_drive", "kinematic", 1e-6, 0, 1},  {"contact_drive", "impact", 1e-4, 0, 1},
+        {"contact_drive", "impact", 1e-5, 0, 1},     {"contact_drive", "impact", 1e-6, 0, 1},
+        {"contact_drive", "lumped", 1e-4, 0, 1},     {"contact_drive", "lumped", 1e-5, 0, 1},
+        {"contact_drive", "lumped", 1e-6, 0, 1},     {"contact_drive", "calibrated", 1e-4, 0, 1},
+        {"contact_drive", "calibrated", 1e-5, 0, 1}, {"contact_drive", "calibrated", 1e-6, 0, 1},
+        {"contact_drive", "compliant", 1e-4, 0, 1},  {"contact_drive", "compliant", 1e-5, 0, 1},
+        {"contact_drive", "compliant", 1e-6, 0, 1},  {"contact_drive", "adaptive", 2e-5, 0, 1},
+        {"contact_drive", "adaptive", 1e-5, 0, 1},   {"contact_drive", "contact_seed", 2e-5, 0, 1},
+        {"contact_drive", "contact_seed", 1e-5, 0, 1}, {"contact_drive", "reduced", 2e-5, 0, 1},
+        {"contact_drive", "reduced", 1e-5, 0, 1},    {"contact_drive", "reduced", 5e-6, 0, 1},
+        {"contact_drive", "contact", 2e-5, 0, 1},
+        {"contact_drive", "contact", 1e-5, 0, 1},    {"contact_drive", "contact", 5e-6, 0, 1},
+        {"contact_drive", "contact", 1e-5, 1, 1},    {"contact_drive", "contact", 5e-6, 1, 1},
+        {"contact_drive", "reduced", 1e-5, 2, 1},    /* o2r2: the mesh limit's other side */
+        {"contact_drive", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
     };
     const spec plan[] = {
-        {"planetary_contact", "kinematic", 1e-4, 0},  {"planetary_contact", "kinematic", 1e-5, 0},
-        {"planetary_contact", "kinematic", 1e-6, 0},  {"planetary_contact", "lumped", 1e-4, 0},
-        {"planetary_contact", "lumped", 1e-5, 0},     {"planetary_contact", "lumped", 1e-6, 0},
-        {"planetary_contact", "calibrated", 1e-4, 0}, {"planetary_contact", "calibrated", 1e-5, 0},
-        {"planetary_contact", "calibrated", 1e-6, 0}, {"planetary_contact", "compliant", 1e-4, 0},
-        {"planetary_contact", "compliant", 1e-5, 0},  {"planetary_contact", "compliant", 1e-6, 0},
-        {"planetary_contact", "adaptive", 2e-5, 0},   {"planetary_contact", "adaptive", 1e-5, 0},
-        {"planetary_contact", "contact_seed", 2e-5, 0}, {"planetary_contact", "contact_seed", 1e-5, 0},
-        {"planetary_contact", "reduced", 2e-5, 0},    {"planetary_contact", "reduced", 1e-5, 0},
-        {"planetary_contact", "reduced", 5e-6, 0},    {"planetary_contact", "contact", 2e-5, 0},
-        {"planetary_contact", "contact", 1e-5, 0},    {"planetary_contact", "contact", 5e-6, 0},
+        {"planetary_contact", "kinematic", 1e-4, 0, 1},  {"planetary_contact", "kinematic", 1e-5, 0, 1},
+        {"planetary_contact", "kinematic", 1e-6, 0, 1},  {"planetary_contact", "lumped", 1e-4, 0, 1},
+        {"planetary_contact", "lumped", 1e-5, 0, 1},     {"planetary_contact", "lumped", 1e-6, 0, 1},
+        {"planetary_contact", "calibrated", 1e-4, 0, 1}, {"planetary_contact", "calibrated", 1e-5, 0, 1},
+        {"planetary_contact", "calibrated", 1e-6, 0, 1}, {"planetary_contact", "compliant", 1e-4, 0, 1},
+        {"planetary_contact", "compliant", 1e-5, 0, 1},  {"planetary_contact", "compliant", 1e-6, 0, 1},
+        {"planetary_contact", "adaptive", 2e-5, 0, 1},   {"planetary_contact", "adaptive", 1e-5, 0, 1},
+        {"planetary_contact", "contact_seed", 2e-5, 0, 1}, {"planetary_contact", "contact_seed", 1e-5, 0, 1},
+        {"planetary_contact", "reduced", 2e-5, 0, 1},    {"planetary_contact", "reduced", 1e-5, 0, 1},
+        {"planetary_contact", "reduced", 5e-6, 0, 1},    {"planetary_contact", "contact", 2e-5, 0, 1},
+        {"planetary_contact", "contact", 1e-5, 0, 1},    {"planetary_contact", "contact", 5e-6, 0, 1},
+        {"planetary_contact", "reduced", 1e-5, 0, 3}, /* o2s3 */
+        {"planetary_contact", "reduced", 1e-5, 2, 1},    /* the reference: o2r2 */
     };
     struct set {
         const char *title;
@@ -283,37 +341,38 @@ int main(int argc, char **argv)
             res[i] = run(&st->s[i], st->duration, st->out, st->in, st->ratio);
             last = i;
             ran++;
-            fprintf(stderr, "# %s %s h %g refine %d: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
+            fprintf(stderr, "# %s %s h %g refine %d scale %g: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
                     "balance %.1e mesh %.4e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
-                    res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio, res[i].dte,
-                    res[i].force, res[i].balance, res[i].mesh);
+                    scale_of(&st->s[i]), res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio,
+                    res[i].dte, res[i].force, res[i].balance, res[i].mesh);
         }
         if (!ran)
             continue;
         const result *ref = &res[last];
         printf("\n## %s\n\nreference: the last row (richest model, finest setting); closed-form output speed "
                "%.4f rad/s\n\n", st->title, st->speed_expect);
-        printf("| level | h (s) | refine | wall s per sim. s | output speed (rad/s) | ratio error | DTE rms (m) | "
+        printf("| level | h (s) | refine | scale | CPU s per sim. s | output speed (rad/s) | ratio error | DTE rms (m) | "
                "peak mesh force (N) | balance / scale | mesh-order amplitude (m) | speed err vs ref | DTE err vs ref | "
                "force err vs ref | mesh-order err vs ref |\n");
-        printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        printf("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         for (int i = 0; i < st->n; i++) {
             const spec *s = &st->s[i];
             const result *r = &res[i];
             if (skipped(only, scene, s))
                 continue;
             if (!r->ok) {
-                printf("| %s | %g | %d | failed | | | | | | | | | | |\n", s->level, s->h, s->refine);
+                printf("| %s | %g | %d | %g | failed | | | | | | | | | | |\n", s->level, s->h, s->refine,
+                       scale_of(s));
                 continue;
             }
             double es = rel(r->speed, ref->speed), ed = rel(r->dte, ref->dte), ef = rel(r->force, ref->force);
             double em = rel(r->mesh, ref->mesh);
-            printf("| %s | %g | %d | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
-                   s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es,
-                   ed, ef, em);
-            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s\n", s->scene, s->level,
-                    s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed, ef, em,
-                    scheme_of(s->level));
+            printf("| %s | %g | %d | %g | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
+                   s->level, s->h, s->refine, scale_of(s), r->cost, r->speed, r->ratio, r->dte, r->force, r->balance,
+                   r->mesh, es, ed, ef, em);
+            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%g,%g\n", s->scene,
+                    s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed,
+                    ef, em, scheme_of(s->level), scale_of(s), *scheme_of(s->level) ? ELASTIC_ZETA : 0.0);
         }
     }
     fclose(f);
