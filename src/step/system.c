@@ -8,6 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gearsim/mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/step.h"
 #include "gearsim/modification.h"
 #include "gearsim/util.h"
@@ -50,11 +52,26 @@ void gs_system_free(gs_system **ps)
 }
 
 /* Work weight of a body for balancing ranks: an elastic gear costs about
- * in proportion to its elements (teeth x element counts x 4^refine), a rigid
- * body almost nothing. */
+ * in proportion to its unknowns (the free-motion solve scales with them:
+ * the 30/20 pair's bare solves are 11.1 M and 8.8 M instructions for
+ * 21 302 and 17 144 unknowns), counted on the mesh its model is built
+ * from; a rigid body almost nothing. The element counts per tooth alone
+ * miss the hub below the teeth (they put the 72-tooth ring of
+ * planetary_contact at three planets, its unknowns are 1.7; its thin band
+ * solves about as fast as a planet, 9.1 against 9.3 M instructions, so the
+ * unknowns still overweigh it). */
 static double body_weight(const gs_scene_body *b)
 {
     if (b->model == GS_MODEL_ELASTIC) {
+        gs_mesh *mesh = NULL;
+        gs_diag d;
+        double w = -1;
+        if (gs_scene_gear_mesh(b, &mesh, &d) == GS_OK)
+            w = 2.0 * (double)mesh->n_nodes;
+        gs_mesh_free(&mesh);
+        if (w > 0)
+            return w;
+        /* no mesh: the body's init reports why; any weight will do */
         const gs_mesh_density *m = &b->mesh;
         double per_tooth = (double)m->flank * m->across + (double)m->rim * (m->across + m->flank);
         return 1.0 + b->gear.teeth * per_tooth * (double)(1 << (2 * m->refine));
@@ -63,24 +80,27 @@ static double body_weight(const gs_scene_body *b)
 }
 
 /* Longest processing time first: bodies by decreasing weight (ties by
- * index), each to the least loaded rank (ties: the lowest). Deterministic:
- * the same scene and rank count give the same map. */
+ * index), each to the least loaded bin (ties: the lowest). Then the bins go
+ * to ranks by increasing load (ties: the lower bin), so that rank 0, which
+ * alone selects the contact rows and solves the QP, holds the lightest share
+ * of the bodies (docs/PERFORMANCE.md, "Sixth pass"). Deterministic: the same
+ * scene and rank count give the same map. */
 static void assign_owners(gs_system *s)
 {
-    double load[1024] = {0};
+    double load[1024] = {0}, weight[64];
+    int rank_of[1024];
     int nr = s->nranks > 1024 ? 1024 : s->nranks;
     int order[64];
     int n = s->n_bodies < 64 ? s->n_bodies : 64;
-    for (int i = 0; i < n; i++)
+    for (int i = 0; i < n; i++) {
         order[i] = i;
+        weight[i] = nr > 1 ? body_weight(&s->scene->bodies[i]) : 1.0; /* one rank: no meshing here */
+    }
     for (int i = 1; i < n; i++)
-        for (int j = i; j > 0; j--) {
-            double wa = body_weight(&s->scene->bodies[order[j - 1]]), wb = body_weight(&s->scene->bodies[order[j]]);
-            if (wb > wa) {
-                int t = order[j];
-                order[j] = order[j - 1];
-                order[j - 1] = t;
-            }
+        for (int j = i; j > 0 && weight[order[j]] > weight[order[j - 1]]; j--) {
+            int t = order[j];
+            order[j] = order[j - 1];
+            order[j - 1] = t;
         }
     for (int k = 0; k < n; k++) {
         int i = order[k], best = 0;
@@ -88,8 +108,15 @@ static void assign_owners(gs_system *s)
             if (load[r] < load[best])
                 best = r;
         s->bodies[i].owner = best;
-        load[best] += body_weight(&s->scene->bodies[i]);
+        load[best] += weight[i];
     }
+    for (int r = 0; r < nr; r++) { /* bin r's place among the bins by load */
+        rank_of[r] = 0;
+        for (int q = 0; q < nr; q++)
+            rank_of[r] += load[q] < load[r] || (load[q] == load[r] && q < r);
+    }
+    for (int k = 0; k < n; k++)
+        s->bodies[order[k]].owner = rank_of[s->bodies[order[k]].owner];
 }
 
 /* A planet on a pin bearing: its pin's offset from the carrier's nominal

@@ -20,6 +20,8 @@
  *   bench_cost full|quick SCENE   one of the two scenes only ("all": both)
  *   bench_cost full|quick SCENE SCHEME   with numerics.contact SCHEME
  *                                 (seed, closure, closure_energy)
+ *   bench_cost count SCENE [STEPS]  instruction counts under callgrind
+ *                                 (count_case; one scene)
  *
  * RESULT_PATH and the rounds' "critical path" read the engine's CPU
  * critical path (gs_step_timing cpu_path): at -n 2 on a loaded machine the
@@ -37,6 +39,14 @@
 #include <stdlib.h>
 #include <string.h>
 
+#if defined(__has_include)
+#if __has_include(<valgrind/callgrind.h>)
+#include <valgrind/callgrind.h> /* count mode: instrument from the counted steps on (no-op outside valgrind) */
+#endif
+#endif
+#ifndef CALLGRIND_START_INSTRUMENTATION
+#define CALLGRIND_START_INSTRUMENTATION
+#endif
 #include "fe/fe_internal.h"
 #include "gearsim/engine.h"
 #include "gearsim/fe.h"
@@ -350,6 +360,81 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     return 0;
 }
 
+/* Instruction counts (`bench_cost count SCENE [STEPS]` under mpirun and
+ * valgrind --tool=callgrind --instr-atstart=no): the scene's quick
+ * warm-up uninstrumented, then every rank instruments from the counted
+ * steps on (rank 0 by the client request before count_steps, the others
+ * between the two gs_engine_serve calls of main: the engine's shutdown
+ * operation pauses their serve loop after the warm-up). Then STEPS steps in
+ * count_steps (each rank's own work: dist_substep's inclusive count less
+ * the MPI calls', which spin while waiting) and STEPS bare solves of each
+ * elastic gear on a fresh factor, gear g in its own function count_gear_g
+ * (at most 8), so that callgrind_annotate --inclusive=yes reads each
+ * gear's floor apart. No timing: the counts do not depend on the load. */
+static __attribute__((noinline)) int count_steps(gs_engine *e, int64_t n)
+{
+    int64_t done = 0;
+    gs_diag d;
+    return gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done) == GS_OK && done == n ? 0 : 1;
+}
+
+#define COUNT_GEAR(g)                                                                                       \
+    static __attribute__((noinline)) int count_gear_##g(gs_fe_body *b, int reps)                             \
+    {                                                                                                       \
+        return gsi_fe_body_time_bare_solve(b, reps) >= 0 ? 0 : 1;                                           \
+    }
+COUNT_GEAR(0)
+COUNT_GEAR(1)
+COUNT_GEAR(2)
+COUNT_GEAR(3)
+COUNT_GEAR(4)
+COUNT_GEAR(5)
+COUNT_GEAR(6)
+COUNT_GEAR(7)
+
+static int count_case(gs_engine *e, const bcase *c, int64_t steps)
+{
+    static int (*const gear_fn[8])(gs_fe_body *, int) = {count_gear_0, count_gear_1, count_gear_2, count_gear_3,
+                                                         count_gear_4, count_gear_5, count_gear_6, count_gear_7};
+    json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
+    json_object *out = json_object_new_object();
+    json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
+    json_object_object_add(root, "outputs", out);
+    const char *txt = json_object_to_json_string(root);
+    gs_diag d;
+    int rc = gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL) != GS_OK;
+    json_object_put(root);
+    if (rc || count_steps(e, c->warm)) {
+        fprintf(stderr, "bench_cost count: %s: load or warm-up failed\n", c->scene);
+        return 1;
+    }
+    gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL); /* the other ranks start instrumenting (main) */
+    CALLGRIND_START_INSTRUMENTATION;
+    rc = count_steps(e, steps);
+    gs_system *sys = gs_engine_system(e);
+    printf("# count %s: %lld steps after %d; gear (rank): count_gear_g with %lld bare solves\n", c->scene,
+           (long long)steps, c->warm, (long long)steps);
+    for (int i = 0, g = 0; i < sys->n_bodies && g < 8 && !rc; i++) {
+        const gs_scene_body *sb = &sys->scene->bodies[i];
+        if (!sys->bodies[i].ops->state_size)
+            continue;
+        gs_mesh *mesh = NULL;
+        gs_fe_model *m = NULL;
+        gs_fe_body *b = NULL;
+        rc = !(gs_scene_gear_mesh(sb, &mesh, &d) == GS_OK &&
+               gs_fe_model_new(mesh, &sb->material, sb->gear.face_width_m, 1e-6, &m) == GS_OK &&
+               gs_fe_body_new(m, &b) == GS_OK && gs_fe_body_set_step(b, sys->h, 0.0) == GS_OK) ||
+             gear_fn[g](b, (int)steps);
+        printf("count_gear_%d %s (rank %d)\n", g++, sb->name, sys->bodies[i].owner);
+        gs_fe_body_free(&b);
+        gs_fe_model_free(&m);
+        gs_mesh_free(&mesh);
+    }
+    fflush(stdout);
+    gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+    return rc;
+}
+
 int main(int argc, char **argv)
 {
     int provided;
@@ -364,14 +449,19 @@ int main(int argc, char **argv)
      * the energies on the daemon's schedule (gs_engine_set_energy_schedule:
      * telemetry steps and chunk ends), or every step with
      * GEARSIM_ENERGY_EVERY_STEP=1. */
-    gs_engine_set_cpu_timing(e, true);
+    bool counting = argc > 1 && strcmp(argv[1], "count") == 0; /* the daemon's setting: no clock reads */
+    gs_engine_set_cpu_timing(e, !counting);
     const char *every = getenv("GEARSIM_ENERGY_EVERY_STEP");
     energy_every_step = every && every[0] == '1';
     gs_engine_set_energy_schedule(e, !energy_every_step);
     if (rank != 0) {
         rc = gs_engine_serve(e) != GS_OK;
+        if (counting && rc == 0) { /* paused after the warm-up (count_case) */
+            CALLGRIND_START_INSTRUMENTATION;
+            rc = gs_engine_serve(e) != GS_OK;
+        }
     } else {
-        bool quick = argc > 1 && strcmp(argv[1], "quick") == 0;
+        bool quick = argc > 1 && (strcmp(argv[1], "quick") == 0 || strcmp(argv[1], "count") == 0);
         const bcase cases[] = {
             {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 0},
             {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 1}, /* linear triangles */
@@ -382,9 +472,20 @@ int main(int argc, char **argv)
                thr ? thr : "(unset)");
         const char *only = argc > 2 && strcmp(argv[2], "all") != 0 ? argv[2] : NULL;
         const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (seed) */
+        bool count = counting;
+        int64_t csteps = count && argc > 3 ? atoll(argv[3]) : 100;
+        bool counted = false; /* count: one scene (the other ranks pause once) */
         for (size_t k = 0; k < sizeof cases / sizeof cases[0] && rc == 0; k++)
-            if (!only || !strcmp(only, cases[k].scene))
-                rc = run_case(e, &cases[k], size, scheme);
+            if (!only || !strcmp(only, cases[k].scene)) {
+                if (count && !counted && cases[k].order == 0) {
+                    rc = count_case(e, &cases[k], csteps > 0 ? csteps : 100);
+                    counted = true;
+                } else if (!count) {
+                    rc = run_case(e, &cases[k], size, scheme);
+                }
+            }
+        if (count && !counted) /* release the other ranks' pause */
+            gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &(gs_diag){0}, NULL);
         gs_diag d;
         gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
     }
