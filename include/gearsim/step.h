@@ -29,6 +29,8 @@ struct gs_body_rt {
                               * report, booked by gs_system_book_damping) */
     double L;                /* angular momentum of the body's own state about its axis
                               * (owner report, like T; 0 without own state) */
+    struct gs_mesh *mesh;    /* an elastic gear's mesh, made once by gs_system_new (its
+                              * weight in the owner map); the model takes it at init */
 };
 
 struct gs_gmesh_rt {

@@ -240,8 +240,9 @@ double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, dou
  * the parabola g(s) = g_m + B s + C s^2 through (s_l, g_l), (0, g_m),
  * (s_h, g_h), s_l < 0 < s_h; its vertex s_v = -B / (2 C) in *s_v and
  * g_0 = g_m - B^2 / (4 C) in *g0. Returns 1 when the parabola is convex
- * (C > 0) and s_l <= s_v <= s_h, else 0 (outputs untouched). */
-int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double *s_v,
+ * and at most c_max curved (0 < C <= c_max; INFINITY: no bound) and
+ * s_l <= s_v <= s_h, else 0 (outputs untouched). */
+int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double c_max, double *s_v,
                    double *g0);
 
 /* Near-field law of a line contact next to a sharp tip corner

@@ -7,6 +7,9 @@
 
 /* Monotonic wall clock in seconds. */
 double gs_now(void);
+/* CPU seconds of the process (all threads): the comparable cost figure on a
+ * shared machine, where wall clocks are inflated by the load. */
+double gs_cpu_now(void);
 /* calloc that returns NULL for n*size overflow instead of wrapping. */
 void *gs_calloc(size_t n, size_t size);
 /* Grow an array to hold at least n elements of `size` bytes: returns p when

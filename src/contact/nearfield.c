@@ -61,7 +61,7 @@ double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, dou
     return 2.0 * load_per_m / (GS_PI * Ep) * f;
 }
 
-int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double *s_v,
+int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, double c_max, double *s_v,
                    double *g0)
 {
     if (!(s_l < 0.0 && s_h > 0.0) || !s_v || !g0)
@@ -69,7 +69,7 @@ int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, d
     /* g_l - g_m = B s_l + C s_l^2, g_h - g_m = B s_h + C s_h^2. */
     double dl = g_l - g_m, dh = g_h - g_m, det = s_l * s_h * (s_h - s_l);
     double B = (dl * s_h * s_h - dh * s_l * s_l) / det, C = (s_l * dh - s_h * dl) / det;
-    if (!(C > 0.0))
+    if (!(C > 0.0 && C <= c_max))
         return 0;
     double sv = -B / (2.0 * C);
     if (!(sv >= s_l && sv <= s_h))

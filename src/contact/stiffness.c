@@ -22,7 +22,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "contact/stiffness_hook.h"
 #include "gearsim/contact.h"
@@ -48,15 +47,6 @@
  * flanks' own relative curvature (a neighbour whose foot lies beyond the
  * master's tip or form point is far off the flanks' gap: no vertex). */
 #define GS_NF_FIT_CURV 2.0
-
-/* CPU seconds of the process (the cost split of the result: CPU time is
- * the comparable figure on a shared machine). */
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
 {
@@ -229,7 +219,7 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int 
     sbo.mesh.fine_centre = fine_centre;
     gs_diag md;
     gs_diag_clear(&md);
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     gs_err e = gs_scene_gear_mesh_refined(&sbo, refine, &b->mesh, &md);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "cannot mesh '%s': %s (%s)", b->sb->name, md.message,
@@ -250,11 +240,11 @@ static gs_err sbody_init(const gs_scene *sc, int bi, int refine, int order, int 
             return gs_diag_set(d, e, field, "cannot mesh the perfect '%s'", b->sb->name);
     }
     e = gs_fe_model_new(b->mesh, &b->sb->material, b->sb->gear.face_width_m, 0.0, &b->model);
-    double t1 = cpu_now();
+    double t1 = gs_cpu_now();
     if (e == GS_OK)
         e = gs_fe_static_new(b->model, &b->fs);
     b->t_mesh = t1 - t0;
-    b->t_factor = cpu_now() - t1;
+    b->t_factor = gs_cpu_now() - t1;
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "static finite element model of '%s' failed: %s",
                            b->sb->name, gs_strerror(e));
@@ -365,7 +355,7 @@ static gs_err sbody_columns(sbody *b)
  * numbering, boundary nodes) are cached. */
 static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
 {
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     int nd0 = b->nd;
     for (int i = 0; i < n; i++) {
         gs_index k = b->bpos[nodes[i]];
@@ -397,7 +387,7 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
     if (b->ncol > 0)
         GS_TRY(sbody_columns(b));
     b->columns += b->nd - nd0;
-    b->t_columns += cpu_now() - t0;
+    b->t_columns += gs_cpu_now() - t0;
     return GS_OK;
 }
 
@@ -406,7 +396,7 @@ static gs_err sbody_need(sbody *b, int n, const gs_index *nodes)
  * half column and one gather per missing partner. */
 static void sbody_gram(sbody *b, int n, const int *sl)
 {
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     size_t cap = (size_t)b->capd;
     for (int i = 0; i < n; i++) {
         int d = sl[i];
@@ -443,7 +433,7 @@ static void sbody_gram(sbody *b, int n, const int *sl)
         for (gs_index q = 0; q < b->ynz[d]; q++)
             b->z[b->yi[d][q]] = 0.0;
     }
-    b->t_columns += cpu_now() - t0;
+    b->t_columns += gs_cpu_now() - t0;
 }
 
 /* The boundary displacements u = C f from the forces f_d on the cached
@@ -457,13 +447,13 @@ static void sbody_gram(sbody *b, int n, const int *sl)
  * never more than about twice the cheaper way's cost. */
 static gs_err sbody_displace(sbody *b)
 {
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     size_t len = (size_t)(2 * b->nb);
     if (b->ncol == 0 && 2.0 * b->backw >= (double)b->nd) {
-        double t1 = cpu_now();
+        double t1 = gs_cpu_now();
         GS_TRY(sbody_columns(b));
-        b->t_columns += cpu_now() - t1;
-        t0 += cpu_now() - t1;
+        b->t_columns += gs_cpu_now() - t1;
+        t0 += gs_cpu_now() - t1;
     }
     double *v = b->z + (size_t)gs_fe_static_size(b->fs);
     if (b->ncol > 0) {
@@ -499,7 +489,7 @@ static gs_err sbody_displace(sbody *b)
                 b->u[2 * node + 1] = v[2 * i + 1];
             }
             b->dirty = 1;
-            b->t_solves += cpu_now() - t0;
+            b->t_solves += gs_cpu_now() - t0;
             return GS_OK;
         }
     }
@@ -509,7 +499,7 @@ static gs_err sbody_displace(sbody *b)
         b->u[2 * node + 1] = v[2 * q + 1];
     }
     b->dirty = 1;
-    b->t_solves += cpu_now() - t0;
+    b->t_solves += gs_cpu_now() - t0;
     return GS_OK;
 }
 
@@ -1175,10 +1165,8 @@ static gs_err nf_offsets(work *w)
             if (jl < 0 || jh < 0)
                 continue;
             double gm = w->row[jm].gap.g, sv, g0;
-            double dl = w->row[jl].gap.g - gm, dh = w->row[jh].gap.g - gm;
-            double cfit = (sl * dh - sh * dl) / (sl * sh * (sh - sl)); /* g'' / 2 */
-            if (!(cfit <= GS_NF_FIT_CURV * 0.5 * curv) ||
-                !gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, &sv, &g0))
+            if (!gs_gap_vertex3(sl, w->row[jl].gap.g, gm, sh, w->row[jh].gap.g, GS_NF_FIT_CURV * 0.5 * curv,
+                                &sv, &g0))
                 continue;
             /* The pass whose master flank is the flatter (larger involute
              * radius: its parabolic edges follow it more closely) wins. */
@@ -1874,7 +1862,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (!r)
         return GS_ENOMEM;
     r->t_start = gs_now();
-    r->cpu_start = cpu_now();
+    r->cpu_start = gs_cpu_now();
     r->sc = sc;
     r->o = o;
     const gs_scene_mesh *sm = r->sm = &sc->meshes[mesh_index];
@@ -2232,7 +2220,7 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
     out->frac_multi = (double)multi / o.positions;
     out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
     out->seconds = gs_now() - r->t_start;
-    out->cpu_seconds = cpu_now() - r->cpu_start;
+    out->cpu_seconds = gs_cpu_now() - r->cpu_start;
     out->columns = 0;
     out->window_widened = w.win_widened;
     out->zone_restarts = w.zone_restarts;

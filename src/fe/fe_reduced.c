@@ -73,7 +73,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "fe/fe_internal.h"
 #include "gearsim/util.h"
@@ -534,13 +533,6 @@ static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **
     return GS_OK;
 }
 
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k);
 
 /* Make the G_res columns of candidate node k's x and y rows present. */
@@ -548,9 +540,9 @@ static gs_err ensure_node(gs_fe_reduced *b, gs_index k)
 {
     if (b->col[k])
         return GS_OK;
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     gs_err e = ensure_node_now(b, k);
-    b->col_cpu += cpu_now() - t0;
+    b->col_cpu += gs_cpu_now() - t0;
     return e;
 }
 

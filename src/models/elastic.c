@@ -266,7 +266,11 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
     b->model = el;
     gs_diag md;
     gs_diag_clear(&md);
-    gs_err e = gs_scene_gear_mesh(sb, &el->mesh, &md);
+    gs_err e = GS_OK;
+    if (b->mesh) /* made by gs_system_new */
+        el->mesh = b->mesh, b->mesh = NULL;
+    else
+        e = gs_scene_gear_mesh(sb, &el->mesh, &md);
     if (e != GS_OK) {
         /* a mesh field the mesher names (e.g. mesh.fine_teeth) under this body */
         if (strncmp(md.field, "mesh.", 5) == 0)

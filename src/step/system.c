@@ -21,9 +21,11 @@ void gs_system_free(gs_system **ps)
     if (!ps || !*ps)
         return;
     gs_system *s = *ps;
-    for (int i = 0; s->bodies && i < s->n_bodies; i++)
+    for (int i = 0; s->bodies && i < s->n_bodies; i++) {
         if (s->bodies[i].ops)
             s->bodies[i].ops->destroy(&s->bodies[i]);
+        gs_mesh_free(&s->bodies[i].mesh); /* not taken: init failed before */
+    }
     for (int i = 0; s->meshes && i < s->n_meshes; i++) {
         if (s->meshes[i].ops && s->meshes[i].ops->destroy)
             s->meshes[i].ops->destroy(&s->meshes[i]);
@@ -60,17 +62,11 @@ void gs_system_free(gs_system **ps)
  * planetary_contact at three planets, its unknowns are 1.7; its thin band
  * solves about as fast as a planet, 9.1 against 9.3 M instructions, so the
  * unknowns still overweigh it). */
-static double body_weight(const gs_scene_body *b)
+static double body_weight(const gs_body_rt *br, const gs_scene_body *b)
 {
     if (b->model == GS_MODEL_ELASTIC) {
-        gs_mesh *mesh = NULL;
-        gs_diag d;
-        double w = -1;
-        if (gs_scene_gear_mesh(b, &mesh, &d) == GS_OK)
-            w = 2.0 * (double)mesh->n_nodes;
-        gs_mesh_free(&mesh);
-        if (w > 0)
-            return w;
+        if (br->mesh)
+            return 2.0 * (double)br->mesh->n_nodes;
         /* no mesh: the body's init reports why; any weight will do */
         const gs_mesh_density *m = &b->mesh;
         double per_tooth = (double)m->flank * m->across + (double)m->rim * (m->across + m->flank);
@@ -94,7 +90,7 @@ static void assign_owners(gs_system *s)
     int n = s->n_bodies < 64 ? s->n_bodies : 64;
     for (int i = 0; i < n; i++) {
         order[i] = i;
-        weight[i] = nr > 1 ? body_weight(&s->scene->bodies[i]) : 1.0; /* one rank: no meshing here */
+        weight[i] = body_weight(&s->bodies[i], &s->scene->bodies[i]);
     }
     for (int i = 1; i < n; i++)
         for (int j = i; j > 0 && weight[order[j]] > weight[order[j - 1]]; j--) {
@@ -503,6 +499,14 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             j->q_ref[2] = sb->angle0;
         }
     }
+    /* Every rank meshes every elastic gear (the contact search needs them
+     * all): once, here, for the owner map's weights; the model takes it. */
+    for (int i = 0; i < s->n_bodies; i++)
+        if (scene->bodies[i].model == GS_MODEL_ELASTIC && scene->bodies[i].type == GS_BODY_GEAR) {
+            gs_diag md;
+            if (gs_scene_gear_mesh(&scene->bodies[i], &s->bodies[i].mesh, &md) != GS_OK)
+                s->bodies[i].mesh = NULL; /* the model's init meshes again and says why */
+        }
     assign_owners(s);
     e = gsi_plan_new(s);
     if (e != GS_OK)

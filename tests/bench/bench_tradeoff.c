@@ -45,7 +45,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "gearsim/mesh.h"
 #include "gearsim/step.h"
@@ -65,11 +64,6 @@ typedef struct spec {
  * meshes' default damping (5 % of the mesh mode). */
 #define ELASTIC_ZETA 0.02
 #define ELASTIC_FHZ 9200.0
-
-static double scale_of(const spec *s)
-{
-    return s->scale;
-}
 
 /* The contact scheme (numerics.contact) of a level's elastic rows:
  * `contact` steps with the energy-exact closure, `contact_seed` and
@@ -110,12 +104,12 @@ static gs_system *build(const spec *s)
             json_object_object_add(rd, "f_max_hz", json_object_new_double(0.3 / s->h));
             json_object_object_add(b, "reduction", rd);
         }
-        if (contact && (s->refine > 0 || scale_of(s) != 1)) {
+        if (contact && (s->refine > 0 || s->scale != 1)) {
             /* refine R, or the order's default counts times the scale
              * (dyn_convergence_run's --scale: grading kept) */
             json_object *m = json_object_new_object();
             json_object_object_add(m, "refine", json_object_new_int(s->refine));
-            if (scale_of(s) != 1) {
+            if (s->scale != 1) {
                 gs_gear_mesh_opts def;
                 gs_gear_mesh_opts_for_order(&def, 2);
                 json_object_object_add(m, "order", json_object_new_int(2));
@@ -173,14 +167,6 @@ static gs_system *build(const spec *s)
     return sys;
 }
 
-/* Process CPU seconds (the machine is shared: wall clocks are inflated). */
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 static result run(const spec *s, double duration, const char *out_body, const char *in_body, double ratio_expect)
 {
     result r = {0};
@@ -202,7 +188,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     int gc = sys->scene->bodies[gb].joint == GS_JOINT_ON_CARRIER ? sys->scene->bodies[gb].carrier : -1;
     double za = sys->scene->bodies[ga].gear.teeth, xc = 0, xs = 0, c1 = 0, s1 = 0;
     gs_energy e;
-    double t0 = cpu_now();
+    double t0 = gs_cpu_now();
     for (int i = 0; i < n; i++) {
         if (i == n - half) {
             th_o = gs_system_angle(sys, o);
@@ -227,7 +213,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
             fmaxv = fmax(fmaxv, fabs(sys->meshes[0].force));
         }
     }
-    double cpu = cpu_now() - t0, T = half * s->h;
+    double cpu = gs_cpu_now() - t0, T = half * s->h;
     r.cost = cpu / duration;
     r.speed = fabs(gs_system_angle(sys, o) - th_o) / T;
     r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
@@ -253,13 +239,13 @@ static double rel(double a, double ref)
 static int row_listed(const char *list, const spec *s)
 {
     size_t n = strlen(s->level);
-    int plain = scale_of(s) == 1;
+    int plain = s->scale == 1;
     for (const char *p = list; p && *p; p = strchr(p, ',') ? strchr(p, ',') + 1 : NULL) {
         if (strncmp(p, s->level, n))
             continue;
         if ((p[n] == ',' || p[n] == '\0') && s->refine == 0 && plain)
             return 1;
-        if (p[n] == ':' && p[n + 1] == 's' && s->refine == 0 && fabs(atof(p + n + 2) - scale_of(s)) < 1e-9)
+        if (p[n] == ':' && p[n + 1] == 's' && s->refine == 0 && fabs(atof(p + n + 2) - s->scale) < 1e-9)
             return 1;
         if (p[n] == ':' && p[n + 1] != 's' && atoi(p + n + 1) == s->refine && plain)
             return 1;
@@ -343,7 +329,7 @@ int main(int argc, char **argv)
             ran++;
             fprintf(stderr, "# %s %s h %g refine %d scale %g: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
                     "balance %.1e mesh %.4e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
-                    scale_of(&st->s[i]), res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio,
+                    st->s[i].scale, res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio,
                     res[i].dte, res[i].force, res[i].balance, res[i].mesh);
         }
         if (!ran)
@@ -362,17 +348,17 @@ int main(int argc, char **argv)
                 continue;
             if (!r->ok) {
                 printf("| %s | %g | %d | %g | failed | | | | | | | | | | |\n", s->level, s->h, s->refine,
-                       scale_of(s));
+                       s->scale);
                 continue;
             }
             double es = rel(r->speed, ref->speed), ed = rel(r->dte, ref->dte), ef = rel(r->force, ref->force);
             double em = rel(r->mesh, ref->mesh);
             printf("| %s | %g | %d | %g | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
-                   s->level, s->h, s->refine, scale_of(s), r->cost, r->speed, r->ratio, r->dte, r->force, r->balance,
+                   s->level, s->h, s->refine, s->scale, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance,
                    r->mesh, es, ed, ef, em);
             fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%g,%g\n", s->scene,
                     s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed,
-                    ef, em, scheme_of(s->level), scale_of(s), *scheme_of(s->level) ? ELASTIC_ZETA : 0.0);
+                    ef, em, scheme_of(s->level), s->scale, *scheme_of(s->level) ? ELASTIC_ZETA : 0.0);
         }
     }
     fclose(f);

@@ -26,20 +26,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "../common/corner_stats.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
+#include "gearsim/util.h"
 
 #define GS_MAX_MESHES_CS 16
-
-static double cpu_now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
 
 int main(int argc, char **argv)
 {
@@ -142,7 +135,7 @@ int main(int argc, char **argv)
     for (int j = 0; j < nm; j++)
         cs_init(&c[j], s, mi[j], t_from, off, factor, j == 0 ? out : NULL);
     long n = lround(t_end / s->h);
-    double cpu0 = cpu_now();
+    double cpu0 = gs_cpu_now();
     for (long i = 0; i < n; i++) {
         gs_err e = gs_step_serial(s);
         if (e != GS_OK) {
@@ -152,7 +145,7 @@ int main(int argc, char **argv)
         for (int j = 0; j < nm; j++)
             cs_step(&c[j], s);
     }
-    double cpu = cpu_now() - cpu0;
+    double cpu = gs_cpu_now() - cpu0;
     gs_energy en;
     gs_system_energy(s, &en);
     for (int j = 0; j < nm; j++) {

@@ -36,7 +36,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "../common/dyn_window.h"
 #include "../common/json_child.h"
@@ -44,13 +43,7 @@
 #include "gearsim/mesh.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
-
-static double cpu_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
+#include "gearsim/util.h"
 
 /* Kinematic TE and |force| of every mesh, per sample of the window. */
 typedef struct per_mesh {
@@ -255,13 +248,13 @@ int main(int argc, char **argv)
             unknowns += 2 * ((long)m->n_nodes - (long)m->n_fixed);
         gs_mesh_free(&m);
     }
-    double c0 = cpu_now();
+    double c0 = gs_cpu_now();
     gs_system *s = NULL;
     if (gs_system_new(sc, 0, 1, &s, &d) != GS_OK) {
         fprintf(stderr, "system: %s: %s\n", d.field, d.message);
         return 1;
     }
-    double c_setup = cpu_now() - c0;
+    double c_setup = gs_cpu_now() - c0;
     int in = in_name[0] ? gs_scene_find_body(s->scene, in_name) : -1;
     int out = out_name[0] ? gs_scene_find_body(s->scene, out_name) : -1;
     dyn_window w = {0};
@@ -279,7 +272,7 @@ int main(int argc, char **argv)
             return 1;
         }
     }
-    double cpu = cpu_now() - c0;
+    double cpu = gs_cpu_now() - c0;
     /* the reduced bodies' own figures, summed */
     double col_cpu = 0, res_loss = 0;
     long col_nodes = 0, cand_nodes = 0;

@@ -30,18 +30,11 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 #include "gearsim/sweep.h"
-
-static double cpu_now(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
+#include "gearsim/util.h"
 
 int main(int argc, char **argv)
 {
@@ -125,7 +118,7 @@ int main(int argc, char **argv)
     int *act = calloc((size_t)cap, sizeof(int));
     if (!F || !act || !X || !T)
         return 1;
-    double cw0 = 0, win0 = 0, t0 = 0, cpu0 = cpu_now();
+    double cw0 = 0, win0 = 0, t0 = 0, cpu0 = gs_cpu_now();
     for (int64_t k = 0; gs_sweep_meter_steps_left(m) > 0; k++) {
         if (gs_step_serial(s) != GS_OK) {
             fprintf(stderr, "t %.6f: %s: %s\n", s->time, s->diag.field, s->diag.message);
@@ -149,7 +142,7 @@ int main(int argc, char **argv)
                 fprintf(out, "%.9g,%.6g,%.6g,%d\n", s->time, g->deflection * 1e6, g->force, g->n_active);
         }
     }
-    double cpu = cpu_now() - cpu0;
+    double cpu = gs_cpu_now() - cpu0;
     gs_energy en;
     gs_system_energy(s, &en);
     double fmean = 0;

@@ -96,16 +96,16 @@ static void gap_vertex_parabola(void **state)
     /* g(s) = 0.3 + (s - 0.07)^2 / (2 * 5): samples at -0.2, 0, 0.25. */
     double R = 5.0, s0 = 0.07, gv = 0.3;
 #define G(s) (gv + ((s) - s0) * ((s) - s0) / (2.0 * R))
-    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), &sv, &g0), 1);
+    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), INFINITY, &sv, &g0), 1);
     assert_true(fabs(sv - s0) < 1e-12 && fabs(g0 - gv) < 1e-12);
     /* Vertex beyond the samples, concave samples, unordered abscissae. */
     s0 = 0.4;
     sv = g0 = -1.0;
-    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), &sv, &g0), 0);
+    assert_int_equal(gs_gap_vertex3(-0.2, G(-0.2), G(0.0), 0.25, G(0.25), INFINITY, &sv, &g0), 0);
     assert_true(sv == -1.0 && g0 == -1.0);
 #undef G
-    assert_int_equal(gs_gap_vertex3(-0.2, 0.0, 1.0, 0.25, 0.0, &sv, &g0), 0);
-    assert_int_equal(gs_gap_vertex3(0.1, 1.0, 0.0, 0.25, 1.0, &sv, &g0), 0);
+    assert_int_equal(gs_gap_vertex3(-0.2, 0.0, 1.0, 0.25, 0.0, INFINITY, &sv, &g0), 0);
+    assert_int_equal(gs_gap_vertex3(0.1, 1.0, 0.0, 0.25, 1.0, INFINITY, &sv, &g0), 0);
 }
 
 /* The smallest gap of two circles (radii R1, R2, the flanks' curvature
@@ -137,7 +137,7 @@ static double circles_vertex_error(double h, double phase, double *nearest_err)
     for (int k = 0; k < 3; k += 2)
         ss[k] -= ss[1];
     double sv, g0;
-    assert_int_equal(gs_gap_vertex3(ss[0], gs[0], gs[1], ss[2], gs[2], &sv, &g0), 1);
+    assert_int_equal(gs_gap_vertex3(ss[0], gs[0], gs[1], ss[2], gs[2], INFINITY, &sv, &g0), 1);
     *nearest_err = gs[1] - gap;
     return fabs(g0 - gap);
 }
