@@ -168,7 +168,9 @@ typedef struct gs_fe_stats {
     uint64_t solves;           /* sparse triangular solve pairs, counted per right-hand side */
     uint64_t steps;            /* completed steps */
     uint64_t cache_hits;       /* node columns found in the compliance cache */
-    uint64_t cache_misses;     /* node columns computed (two solves each, batched) */
+    uint64_t cache_misses;     /* node columns asked for and not cached (two solves each, batched) */
+    uint64_t group_solves;     /* multi-column solves of a whole group of nodes (the misses' batches) */
+    uint64_t group_kept;       /* columns of group members not asked for, kept for the next requests */
     uint64_t block_reused;     /* compliance entries copied from the previous block */
     gs_index cached_nodes;     /* nodes held now */
     size_t cache_bytes;        /* memory they use */

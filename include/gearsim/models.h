@@ -149,6 +149,12 @@ gs_err gs_scene_gear_mesh_perfect(const gs_scene_body *sb, int refine, struct gs
 struct gs_fe_reduced_info;
 bool gs_elastic_reduced_info(const gs_body_rt *b, struct gs_fe_reduced_info *out);
 
+/* The full elastic body's counters (gs_fe_stats: solves, column cache,
+ * group solves) of body b: false when b is not a full elastic body or
+ * lives on another rank. */
+struct gs_fe_stats;
+bool gs_elastic_fe_stats(const gs_body_rt *b, struct gs_fe_stats *out);
+
 /* Registered implementations, by name (the scene's `model`). */
 const gs_body_ops *gs_body_ops_find(const char *name);
 const gs_gmesh_ops *gs_gmesh_ops_find(const char *name);

@@ -49,7 +49,6 @@
 #include "gearsim/util.h"
 
 #define CACHE_DEFAULT_BYTES ((size_t)256 << 20)
-#define BATCH_NODES 8
 /* Factorisations kept for the step sizes visited (an adaptive step moves
  * between h / 2^k): the least recently used one is replaced. */
 #define FACTOR_SLOTS 4
@@ -805,17 +804,22 @@ static gs_err cache_slot(gs_fe_body *b, gs_index *slot)
     return GS_OK;
 }
 
-/* The first free node of the fixed group of BATCH_NODES consecutive free
- * nodes that holds `node`, and the group's size. */
+/* The first position in col_order of the fixed group (gs_fe_model
+ * col_order) that holds free node `node`, and the group's size. */
 static gs_index group_of(const gs_fe_body *b, gs_index node, int *size)
 {
-    gs_index g0 = node - node % BATCH_NODES, left = b->m->n_free_nodes - g0;
-    *size = left < BATCH_NODES ? (int)left : BATCH_NODES;
+    const gs_fe_model *m = b->m;
+    gs_index pos = m->col_pos[node], nb = m->n_col_boundary;
+    gs_index start = pos < nb ? 0 : nb, end = pos < nb ? nb : m->n_free_nodes;
+    gs_index g0 = pos - (pos - start) % GSI_FE_GROUP, left = end - g0;
+    *size = left < GSI_FE_GROUP ? (int)left : GSI_FE_GROUP;
     return g0;
 }
 
-/* Solve for the G columns of the whole group starting at free node g0 and
- * copy those of nodes[0..n) (members of that group) into their slots. The
+/* Solve for the G columns of the whole group starting at position g0 of
+ * col_order and keep them: those of nodes[0..n) (members of that group,
+ * asked for) in slots[0..n), and those of the group's other members not
+ * cached yet in new slots (the contact moves on to them next). The
  * right-hand sides of a solve are always the same group in the same order,
  * whichever of its nodes are missing: a multi-column solve (BLAS blocks)
  * rounds each column according to the batch it is in, and a column must
@@ -824,33 +828,50 @@ static gs_index group_of(const gs_fe_body *b, gs_index node, int *size)
 static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *nodes, const gs_index *slots)
 {
     const gs_index ne = b->ne;
-    if (!b->bb || b->bb->ncol != (size_t)(2 * BATCH_NODES)) {
+    const gs_index *order = b->m->col_order;
+    if (!b->bb || b->bb->ncol != (size_t)(2 * GSI_FE_GROUP)) {
         cholmod_l_free_dense(&b->bb, &b->cc);
-        b->bb = cholmod_l_zeros((size_t)ne, 2 * BATCH_NODES, CHOLMOD_REAL, &b->cc);
+        b->bb = cholmod_l_zeros((size_t)ne, 2 * GSI_FE_GROUP, CHOLMOD_REAL, &b->cc);
         if (!b->bb)
             return GS_ENOMEM;
     }
     int gn;
-    group_of(b, g0, &gn);
+    group_of(b, order[g0], &gn);
     double *B = b->bb->x;
     b->bb->ncol = (size_t)(2 * gn);
     for (int k = 0; k < gn; k++) {
-        B[2 * (g0 + k) + (size_t)(2 * k) * ne] = 1.0;
-        B[2 * (g0 + k) + 1 + (size_t)(2 * k + 1) * ne] = 1.0;
+        B[2 * order[g0 + k] + (size_t)(2 * k) * ne] = 1.0;
+        B[2 * order[g0 + k] + 1 + (size_t)(2 * k + 1) * ne] = 1.0;
     }
     int ok = cholmod_l_solve2(CHOLMOD_A, b->L, b->bb, NULL, &b->bx, NULL, &b->by, &b->be, &b->cc);
     for (int k = 0; k < gn; k++) {
-        B[2 * (g0 + k) + (size_t)(2 * k) * ne] = 0.0;
-        B[2 * (g0 + k) + 1 + (size_t)(2 * k + 1) * ne] = 0.0;
+        B[2 * order[g0 + k] + (size_t)(2 * k) * ne] = 0.0;
+        B[2 * order[g0 + k] + 1 + (size_t)(2 * k + 1) * ne] = 0.0;
     }
-    b->bb->ncol = 2 * BATCH_NODES;
+    b->bb->ncol = 2 * GSI_FE_GROUP;
     if (!ok)
         return GS_ENOMEM;
     b->st.solves += (uint64_t)(2 * gn);
+    b->st.group_solves++;
     const double *X = b->bx->x;
+    const gs_index *pos = b->m->col_pos;
     for (int k = 0; k < n; k++)
-        memcpy(b->cols + (size_t)slots[k] * 2 * ne, X + (size_t)(2 * (nodes[k] - g0)) * ne,
+        memcpy(b->cols + (size_t)slots[k] * 2 * ne, X + (size_t)(2 * (pos[nodes[k]] - g0)) * ne,
                2 * (size_t)ne * sizeof *X);
+    for (int k = 0; k < gn; k++) { /* the rest of the group, while the bound allows */
+        gs_index node = order[g0 + k], s;
+        if (b->slot_of[node] >= 0)
+            continue;
+        size_t per_node = 2 * (size_t)ne * sizeof(double);
+        if ((size_t)(b->cache_len + 1) * per_node > b->cache_limit)
+            break;
+        GS_TRY(cache_slot(b, &s));
+        b->slot_of[node] = s;
+        b->node_of[s] = node;
+        b->stamp[s] = b->request; /* evictable like an old column: not asked for by this request */
+        b->st.group_kept++;
+        memcpy(b->cols + (size_t)s * 2 * ne, X + (size_t)(2 * k) * ne, 2 * (size_t)ne * sizeof *X);
+    }
     return GS_OK;
 }
 
@@ -859,7 +880,7 @@ static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *node
 static gs_err cache_ensure(gs_fe_body *b, int n, const gs_index *qi)
 {
     b->request = b->clock;
-    gs_index nodes[BATCH_NODES], slots[BATCH_NODES], g0 = -1;
+    gs_index nodes[GSI_FE_GROUP], slots[GSI_FE_GROUP], g0 = -1;
     int nb = 0;
     for (int k = 0; k <= n; k++) {
         gs_index node = -1, s = -1, g = -1;

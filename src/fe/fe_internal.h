@@ -50,6 +50,16 @@ struct gs_fe_model {
     gs_index *en;        /* nn * n_tris element nodes (corners, then mid-side nodes) */
     gs_index *dof;       /* 2 * n_nodes: index in q, or -1 for fixed nodes */
     gs_index *free_node; /* n_free_nodes: mesh node of free node k (dofs 2k, 2k+1) */
+    /* The order in which the compliance columns of free nodes are solved
+     * for, in groups of GSI_FE_GROUP consecutive entries (gs_fe_body's
+     * column cache): the free nodes of the mesh's boundary loop in loop
+     * order (a flank, root to tip, then the next), then the other free
+     * nodes by index, from position n_col_boundary on (where the groups
+     * start again; the last group of each list may be shorter). Contact
+     * candidates are runs of boundary nodes, so a group's solve yields the
+     * columns of neighbours that the moving contact asks for next.
+     * col_pos: the position of free node k in col_order. */
+    gs_index *col_order, *col_pos, n_col_boundary;
     gs_index *colp;      /* ne + 1 */
     gs_index *rowi;      /* nnz */
     double *kx, *mx;     /* nnz values of K and M */
@@ -58,6 +68,9 @@ struct gs_fe_model {
     double thickness, Dmat[9];
     double area, mass, centroid[2], inertia_elastic, inertia_core, inertia_total;
 };
+
+/* Free nodes per group of gsi_fe_model.col_order. */
+#define GSI_FE_GROUP 8
 
 /* y += alpha * M xm + beta * K xk on the elastic block (length ne), in one
  * pass over the shared pattern; xm and xk may be the same vector. */

@@ -150,6 +150,8 @@ void gs_fe_model_free(gs_fe_model **pm)
     free(m->en);
     free(m->dof);
     free(m->free_node);
+    free(m->col_order);
+    free(m->col_pos);
     free(m->colp);
     free(m->rowi);
     free(m->kx);
@@ -157,6 +159,35 @@ void gs_fe_model_free(gs_fe_model **pm)
     free(m->s);
     free(m);
     *pm = NULL;
+}
+
+/* gs_fe_model.col_order, col_pos and n_col_boundary (see there). */
+static gs_err column_order(gs_fe_model *m, const gs_mesh *mesh)
+{
+    gs_index nf = m->n_free_nodes, n = 0;
+    m->col_order = gs_calloc((size_t)nf + 1, sizeof *m->col_order);
+    m->col_pos = gs_calloc((size_t)nf + 1, sizeof *m->col_pos);
+    if (!m->col_order || !m->col_pos)
+        return GS_ENOMEM;
+    for (gs_index k = 0; k < nf; k++)
+        m->col_pos[k] = -1;
+    for (gs_index i = 0; mesh->boundary && i < mesh->n_boundary; i++) {
+        gs_index node = mesh->boundary[i];
+        if (node < 0 || node >= m->n_nodes || m->dof[2 * node] < 0)
+            continue;
+        gs_index k = m->dof[2 * node] / 2;
+        if (m->col_pos[k] < 0) {
+            m->col_pos[k] = n;
+            m->col_order[n++] = k;
+        }
+    }
+    m->n_col_boundary = n;
+    for (gs_index k = 0; k < nf; k++)
+        if (m->col_pos[k] < 0) {
+            m->col_pos[k] = n;
+            m->col_order[n++] = k;
+        }
+    return GS_OK;
 }
 
 static gs_err assemble(gs_fe_model *m)
@@ -299,7 +330,9 @@ gs_err gs_fe_model_new(const gs_mesh *mesh, const gs_material *mat, double thick
         m->n_free_nodes++;
     }
     m->ne = 2 * m->n_free_nodes;
-    gs_err e = assemble(m);
+    gs_err e = column_order(m, mesh);
+    if (e == GS_OK)
+        e = assemble(m);
     if (e != GS_OK) {
         gs_fe_model_free(&m);
         return e;

@@ -556,3 +556,14 @@ bool gs_elastic_reduced_info(const gs_body_rt *b, gs_fe_reduced_info *out)
     gs_fe_reduced_get_info(el->red, out);
     return true;
 }
+
+bool gs_elastic_fe_stats(const gs_body_rt *b, gs_fe_stats *out)
+{
+    if (!b || !out || b->ops != &gsi_body_elastic || !b->model)
+        return false;
+    const elastic *el = b->model;
+    if (!el->body)
+        return false;
+    gs_fe_body_get_stats(el->body, out);
+    return true;
+}

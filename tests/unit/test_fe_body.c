@@ -363,8 +363,12 @@ static void cache_reuse_and_eviction(void **state)
     double C[16], Cr[16];
     assert_int_equal(gs_fe_body_compliance(b, 4, d1, C), GS_OK);
     gs_fe_body_get_stats(b, &st0);
+    /* nodes 40 and 41 share a group: one group solve, which keeps the
+     * group's other members too */
     assert_int_equal(st0.cache_misses, 2);
-    assert_int_equal(st0.cached_nodes, 2);
+    assert_int_equal(st0.group_solves, 1);
+    assert_true(st0.group_kept >= 1);
+    assert_int_equal(st0.cached_nodes, (gs_index)(st0.cache_misses + st0.group_kept));
     /* the same teeth again: no solve, same numbers */
     assert_int_equal(gs_fe_body_compliance(b, 4, d1, Cr), GS_OK);
     gs_fe_body_get_stats(b, &st);
@@ -379,9 +383,18 @@ static void cache_reuse_and_eviction(void **state)
     assert_int_equal(gs_fe_body_end_step(b), GS_OK);
     gs_fe_body_get_stats(b, &st);
     assert_int_equal(st.solves, st0.solves);
-    /* a bound of two nodes: a third node evicts the least recently used
-     * (40 here: 41 was used after it in this request) */
+    /* a bound of two nodes, on a fresh body (no group member is kept
+     * beyond the bound): a third node evicts the least recently used (40
+     * here: 41 was used after it in this request) */
+    gs_fe_body *fresh = NULL;
+    assert_int_equal(gs_fe_body_new(f->model, &fresh), GS_OK);
+    b = fresh;
     gs_fe_body_set_cache_limit(b, 2 * 2 * (size_t)f->ne * sizeof(double));
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0), GS_OK);
+    assert_int_equal(gs_fe_body_compliance(b, 4, d1, C), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.cached_nodes, 2);
+    assert_int_equal(st.group_kept, 0);
     gs_index d2[2] = {gs_fe_dof_node(41, 0), gs_fe_dof_node(50, 0)};
     double C4[4];
     gs_fe_body_get_stats(b, &st0);
@@ -408,6 +421,70 @@ static void cache_reuse_and_eviction(void **state)
     assert_int_equal(gs_fe_body_compliance(b, 6, d3, C36), GS_OK);
     gs_fe_body_get_stats(b, &st);
     assert_int_equal(st.cached_nodes, 6);
+    gs_fe_body_free(&fresh);
+}
+
+/* The mesh's boundary loop orders the column groups (gs_fe_model
+ * col_order): a request for one boundary node solves for its group of
+ * loop neighbours and keeps their columns, so the next requests along the
+ * loop cost no solve, and a kept column is bit for bit the one a fresh
+ * body computes when asked for that node alone (it depends on the group,
+ * not on the history). The annulus gets its outer circle as the loop. */
+static void column_groups_follow_boundary(void **state)
+{
+    fixture *f = *state;
+    gs_mesh *mesh = f->mesh;
+    gs_index nb = 0;
+    mesh->boundary = calloc((size_t)mesh->n_nodes, sizeof *mesh->boundary);
+    assert_non_null(mesh->boundary);
+    for (gs_index i = 0; i < mesh->n_nodes; i++)
+        if (hypot(mesh->xy[2 * i], mesh->xy[2 * i + 1]) > 0.04 - 1e-9)
+            mesh->boundary[nb++] = i;
+    /* in order of decreasing index: not the free-node order */
+    for (gs_index i = 0; i < nb / 2; i++) {
+        gs_index t = mesh->boundary[i];
+        mesh->boundary[i] = mesh->boundary[nb - 1 - i];
+        mesh->boundary[nb - 1 - i] = t;
+    }
+    mesh->n_boundary = nb;
+    assert_true(nb >= 10);
+    gs_material mat = gs_material_steel();
+    gs_fe_model *m = NULL;
+    assert_int_equal(gs_fe_model_new(mesh, &mat, 0.01, 1e-4, &m), GS_OK);
+    assert_int_equal(m->n_col_boundary, nb);
+    for (gs_index i = 0; i < nb; i++)
+        assert_int_equal(m->col_order[i], m->dof[2 * mesh->boundary[i]] / 2);
+    for (gs_index k = 0; k < m->n_free_nodes; k++)
+        assert_int_equal(m->col_order[m->col_pos[k]], k);
+    gs_fe_body *b = NULL, *alone = NULL;
+    assert_int_equal(gs_fe_body_new(m, &b), GS_OK);
+    assert_int_equal(gs_fe_body_new(m, &alone), GS_OK);
+    assert_int_equal(gs_fe_body_set_step(b, 1e-5, 0), GS_OK);
+    assert_int_equal(gs_fe_body_set_step(alone, 1e-5, 0), GS_OK);
+    gs_index first = mesh->boundary[0], next = mesh->boundary[1], far = mesh->boundary[GSI_FE_GROUP];
+    gs_index d1[2] = {gs_fe_dof_node(first, 0), gs_fe_dof_node(first, 1)};
+    double C[4], Cn[4], Ca[4];
+    gs_fe_stats st0, st;
+    assert_int_equal(gs_fe_body_compliance(b, 2, d1, C), GS_OK);
+    gs_fe_body_get_stats(b, &st0);
+    assert_int_equal(st0.group_solves, 1);
+    assert_int_equal(st0.group_kept, GSI_FE_GROUP - 1);
+    /* the loop neighbour: kept, no solve, the same bits as asked alone */
+    gs_index d2[2] = {gs_fe_dof_node(next, 0), gs_fe_dof_node(next, 1)};
+    assert_int_equal(gs_fe_body_compliance(b, 2, d2, Cn), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.solves, st0.solves);
+    assert_int_equal(st.group_solves, 1);
+    assert_int_equal(gs_fe_body_compliance(alone, 2, d2, Ca), GS_OK);
+    assert_memory_equal(Cn, Ca, sizeof Cn);
+    /* the first node of the next group: a new group solve */
+    gs_index d3[2] = {gs_fe_dof_node(far, 0), gs_fe_dof_node(far, 1)};
+    assert_int_equal(gs_fe_body_compliance(b, 2, d3, Cn), GS_OK);
+    gs_fe_body_get_stats(b, &st);
+    assert_int_equal(st.group_solves, 2);
+    gs_fe_body_free(&alone);
+    gs_fe_body_free(&b);
+    gs_fe_model_free(&m);
 }
 
 /* Consecutive requests that share dofs (the contact plan of successive
@@ -599,6 +676,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(state_errors, setup, teardown),
         cmocka_unit_test_setup_teardown(refactor_only_on_new_h, setup, teardown),
+        cmocka_unit_test_setup_teardown(column_groups_follow_boundary, setup, teardown),
         cmocka_unit_test_setup_teardown(condensation_matches_dense, setup, teardown),
         cmocka_unit_test_setup_teardown(cache_reuse_and_eviction, setup, teardown),
         cmocka_unit_test_setup_teardown(block_reuse_is_exact, setup, teardown),
