@@ -546,12 +546,16 @@ const gs_body_ops gsi_body_elastic = {
     .mesh = elastic_mesh,
 };
 
+/* The elastic model of body b, or NULL (another model, or another rank's). */
+static const elastic *elastic_of(const gs_body_rt *b)
+{
+    return b && b->ops == &gsi_body_elastic ? b->model : NULL;
+}
+
 bool gs_elastic_reduced_info(const gs_body_rt *b, gs_fe_reduced_info *out)
 {
-    if (!b || !out || b->ops != &gsi_body_elastic || !b->model)
-        return false;
-    const elastic *el = b->model;
-    if (!el->red)
+    const elastic *el = elastic_of(b);
+    if (!out || !el || !el->red)
         return false;
     gs_fe_reduced_get_info(el->red, out);
     return true;
@@ -559,10 +563,8 @@ bool gs_elastic_reduced_info(const gs_body_rt *b, gs_fe_reduced_info *out)
 
 bool gs_elastic_fe_stats(const gs_body_rt *b, gs_fe_stats *out)
 {
-    if (!b || !out || b->ops != &gsi_body_elastic || !b->model)
-        return false;
-    const elastic *el = b->model;
-    if (!el->body)
+    const elastic *el = elastic_of(b);
+    if (!out || !el || !el->body)
         return false;
     gs_fe_body_get_stats(el->body, out);
     return true;
