@@ -782,13 +782,17 @@ static gs_err cache_reserve(gs_fe_body *b, gs_index want)
 /* A slot for a new node: a fresh one while under the memory bound, else the
  * least recently used slot not used by the current request, else a fresh
  * one beyond the bound. */
-static gs_err cache_slot(gs_fe_body *b, gs_index *slot)
+/* The nodes the memory bound holds (at least one). */
+static gs_index cache_bound(const gs_fe_body *b)
 {
     size_t per_node = 2 * (size_t)b->ne * sizeof(double);
     gs_index bound = (gs_index)(b->cache_limit / (per_node ? per_node : 1));
-    if (bound < 1)
-        bound = 1;
-    if (b->cache_len >= bound) {
+    return bound < 1 ? 1 : bound;
+}
+
+static gs_err cache_slot(gs_fe_body *b, gs_index *slot)
+{
+    if (b->cache_len >= cache_bound(b)) {
         gs_index best = -1;
         for (gs_index s = 0; s < b->cache_len; s++)
             if (b->stamp[s] <= b->request && (best < 0 || b->stamp[s] < b->stamp[best]))
@@ -858,13 +862,12 @@ static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *node
     for (int k = 0; k < n; k++)
         memcpy(b->cols + (size_t)slots[k] * 2 * ne, X + (size_t)(2 * (pos[nodes[k]] - g0)) * ne,
                2 * (size_t)ne * sizeof *X);
-    for (int k = 0; k < gn; k++) { /* the rest of the group, while the bound allows */
+    /* the rest of the group, in fresh slots while the bound allows (never
+     * evicting for them) */
+    for (int k = 0; k < gn && b->cache_len < cache_bound(b); k++) {
         gs_index node = order[g0 + k], s;
         if (b->slot_of[node] >= 0)
             continue;
-        size_t per_node = 2 * (size_t)ne * sizeof(double);
-        if ((size_t)(b->cache_len + 1) * per_node > b->cache_limit)
-            break;
         GS_TRY(cache_slot(b, &s));
         b->slot_of[node] = s;
         b->node_of[s] = node;

@@ -97,29 +97,57 @@ static void force_order(json_object *root, int order)
     }
 }
 
+/* A gear's bare FE body for the floors: its own mesh, model and factor at
+ * step h, the same mesh, material and step matrix as its owner's. */
+typedef struct gear_fe {
+    gs_mesh *mesh;
+    gs_fe_model *m;
+    gs_fe_body *b;
+} gear_fe;
+
+static void gear_fe_free(gear_fe *g)
+{
+    gs_fe_body_free(&g->b);
+    gs_fe_model_free(&g->m);
+    gs_mesh_free(&g->mesh);
+}
+
+/* False on failure (what was made is freed by gear_fe_free). */
+static bool gear_fe_new(const gs_scene_body *sb, double h, gear_fe *g)
+{
+    gs_diag d;
+    *g = (gear_fe){0};
+    return gs_scene_gear_mesh(sb, &g->mesh, &d) == GS_OK &&
+           gs_fe_model_new(g->mesh, &sb->material, sb->gear.face_width_m, 1e-6, &g->m) == GS_OK &&
+           gs_fe_body_new(g->m, &g->b) == GS_OK && gs_fe_body_set_step(g->b, h, 0.0) == GS_OK;
+}
+
+/* CPU seconds per round of `reps` rounds, each gear g[0..ng) solved once
+ * per round in that order; negative on failure. */
+static double solves_in_turn(gear_fe *g, int ng, int reps)
+{
+    bool ok = true;
+    double c0 = cpu_now();
+    for (int r = 0; r < reps && ok; r++)
+        for (int k = 0; k < ng && ok; k++)
+            ok = gsi_fe_body_time_bare_solve(g[k].b, 1) >= 0;
+    return ok ? (cpu_now() - c0) / reps : -1;
+}
+
 /* Seconds per bare solve on a fresh factor of body i's model at the scene's
  * step (the same mesh, material and step matrix as its owner's): wall
  * clock, and CPU time in *cpu. */
 static double bare_solve(const gs_system *sys, int i, int reps, double *cpu, double *user)
 {
-    const gs_scene_body *sb = &sys->scene->bodies[i];
-    gs_mesh *mesh = NULL;
-    gs_fe_model *m = NULL;
-    gs_fe_body *b = NULL;
-    gs_diag d;
+    gear_fe g;
     double t = -1;
-    if (gs_scene_gear_mesh(sb, &mesh, &d) == GS_OK &&
-        gs_fe_model_new(mesh, &sb->material, sb->gear.face_width_m, 1e-6, &m) == GS_OK &&
-        gs_fe_body_new(m, &b) == GS_OK && gs_fe_body_set_step(b, sys->h, 0.0) == GS_OK)
-    {
+    if (gear_fe_new(&sys->scene->bodies[i], sys->h, &g)) {
         double c0 = cpu_now(), u0 = user_now();
-        t = gsi_fe_body_time_bare_solve(b, reps);
+        t = gsi_fe_body_time_bare_solve(g.b, reps);
         *cpu = (cpu_now() - c0) / reps;
         *user = (user_now() - u0) / reps;
     }
-    gs_fe_body_free(&b);
-    gs_fe_model_free(&m);
-    gs_mesh_free(&mesh);
+    gear_fe_free(&g);
     return t;
 }
 
@@ -131,35 +159,18 @@ static double bare_solve(const gs_system *sys, int i, int reps, double *cpu, dou
 static double interleaved_floor(const gs_system *sys, int rank, int reps)
 {
     enum { MAXG = 16 };
-    gs_mesh *mesh[MAXG] = {0};
-    gs_fe_model *m[MAXG] = {0};
-    gs_fe_body *b[MAXG] = {0};
+    gear_fe g[MAXG];
     int ng = 0;
-    gs_diag d;
-    double t = -1;
     bool ok = true;
     for (int i = 0; i < sys->n_bodies && ok; i++) {
         const gs_body_rt *br = &sys->bodies[i];
         if (!br->ops->state_size || br->owner != rank || ng == MAXG)
             continue;
-        const gs_scene_body *sb = &sys->scene->bodies[i];
-        ok = gs_scene_gear_mesh(sb, &mesh[ng], &d) == GS_OK &&
-             gs_fe_model_new(mesh[ng], &sb->material, sb->gear.face_width_m, 1e-6, &m[ng]) == GS_OK &&
-             gs_fe_body_new(m[ng], &b[ng]) == GS_OK && gs_fe_body_set_step(b[ng], sys->h, 0.0) == GS_OK;
-        ng++;
+        ok = gear_fe_new(&sys->scene->bodies[i], sys->h, &g[ng++]);
     }
-    if (ok && ng > 0) {
-        double c0 = cpu_now();
-        for (int r = 0; r < reps && ok; r++)
-            for (int g = 0; g < ng && ok; g++)
-                ok = gsi_fe_body_time_bare_solve(b[g], 1) >= 0;
-        t = ok ? (cpu_now() - c0) / reps : -1;
-    }
-    for (int g = 0; g < ng; g++) {
-        gs_fe_body_free(&b[g]);
-        gs_fe_model_free(&m[g]);
-        gs_mesh_free(&mesh[g]);
-    }
+    double t = ok && ng > 0 ? solves_in_turn(g, ng, reps) : -1;
+    for (int k = 0; k < ng; k++)
+        gear_fe_free(&g[k]);
     return t;
 }
 
@@ -178,9 +189,7 @@ static double rounds_ratio(gs_engine *e, const bcase *c, int size, int rounds, i
 {
     enum { MAXG = 16, MAXR = 16 };
     gs_system *sys = gs_engine_system(e);
-    gs_mesh *mesh[MAXG] = {0};
-    gs_fe_model *m[MAXG] = {0};
-    gs_fe_body *b[MAXG] = {0};
+    gear_fe gb[MAXG];
     int owner[MAXG], ng = 0;
     gs_diag d;
     bool ok = rounds <= MAXR;
@@ -188,12 +197,8 @@ static double rounds_ratio(gs_engine *e, const bcase *c, int size, int rounds, i
         const gs_body_rt *br = &sys->bodies[i];
         if (!br->ops->state_size || ng == MAXG)
             continue;
-        const gs_scene_body *sb = &sys->scene->bodies[i];
         owner[ng] = br->owner;
-        ok = gs_scene_gear_mesh(sb, &mesh[ng], &d) == GS_OK &&
-             gs_fe_model_new(mesh[ng], &sb->material, sb->gear.face_width_m, 1e-6, &m[ng]) == GS_OK &&
-             gs_fe_body_new(m[ng], &b[ng]) == GS_OK && gs_fe_body_set_step(b[ng], sys->h, 0.0) == GS_OK;
-        ng++;
+        ok = gear_fe_new(&sys->scene->bodies[i], sys->h, &gb[ng++]);
     }
     double ratio[MAXR], pratio[MAXR], med = -1;
     for (int r = 0; r < rounds && ok; r++) {
@@ -207,7 +212,7 @@ static double rounds_ratio(gs_engine *e, const bcase *c, int size, int rounds, i
         double cp = (t1.cpu_path - t0.cpu_path) / (double)n;
         for (int g = 0; g < ng && ok; g++) {
             c0 = cpu_now();
-            ok = gsi_fe_body_time_bare_solve(b[g], reps) >= 0;
+            ok = gsi_fe_body_time_bare_solve(gb[g].b, reps) >= 0;
             if (owner[g] >= 0 && owner[g] < 64)
                 fr[owner[g]] += (cpu_now() - c0) / reps;
         }
@@ -232,11 +237,8 @@ static double rounds_ratio(gs_engine *e, const bcase *c, int size, int rounds, i
                c->scene, sys->scene->bodies[0].mesh.order, size, med, ratio[0], ratio[rounds - 1], pratio[rounds / 2],
                pratio[0], pratio[rounds - 1]);
     }
-    for (int g = 0; g < ng; g++) {
-        gs_fe_body_free(&b[g]);
-        gs_fe_model_free(&m[g]);
-        gs_mesh_free(&mesh[g]);
-    }
+    for (int g = 0; g < ng; g++)
+        gear_fe_free(&gb[g]);
     return med;
 }
 
@@ -293,9 +295,9 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     gs_step_timing t0, t1;
     enum { MAXB = 64 };
     gs_fe_stats st0[MAXB];
+    bool has_st[MAXB]; /* a full elastic body on this rank */
     for (int i = 0; i < sys->n_bodies && i < MAXB; i++)
-        if (!gs_elastic_fe_stats(&sys->bodies[i], &st0[i]))
-            st0[i].steps = UINT64_MAX; /* not a full elastic body on this rank */
+        has_st[i] = gs_elastic_fe_stats(&sys->bodies[i], &st0[i]);
     gs_engine_timing(e, &t0);
     n = c->steps;
     perf_ctl("enable\n");
@@ -353,7 +355,7 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
      * reached for the first time. */
     for (int i = 0; i < sys->n_bodies && i < MAXB; i++) {
         gs_fe_stats s1;
-        if (st0[i].steps == UINT64_MAX || !gs_elastic_fe_stats(&sys->bodies[i], &s1))
+        if (!has_st[i] || !gs_elastic_fe_stats(&sys->bodies[i], &s1))
             continue;
         printf("columns of %s over the timed steps: %llu group solves (%.2f per 100 steps), %llu nodes missed, "
                "%llu kept unasked, %llu hits; %lld nodes cached\n",
@@ -422,29 +424,17 @@ static void concurrent_floor(int rank, int size)
         const char *txt = json_object_to_json_string(root);
         gs_scene *sc = NULL;
         gs_diag d;
-        gs_mesh *mesh[MAXGEAR] = {0};
-        gs_fe_model *m[MAXGEAR] = {0};
-        gs_fe_body *b[MAXGEAR] = {0};
+        gear_fe g[MAXGEAR];
         int ng = 0, ok = gs_scene_parse(txt, strlen(txt), &sc, &d) == GS_OK;
-        for (int g = 0; ok && g < r->ng; g++) {
-            if (r->owner[g] != rank)
-                continue;
-            const gs_scene_body *sb = &sc->bodies[r->body[g]];
-            ok = gs_scene_gear_mesh(sb, &mesh[ng], &d) == GS_OK &&
-                 gs_fe_model_new(mesh[ng], &sb->material, sb->gear.face_width_m, 1e-6, &m[ng]) == GS_OK &&
-                 gs_fe_body_new(m[ng], &b[ng]) == GS_OK && gs_fe_body_set_step(b[ng], r->h, 0.0) == GS_OK;
-            ng++;
-        }
+        for (int k2 = 0; ok && k2 < r->ng; k2++)
+            if (r->owner[k2] == rank)
+                ok = gear_fe_new(&sc->bodies[r->body[k2]], r->h, &g[ng++]);
         json_object_put(root);
-        const int reps = 300;
-        for (int g = 0; ok && g < ng; g++) /* each factor touched once before the clock */
-            ok = gsi_fe_body_time_bare_solve(b[g], 1) >= 0;
+        if (ok) /* each factor touched once before the clock */
+            ok = solves_in_turn(g, ng, 1) >= 0;
         MPI_Barrier(MPI_COMM_WORLD);
-        double c0 = cpu_now();
-        for (int rep = 0; ok && rep < reps; rep++)
-            for (int g = 0; ok && g < ng; g++)
-                ok = gsi_fe_body_time_bare_solve(b[g], 1) >= 0;
-        double mine = ok ? (cpu_now() - c0) / reps : -1, worst = 0;
+        double mine = ok ? solves_in_turn(g, ng, 300) : -1, worst = 0;
+        ok = ok && mine >= 0;
         int all_ok = 0;
         MPI_Reduce(&mine, &worst, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
         MPI_Reduce(&ok, &all_ok, 1, MPI_INT, MPI_LAND, 0, MPI_COMM_WORLD);
@@ -452,11 +442,8 @@ static void concurrent_floor(int rank, int size)
             printf("RESULT_CONCURRENT scene %s order %d ranks %d: floor with every rank solving its gears in turn at "
                    "once %.4f ms (slowest rank, CPU per round); critical path %.4f ms, ratio %.2f\n",
                    r->scene, r->order ? r->order : 2, size, 1e3 * worst, r->path_ms, r->path_ms / (1e3 * worst));
-        for (int g = 0; g < ng; g++) {
-            gs_fe_body_free(&b[g]);
-            gs_fe_model_free(&m[g]);
-            gs_mesh_free(&mesh[g]);
-        }
+        for (int k2 = 0; k2 < ng; k2++)
+            gear_fe_free(&g[k2]);
         gs_scene_free(&sc);
     }
     fflush(stdout);
@@ -520,17 +507,10 @@ static int count_case(gs_engine *e, const bcase *c, int64_t steps)
         const gs_scene_body *sb = &sys->scene->bodies[i];
         if (!sys->bodies[i].ops->state_size)
             continue;
-        gs_mesh *mesh = NULL;
-        gs_fe_model *m = NULL;
-        gs_fe_body *b = NULL;
-        rc = !(gs_scene_gear_mesh(sb, &mesh, &d) == GS_OK &&
-               gs_fe_model_new(mesh, &sb->material, sb->gear.face_width_m, 1e-6, &m) == GS_OK &&
-               gs_fe_body_new(m, &b) == GS_OK && gs_fe_body_set_step(b, sys->h, 0.0) == GS_OK) ||
-             gear_fn[g](b, (int)steps);
+        gear_fe gf;
+        rc = !gear_fe_new(sb, sys->h, &gf) || gear_fn[g](gf.b, (int)steps);
         printf("count_gear_%d %s (rank %d)\n", g++, sb->name, sys->bodies[i].owner);
-        gs_fe_body_free(&b);
-        gs_fe_model_free(&m);
-        gs_mesh_free(&mesh);
+        gear_fe_free(&gf);
     }
     fflush(stdout);
     gs_engine_run(e, GS_OP_UNLOAD, NULL, 0, &d, NULL);
