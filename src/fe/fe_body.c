@@ -661,9 +661,9 @@ static void advance(gs_fe_body *b)
     }
     double wmw, qkq;
     const bool en = !b->defer_energy;
-    /* dq: q + (h/2 + beta) w, as begin_step forms it; the energies (and the
+    /* x = q + (h/2 + beta) w, as begin_step forms it; the energies (and the
      * M stream, a third of the pass's memory traffic) only when wanted */
-    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->dq, b->next_r, en ? &wmw : NULL,
+    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->next_r, en ? &wmw : NULL,
                      en ? &qkq : NULL);
     b->q[ne] += h * b->w[ne] + b->delta[ne];
     b->w[ne] += 2.0 * b->delta[ne] / h;

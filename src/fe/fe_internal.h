@@ -63,6 +63,12 @@ struct gs_fe_model {
     gs_index *colp;      /* ne + 1 */
     gs_index *rowi;      /* nnz */
     double *kx, *mx;     /* nnz values of K and M */
+    /* For the end-of-step pass (gsi_fe_step_pass): the rows of column 2k
+     * (and of 2k + 1 before its last two) are the pairs 2l, 2l + 1 of the
+     * nodes l above k; their node indices l, node after node (32 bits: a
+     * quarter of the row indices' bytes). NULL if the pattern had another
+     * form. */
+    int32_t *pass_nb;
     double *s;           /* ne: angular coupling vector */
     gs_material mat;
     double thickness, Dmat[9];
@@ -86,15 +92,15 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
 
 /* The end of a step of an FE body in one pass over the pattern (column j
  * updates entry j just before the columns after it read it):
- * q += h w + delta, then w += 2 delta / h, x = q + c w, y = -K x (y needs no
- * initial value), *qm = w^T M w and *qk = q^T K q of the new q, w: bit for
- * bit the values of those loops, gsi_fe_symv2(m, 0, x, -1, x, y) on a zero
- * y and gsi_fe_quadform2(m, w, q, qm, qk) taken one after the other. With
- * qm or qk NULL the energies are not summed and M is not read (q, w, x, y
- * the same bit for bit). */
+ * q += h w + delta, then w += 2 delta / h, y = -K x with x = q + c w of the
+ * new q, w (y needs no initial value; x is formed where it is read, never
+ * stored), *qm = w^T M w and *qk = q^T K q of the new q, w: bit for bit the
+ * values of those loops, gsi_fe_symv2(m, 0, x, -1, x, y) on a zero y and
+ * gsi_fe_quadform2(m, w, q, qm, qk) taken one after the other. With qm or
+ * qk NULL the energies are not summed and M is not read (q, w, y the same
+ * bit for bit). */
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
-                      double *w, double *x, double *y, double *qm, double *qk);
-
+                      double *w, double *y, double *qm, double *qk);
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */
 struct cholmod_sparse_struct;
@@ -106,6 +112,10 @@ struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double
  * ignores OMP_NUM_THREADS) run on the calling thread alone: on a shared
  * machine the extra threads only spin and wait (docs/PERFORMANCE.md). */
 void gsi_cholmod_start(struct cholmod_common_struct *c);
+/* calloc for the large arrays the step streams (CHOLMOD's, the model's K
+ * and M): from 2 MiB on, aligned to and advised as transparent huge pages
+ * (fewer TLB misses); freed with free(). */
+void *gsi_huge_calloc(size_t n, size_t size);
 
 /* An annulus r_in <= r <= r_out of n_r radial by n_t circumferential cells,
  * each split into two counter-clockwise triangles (diagonals alternate), the

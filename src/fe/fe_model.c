@@ -156,6 +156,7 @@ void gs_fe_model_free(gs_fe_model **pm)
     free(m->rowi);
     free(m->kx);
     free(m->mx);
+    free(m->pass_nb);
     free(m->s);
     free(m);
     *pm = NULL;
@@ -190,6 +191,35 @@ static gs_err column_order(gs_fe_model *m, const gs_mesh *mesh)
     return GS_OK;
 }
 
+/* gs_fe_model.pass_nb from the pattern: left NULL when a node's two
+ * columns are not in the layout pass_node reads (they always are, from
+ * assemble) or a node index does not fit in 32 bits. */
+static gs_err pass_nodes(gs_fe_model *m)
+{
+    const gs_index *cp = m->colp, *ri = m->rowi;
+    if (m->ne % 2 || m->n_free_nodes > INT32_MAX)
+        return GS_OK;
+    int32_t *nb = gsi_huge_calloc((size_t)m->nnz / 4 + 1, sizeof *nb); /* (nnz - 3 nodes) / 4 */
+    if (!nb)
+        return GS_ENOMEM;
+    gs_index o = 0;
+    for (gs_index j = 0; j < m->ne; j += 2) {
+        gs_index a = cp[j], len = cp[j + 1] - 1 - a;
+        bool ok = len % 2 == 0 && cp[j + 2] - cp[j + 1] == len + 2 && ri[cp[j + 2] - 2] == j;
+        for (gs_index t = 0; ok && t < len; t += 2) {
+            ok = ri[a + t] % 2 == 0 && ri[a + t + 1] == ri[a + t] + 1 && ri[a + t] < j &&
+                 ri[cp[j + 1] + t] == ri[a + t] && ri[cp[j + 1] + t + 1] == ri[a + t + 1];
+            nb[o++] = (int32_t)(ri[a + t] / 2);
+        }
+        if (!ok) {
+            free(nb);
+            return GS_OK;
+        }
+    }
+    m->pass_nb = nb;
+    return GS_OK;
+}
+
 static gs_err assemble(gs_fe_model *m)
 {
     gs_index *nbp = NULL, *nb = NULL;
@@ -205,9 +235,9 @@ static gs_err assemble(gs_fe_model *m)
         m->colp[2 * k + 2] = m->colp[2 * k + 1] + 2 * len;
     }
     m->nnz = m->colp[ne];
-    m->rowi = gs_calloc((size_t)m->nnz, sizeof *m->rowi);
-    m->kx = gs_calloc((size_t)m->nnz, sizeof *m->kx);
-    m->mx = gs_calloc((size_t)m->nnz, sizeof *m->mx);
+    m->rowi = gsi_huge_calloc((size_t)m->nnz, sizeof *m->rowi);
+    m->kx = gsi_huge_calloc((size_t)m->nnz, sizeof *m->kx);
+    m->mx = gsi_huge_calloc((size_t)m->nnz, sizeof *m->mx);
     m->s = gs_calloc((size_t)ne, sizeof *m->s);
     if (!m->rowi || !m->kx || !m->mx || !m->s)
         goto out;
@@ -275,7 +305,7 @@ static gs_err assemble(gs_fe_model *m)
     m->centroid[0] = sx / m->mass;
     m->centroid[1] = sy / m->mass;
     m->inertia_total = m->inertia_elastic + m->inertia_core;
-    err = GS_OK;
+    err = pass_nodes(m);
 out:
     free(nbp);
     free(nb);
@@ -462,31 +492,34 @@ static inline void pass_close(pass_sums *restrict s, double am, double ak, doubl
     s->diagk += kd * qj * qj;
 }
 
-/* The entry j of q, w, x at the start of column j. */
-static inline void pass_entry(gs_index j, double h, double c, const double *restrict delta, double *restrict q,
-                              double *restrict w, double *restrict x)
+/* The entry j of q, w at the start of column j. */
+static inline void pass_entry(gs_index j, double h, const double *restrict delta, double *restrict q,
+                              double *restrict w)
 {
     q[j] += h * w[j] + delta[j];
     w[j] += 2.0 * delta[j] / h;
-    x[j] = q[j] + c * w[j];
 }
+
+/* x_i = q_i + c w_i of the updated entries (formed where it is read, not
+ * stored: the same value each time). */
+#define PASS_X(i) (q[i] + c * w[i])
 
 /* Column j alone (entry j already updated); the energy sums only when en
  * (a constant at each call: the compiler drops the M stream without). */
 static inline __attribute__((always_inline)) void pass_column(const gs_fe_model *m, gs_index j,
                                                               const double *restrict q, const double *restrict w,
-                                                              const double *restrict x, double *restrict y,
+                                                              double c, double *restrict y,
                                                               pass_sums *restrict s, const bool en)
 {
     const gs_index *restrict ri = m->rowi;
     const double *restrict mx = m->mx, *restrict kx = m->kx;
     gs_index end = m->colp[j + 1] - 1;
-    double bx = -1.0 * x[j], acc = 0, am = 0, ak = 0;
+    double bx = -1.0 * PASS_X(j), acc = 0, am = 0, ak = 0;
     for (gs_index p = m->colp[j]; p < end; p++) {
         gs_index i = ri[p];
         double k = kx[p];
         y[i] += k * bx;
-        acc += k * x[i];
+        acc += k * PASS_X(i);
         if (en) {
             am += mx[p] * w[i];
             ak += k * q[i];
@@ -498,6 +531,27 @@ static inline __attribute__((always_inline)) void pass_column(const gs_fe_model 
     pass_close(s, am, ak, mx[end], kx[end], w[j], q[j]);
 }
 
+/* Row i of the two columns of a node (pass_node): column j's entry ka and
+ * column j + 1's kb. */
+static inline __attribute__((always_inline)) void pass_row(gs_index i, double ka, double kb, double ma, double mb,
+                                                           const double *restrict q, const double *restrict w,
+                                                           double c, double *restrict y,
+                                                           double bx0, double bx1, double *restrict acc,
+                                                           const bool en)
+{
+    double xi = PASS_X(i);
+    y[i] = (y[i] + ka * bx0) + kb * bx1;
+    acc[0] += ka * xi;
+    acc[1] += kb * xi;
+    if (en) {
+        double wi = w[i], qi = q[i];
+        acc[2] += ma * wi;
+        acc[3] += ka * qi;
+        acc[4] += mb * wi;
+        acc[5] += kb * qi;
+    }
+}
+
 /* The two columns of free node k, j = 2k and j + 1, together: assemble()
  * lays out column j + 1 as the rows of column j (the node pairs above the
  * node) followed by row j, then its diagonal. Every sum and every entry of
@@ -506,82 +560,94 @@ static inline __attribute__((always_inline)) void pass_column(const gs_fe_model 
  * born at the end of column j, then column j + 1's), so the result is the
  * same bit for bit; the two columns' independent sums run interleaved, and
  * each row index and vector entry is read once for both. Without en, y
- * alone (the same entries: the energy sums never enter y). */
-static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m, gs_index j,
+ * alone (the same entries: the energy sums never enter y). The rows come
+ * in pairs 2l, 2l + 1 (the nodes l above the node): with nb (the model's
+ * pass_nb for this node) one 32-bit node index is read per pair instead of
+ * two row indices, a quarter of the index stream (the same terms in the
+ * same order). */
+static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m, gs_index j, const int32_t *nb,
                                                             const double *restrict q, const double *restrict w,
-                                                            const double *restrict x, double *restrict y,
+                                                            double c, double *restrict y,
                                                             pass_sums *restrict s, const bool en)
 {
-    const gs_index *restrict ri = m->rowi;
     const double *restrict mx = m->mx, *restrict kx = m->kx;
     const gs_index a = m->colp[j], ea = m->colp[j + 1] - 1, b = m->colp[j + 1], eb = m->colp[j + 2] - 1;
     const gs_index len = ea - a;
     const double *restrict k0 = kx + a, *restrict k1 = kx + b, *restrict m0 = mx + a, *restrict m1 = mx + b;
-    const gs_index *restrict r0 = ri + a;
-    double bx0 = -1.0 * x[j], bx1 = -1.0 * x[j + 1];
-    double acc0 = 0, am0 = 0, ak0 = 0, acc1 = 0, am1 = 0, ak1 = 0;
-    for (gs_index t = 0; t < len; t++) {
-        gs_index i = r0[t];
-        double ka = k0[t], kb = k1[t], xi = x[i];
-        y[i] = (y[i] + ka * bx0) + kb * bx1;
-        acc0 += ka * xi;
-        acc1 += kb * xi;
-        if (en) {
-            double wi = w[i], qi = q[i];
-            am0 += m0[t] * wi;
-            ak0 += ka * qi;
-            am1 += m1[t] * wi;
-            ak1 += kb * qi;
+    double bx0 = -1.0 * PASS_X(j), bx1 = -1.0 * PASS_X(j + 1);
+    double acc[6] = {0, 0, 0, 0, 0, 0}; /* acc0, acc1, am0, ak0, am1, ak1 */
+    if (nb) {
+        for (gs_index t = 0; t < len; t += 2) {
+            gs_index i = 2 * (gs_index)nb[t / 2];
+            pass_row(i, k0[t], k1[t], en ? m0[t] : 0, en ? m1[t] : 0, q, w, c, y, bx0, bx1, acc, en);
+            pass_row(i + 1, k0[t + 1], k1[t + 1], en ? m0[t + 1] : 0, en ? m1[t + 1] : 0, q, w, c, y, bx0, bx1,
+                     acc, en);
         }
+    } else {
+        const gs_index *restrict r0 = m->rowi + a;
+        for (gs_index t = 0; t < len; t++)
+            pass_row(r0[t], k0[t], k1[t], en ? m0[t] : 0, en ? m1[t] : 0, q, w, c, y, bx0, bx1, acc, en);
     }
-    y[j] = 0.0 + (-1.0 * acc0 + kx[ea] * bx0);
+    y[j] = 0.0 + (-1.0 * acc[0] + kx[ea] * bx0);
     if (en) {
-        pass_close(s, am0, ak0, mx[ea], kx[ea], w[j], q[j]);
+        pass_close(s, acc[2], acc[3], mx[ea], kx[ea], w[j], q[j]);
     }
     gs_index p = eb - 1; /* column j + 1, row j */
     y[j] += kx[p] * bx1;
-    acc1 += kx[p] * x[j];
-    y[j + 1] = 0.0 + (-1.0 * acc1 + kx[eb] * bx1);
+    acc[1] += kx[p] * PASS_X(j);
+    y[j + 1] = 0.0 + (-1.0 * acc[1] + kx[eb] * bx1);
     if (!en)
         return;
-    am1 += mx[p] * w[j];
-    ak1 += kx[p] * q[j];
-    pass_close(s, am1, ak1, mx[eb], kx[eb], w[j + 1], q[j + 1]);
+    acc[4] += mx[p] * w[j];
+    acc[5] += kx[p] * q[j];
+    pass_close(s, acc[4], acc[5], mx[eb], kx[eb], w[j + 1], q[j + 1]);
 }
 
 /* The pass with (en) or without the energy sums. */
 static inline __attribute__((always_inline)) void step_pass(const gs_fe_model *m, double h, double c,
-                                                            const double *delta, double *q, double *w, double *x,
-                                                            double *y, pass_sums *s, const bool en)
+                                                            const double *delta, double *q, double *w, double *y,
+                                                            pass_sums *s, const bool en)
 {
     const gs_index *cp = m->colp, *ri = m->rowi;
     gs_index j = 0;
+    if (m->pass_nb) { /* every node in pairs (gs_fe_model.pass_nb) */
+        const int32_t *nb = m->pass_nb;
+        for (; j + 1 < m->ne; j += 2) {
+            pass_entry(j, h, delta, q, w);
+            pass_entry(j + 1, h, delta, q, w);
+            pass_node(m, j, nb, q, w, c, y, s, en);
+            nb += (cp[j + 1] - 1 - cp[j]) / 2;
+        }
+        return;
+    }
     for (; j + 1 < m->ne; j += 2) {
-        pass_entry(j, h, c, delta, q, w, x);
-        pass_entry(j + 1, h, c, delta, q, w, x);
+        pass_entry(j, h, delta, q, w);
+        pass_entry(j + 1, h, delta, q, w);
         /* column j + 1 is column j's rows, then row j (assemble()) */
         if (cp[j + 2] - cp[j + 1] == cp[j + 1] - cp[j] + 1 && ri[cp[j + 2] - 2] == j) {
-            pass_node(m, j, q, w, x, y, s, en);
+            pass_node(m, j, NULL, q, w, c, y, s, en);
         } else {
-            pass_column(m, j, q, w, x, y, s, en);
-            pass_column(m, j + 1, q, w, x, y, s, en);
+            pass_column(m, j, q, w, c, y, s, en);
+            pass_column(m, j + 1, q, w, c, y, s, en);
         }
     }
     for (; j < m->ne; j++) {
-        pass_entry(j, h, c, delta, q, w, x);
-        pass_column(m, j, q, w, x, y, s, en);
+        pass_entry(j, h, delta, q, w);
+        pass_column(m, j, q, w, c, y, s, en);
     }
 }
 
+#undef PASS_X
+
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
-                      double *w, double *x, double *y, double *qm, double *qk)
+                      double *w, double *y, double *qm, double *qk)
 {
     pass_sums s = {0, 0, 0, 0};
     if (!qm || !qk) { /* no energies: K alone, the M stream not read */
-        step_pass(m, h, c, delta, q, w, x, y, &s, false);
+        step_pass(m, h, c, delta, q, w, y, &s, false);
         return;
     }
-    step_pass(m, h, c, delta, q, w, x, y, &s, true);
+    step_pass(m, h, c, delta, q, w, y, &s, true);
     *qm = s.diagm + 2.0 * s.offm;
     *qk = s.diagk + 2.0 * s.offk;
 }

@@ -81,7 +81,7 @@ static void *huge_malloc(size_t n)
     return p;
 }
 
-static void *huge_calloc(size_t n, size_t size)
+void *gsi_huge_calloc(size_t n, size_t size)
 {
     if (size != 0 && n > (size_t)-1 / size)
         return NULL;
@@ -98,7 +98,7 @@ void gsi_cholmod_start(cholmod_common *c)
     /* Before CHOLMOD's first allocation; blocks allocated before would be
      * freed by free all the same. */
     SuiteSparse_config.malloc_func = huge_malloc;
-    SuiteSparse_config.calloc_func = huge_calloc;
+    SuiteSparse_config.calloc_func = gsi_huge_calloc;
 #ifdef _OPENMP
     /* No active parallel level: every OpenMP region of the libraries runs
      * with a team of one (the calling thread). */

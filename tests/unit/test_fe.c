@@ -364,7 +364,8 @@ static void static_needs_support(void **state)
 }
 
 /* gsi_fe_step_pass (the end of an FE body's step in one pass) gives bit for
- * bit the values of the separate loops and kernels it replaces. */
+ * bit the values of the separate loops and kernels it replaces, reading the
+ * rows by node pairs (gs_fe_model.pass_nb) or one by one. */
 static void step_pass_matches_separate_loops(void **state)
 {
     (void)state;
@@ -379,7 +380,7 @@ static void step_pass_matches_separate_loops(void **state)
     double *q1 = malloc((size_t)ne * sizeof *q1), *w1 = malloc((size_t)ne * sizeof *w1);
     double *x1 = malloc((size_t)ne * sizeof *x1), *y1 = malloc((size_t)ne * sizeof *y1);
     double *q2 = malloc((size_t)ne * sizeof *q2), *w2 = malloc((size_t)ne * sizeof *w2);
-    double *x2 = malloc((size_t)ne * sizeof *x2), *y2 = malloc((size_t)ne * sizeof *y2);
+    double *y2 = malloc((size_t)ne * sizeof *y2);
     for (gs_index i = 0; i < ne; i++) {
         q0[i] = 1e-6 * sin(0.71 * (double)i + 0.2) * (1.0 + (double)(i % 5));
         w0[i] = 1e-2 * cos(1.37 * (double)i) / (1.0 + (double)(i % 3));
@@ -399,10 +400,9 @@ static void step_pass_matches_separate_loops(void **state)
     memcpy(w2, w0, (size_t)ne * sizeof *w2);
     for (gs_index i = 0; i < ne; i++)
         y2[i] = NAN; /* needs no initial value */
-    gsi_fe_step_pass(m, h, c, dl, q2, w2, x2, y2, &qm2, &qk2);
+    gsi_fe_step_pass(m, h, c, dl, q2, w2, y2, &qm2, &qk2);
     assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
     assert_memory_equal(w1, w2, (size_t)ne * sizeof *w1);
-    assert_memory_equal(x1, x2, (size_t)ne * sizeof *x1);
     assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
     assert_memory_equal(&qm1, &qm2, sizeof qm1);
     assert_memory_equal(&qk1, &qk2, sizeof qk1);
@@ -411,14 +411,25 @@ static void step_pass_matches_separate_loops(void **state)
     memcpy(q2, q0, (size_t)ne * sizeof *q2);
     memcpy(w2, w0, (size_t)ne * sizeof *w2);
     for (gs_index i = 0; i < ne; i++)
-        x2[i] = y2[i] = NAN;
-    gsi_fe_step_pass(m, h, c, dl, q2, w2, x2, y2, NULL, NULL);
+        y2[i] = NAN;
+    gsi_fe_step_pass(m, h, c, dl, q2, w2, y2, NULL, NULL);
     assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
     assert_memory_equal(w1, w2, (size_t)ne * sizeof *w1);
-    assert_memory_equal(x1, x2, (size_t)ne * sizeof *x1);
     assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
+    /* the same with the row indices one by one (no node pairs) */
+    assert_non_null(m->pass_nb);
+    int32_t *nb = m->pass_nb;
+    m->pass_nb = NULL;
+    memcpy(q2, q0, (size_t)ne * sizeof *q2);
+    memcpy(w2, w0, (size_t)ne * sizeof *w2);
+    gsi_fe_step_pass(m, h, c, dl, q2, w2, y2, &qm2, &qk2);
+    m->pass_nb = nb;
+    assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
+    assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
+    assert_memory_equal(&qm1, &qm2, sizeof qm1);
+    assert_memory_equal(&qk1, &qk2, sizeof qk1);
     free(q0), free(w0), free(dl), free(q1), free(w1), free(x1), free(y1);
-    free(q2), free(w2), free(x2), free(y2);
+    free(q2), free(w2), free(y2);
     gs_fe_model_free(&m);
     gs_mesh_free(&mesh);
 }
