@@ -779,9 +779,6 @@ static gs_err cache_reserve(gs_fe_body *b, gs_index want)
     return GS_OK;
 }
 
-/* A slot for a new node: a fresh one while under the memory bound, else the
- * least recently used slot not used by the current request, else a fresh
- * one beyond the bound. */
 /* The nodes the memory bound holds (at least one). */
 static gs_index cache_bound(const gs_fe_body *b)
 {
@@ -790,6 +787,9 @@ static gs_index cache_bound(const gs_fe_body *b)
     return bound < 1 ? 1 : bound;
 }
 
+/* A slot for a new node: a fresh one while under the memory bound, else the
+ * least recently used slot not used by the current request, else a fresh
+ * one beyond the bound. */
 static gs_err cache_slot(gs_fe_body *b, gs_index *slot)
 {
     if (b->cache_len >= cache_bound(b)) {

@@ -67,7 +67,7 @@ struct gs_fe_model {
      * (and of 2k + 1 before its last two) are the pairs 2l, 2l + 1 of the
      * nodes l above k; their node indices l, node after node (32 bits: a
      * quarter of the row indices' bytes). NULL if the pattern had another
-     * form. */
+     * form: the pass then goes column by column. */
     int32_t *pass_nb;
     double *s;           /* ne: angular coupling vector */
     gs_material mat;
@@ -101,6 +101,7 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
  * bit for bit). */
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
                       double *w, double *y, double *qm, double *qk);
+
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */
 struct cholmod_sparse_struct;

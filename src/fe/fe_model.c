@@ -561,10 +561,9 @@ static inline __attribute__((always_inline)) void pass_row(gs_index i, double ka
  * same bit for bit; the two columns' independent sums run interleaved, and
  * each row index and vector entry is read once for both. Without en, y
  * alone (the same entries: the energy sums never enter y). The rows come
- * in pairs 2l, 2l + 1 (the nodes l above the node): with nb (the model's
- * pass_nb for this node) one 32-bit node index is read per pair instead of
- * two row indices, a quarter of the index stream (the same terms in the
- * same order). */
+ * in pairs 2l, 2l + 1 (the nodes l above the node): nb (the model's
+ * pass_nb for this node) gives one 32-bit node index per pair instead of
+ * two row indices, a quarter of the index stream. */
 static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m, gs_index j, const int32_t *nb,
                                                             const double *restrict q, const double *restrict w,
                                                             double c, double *restrict y,
@@ -576,17 +575,11 @@ static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m
     const double *restrict k0 = kx + a, *restrict k1 = kx + b, *restrict m0 = mx + a, *restrict m1 = mx + b;
     double bx0 = -1.0 * PASS_X(j), bx1 = -1.0 * PASS_X(j + 1);
     double acc[6] = {0, 0, 0, 0, 0, 0}; /* acc0, acc1, am0, ak0, am1, ak1 */
-    if (nb) {
-        for (gs_index t = 0; t < len; t += 2) {
-            gs_index i = 2 * (gs_index)nb[t / 2];
-            pass_row(i, k0[t], k1[t], en ? m0[t] : 0, en ? m1[t] : 0, q, w, c, y, bx0, bx1, acc, en);
-            pass_row(i + 1, k0[t + 1], k1[t + 1], en ? m0[t + 1] : 0, en ? m1[t + 1] : 0, q, w, c, y, bx0, bx1,
-                     acc, en);
-        }
-    } else {
-        const gs_index *restrict r0 = m->rowi + a;
-        for (gs_index t = 0; t < len; t++)
-            pass_row(r0[t], k0[t], k1[t], en ? m0[t] : 0, en ? m1[t] : 0, q, w, c, y, bx0, bx1, acc, en);
+    for (gs_index t = 0; t < len; t += 2) {
+        gs_index i = 2 * (gs_index)nb[t / 2];
+        pass_row(i, k0[t], k1[t], en ? m0[t] : 0, en ? m1[t] : 0, q, w, c, y, bx0, bx1, acc, en);
+        pass_row(i + 1, k0[t + 1], k1[t + 1], en ? m0[t + 1] : 0, en ? m1[t + 1] : 0, q, w, c, y, bx0, bx1, acc,
+                 en);
     }
     y[j] = 0.0 + (-1.0 * acc[0] + kx[ea] * bx0);
     if (en) {
@@ -603,37 +596,26 @@ static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m
     pass_close(s, acc[4], acc[5], mx[eb], kx[eb], w[j + 1], q[j + 1]);
 }
 
-/* The pass with (en) or without the energy sums. */
+/* The pass with (en) or without the energy sums: by nodes along pass_nb,
+ * or (a pattern not in node pairs) column by column. */
 static inline __attribute__((always_inline)) void step_pass(const gs_fe_model *m, double h, double c,
                                                             const double *delta, double *q, double *w, double *y,
                                                             pass_sums *s, const bool en)
 {
-    const gs_index *cp = m->colp, *ri = m->rowi;
-    gs_index j = 0;
-    if (m->pass_nb) { /* every node in pairs (gs_fe_model.pass_nb) */
-        const int32_t *nb = m->pass_nb;
-        for (; j + 1 < m->ne; j += 2) {
+    const gs_index *cp = m->colp;
+    if (!m->pass_nb) {
+        for (gs_index j = 0; j < m->ne; j++) {
             pass_entry(j, h, delta, q, w);
-            pass_entry(j + 1, h, delta, q, w);
-            pass_node(m, j, nb, q, w, c, y, s, en);
-            nb += (cp[j + 1] - 1 - cp[j]) / 2;
+            pass_column(m, j, q, w, c, y, s, en);
         }
         return;
     }
-    for (; j + 1 < m->ne; j += 2) {
+    const int32_t *nb = m->pass_nb;
+    for (gs_index j = 0; j + 1 < m->ne; j += 2) {
         pass_entry(j, h, delta, q, w);
         pass_entry(j + 1, h, delta, q, w);
-        /* column j + 1 is column j's rows, then row j (assemble()) */
-        if (cp[j + 2] - cp[j + 1] == cp[j + 1] - cp[j] + 1 && ri[cp[j + 2] - 2] == j) {
-            pass_node(m, j, NULL, q, w, c, y, s, en);
-        } else {
-            pass_column(m, j, q, w, c, y, s, en);
-            pass_column(m, j + 1, q, w, c, y, s, en);
-        }
-    }
-    for (; j < m->ne; j++) {
-        pass_entry(j, h, delta, q, w);
-        pass_column(m, j, q, w, c, y, s, en);
+        pass_node(m, j, nb, q, w, c, y, s, en);
+        nb += (cp[j + 1] - 1 - cp[j]) / 2;
     }
 }
 
