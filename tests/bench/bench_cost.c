@@ -123,14 +123,15 @@ static bool gear_fe_new(const gs_scene_body *sb, double h, gear_fe *g)
 }
 
 /* CPU seconds per round of `reps` rounds, each gear g[0..ng) solved once
- * per round in that order; negative on failure. */
+ * per round, in that order and back again in the next round (as the step
+ * takes them, src/step/step.c records); negative on failure. */
 static double solves_in_turn(gear_fe *g, int ng, int reps)
 {
     bool ok = true;
     double c0 = cpu_now();
     for (int r = 0; r < reps && ok; r++)
         for (int k = 0; k < ng && ok; k++)
-            ok = gsi_fe_body_time_bare_solve(g[k].b, 1) >= 0;
+            ok = gsi_fe_body_time_bare_solve(g[r & 1 ? ng - 1 - k : k].b, 1) >= 0;
     return ok ? (cpu_now() - c0) / reps : -1;
 }
 
@@ -152,7 +153,7 @@ static double bare_solve(const gs_system *sys, int i, int reps, double *cpu, dou
 }
 
 /* CPU seconds per round of bare solves over the gears rank `rank` owns,
- * each gear once per round in body order, as a step takes them: each
+ * each gear once per round as a step takes them (solves_in_turn): each
  * factor is then evicted by the others' (on the planetary train five
  * factors of about 1 MB against a 1 MB L2 cache), which the hot loop of
  * bare_solve never sees. Informative: the issue's floor is bare_solve's. */
