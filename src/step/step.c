@@ -51,11 +51,12 @@ static void records(gs_system *sys, double *rec, bool all)
     if (p->rec_size > end)
         memset(rec + end, 0, (p->rec_size - end) * sizeof(double));
     /* Body order one substep, the reverse the next: the factor an elastic
-     * body solved last is solved first again, with only the end-of-step
-     * passes between, while it is still in cache (two gears' factors on one
-     * rank are about twice the share of L3 that one keeps; the body order
-     * every step evicted each before its next solve). The bodies are
-     * independent here, so the records are the same bit for bit. */
+     * body solved last is solved first again, with only the contact and the
+     * end-of-step passes between, while it is still in cache (two gears'
+     * factors on one rank are about twice the share of L3 that one keeps;
+     * in body order every step, each was evicted before its next solve;
+     * docs/PERFORMANCE.md, ninth pass). The bodies are independent here,
+     * so the records are the same bit for bit. */
     const bool back = sys->substeps & 1;
     for (int k = 0; k < sys->n_bodies; k++) {
         int i = back ? sys->n_bodies - 1 - k : k;
