@@ -118,15 +118,15 @@ struct gs_fe_body {
     gs_index blk_n;
     gs_index *blk_q, *blk_pos;
     /* Computed at the end of a step from the new state, in the one pass
-     * over the matrices that the energies need anyway: -K (q + (h/2 +
-     * beta) w), the next step's right-hand side without loads (valid for
-     * next_h), and the energies. Invalid after any change of state.
-     * next_energy: next_T and next_V hold (with next_valid); not when the
-     * step was ended with the energies deferred (defer_energy, set by
-     * gs_fe_body_defer_energy): gs_fe_body_energy then sums them from the
-     * state, the same values bit for bit. */
+     * over the matrices that the energies need: -K (q + (h/2 + beta) w),
+     * the next step's right-hand side without loads (valid for next_h),
+     * and the energies. Invalid after any change of state, and not
+     * computed when the step was ended with the energies deferred
+     * (defer_energy, set by gs_fe_body_defer_energy): gs_fe_body_energy
+     * then sums them from the state and begin_step forms the right-hand
+     * side, the same values bit for bit. */
     double *next_r, next_h, next_T, next_V;
-    bool next_valid, next_energy, defer_energy;
+    bool next_valid, defer_energy;
     double *blk_C;
     size_t cap_blk_q, cap_blk_C;
     bool blk_valid;
@@ -426,7 +426,7 @@ void gs_fe_body_energy(const gs_fe_body *b, double *kinetic, double *elastic)
         *kinetic = *elastic = 0;
         return;
     }
-    if (b->next_valid && b->next_energy) {
+    if (b->next_valid) {
         *kinetic = b->next_T;
         *elastic = b->next_V;
         return;
@@ -471,7 +471,7 @@ void gs_fe_body_spin(gs_fe_body *b, double dw)
     b->w[b->ne] += dw;
     /* The next right-hand side does not use theta' (K acts on the elastic
      * unknowns); the kinetic energy does. */
-    if (b->next_valid && b->next_energy)
+    if (b->next_valid)
         b->next_T = gs_fe_body_kinetic(b);
 }
 
@@ -615,6 +615,9 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
     if (!f_nodes && b->next_valid && b->next_h == h && !(m->mat.damping_m > 0)) {
         /* computed by the last end_step from this state: the same values */
         memcpy(r, b->next_r, (size_t)ne * sizeof *r);
+    } else if (!f_nodes && !(m->mat.damping_m > 0)) {
+        /* the values of the branch below, in the pass's order */
+        gsi_fe_rhs_pass(m, 0.5 * h + m->mat.damping_s, b->q, b->w, r);
     } else {
         for (gs_index i = 0; i < ne; i++) {
             r[i] = f_nodes ? b->fnod[i] : 0.0;
@@ -641,18 +644,22 @@ static double increment(const gs_fe_body *b, gs_index i)
     return b->h * b->w[i] + b->delta[i];
 }
 
-/* The new state (q += dq, w = 2 dq / h - w, written with dq = h w + delta),
- * its energies and the next right-hand side, in one pass over the matrices
- * (struct gs_fe_body, next_*); without memory for it, only the state. */
+/* The new state (q += dq, w = 2 dq / h - w, written with dq = h w + delta).
+ * With the energies wanted, they and the next right-hand side come in one
+ * pass over the matrices (struct gs_fe_body, next_*). Without them, the
+ * state alone: begin_step forms -K x just before the solve
+ * (gsi_fe_rhs_pass, the same bytes), so that K and then the factor stream
+ * back to back, not K here with the other gears' factors between
+ * (docs/PERFORMANCE.md, ninth pass). */
 static void advance(gs_fe_body *b)
 {
     const gs_fe_model *m = b->m;
     const gs_index ne = b->ne;
     const double h = b->h;
     b->next_valid = false;
-    if (ne > 0 && !b->next_r)
+    if (ne > 0 && !b->next_r && !b->defer_energy)
         b->next_r = gs_calloc((size_t)ne, sizeof *b->next_r);
-    if (ne == 0 || !b->next_r) {
+    if (ne == 0 || !b->next_r || b->defer_energy) {
         for (gs_index i = 0; i <= ne; i++) {
             b->q[i] += h * b->w[i] + b->delta[i];
             b->w[i] += 2.0 * b->delta[i] / h;
@@ -660,18 +667,12 @@ static void advance(gs_fe_body *b)
         return;
     }
     double wmw, qkq;
-    const bool en = !b->defer_energy;
-    /* x = q + (h/2 + beta) w, as begin_step forms it; the energies (and the
-     * M stream, a third of the pass's memory traffic) only when wanted */
-    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->next_r, en ? &wmw : NULL,
-                     en ? &qkq : NULL);
+    /* x = q + (h/2 + beta) w, as begin_step forms it */
+    gsi_fe_step_pass(m, h, 0.5 * h + m->mat.damping_s, b->delta, b->q, b->w, b->next_r, &wmw, &qkq);
     b->q[ne] += h * b->w[ne] + b->delta[ne];
     b->w[ne] += 2.0 * b->delta[ne] / h;
-    if (en) {
-        b->next_T = kinetic_of(b, wmw);
-        b->next_V = 0.5 * qkq;
-    }
-    b->next_energy = en;
+    b->next_T = kinetic_of(b, wmw);
+    b->next_V = 0.5 * qkq;
     b->next_h = h;
     b->next_valid = true;
 }

@@ -102,6 +102,13 @@ void gsi_fe_quadform2(const gs_fe_model *m, const double *xm, const double *xk, 
 void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *delta, double *q,
                       double *w, double *y, double *qm, double *qk);
 
+/* y = -K x with x = q + c w (y needs no initial value), by the pass of
+ * gsi_fe_step_pass without its state update or energies: bit for bit its y
+ * for the state it left, and gsi_fe_symv2(m, 0, x, -1, x, y) on a zero y.
+ * A step's right-hand side formed just before its solve, so that K and
+ * then the factor stream back to back (gs_fe_body). */
+void gsi_fe_rhs_pass(const gs_fe_model *m, double c, const double *q, const double *w, double *y);
+
 /* A new CHOLMOD matrix (allocated in common c) holding alpha M + beta K of
  * the elastic block, upper triangle; NULL when out of memory. */
 struct cholmod_sparse_struct;

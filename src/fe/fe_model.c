@@ -614,12 +614,13 @@ static inline void pass_prefetch(const double *x, gs_index from, gs_index to)
  * or (a pattern not in node pairs) column by column. */
 static inline __attribute__((always_inline)) void step_pass(const gs_fe_model *m, double h, double c,
                                                             const double *delta, double *q, double *w, double *y,
-                                                            pass_sums *s, const bool en)
+                                                            pass_sums *s, const bool en, const bool upd)
 {
     const gs_index *cp = m->colp;
     if (!m->pass_nb) {
         for (gs_index j = 0; j < m->ne; j++) {
-            pass_entry(j, h, delta, q, w);
+            if (upd)
+                pass_entry(j, h, delta, q, w);
             pass_column(m, j, q, w, c, y, s, en);
         }
         return;
@@ -632,8 +633,10 @@ static inline __attribute__((always_inline)) void step_pass(const gs_fe_model *m
             if (en)
                 pass_prefetch(m->mx, cp[ja], cp[ja + 2]);
         }
-        pass_entry(j, h, delta, q, w);
-        pass_entry(j + 1, h, delta, q, w);
+        if (upd) {
+            pass_entry(j, h, delta, q, w);
+            pass_entry(j + 1, h, delta, q, w);
+        }
         pass_node(m, j, nb, q, w, c, y, s, en);
         nb += (cp[j + 1] - 1 - cp[j]) / 2;
     }
@@ -646,12 +649,19 @@ void gsi_fe_step_pass(const gs_fe_model *m, double h, double c, const double *de
 {
     pass_sums s = {0, 0, 0, 0};
     if (!qm || !qk) { /* no energies: K alone, the M stream not read */
-        step_pass(m, h, c, delta, q, w, y, &s, false);
+        step_pass(m, h, c, delta, q, w, y, &s, false, true);
         return;
     }
-    step_pass(m, h, c, delta, q, w, y, &s, true);
+    step_pass(m, h, c, delta, q, w, y, &s, true, true);
     *qm = s.diagm + 2.0 * s.offm;
     *qk = s.diagk + 2.0 * s.offk;
+}
+
+void gsi_fe_rhs_pass(const gs_fe_model *m, double c, const double *q, const double *w, double *y)
+{
+    pass_sums s = {0, 0, 0, 0};
+    /* without upd the pass writes neither q nor w */
+    step_pass(m, 0.0, c, NULL, (double *)q, (double *)w, y, &s, false, false);
 }
 
 gs_err gs_fe_model_dense(const gs_fe_model *m, double *K, double *M)

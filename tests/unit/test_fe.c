@@ -365,7 +365,8 @@ static void static_needs_support(void **state)
 
 /* gsi_fe_step_pass (the end of an FE body's step in one pass) gives bit for
  * bit the values of the separate loops and kernels it replaces, reading the
- * rows by node pairs (gs_fe_model.pass_nb) or one by one. */
+ * rows by node pairs (gs_fe_model.pass_nb) or one by one; gsi_fe_rhs_pass
+ * (its right-hand side alone, from the state it left) the same y. */
 static void step_pass_matches_separate_loops(void **state)
 {
     (void)state;
@@ -416,6 +417,12 @@ static void step_pass_matches_separate_loops(void **state)
     assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
     assert_memory_equal(w1, w2, (size_t)ne * sizeof *w1);
     assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
+    /* the right-hand side alone from the new state (gsi_fe_rhs_pass): the
+     * same y, the state not written */
+    for (gs_index i = 0; i < ne; i++)
+        y2[i] = NAN;
+    gsi_fe_rhs_pass(m, c, q1, w1, y2);
+    assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
     /* the same with the row indices one by one (no node pairs) */
     assert_non_null(m->pass_nb);
     int32_t *nb = m->pass_nb;
@@ -423,11 +430,15 @@ static void step_pass_matches_separate_loops(void **state)
     memcpy(q2, q0, (size_t)ne * sizeof *q2);
     memcpy(w2, w0, (size_t)ne * sizeof *w2);
     gsi_fe_step_pass(m, h, c, dl, q2, w2, y2, &qm2, &qk2);
-    m->pass_nb = nb;
     assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
     assert_memory_equal(q1, q2, (size_t)ne * sizeof *q1);
     assert_memory_equal(&qm1, &qm2, sizeof qm1);
     assert_memory_equal(&qk1, &qk2, sizeof qk1);
+    for (gs_index i = 0; i < ne; i++)
+        y2[i] = NAN;
+    gsi_fe_rhs_pass(m, c, q1, w1, y2);
+    m->pass_nb = nb;
+    assert_memory_equal(y1, y2, (size_t)ne * sizeof *y1);
     free(q0), free(w0), free(dl), free(q1), free(w1), free(x1), free(y1);
     free(q2), free(w2), free(y2);
     gs_fe_model_free(&m);
