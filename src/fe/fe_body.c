@@ -612,12 +612,13 @@ gs_err gs_fe_body_begin_step(gs_fe_body *b, double moment_nm, const double *f_no
                 return GS_EINVAL;
             b->fnod[2 * k + c] = f;
         }
-    if (!f_nodes && b->next_valid && b->next_h == h && !(m->mat.damping_m > 0)) {
-        /* computed by the last end_step from this state: the same values */
-        memcpy(r, b->next_r, (size_t)ne * sizeof *r);
-    } else if (!f_nodes && !(m->mat.damping_m > 0)) {
-        /* the values of the branch below, in the pass's order */
-        gsi_fe_rhs_pass(m, 0.5 * h + m->mat.damping_s, b->q, b->w, r);
+    if (!f_nodes && !(m->mat.damping_m > 0)) {
+        /* -K x: computed by the last end_step from this state, else formed
+         * here by its pass (the values of the branch below, bit for bit) */
+        if (b->next_valid && b->next_h == h)
+            memcpy(r, b->next_r, (size_t)ne * sizeof *r);
+        else
+            gsi_fe_rhs_pass(m, 0.5 * h + m->mat.damping_s, b->q, b->w, r);
     } else {
         for (gs_index i = 0; i < ne; i++) {
             r[i] = f_nodes ? b->fnod[i] : 0.0;
@@ -647,10 +648,10 @@ static double increment(const gs_fe_body *b, gs_index i)
 /* The new state (q += dq, w = 2 dq / h - w, written with dq = h w + delta).
  * With the energies wanted, they and the next right-hand side come in one
  * pass over the matrices (struct gs_fe_body, next_*). Without them, the
- * state alone: begin_step forms -K x just before the solve
- * (gsi_fe_rhs_pass, the same bytes), so that K and then the factor stream
- * back to back, not K here with the other gears' factors between
- * (docs/PERFORMANCE.md, ninth pass). */
+ * state alone (also without memory for next_r): begin_step forms -K x
+ * just before the solve (gsi_fe_rhs_pass, the same bytes), so that K and
+ * then the factor stream back to back, not K here with the other gears'
+ * factors between (docs/PERFORMANCE.md, ninth pass). */
 static void advance(gs_fe_body *b)
 {
     const gs_fe_model *m = b->m;
