@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim: the engine, replicated over MPI ranks (src/dist).
+ * gearsim: the engine, replicated over MPI ranks (src/engine).
  *
  * Every state change is an operation that rank 0 broadcasts and every rank
  * executes in the same order: load, unload, step, set/remove load, restore,

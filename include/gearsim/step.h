@@ -2,7 +2,7 @@
  * gearsim: the system (bodies, meshes, loads in joint coordinates) and the
  * energy-momentum midpoint step (METHOD.md sections 1, 2 and 7).
  *
- * The step is split so that it can be distributed (src/dist): every rank
+ * The step is split so that it can be distributed (src/engine): every rank
  * fills the interface records of the bodies it owns, rank 0 solves the small
  * coupled problem, and every rank applies the increment. gs_step_serial()
  * runs the three parts in one process. Nothing here calls MPI. */

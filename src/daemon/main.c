@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsimd: the daemon. Rank 0 serves ZeroMQ (src/service); every other rank
- * executes the engine's operations as rank 0 broadcasts them (src/dist). */
+ * executes the engine's operations as rank 0 broadcasts them (src/engine). */
 #include <ctype.h>
 #include <errno.h>
 #include <getopt.h>

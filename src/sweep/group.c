@@ -4,7 +4,7 @@
  *
  * Rank 0 broadcasts GS_OP_SWEEP through the world engine; every rank then
  * duplicates the world communicator and splits it into `groups` groups of
- * consecutive ranks. Each group runs a replicated engine (src/dist) over its
+ * consecutive ranks. Each group runs a replicated engine (src/engine) over its
  * own communicator: its first rank (the leader) drives it, the others serve
  * it. Rank 0 leads group 0 and coordinates: it sends a point to a leader
  * when that group is free (tag CMD: the point, or -1 to stop), leaders send
