@@ -162,9 +162,14 @@ struct gs_body_rt {
     int owner;               /* rank that owns the body */
     double inertia_eff;      /* I + sum m d^2 of planets for a carrier */
     double mass;             /* kg: the body's mass (a translating centre's inertia) */
-    double centre[2];        /* m: its axis in the scene frame (fixed axis; a carrier's
-                              * centre, about which its planets turn) */
+    double centre[2];        /* m: its axis in the scene frame at the start (a planet:
+                              * its pin at carrier angle 0; a carrier: the centre its
+                              * planets turn about) */
     int carrier;             /* on a carrier: the carrier's body index; -1 otherwise */
+    double carrier_radius, carrier_angle; /* on a carrier: its pin's polar place on the
+                              * carrier (m, rad at carrier angle 0) */
+    double pin_off[2];       /* on a pin bearing: its pin's offset from the carrier's
+                              * centre at the carrier's initial angle (m) */
     const gs_body_ops *ops;
     void *model;             /* model data (elastic: FE body) */
     double T, V;             /* kinetic and potential energy of the body's own state,

@@ -443,9 +443,10 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         b->coord = sb->joint == GS_JOINT_HELD ? -1 : s->n_coords++;
         b->inertia_eff = sb->inertia;
         b->mass = sb->mass;
-        b->centre[0] = sb->centre[0];
-        b->centre[1] = sb->centre[1];
+        gs_scene_body_centre(scene, i, b->centre);
         b->carrier = sb->joint == GS_JOINT_ON_CARRIER ? sb->carrier : -1;
+        b->carrier_radius = sb->carrier_radius;
+        b->carrier_angle = sb->carrier_angle;
         if (sb->type == GS_BODY_CARRIER)
             for (int j = 0; j < s->n_bodies; j++) {
                 const gs_scene_body *p = &scene->bodies[j];
@@ -494,6 +495,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 j->carrier = s->bodies[sb->carrier].coord;
                 j->carrier_t = s->bodies[sb->carrier].tcoord;
                 pin_offsets(s, i, j->pin0, j->d0);
+                s->bodies[i].pin_off[0] = j->d0[0];
+                s->bodies[i].pin_off[1] = j->d0[1];
                 j->k[0] = j->k[1] = sb->bearing_k;
                 j->c[0] = j->c[1] = sb->bearing_c;
                 continue;
@@ -832,31 +835,29 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
 
 void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta)
 {
-    const gs_scene_body *b = &sys->scene->bodies[body];
-    if (b->joint == GS_JOINT_ON_CARRIER && sys->bodies[body].tcoord >= 0) {
+    const gs_body_rt *b = &sys->bodies[body];
+    int tc = b->tcoord;
+    if (b->carrier >= 0 && tc >= 0) {
         /* on a pin bearing: where it started plus its own displacement */
-        double pin0[2], off[2];
-        int tc = sys->bodies[body].tcoord;
-        pin_offsets(sys, body, pin0, off);
-        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
-        c[0] = cb->centre[0] + off[0] + sys->q[tc];
-        c[1] = cb->centre[1] + off[1] + sys->q[tc + 1];
-    } else if (b->joint == GS_JOINT_ON_CARRIER) {
+        const gs_body_rt *cb = &sys->bodies[b->carrier];
+        c[0] = cb->centre[0] + b->pin_off[0] + sys->q[tc];
+        c[1] = cb->centre[1] + b->pin_off[1] + sys->q[tc + 1];
+    } else if (b->carrier >= 0) {
         /* The planet's polar position turns with the carrier. */
-        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
-        int kc = sys->bodies[b->carrier].coord;
+        const gs_body_rt *cb = &sys->bodies[b->carrier];
+        int kc = cb->coord;
         double a = b->carrier_angle + (kc >= 0 ? sys->q[kc] : 0.0);
         c[0] = cb->centre[0] + b->carrier_radius * cos(a);
         c[1] = cb->centre[1] + b->carrier_radius * sin(a);
     } else {
-        gs_scene_body_centre(sys->scene, body, c);
-        int tc = sys->bodies[body].tcoord;
+        c[0] = b->centre[0];
+        c[1] = b->centre[1];
         if (tc >= 0) {
             c[0] += sys->q[tc];
             c[1] += sys->q[tc + 1];
         }
     }
-    int k = sys->bodies[body].coord;
+    int k = b->coord;
     *theta = k >= 0 ? sys->q[k] : 0.0;
 }
 
