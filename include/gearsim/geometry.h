@@ -43,7 +43,55 @@ typedef struct gs_gear_params {
     double thinning_m;         /* backlash thinning of the tooth on the pitch circle, metres */
     double face_width_m;       /* b */
     double hub_radius_m;       /* rigid core radius (external); for a ring, the outer rim radius */
+    /* Helical gears (docs/explanation/helical.md). All zero for a spur gear.
+     * For a helical gear the fields above describe the transverse section
+     * (module_m = m_n / cos(beta), tan(pressure_angle) = tan(alpha_n) /
+     * cos(beta), the coefficients rescaled to the transverse module) so
+     * that every planar routine works on that section unchanged; the
+     * normal-section values as given are kept below. Fill them with
+     * gs_gear_params_helical(). */
+    double helix_angle;        /* beta at the pitch circle, rad, in [0, 45 deg]; 0: spur */
+    int hand;                  /* +1 right hand, -1 left hand, 0 spur */
+    double normal_module_m;    /* m_n (0 for spur) */
+    double normal_pressure_angle; /* alpha_n, rad (0 for spur) */
 } gs_gear_params;
+
+/* Lead (face-width) modifications of one gear and the misalignment of a
+ * pair, in metres: stored with the scene for the slice analysis of helical
+ * and spur pairs; the planar rungs (lumped, compliant) do not use them and
+ * refuse a scene that sets them (docs/explanation/helical.md). */
+typedef struct gs_lead_mods {
+    double crowning;           /* C_b: material removed at each face end by a parabola over b */
+    double end_relief;         /* C_I: material removed at each face end */
+    double end_relief_length;  /* length of the relieved zone from each end */
+    int end_relief_parabolic;  /* 0 linear, 1 parabolic */
+    double slope;              /* f_Hbeta: helix slope deviation across the face, + towards +z */
+} gs_lead_mods;
+
+/* Turn gear parameters given in the normal section into the transverse
+ * section used by every routine here: p holds the normal module in
+ * module_m, the normal pressure angle in pressure_angle and the addendum,
+ * dedendum, fillet and profile-shift coefficients and the thinning of the
+ * normal section. With beta = 0 nothing changes (a spur gear, bit for bit).
+ * Otherwise module_m becomes m_n / cos(beta), pressure_angle
+ * atan(tan(alpha_n) / cos(beta)), the coefficients are multiplied by
+ * cos(beta) (same lengths, transverse module) and the thinning divided by
+ * it (transverse circular thickness). The fillet keeps the cutter's tip
+ * radius rho_f* m_n (a circle tangent to the transverse rack flank and tip
+ * line: the transverse section of the cutter round is an ellipse, which is
+ * approximated by this circle). Errors: beta outside [0, 45 deg] (field
+ * `helix_angle_deg`), a hand that is not +-1 with beta > 0 or not 0 with
+ * beta = 0 (field `hand`). */
+gs_err gs_gear_params_helical(gs_gear_params *p, double beta, int hand, gs_diag *d);
+
+/* Base helix angle beta_b: tan(beta_b) = tan(beta) cos(alpha_t). */
+double gs_gear_base_helix_angle(const gs_gear_params *p);
+
+/* Check lead modifications (field names `crowning_um`, `end_relief_um`,
+ * `end_relief_length_mm`, `slope_um`, relative to the caller's path prefix
+ * given in `path`): non-negative, finite, below 1 mm; relief length within
+ * half the face width b. */
+gs_err gs_lead_mods_validate(const gs_lead_mods *l, double face_width_m, const char *path, gs_diag *d);
 
 /* Defaults for everything except kind, teeth, module and face width. */
 void gs_gear_params_defaults(gs_gear_params *p);
@@ -179,10 +227,30 @@ typedef struct gs_pair_info {
                               * contact cut short by a fillet) */
     double r1_start, r2_start; /* start of active profile on each gear: radius of the
                                 * contact deepest into the tooth (m) */
+    /* Helical pairs (all also filled for spur pairs, beta = 0): */
+    double helix_angle;      /* beta, rad */
+    double base_helix_angle; /* beta_b, rad */
+    double face_width;       /* common face width b = min(b1, b2), m */
+    double overlap_ratio;    /* eps_beta = b sin(beta) / (pi m_n) (0 for spur) */
+    double total_contact_ratio; /* eps_gamma = contact_ratio + overlap_ratio */
+    double line_min, line_max; /* shortest and longest total length of the contact lines
+                                * on the plane of action over a mesh cycle, m */
 } gs_pair_info;
 
+/* Total length (m) of the contact lines on the plane of action of a pair
+ * analysed by gs_pair_analyse() at roll position `roll` (mesh cycles: base
+ * pitches of roll; at roll 0 a line enters the path of contact at the face
+ * end z = 0). The plane of action is the rectangle path_length x b; the
+ * contact lines are inclined at the base helix angle to the axis and one
+ * transverse base pitch apart. For a spur pair: b times the number of
+ * tooth pairs in contact. Its mean over a cycle is b contact_ratio /
+ * cos(beta_b). */
+double gs_pair_contact_line_length(const gs_pair_info *info, double roll);
+
 /* Full description of a pair at centre distance a (m). Errors (field
- * "gears"): different modules or pressure angles, two internal gears, a ring
+ * "gears"): different modules or pressure angles, different helix angles,
+ * a helical external pair of the same hand or internal pair of opposite
+ * hands, two internal gears, a ring
  * not larger than its pinion, teeth that overlap (a below the tight-mesh
  * distance), teeth that do not reach each other or a contact ratio below 1,
  * or interference: a tip corner that cuts more than 0.05 m into the other

@@ -219,6 +219,7 @@ struct gs_gmesh_rt {
         const double *pitch;
     } err[2];
     double contact_ratio;
+    double overlap_ratio;    /* eps_beta of a helical pair (0: spur) */
     double k_single, k_double, damping, half_backlash;
     double transition;       /* width of the single/double stiffness change, fraction of a cycle */
     double *k_table;         /* calibrated stiffness over one mesh cycle (N/m), n_table values:

@@ -51,6 +51,8 @@ typedef struct gs_scene_body {
     gs_body_type type;
     gs_body_model model;
     gs_gear_params gear;       /* valid when type == GS_BODY_GEAR */
+    gs_lead_mods lead;         /* bodies[i].lead: lead modifications (slice analysis; the
+                                * planar rungs refuse them) */
     gs_material material;
     gs_mesh_density mesh;
     double mass;               /* kg (from geometry unless given) */
@@ -114,6 +116,10 @@ typedef struct gs_scene_mesh {
     int bending;               /* 0: beam (tooth bending in series), 1: none,
                                   2: beam_foundation (beam + fillet foundation) */
     double max_line_load;      /* N/m: the top of the force-approach table */
+    /* meshes[i].misalignment: deviation of the axes over the common face
+     * width b (m), in and out of the plane of action (slice analysis; the
+     * planar rungs refuse a non-zero value) */
+    double misalign_in, misalign_out;
 } gs_scene_mesh;
 
 typedef struct gs_scene_load {

@@ -38,6 +38,78 @@ void gs_gear_params_defaults(gs_gear_params *p)
     p->thinning_m = 0.0;
     p->face_width_m = 0.01;
     p->hub_radius_m = 0.0;
+    p->helix_angle = 0.0;
+    p->hand = 0;
+    p->normal_module_m = 0.0;
+    p->normal_pressure_angle = 0.0;
+}
+
+/* Helical gears are run on their transverse section: the transverse
+ * section of the normal basic rack is a rack of module m_n / cos(beta) and
+ * flank angle alpha_t, with the same addendum, dedendum and profile-shift
+ * lengths (docs/explanation/helical.md). */
+gs_err gs_gear_params_helical(gs_gear_params *p, double beta, int hand, gs_diag *d)
+{
+    if (!(beta >= 0.0) || !(beta <= 45.0 * DEG))
+        return gs_diag_set(d, GS_ERANGE, "helix_angle_deg", "helix angle %g deg outside [0, 45]",
+                           beta / DEG);
+    if (beta == 0.0) {
+        if (hand != 0)
+            return gs_diag_set(d, GS_ERANGE, "hand", "a spur gear (helix_angle_deg 0) has no hand");
+        p->helix_angle = 0.0;
+        p->hand = 0;
+        p->normal_module_m = 0.0;
+        p->normal_pressure_angle = 0.0;
+        return GS_OK;
+    }
+    if (hand != 1 && hand != -1)
+        return gs_diag_set(d, GS_ERANGE, "hand", "a helical gear needs its hand: \"right\" or \"left\"");
+    if (p->normal_module_m != 0.0)
+        return gs_diag_set(d, GS_EINVAL, "helix_angle_deg", "the parameters are already transverse");
+    double cb = cos(beta);
+    p->helix_angle = beta;
+    p->hand = hand;
+    p->normal_module_m = p->module_m;
+    p->normal_pressure_angle = p->pressure_angle;
+    p->module_m = p->module_m / cb;
+    p->pressure_angle = atan(tan(p->pressure_angle) / cb);
+    p->addendum_coef *= cb;
+    p->dedendum_coef *= cb;
+    p->fillet_coef *= cb;
+    p->profile_shift *= cb;
+    p->thinning_m /= cb;
+    return GS_OK;
+}
+
+double gs_gear_base_helix_angle(const gs_gear_params *p)
+{
+    return atan(tan(p->helix_angle) * cos(p->pressure_angle));
+}
+
+gs_err gs_lead_mods_validate(const gs_lead_mods *l, double face_width_m, const char *path, gs_diag *d)
+{
+    char f[256];
+    const struct {
+        const char *name;
+        double v;
+    } um[] = {{"crowning_um", l->crowning}, {"end_relief_um", l->end_relief}, {"slope_um", l->slope}};
+    for (int i = 0; i < 3; i++) {
+        double lim = 1e-3;
+        bool neg_ok = i == 2; /* the slope deviation has a sign */
+        if (!isfinite(um[i].v) || fabs(um[i].v) > lim || (!neg_ok && um[i].v < 0)) {
+            snprintf(f, sizeof f, "%s%s%s", path ? path : "", path && *path ? "." : "", um[i].name);
+            return gs_diag_set(d, GS_ERANGE, f, "%s %g um outside [%s, 1000]", um[i].name, um[i].v * 1e6,
+                               neg_ok ? "-1000" : "0");
+        }
+    }
+    snprintf(f, sizeof f, "%s%send_relief_length_mm", path ? path : "", path && *path ? "." : "");
+    if (!isfinite(l->end_relief_length) || l->end_relief_length < 0 ||
+        l->end_relief_length > 0.5 * face_width_m)
+        return gs_diag_set(d, GS_ERANGE, f, "relief length %g mm outside [0, b/2 = %g mm]",
+                           l->end_relief_length * 1e3, 0.5 * face_width_m * 1e3);
+    if ((l->end_relief > 0) != (l->end_relief_length > 0))
+        return gs_diag_set(d, GS_ERANGE, f, "end relief needs both its depth (end_relief_um) and its length");
+    return GS_OK;
 }
 
 double gs_involute(double a)

@@ -141,8 +141,70 @@ double gs_pair_mesh_phase(const gs_gear_params *g1, const double c1[2], double t
 }
 
 /* Check and order a pair: *pin is the external gear of an internal pair. */
+/* Helical part of a pair: overlap and total contact ratios and the extreme
+ * total contact-line lengths (docs/explanation/helical.md). With
+ * a = eps_alpha and c = eps_beta the length at roll s is
+ * b / (c cos beta_b) times sum_k |[s + k - a, s + k] cut [0, c]|, a
+ * periodic piecewise-linear function of s whose extremes lie where a
+ * line's end crosses a corner of the plane of action. */
+static void helical_info(const gs_gear_params *g1, const gs_gear_params *g2, gs_pair_info *info)
+{
+    info->helix_angle = g1->helix_angle;
+    info->base_helix_angle = gs_gear_base_helix_angle(g1);
+    info->face_width = fmin(g1->face_width_m, g2->face_width_m);
+    info->overlap_ratio =
+        g1->helix_angle > 0 ? info->face_width * sin(g1->helix_angle) / (GS_PI * g1->normal_module_m) : 0.0;
+    info->total_contact_ratio = info->contact_ratio + info->overlap_ratio;
+    double a = info->contact_ratio, c = info->overlap_ratio;
+    if (c == 0.0) {
+        info->line_min = info->face_width * floor(a);
+        info->line_max = info->face_width * ceil(a);
+        return;
+    }
+    double pts[4] = {0.0, c, a, a + c}, lo = INFINITY, hi = -INFINITY;
+    for (int i = 0; i < 4; i++) {
+        double L = gs_pair_contact_line_length(info, pts[i] - floor(pts[i]));
+        lo = fmin(lo, L);
+        hi = fmax(hi, L);
+    }
+    info->line_min = lo;
+    info->line_max = hi;
+}
+
+double gs_pair_contact_line_length(const gs_pair_info *info, double roll)
+{
+    double a = info->contact_ratio, c = info->overlap_ratio, b = info->face_width;
+    double s = roll - floor(roll), sum = 0.0;
+    if (c == 0.0) { /* spur: whole lines, b each, while 0 <= s + k <= a */
+        for (int k = 0; k <= (int)ceil(a) + 1; k++)
+            if (s + k <= a)
+                sum += 1.0;
+        return b * sum;
+    }
+    for (int k = 0; k <= (int)ceil(a + c) + 1; k++) {
+        double lo = fmax(s + k - a, 0.0), hi = fmin(s + k, c);
+        if (hi > lo)
+            sum += hi - lo;
+    }
+    return b / (c * cos(info->base_helix_angle)) * sum;
+}
+
 static gs_err pair_kinds(const gs_gear_params *g1, const gs_gear_params *g2, gs_diag *d)
 {
+    /* Helical pairs: the same helix angle; opposite hands outside, the same
+     * hand inside a ring (the teeth lie on the same side of the pitch
+     * cylinder's common tangent plane only then). */
+    if (fabs(g1->helix_angle - g2->helix_angle) > 1e-12)
+        return gs_diag_set(d, GS_EGEOMETRY, "gears",
+                           "the gears do not mesh: helix angles differ (helix_angle_deg %g and %g)",
+                           g1->helix_angle * 180 / GS_PI, g2->helix_angle * 180 / GS_PI);
+    if (g1->helix_angle > 0) {
+        int internal = g1->kind == GS_GEAR_INTERNAL || g2->kind == GS_GEAR_INTERNAL;
+        if (internal ? g1->hand != g2->hand : g1->hand == g2->hand)
+            return gs_diag_set(d, GS_EGEOMETRY, "gears",
+                               "the gears do not mesh: an %s helical pair needs %s hands (hand)",
+                               internal ? "internal" : "external", internal ? "the same" : "opposite");
+    }
     if (fabs(g1->module_m - g2->module_m) > 1e-9 * fmax(g1->module_m, g2->module_m))
         return gs_diag_set(d, GS_EGEOMETRY, "gears",
                            "the gears do not mesh: modules differ (%g mm and %g mm)",
@@ -330,6 +392,7 @@ static gs_err pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, d
     info->r2_start = pin == &A ? ro : rp;
     info->path_length = g;
     info->contact_ratio = g / info->base_pitch;
+    helical_info(g1, g2, info);
     if (info->contact_ratio < 1.0)
         return gs_diag_set(d, GS_EGEOMETRY, "gears",
                            "contact ratio %.4g is below 1 at centre distance %.6g mm%s: the "
@@ -478,7 +541,8 @@ static bool same_gear(const gs_gear_params *x, const gs_gear_params *y)
            x->pressure_angle == y->pressure_angle && x->addendum_coef == y->addendum_coef &&
            x->dedendum_coef == y->dedendum_coef && x->fillet_coef == y->fillet_coef &&
            x->profile_shift == y->profile_shift && x->thinning_m == y->thinning_m &&
-           x->face_width_m == y->face_width_m && x->hub_radius_m == y->hub_radius_m;
+           x->face_width_m == y->face_width_m && x->hub_radius_m == y->hub_radius_m &&
+           x->helix_angle == y->helix_angle && x->hand == y->hand;
 }
 
 gs_err gs_pair_analyse(const gs_gear_params *g1, const gs_gear_params *g2, double a,

@@ -58,6 +58,8 @@ typedef struct cmesh {
     double hfi[2], thf[2]; /* r_f / r_int and the root half angle theta_f */
     double lmpq[2][4];     /* Sainsot's L*, M*, P*, Q* of gear k */
     double v0, dv;           /* station k at v0 + k dv */
+    int slices;              /* helical pair: slices of the face (1: spur) */
+    double overlap;          /* eps_beta: phase spread of the slices, cycles */
     double *del, *frc, *wrk; /* [STATIONS][LOADS + 1]: approach, force, potential */
     double xscale;           /* approach at a moderate load: the scale of x */
 } cmesh;
@@ -303,8 +305,35 @@ typedef struct vals {
     double V, Vx, Vxx, Vp, Vxp;
 } vals;
 
-/* V and its derivatives at deflection x, phase phi. */
+static vals eval_section(const gs_gmesh_rt *m, double x, double phi);
+static double slice_offset(const cmesh *cm, int i);
+
+/* V and its derivatives at deflection x, phase phi. A helical pair is cut
+ * into `slices` transverse slices of equal width, slice i at the roll
+ * phi + eps_beta ((i + 1/2) / n - 1/2) (its contact lines cross the face at
+ * the base helix angle), each carrying 1/n of the face width's potential:
+ * V stays a sum of the section potentials, so the discrete gradient keeps
+ * its energy identity. */
 static vals eval(const gs_gmesh_rt *m, double x, double phi)
+{
+    const cmesh *cm = m->contact;
+    if (cm->slices <= 1)
+        return eval_section(m, x, phi);
+    vals r = {0, 0, 0, 0, 0};
+    double w = 1.0 / cm->slices;
+    for (int i = 0; i < cm->slices; i++) {
+        vals s = eval_section(m, x, phi + slice_offset(cm, i));
+        r.V += w * s.V;
+        r.Vx += w * s.Vx;
+        r.Vxx += w * s.Vxx;
+        r.Vp += w * s.Vp;
+        r.Vxp += w * s.Vxp;
+    }
+    return r;
+}
+
+/* One transverse section over the whole face width. */
+static vals eval_section(const gs_gmesh_rt *m, double x, double phi)
 {
     const cmesh *cm = m->contact;
     vals r = {0, 0, 0, 0, 0};
@@ -444,6 +473,7 @@ static gs_err cm_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     char field[64];
     GS_TRY(gsi_mesh_needs_rigid(sys, m, "compliant", d));
     GS_TRY(gsi_mesh_mods_supported(sys, m, "compliant", 1, 0, d));
+    GS_TRY(gsi_mesh_helical_supported(sys, m, "compliant", 1, d));
     cmesh *cm = gs_calloc(1, sizeof *cm);
     if (!cm)
         return GS_ENOMEM;
@@ -461,6 +491,11 @@ static gs_err cm_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     if (gs_pair_analyse(&bp->gear, &bo->gear, hypot(c1[0] - c0[0], c1[1] - c0[1]), &info, &gd) != GS_OK)
         return gs_diag_set(d, GS_EGEOMETRY, field, "%s", gd.message);
     cm->internal = info.internal;
+    /* helical: slices at most a twentieth of a cycle apart, the default
+     * transition width, so that the entry ramps of neighbouring slices
+     * overlap */
+    cm->overlap = info.overlap_ratio;
+    cm->slices = info.overlap_ratio > 0 ? (int)fmin(ceil(info.overlap_ratio / 0.05), 64.0) : 1;
     cm->t12 = info.a * sin(info.alpha_w);
     cm->rho0 = sqrt(fmax(info.r1_start * info.r1_start - cm->g[0].rb * cm->g[0].rb, 0.0));
     cm->L = info.path_length;
@@ -567,7 +602,7 @@ static double avg_force(const cmesh *cm, double v, double da, double db)
 }
 
 /* [V(x1, phi) - V(x0, phi)] / (x1 - x0), per flank without cancellation. */
-static double grad_x(const gs_gmesh_rt *m, double x0, double x1, double phi)
+static double grad_x_section(const gs_gmesh_rt *m, double x0, double x1, double phi)
 {
     const cmesh *cm = m->contact;
     double hb = m->half_backlash, g = 0;
@@ -604,7 +639,7 @@ static int cmp_double(const void *a, const void *b)
  * term w(u) W(delta; v(u)) is quadratic in u between the ramp kinks and the
  * stations, so its mean slope is the sum of the slopes at the midpoints of
  * those pieces weighted by their lengths. */
-static double grad_phi(const gs_gmesh_rt *m, double x, double phi0, double phi1)
+static double grad_phi_section(const gs_gmesh_rt *m, double x, double phi0, double phi1)
 {
     const cmesh *cm = m->contact;
     double hb = m->half_backlash;
@@ -652,6 +687,37 @@ static double grad_phi(const gs_gmesh_rt *m, double x, double phi0, double phi1)
         sum += acc;
     }
     return sum * cm->pb;
+}
+
+/* The phase offset of slice i of a helical pair (see eval). */
+static double slice_offset(const cmesh *cm, int i)
+{
+    return cm->slices <= 1 ? 0.0 : cm->overlap * ((i + 0.5) / cm->slices - 0.5);
+}
+
+/* The two mean slopes summed over the slices (each 1/n of the face). */
+static double grad_x(const gs_gmesh_rt *m, double x0, double x1, double phi)
+{
+    const cmesh *cm = m->contact;
+    if (cm->slices <= 1)
+        return grad_x_section(m, x0, x1, phi);
+    double g = 0;
+    for (int i = 0; i < cm->slices; i++)
+        g += grad_x_section(m, x0, x1, phi + slice_offset(cm, i));
+    return g / cm->slices;
+}
+
+static double grad_phi(const gs_gmesh_rt *m, double x, double phi0, double phi1)
+{
+    const cmesh *cm = m->contact;
+    if (cm->slices <= 1)
+        return grad_phi_section(m, x, phi0, phi1);
+    double g = 0;
+    for (int i = 0; i < cm->slices; i++) {
+        double o = slice_offset(cm, i);
+        g += grad_phi_section(m, x, phi0 + o, phi1 + o);
+    }
+    return g / cm->slices;
 }
 
 /* Symmetrised coordinate-increment discrete gradient of V in (x, phi):

@@ -11,6 +11,7 @@
 #include "contact/contact_mesh.h"
 #include "gearsim/models.h"
 #include "gearsim/util.h"
+#include "mesh_common.h"
 
 static void contact_destroy(gs_gmesh_rt *m)
 {
@@ -29,6 +30,7 @@ static gs_err contact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];
+    GS_TRY(gsi_mesh_helical_supported(sys, m, "contact", 0, d));
     snprintf(field, sizeof field, "meshes[%d]", m->index);
     gsi_contact_mesh *cm = gs_calloc(1, sizeof *cm);
     if (!cm)

@@ -71,6 +71,7 @@ static double minv(const gs_model_view *sys, int coord)
 static gs_err impact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     GS_TRY(gsi_mesh_mods_supported(sys, m, "impact", 0, 0, d));
+    GS_TRY(gsi_mesh_helical_supported(sys, m, "impact", 0, d));
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
     char field[64];

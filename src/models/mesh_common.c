@@ -52,6 +52,39 @@ gs_err gsi_mesh_mods_supported(const gs_model_view *sys, const gs_gmesh_rt *m, c
     return GS_OK;
 }
 
+gs_err gsi_mesh_helical_supported(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, int helical,
+                                  gs_diag *d)
+{
+    const gs_scene *sc = sys->scene;
+    const gs_scene_mesh *sm = &sc->meshes[m->index];
+    char field[64];
+    for (int k = 0; k < 2; k++) {
+        int bi = sm->gear[k];
+        const gs_scene_body *b = &sc->bodies[bi];
+        if (!helical && b->gear.helix_angle > 0) {
+            snprintf(field, sizeof field, "bodies[%d].helix_angle_deg", bi);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "a %s mesh ('%s') works on spur teeth and cannot take the helical gear '%s' "
+                               "(helix angle %g deg): use a lumped or compliant mesh", kind, sm->name, b->name,
+                               b->gear.helix_angle * 180 / GS_PI);
+        }
+        const gs_lead_mods *l = &b->lead;
+        if (l->crowning != 0 || l->end_relief != 0 || l->slope != 0) {
+            snprintf(field, sizeof field, "bodies[%d].lead", bi);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "a %s mesh ('%s') is planar and cannot represent the lead modifications of "
+                               "'%s' (they are for the slice analysis)", kind, sm->name, b->name);
+        }
+    }
+    if (sm->misalign_in != 0 || sm->misalign_out != 0) {
+        snprintf(field, sizeof field, "meshes[%d].misalignment", m->index);
+        return gs_diag_set(d, GS_ERANGE, field,
+                           "a %s mesh ('%s') is planar and cannot represent a misalignment (it is for the "
+                           "slice analysis)", kind, sm->name);
+    }
+    return GS_OK;
+}
+
 double gsi_mesh_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double k_mean)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];

@@ -19,6 +19,15 @@ gs_err gsi_mesh_needs_rigid(const gs_model_view *sys, const gs_gmesh_rt *m, cons
 gs_err gsi_mesh_mods_supported(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, int profile,
                                int errors, gs_diag *d);
 
+/* Helical pairs and lead data in a planar mesh model of `kind`
+ * (docs/explanation/helical.md): `helical` says whether the model takes a
+ * helical pair in its transverse plane (else the error names
+ * bodies[i].helix_angle_deg); lead modifications (bodies[i].lead) and
+ * misalignment (meshes[i].misalignment) belong to the slice analysis and
+ * are refused by every planar model. */
+gs_err gsi_mesh_helical_supported(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, int helical,
+                                  gs_diag *d);
+
 /* The mesh's damper coefficient (N s/m): the scene's `damping`, or from its
  * `damping_ratio` zeta at the mesh mode of mean stiffness k_mean:
  * c = 2 zeta sqrt(k_mean m_eq), m_eq = 1 / sum a_i^2 / I_i over the

@@ -96,10 +96,40 @@ static void table_quot(const gs_gmesh_rt *m, const double *tab, double p0, doubl
  * roll, and a continuous k keeps the discrete-gradient step well posed (a
  * true jump asks for an impulsive torque that, at low speed, the step cannot
  * resolve). */
+/* Helical pair (docs/explanation/helical.md): the tooth pairs in contact
+ * averaged over a window of w cycles centred on phi,
+ * n(phi) = (1/w) sum_k |[phi + k - w/2, phi + k + w/2] cut [0, eps_alpha]|,
+ * and its derivative. With w = eps_beta it is the total length of the
+ * contact lines projected on the face width, over b (the slices of the face
+ * enter contact one after the other over eps_beta cycles); for a spur pair
+ * with w the transition width it is the rectangular wave below. */
+static double lines_in_contact(double a, double w, double phi, double *dn)
+{
+    double s = phi - floor(phi), sum = 0.0, der = 0.0;
+    int k0 = -(int)ceil(w) - 1, k1 = (int)ceil(a + w) + 1;
+    for (int k = k0; k <= k1; k++) {
+        double lo = s + k - 0.5 * w, hi = s + k + 0.5 * w;
+        double l = fmax(lo, 0.0), h = fmin(hi, a);
+        if (h > l) {
+            sum += h - l;
+            der += (hi < a ? 1.0 : 0.0) - (lo > 0.0 ? 1.0 : 0.0);
+        }
+    }
+    *dn = der / w;
+    return sum / w;
+}
+
 static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
 {
     if (m->k_table)
         return table_d(m, m->k_table, phi, dk);
+    if (m->overlap_ratio > 0.0) {
+        /* k_single per tooth pair in contact over the whole face, k_double
+         * for two: linear in the contact-line length */
+        double dn, n = lines_in_contact(m->contact_ratio, m->transition, phi, &dn);
+        *dk = (m->k_double - m->k_single) * dn;
+        return m->k_single + (m->k_double - m->k_single) * (n - 1.0);
+    }
     double e1 = m->contact_ratio - 1.0, dlt = m->transition;
     *dk = 0.0;
     if (m->k_double == m->k_single || e1 <= 0.0)
@@ -142,10 +172,7 @@ static double dot(const double *a, const double *b, int n)
 
 static gs_err kin_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
-    (void)sys;
-    (void)m;
-    (void)d;
-    return GS_OK;
+    return gsi_mesh_helical_supported(sys, m, "kinematic", 1, d);
 }
 
 static void kin_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0,
@@ -390,6 +417,24 @@ static gs_err calibrate(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 static gs_err lumped_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
+    GS_TRY(gsi_mesh_helical_supported(sys, m, "lumped", 1, d));
+    if (m->overlap_ratio > 0.0) {
+        char field[64];
+        if (sm->stiffness_type == GS_STIFF_CALIBRATED) {
+            snprintf(field, sizeof field, "meshes[%d].stiffness.type", m->index);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "mesh '%s' is helical: the calibrated stiffness comes from the planar FE analysis "
+                               "of spur teeth; give a rectangular or constant stiffness", sm->name);
+        }
+        if (sm->k_double < sm->k_single) {
+            snprintf(field, sizeof field, "meshes[%d].stiffness.double", m->index);
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "mesh '%s' is helical: its stiffness grows with the contact-line length, so "
+                               "'double' must be at least 'single'", sm->name);
+        }
+        /* the load share of a pitch error follows the spur wave */
+        GS_TRY(gsi_mesh_mods_supported(sys, m, "helical lumped", 0, 0, d));
+    }
     GS_TRY(gsi_mesh_mods_supported(sys, m, sm->stiffness_type == GS_STIFF_CALIBRATED ? "calibrated lumped" : "lumped",
                                    sm->stiffness_type == GS_STIFF_CALIBRATED, 1, d));
     for (int k = 0; k < 2; k++) { /* a hand-filled body's single pitch error without a table */
@@ -424,6 +469,12 @@ static gs_err lumped_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     if (!(m->transition > 0))
         m->transition = 1e-3;
     double eps = m->contact_ratio;
+    if (m->overlap_ratio > 0.0) {
+        /* the window is the overlap ratio, or the spur transition if wider */
+        m->transition = fmax(m->overlap_ratio, m->transition);
+        m->damping = gsi_mesh_damping(sys, m, m->k_single + (m->k_double - m->k_single) * (eps - 1.0));
+        return GS_OK;
+    }
     m->damping = gsi_mesh_damping(sys, m, eps >= 2 ? m->k_double : m->k_single * (2 - eps) + m->k_double * (eps - 1));
     return GS_OK;
 }

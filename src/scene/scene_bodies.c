@@ -19,7 +19,7 @@
 static const char *const body_keys[] = {"name", "type", "model", "kind", "teeth", "module_mm",
     "pressure_angle_deg", "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm",
     "face_width_mm", "hub_radius_mm", "material", "mesh", "mass", "inertia", "pitch_error",
-    "modification", "pitch_errors_um", "runout", "reduction", NULL};
+    "modification", "pitch_errors_um", "runout", "reduction", "helix_angle_deg", "hand", "lead", NULL};
 
 /* material.damping_ratio zeta at material.damping_hz f: the stiffness-
  * proportional damping that gives zeta at f (zeta_k = beta w_k / 2, so
@@ -71,6 +71,51 @@ static gs_err parse_reduction(json_object *o, const char *path, gs_scene_body *b
     return GS_OK;
 }
 
+/* helix_angle_deg, hand and lead of a gear (docs/explanation/helical.md):
+ * module_mm, pressure_angle_deg, the rack coefficients and thinning_mm are
+ * then those of the normal section, turned into the transverse section
+ * that the rest of the code works on. */
+static gs_err parse_helix(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
+{
+    static const char *const hands[] = {"right", "left"};
+    static const char *const lead_keys[] = {"crowning_um", "end_relief_um", "end_relief_length_mm",
+                                            "end_relief_shape", "slope_um", NULL};
+    static const char *const shapes[] = {"linear", "parabolic"};
+    double beta;
+    GS_TRY(gsi_json_number(o, "helix_angle_deg", path, 0, 45, false, 0, &beta, d));
+    int hand = 0;
+    if (json_object_object_get_ex(o, "hand", NULL)) {
+        int h;
+        GS_TRY(gsi_scene_enum_field(o, "hand", path, NULL, hands, 2, &h, d));
+        hand = h == 0 ? 1 : -1;
+    }
+    GS_TRY(gsi_scene_prefix_diag(gs_gear_params_helical(&b->gear, beta * DEG, hand, d), d, path));
+    if (beta > 0 && b->model == GS_MODEL_ELASTIC) {
+        char hp[256];
+        gsi_path(hp, sizeof hp, path, "helix_angle_deg");
+        return gs_diag_set(d, GS_ERANGE, hp, "an elastic gear is a planar FE body of spur teeth: a helical gear "
+                                             "is rigid (model \"rigid\")");
+    }
+    json_object *l;
+    GS_TRY(gsi_json_object(o, "lead", path, false, &l, d));
+    if (!l)
+        return GS_OK;
+    char lp[256];
+    gsi_path(lp, sizeof lp, path, "lead");
+    GS_TRY(gsi_json_only(l, lp, lead_keys, d));
+    double x;
+    GS_TRY(gsi_json_number(l, "crowning_um", lp, 0, 1000, false, 0, &x, d));
+    b->lead.crowning = x * 1e-6;
+    GS_TRY(gsi_json_number(l, "end_relief_um", lp, 0, 1000, false, 0, &x, d));
+    b->lead.end_relief = x * 1e-6;
+    GS_TRY(gsi_json_number(l, "end_relief_length_mm", lp, 0, 1e4, false, 0, &x, d));
+    b->lead.end_relief_length = x * 1e-3;
+    GS_TRY(gsi_scene_enum_field(l, "end_relief_shape", lp, "linear", shapes, 2, &b->lead.end_relief_parabolic, d));
+    GS_TRY(gsi_json_number(l, "slope_um", lp, -1000, 1000, false, 0, &x, d));
+    b->lead.slope = x * 1e-6;
+    return gs_lead_mods_validate(&b->lead, b->gear.face_width_m, lp, d);
+}
+
 gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
 {
     static const char *const types[] = {"gear", "carrier"};
@@ -99,7 +144,7 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
         static const char *const gear_only[] = {"kind", "teeth", "module_mm", "pressure_angle_deg",
             "addendum", "dedendum", "fillet", "profile_shift", "thinning_mm", "face_width_mm",
             "hub_radius_mm", "material", "mesh", "pitch_error", "modification", "pitch_errors_um",
-            "runout", NULL};
+            "runout", "helix_angle_deg", "hand", "lead", NULL};
         for (const char *const *k = gear_only; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 char p[256];
@@ -138,6 +183,7 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
     g->face_width_m = x * 1e-3;
     GS_TRY(gsi_json_number(o, "hub_radius_mm", path, 0, 1e5, false, 0, &x, d));
     g->hub_radius_m = x * 1e-3;
+    GS_TRY(parse_helix(o, path, b, d));
     json_object *mat;
     GS_TRY(gsi_json_object(o, "material", path, false, &mat, d));
     if (mat) {

@@ -19,11 +19,33 @@
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "restitution", "law", "patches", "bending", "transition",
-                                         "max_line_load_n_per_mm", NULL};
+                                         "max_line_load_n_per_mm", "misalignment", NULL};
 static const char *const stiff_keys[] = {"type",      "value",     "single",      "double",
                                          "transition", "positions", "calibration", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
                                         "coefficient", "times", "moments", NULL};
+
+/* meshes[i].misalignment: {"in_plane_um", "out_of_plane_um"}, the
+ * deviation of one axis from the other over the common face width, in the
+ * plane of action and across it (ISO 6336-1 f_ma splits into these); for
+ * the slice analysis (docs/explanation/helical.md). */
+static gs_err parse_misalignment(json_object *o, const char *path, gs_scene_mesh *m, gs_diag *d)
+{
+    static const char *const keys[] = {"in_plane_um", "out_of_plane_um", NULL};
+    json_object *mo;
+    GS_TRY(gsi_json_object(o, "misalignment", path, false, &mo, d));
+    if (!mo)
+        return GS_OK;
+    char p[256];
+    double x;
+    gsi_path(p, sizeof p, path, "misalignment");
+    GS_TRY(gsi_json_only(mo, p, keys, d));
+    GS_TRY(gsi_json_number(mo, "in_plane_um", p, -1000, 1000, false, 0, &x, d));
+    m->misalign_in = x * 1e-6;
+    GS_TRY(gsi_json_number(mo, "out_of_plane_um", p, -1000, 1000, false, 0, &x, d));
+    m->misalign_out = x * 1e-6;
+    return GS_OK;
+}
 
 gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                                  gs_diag *d)
@@ -59,6 +81,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     int model;
     GS_TRY(gsi_scene_enum_field(o, "model", path, NULL, models, 5, &model, d));
     m->model = (gs_mesh_model)model;
+    GS_TRY(parse_misalignment(o, path, m, d));
     m->damping = -1;
     m->damping_ratio = 0.05;
     m->backlash = 0;

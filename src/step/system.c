@@ -170,8 +170,14 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
     gs_scene_body_centre(sc, sm->gear[0], c0);
     gs_scene_body_centre(sc, sm->gear[1], c1);
     double alpha_w;
-    GS_TRY(gs_pair_contact_ratio(&sc->bodies[sm->gear[0]].gear, &sc->bodies[sm->gear[1]].gear,
-                                 hypot(c1[0] - c0[0], c1[1] - c0[1]), &m->contact_ratio, &alpha_w, d));
+    {
+        gs_pair_info pi;
+        GS_TRY(gs_pair_analyse(&sc->bodies[sm->gear[0]].gear, &sc->bodies[sm->gear[1]].gear,
+                               hypot(c1[0] - c0[0], c1[1] - c0[1]), &pi, d));
+        m->contact_ratio = pi.contact_ratio;
+        m->overlap_ratio = pi.overlap_ratio;
+        alpha_w = pi.alpha_w;
+    }
     /* Translations along the true line of action (gearsim/modal.h): the
      * line through the pitch point at the operating pressure angle, on the
      * flanks that a counter-clockwise moment on an external gear A (or a
