@@ -145,6 +145,25 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (mesh_index < 0 || mesh_index >= sc->n_meshes)
         return gs_diag_set(d, GS_ERANGE, "meshes", "mesh index %d: the scene has %d meshes",
                            mesh_index, sc->n_meshes);
+    {
+        /* planar spur analysis: helical gears and lead data need the slice
+         * analysis (docs/explanation/helical.md) */
+        const gs_scene_mesh *sm = &sc->meshes[mesh_index];
+        char f[64];
+        for (int k = 0; k < 2; k++) {
+            const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+            const gs_lead_mods *l = &b->lead;
+            if (b->gear.helix_angle > 0 || l->crowning != 0 || l->end_relief != 0 || l->slope != 0) {
+                snprintf(f, sizeof f, "bodies[%d].%s", sm->gear[k], b->gear.helix_angle > 0 ? "helix_angle_deg" : "lead");
+                return gs_diag_set(d, GS_ERANGE, f, "the quasi-static analysis is planar (spur teeth): '%s' is %s",
+                                   b->name, b->gear.helix_angle > 0 ? "helical" : "lead-modified");
+            }
+        }
+        if (sm->misalign_in != 0 || sm->misalign_out != 0) {
+            snprintf(f, sizeof f, "meshes[%d].misalignment", mesh_index);
+            return gs_diag_set(d, GS_ERANGE, f, "the quasi-static analysis is planar: it cannot take a misalignment");
+        }
+    }
     if (o.positions < 1 || o.positions > 100000)
         return gs_diag_set(d, GS_ERANGE, "positions", "positions must be 1..100000, not %d",
                            o.positions);

@@ -3,9 +3,10 @@
  *  - the lumped and compliant meshes of the helical_pair scene, driven and
  *    braked: energy balance E - E0 - W_in + D at round-off, the speed ratio
  *    and the steady speed of the closed form;
- *  - the contact and impact meshes refuse a helical pair naming
- *    bodies[i].helix_angle_deg; lead modifications and misalignment are
- *    refused by the planar models naming the field. */
+ *  - the helical planetary scene: energy balance and the sun/carrier ratio;
+ *  - the contact mesh and the planar quasi-static analysis refuse a helical
+ *    pair naming bodies[i].helix_angle_deg; lead modifications and
+ *    misalignment are refused by the planar models naming the field. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -19,6 +20,7 @@
 
 #include "gearsim/geometry.h"
 #include "gearsim/step.h"
+#include "gearsim/stiffness.h"
 #include "scene_build.h"
 
 static json_object *mesh0(json_object *root)
@@ -75,6 +77,34 @@ static void compliant_balance(void **state)
     run_balance(root, "compliant");
 }
 
+/* The helical planetary scene (lumped meshes): energy balance and the
+ * kinematic ratio sun / carrier = 1 + z_ring / z_sun = 4. */
+static void planetary_balance(void **state)
+{
+    (void)state;
+    gs_system *s = vt_system(vt_scene("helical_planetary"));
+    int sun = gs_scene_find_body(s->scene, "sun"), car = gs_scene_find_body(s->scene, "carrier");
+    for (int i = 0; i < s->scene->n_meshes; i++)
+        assert_true(s->meshes[i].overlap_ratio > 0.87 && s->meshes[i].overlap_ratio < 0.871);
+    int steps = 10000, half = steps / 2;
+    double worst = 0, scale = 0, th_s = 0, th_c = 0;
+    gs_energy e;
+    for (int i = 0; i < steps; i++) {
+        if (i == half) {
+            th_s = gs_system_angle(s, sun);
+            th_c = gs_system_angle(s, car);
+        }
+        vt_step_balance(s, &e, &worst, &scale);
+    }
+    double ratio = (gs_system_angle(s, sun) - th_s) / (gs_system_angle(s, car) - th_c);
+    print_message("# helical planetary, 0.1 s: worst |balance residual| %.3e J = %.3e of the energy scale %.3e J; "
+                  "sun/carrier ratio %.9f (expect 4)\n",
+                  worst, worst / scale, scale, ratio);
+    assert_true(worst < 1e-11 * scale);
+    assert_true(fabs(ratio / 4.0 - 1) < 1e-4);
+    gs_system_free(&s);
+}
+
 static const char *fails(json_object *root, gs_diag *d)
 {
     gs_scene *sc = vt_scene_parse(root);
@@ -126,6 +156,14 @@ static void refusals(void **state)
     f = fails(root, &d);
     assert_non_null(f);
     assert_string_equal(f, "meshes[0].stiffness.type");
+
+    /* the planar quasi-static analysis (stiffness command) */
+    gs_scene *sc = vt_scene_parse(vt_scene("helical_pair"));
+    gs_stiffness_result r;
+    assert_int_not_equal(gs_stiffness_analyse(sc, 0, NULL, &r, &d), GS_OK);
+    print_message("# refused: %s: %s\n", d.field, d.message);
+    assert_string_equal(d.field, "bodies[0].helix_angle_deg");
+    gs_scene_free(&sc);
 }
 
 int main(void)
@@ -133,6 +171,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(lumped_balance),
         cmocka_unit_test(compliant_balance),
+        cmocka_unit_test(planetary_balance),
         cmocka_unit_test(refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
