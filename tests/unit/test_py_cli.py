@@ -70,6 +70,19 @@ class Layout(unittest.TestCase):
             other = os.path.join(t, "opt")
             touch(os.path.join(other, "share", "gearsim", "scenes", "pair.json"))
             self.assertEqual(paths.layout(pkg, [other])["scenes"], os.path.join(other, "share", "gearsim", "scenes"))
+            # the installation whose gearsimd is on PATH
+            pfx = os.path.join(t, "pfx")
+            touch(os.path.join(pfx, "share", "gearsim", "scenes", "pair.json"))
+            touch(os.path.join(pfx, "bin", "gearsimd"), "#!/bin/sh\n")
+            os.chmod(os.path.join(pfx, "bin", "gearsimd"), 0o755)
+            old = os.environ["PATH"]
+            os.environ["PATH"] = os.path.join(pfx, "bin") + os.pathsep + old
+            try:
+                d = paths.layout(pkg)
+            finally:
+                os.environ["PATH"] = old
+            self.assertEqual((d["scenes"], d["tools"]), (os.path.join(pfx, "share", "gearsim", "scenes"),
+                                                         os.path.join(pfx, "bin")))
 
 
 def parser_options():

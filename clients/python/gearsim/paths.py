@@ -5,8 +5,8 @@ Three layouts: the source checkout (clients/python/gearsim beside
 deploy/scenes and docs/tradeoff.csv, the tools in build/src/tools), a
 `meson install` prefix P (the package in P/lib/python3/dist-packages, the
 data in P/share/gearsim, the tools in P/bin), and a pip install (the package
-in some site-packages: the data of a meson install under /usr/local or /usr,
-the tools on PATH)."""
+in some site-packages: the data of the meson install whose gearsimd is on
+PATH, else under /usr/local or /usr; the tools on PATH)."""
 import os
 import shutil
 
@@ -30,9 +30,14 @@ def layout(pkg=PKG, extra_prefixes=()):
                 "table": os.path.join(root, "docs", "tradeoff.csv"),
                 "tools": os.path.join(root, "build", "src", "tools"),
                 "build": os.path.join(root, "build")}
-    # P/lib/python3/dist-packages/gearsim -> P; then other prefixes
+    # P/lib/python3/dist-packages/gearsim -> P; then the prefix of the
+    # gearsimd on PATH (a pip install beside a meson install), then others
     prefixes = [os.path.normpath(os.path.join(pkg, "..", "..", "..", ".."))]
-    prefixes += [os.path.normpath(p) for p in extra_prefixes] + ["/usr/local", "/usr"]
+    prefixes += [os.path.normpath(p) for p in extra_prefixes]
+    daemon = shutil.which("gearsimd")
+    if daemon:
+        prefixes.append(os.path.dirname(os.path.dirname(os.path.realpath(daemon))))
+    prefixes += ["/usr/local", "/usr"]
     for p in prefixes:
         share = os.path.join(p, "share", "gearsim")
         if os.path.isdir(os.path.join(share, "scenes")):
