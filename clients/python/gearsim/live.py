@@ -97,7 +97,7 @@ class LiveDisplay:
         daemon's last figure (None before either)."""
         if len(self._samples) >= 2:
             (t0, s0), (t1, s1) = self._samples[0], self._samples[-1]
-            if t1 - t0 > 0.05 and s1 > s0:
+            if t1 - t0 > 0.02 and s1 > s0:   # two of the daemon's chunks (about 10 ms each)
                 return (s1 - s0) / (t1 - t0)
         return self.steps_per_second
 
