@@ -15,6 +15,7 @@ import tempfile
 import time
 
 from . import advise as advice
+from . import plot
 from .client import Client
 from .connection import default_connection_file
 from .errors import GearsimError
@@ -28,6 +29,18 @@ USAGE = 2   # exit status of a usage error (argparse's too)
 def fail(msg, code=1):
     print(f"gearctl: error: {msg}", file=sys.stderr)
     return code
+
+
+def write_plot(draw, path, quiet=False):
+    """draw(path) (a gearsim.plot function bound to its data), then "wrote
+    PATH" unless quiet; a missing matplotlib is an error, not a traceback."""
+    try:
+        draw(path)
+    except ImportError as e:
+        return fail(f"matplotlib is not available: {e}")
+    if not quiet:
+        print(f"wrote {path}")
+    return 0
 
 
 def client(args):
@@ -180,13 +193,7 @@ def cmd_harris(args, tool, scene):
             f.write(harris_csv(out["rows"]))
     print(json.dumps(out) if args.json else harris_text(out, loads))
     if args.plot:
-        try:
-            from .plot import plot_harris
-            plot_harris(out, args.plot, relief_given=bool(reliefs))
-        except ImportError as e:
-            return fail(f"matplotlib is not available: {e}")
-        if not args.json:
-            print(f"wrote {args.plot}")
+        return write_plot(lambda p: plot.plot_harris(out, p, relief_given=bool(reliefs)), args.plot, args.json)
     return 0
 
 
@@ -212,13 +219,7 @@ def cmd_stiffness(args):
                                      out=args.out), "gearsim-stiffness")
     print(json.dumps(res) if args.json else stiffness_text(res))
     if args.plot:
-        try:
-            from .plot import plot_stiffness
-            plot_stiffness(res, args.plot)
-        except ImportError as e:
-            return fail(f"matplotlib is not available: {e}")
-        if not args.json:
-            print(f"wrote {args.plot}")
+        return write_plot(lambda p: plot.plot_stiffness(res, p), args.plot, args.json)
     return 0
 
 
@@ -231,13 +232,7 @@ def cmd_modal(args):
     res = run_modal(tool, scene)
     print(json.dumps(res) if args.json else modal_text(res))
     if args.plot:
-        try:
-            from .plot import plot_modes
-            plot_modes(res, args.plot)
-        except ImportError as e:
-            return fail(f"matplotlib is not available: {e}")
-        if not args.json:
-            print(f"wrote {args.plot}")
+        return write_plot(lambda p: plot.plot_modes(res, p), args.plot, args.json)
     return 0
 
 
@@ -286,10 +281,8 @@ def cmd_sweep(args):
         for x, y in peaks:
             print(peak_text(x, y, res["modes"]))
     if args.plot:
-        from .plot import plot_sweep
-        plot_sweep(res, ok_rows, xkey, args.plot, os.path.basename(args.scene))
-        if not args.json:
-            print(f"wrote {args.plot}")
+        return write_plot(lambda p: plot.plot_sweep(res, ok_rows, xkey, p, os.path.basename(args.scene)),
+                          args.plot, args.json)
     return 0
 
 
@@ -327,12 +320,7 @@ def cmd_bench(args):
                 f.write(r.stdout)
         print(r.stdout)
     if args.plot:
-        try:
-            from .plot import plot_tradeoff
-            plot_tradeoff(csv_path, args.plot)
-        except ImportError as e:
-            return fail(f"matplotlib is not available: {e}")
-        print(f"wrote {args.plot}")
+        return write_plot(lambda p: plot.plot_tradeoff(csv_path, p), args.plot)
     return 0
 
 
