@@ -43,6 +43,14 @@ def write_plot(draw, path, quiet=False):
     return 0
 
 
+def need_tool(name):
+    """The path of a gearsim-* tool; ToolError (exit 1) naming where it was looked for."""
+    tool = find_tool(name)
+    if not tool:
+        raise ToolError(tool_missing(name))
+    return tool
+
+
 def client(args):
     return Client(args.connection_file, timeout=args.timeout, curve_key=args.curve_key)
 
@@ -162,9 +170,7 @@ def cmd_plot(args):
 
 def cmd_mesh(args):
     scene = scene_file(args.scene)
-    tool = find_tool("gearsim-mesh")
-    if not tool:
-        return fail(tool_missing("gearsim-mesh"))
+    tool = need_tool("gearsim-mesh")
     with tempfile.TemporaryDirectory(prefix="gearctl-mesh-") as tmp:
         h5 = os.path.join(tmp, "mesh.h5")
         r = subprocess.run([tool, scene, "-o", h5], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -209,9 +215,7 @@ def cmd_stiffness(args):
     elif args.relief or args.table:
         return fail("--relief and --table belong to the Harris map: give --loads", USAGE)
     scene = scene_file(args.scene)
-    tool = find_tool("gearsim-stiffness")
-    if not tool:
-        return fail(tool_missing("gearsim-stiffness"))
+    tool = need_tool("gearsim-stiffness")
     if args.loads:
         return cmd_harris(args, tool, scene)
     res = run_json(stiffness_command(tool, scene, positions=args.positions, mesh=args.mesh, torque=args.torque,
@@ -226,9 +230,7 @@ def cmd_stiffness(args):
 def cmd_modal(args):
     from .modal import modal_text, run_modal
     scene = scene_file(args.scene)
-    tool = find_tool("gearsim-modal")
-    if not tool:
-        return fail(tool_missing("gearsim-modal"))
+    tool = need_tool("gearsim-modal")
     res = run_modal(tool, scene)
     print(json.dumps(res) if args.json else modal_text(res))
     if args.plot:
@@ -287,9 +289,7 @@ def cmd_sweep(args):
 
 
 def cmd_impact(args):
-    tool = find_tool("gearsim-impact")
-    if not tool:
-        return fail(tool_missing("gearsim-impact"))
+    tool = need_tool("gearsim-impact")
     r = subprocess.run([tool, args.case], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     if r.returncode != 0:
         return fail(f"gearsim-impact failed ({r.returncode}): {r.stderr.strip()}")
