@@ -6,14 +6,14 @@ and its error table):
 * commands: hello.commands (the command table of src/service/commands.c) =
   the `cmd` enum of proto/v1/request.json = its `allOf` dispatch =
   proto/v1/requests/*.json = proto/v1/results/*.json = the command tables
-  of proto/v1/README.md and docs/PROTOCOL.md = Client methods of the Python
+  of proto/v1/README.md and docs/reference/protocol.md = Client methods of the Python
   package (by name, where one exists);
 * limits: every hello.limits entry is in proto/v1/results/hello.json and
-  named in docs/PROTOCOL.md and proto/v1/README.md;
+  named in docs/reference/protocol.md and proto/v1/README.md;
 * builtin scenes: hello.builtin_scenes = deploy/scenes/*.json, each named in
-  README.md and docs/PROTOCOL.md mentions `hello.builtin_scenes`;
+  README.md and docs/reference/protocol.md mentions `hello.builtin_scenes`;
 * error codes: the wire codes of include/gearsim/error.h = the error_code
-  enum of proto/v1/common.json = the list in docs/PROTOCOL.md;
+  enum of proto/v1/common.json = the list in docs/reference/protocol.md;
 * options: every long option of `gearsimd --help` is in its man page and in
   docs/RELIABILITY.md or README.md; every gearctl command in gearctl(1) and
   clients/README.md."""
@@ -87,7 +87,7 @@ def main():
     for kind in ("requests", "results"):
         files = {os.path.splitext(os.path.basename(p))[0] for p in glob.glob(src("proto", "v1", kind, "*.json"))}
         R.check(f"proto/v1/{kind}/<cmd>.json for every command", files == cmds, diff(files, cmds))
-    for doc in (("proto", "v1", "README.md"), ("docs", "PROTOCOL.md")):
+    for doc in (("proto", "v1", "README.md"), ("docs", "reference", "protocol.md")):
         t = table_commands(read(*doc))
         R.check(f"{'/'.join(doc)}: command table = daemon commands", t == cmds, diff(t, cmds))
 
@@ -103,7 +103,7 @@ def main():
     schema = json.loads(read("proto", "v1", "results", "hello.json"))
     props = set(schema["properties"]["limits"]["properties"])
     R.check("results/hello.json documents every hello.limits entry", limits <= props, diff(limits, props))
-    for doc in (("docs", "PROTOCOL.md"), ("proto", "v1", "README.md")):
+    for doc in (("docs", "reference", "protocol.md"), ("proto", "v1", "README.md")):
         text = read(*doc)
         miss = sorted(k for k in limits if k not in text)
         R.check(f"{'/'.join(doc)} names every hello.limits entry", not miss, f"missing: {miss}")
@@ -114,7 +114,7 @@ def main():
     readme = read("README.md")
     miss = sorted(b for b in builtins if f"`{b}`" not in readme)
     R.check("README.md lists every builtin scene", not miss, f"missing: {miss}")
-    R.check("docs/PROTOCOL.md points at hello.builtin_scenes", "hello.builtin_scenes" in read("docs", "PROTOCOL.md"))
+    R.check("docs/reference/protocol.md points at hello.builtin_scenes", "hello.builtin_scenes" in read("docs", "reference", "protocol.md"))
 
     eh = read("include", "gearsim", "error.h")
     wire = set(re.findall(r'X\(GS_[A-Z0-9_]+,\s*"([a-z_]+)"', eh)) - NOT_ON_WIRE
@@ -122,10 +122,10 @@ def main():
     common = json.loads(read("proto", "v1", "common.json"))
     senum = set(common["$defs"]["error_code"]["enum"])
     R.check("common.json error_code enum = error.h wire codes", senum == wire, diff(senum, wire))
-    proto = read("docs", "PROTOCOL.md")
+    proto = read("docs", "reference", "protocol.md")
     m = re.search(r"Error codes:(.*?)\.\n", proto, re.S)
     listed = set(re.findall(r"`([a-z_]+)`", m.group(1))) if m else set()
-    R.check("docs/PROTOCOL.md error code list = error.h wire codes", listed == wire, diff(listed, wire))
+    R.check("docs/reference/protocol.md error code list = error.h wire codes", listed == wire, diff(listed, wire))
 
     r = subprocess.run([gearsimd_path(), "--help"], capture_output=True, text=True, timeout=60,
                        env=dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1"))
