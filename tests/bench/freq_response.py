@@ -13,7 +13,7 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
                                  [--contact closure_energy|closure|seed] [--coarse]
                                  [--settle S] [--min-measure S] [--min-cycles N]
                                  [--quick] [--no-run] [--plot docs/img/freq_response.png]
-                                 [--csv docs/freq_response.csv]
+                                 [--csv docs/data/freq_response.csv]
 
 The order-2 figures of docs/MODAL.md (default mesh): --order 2 --torque 80
 --damping 0.12 --settle 0.002 --min-measure 0.0012 for the lumped models

@@ -18,7 +18,7 @@ with one tooth pair in contact and with two or more.
 
   static_te_levels.py --scene deploy/scenes/planetary_contact.json \
       --mesh sun-planet1:6.6667 --mesh planet1-ring:-6.6667 \
-      --levels o2r0 o2s1.5 o2r1 --positions 192 --out docs/x.csv
+      --levels o2r0 o2s1.5 o2r1 --positions 192 --out docs/data/x.csv
 
 --mesh NAME:TORQUE (N m on the mesh's driver, signed). Runs one analysis
 at a time (nice); the tool is taken from --tool (default build's)."""
