@@ -117,12 +117,12 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o);
 /* The default counts of element order `order` (1 or 2; anything else: the
  * default order), refine 0. The one table of default counts (gear_mesh.c):
  * order 2 {flank 8, across 4, rim 2, grading 3} (38 060 unknowns for the
- * 20/30 pair of docs/CONVERGENCE.md), order 1 {flank 8, across 4, rim 3,
+ * 20/30 pair of docs/validation/calculix.md), order 1 {flank 8, across 4, rim 3,
  * grading 2} (the linear default before order 2 was: 11 224 unknowns). */
 void gs_gear_mesh_opts_for_order(gs_gear_mesh_opts *o, int order);
 
 /* The `fine` setting of the quasi-static analysis (gearsim-stiffness --fine;
- * docs/CONVERGENCE.md "Local refinement and the fine setting"): order 2
+ * docs/validation/calculix.md): order 2
  * {flank 8, across 4, rim 1, grading 3}, the 3 teeth centred on fine_centre
  * (the analysis puts it on the teeth in contact) 3 levels finer (their rim
  * band and fillets 2). The

@@ -206,7 +206,7 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  * (gs_step_compliance, packed k x k per two-phase body, zeros for the
  * others' so that a sum over ranks assembles them), and rank 0 places them
  * into its records (gs_step_compliance_unpack) before gs_step_solve. The
- * solution is bit for bit that of the whole blocks (docs/PERFORMANCE.md).
+ * solution is bit for bit that of the whole blocks (docs/performance/index.md).
  *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,

@@ -118,7 +118,7 @@ struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double
 /* cholmod_l_start with the project's settings: no printing, and CHOLMOD's
  * OpenMP regions (a fixed 4 threads in the supernodal factorisation, which
  * ignores OMP_NUM_THREADS) run on the calling thread alone: on a shared
- * machine the extra threads only spin and wait (docs/PERFORMANCE.md). */
+ * machine the extra threads only spin and wait (docs/performance/index.md). */
 void gsi_cholmod_start(struct cholmod_common_struct *c);
 /* calloc for the large arrays the step streams (CHOLMOD's, the model's K
  * and M): from 2 MiB on, aligned to and advised as transparent huge pages

@@ -1037,7 +1037,7 @@ static int smooth_poor(nodes_t *nb, const tris_t *tb, int iters, double thresh)
 /* The default element order and, per order, the default counts: the only
  * place they are written (the scene takes its defaults from here). Order 2
  * chosen by measurement against the CalculiX reference within 40 000
- * unknowns for the 20/30 pair (docs/CONVERGENCE.md "Default mesh"). */
+ * unknowns for the 20/30 pair (docs/validation/calculix.md). */
 #define GS_MESH_DEFAULT_ORDER 2
 static const gs_gear_mesh_opts default_counts[2] = {
     {.flank = 8, .across = 4, .rim = 3, .refine = 0, .grading = 2.0, .order = 1},
@@ -1056,7 +1056,7 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o)
     gs_gear_mesh_opts_for_order(o, GS_MESH_DEFAULT_ORDER);
 }
 
-/* Chosen by measurement against the CalculiX reference (docs/CONVERGENCE.md
+/* Chosen by measurement against the CalculiX reference (docs/validation/calculix.md
  * "Local refinement and the fine setting"). */
 void gs_gear_mesh_opts_fine(gs_gear_mesh_opts *o)
 {

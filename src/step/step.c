@@ -55,7 +55,7 @@ static void records(gs_system *sys, double *rec, bool all)
      * end-of-step passes between, while it is still in cache (two gears'
      * factors on one rank are about twice the share of L3 that one keeps;
      * in body order every step, each was evicted before its next solve;
-     * docs/PERFORMANCE.md, ninth pass). The bodies are independent here,
+     * docs/performance/index.md). The bodies are independent here,
      * so the records are the same bit for bit. */
     const bool back = sys->substeps & 1;
     for (int k = 0; k < sys->n_bodies; k++) {

@@ -79,7 +79,7 @@ static double body_weight(const gs_body_rt *br, const gs_scene_body *b)
  * index), each to the least loaded bin (ties: the lowest). Then the bins go
  * to ranks by increasing load (ties: the lower bin), so that rank 0, which
  * alone selects the contact rows and solves the QP, holds the lightest share
- * of the bodies (docs/PERFORMANCE.md, "Sixth pass"). Deterministic: the same
+ * of the bodies (docs/performance/index.md). Deterministic: the same
  * scene and rank count give the same map. */
 static void assign_owners(gs_system *s)
 {

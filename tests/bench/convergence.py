@@ -1,10 +1,10 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Mesh convergence study of the quasi-static mesh stiffness and static TE
-(docs/CONVERGENCE.md): runs gearsim-stiffness on a scene for element orders
+(docs/validation/data.md): runs gearsim-stiffness on a scene for element orders
 1 and 2 at several uniform refinements, extrapolates each roll position to
 the Richardson limit from the two finest levels of each order, and writes a
-CSV of every run and the markdown tables of docs/CONVERGENCE.md.
+CSV of every run and the markdown tables of docs/validation/data.md.
 
     convergence.py SCENE.json --tool build/src/tools/gearsim-stiffness
                    [--positions 12] [--order1 0 1 2] [--order2 0 1]

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * One run of the dynamic convergence study (docs/CONVERGENCE.md "Dynamic
- * convergence (issue 15)"; driven by tests/bench/dyn_convergence.py): a
+ * One run of the dynamic convergence study (docs/validation/data.md; driven by
+ * tests/bench/dyn_convergence.py): a
  * scene with `contact` meshes (a builtin name or a file) at one time step,
  * mesh level, contact treatment and material damping, run from rest to
  * --to; over the whole cycles of the first mesh from --from on it prints

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * Dynamic TE at low speed against the quasi-static TE (docs/CONVERGENCE.md
- * "Dynamic TE at low speed"): runs a scene with one `contact` mesh from its
+ * Dynamic TE at low speed against the quasi-static TE (docs/validation/lowspeed.md):
+ * runs a scene with one `contact` mesh from its
  * start and records the kinematic TE a . q - s_ref of its first mesh every
  * step; over the whole mesh cycles (counted on the mesh phase c . q) that
  * lie in [--from, --to] seconds it prints the

@@ -158,7 +158,7 @@ def main():
 
 def measured_table():
     """The measured table itself (docs/data/tradeoff.csv, regenerated against the
-    converged references of docs/CONVERGENCE.md): per scene one reference
+    converged references of docs/validation/calculix.md): per scene one reference
     row, a damped closure_energy elastic row on a mesh finer than the
     default (the converged setting: reduced bodies, refine or counts scale
     above the default); every other row's errors are its figures against

@@ -180,7 +180,7 @@ static void local_area(void **state)
 }
 
 /* The `fine` setting (gs_gear_mesh_opts_fine) on the 20/30 pair: its size
- * (the 144 832 unknowns of docs/CONVERGENCE.md), about the uniform refine 1
+ * (the 144 832 unknowns of docs/validation/calculix.md), about the uniform refine 1
  * of the same counts, while its fine teeth have the flanks of refine 3 (2.4
  * million unknowns uniformly). */
 static void fine_setting_size(void **state)

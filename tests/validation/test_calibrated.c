@@ -30,7 +30,7 @@
  *    stiffness) by less than 15%; the spectral peaks printed;
  *  - the secant calibration, run alongside, is printed for comparison;
  * and the wall-time ratio of the two runs is printed, not asserted: speed is
- * the benchmarks' business (bench_tradeoff, docs/PERFORMANCE.md).
+ * the benchmarks' business (bench_tradeoff, docs/performance/index.md).
  * On the default quadratic mesh; linear triangles (mesh.order 1) under
  * GEARSIM_LONG=1. */
 #include <setjmp.h>

@@ -221,7 +221,7 @@ static void placement_independent(void **state)
     gs_scene_free(&s1);
 }
 
-/* Curved quadratic elements on the default density (docs/CONVERGENCE.md):
+/* Curved quadratic elements on the default density (docs/validation/calculix.md):
  * the no-load closing te0 of perfect involutes (zero in the limit, here the
  * sag of the flank polylines) falls by more than half, the mesh stiffness
  * in double contact scatters less from one position to the next (the

@@ -19,7 +19,7 @@ Asserted (bars measured when written, in the comments; each can fail):
 * the setting is local: fewer than FRACTION_OF_R2 of the unknowns of the
   uniform refine 2 of the default counts (606 304), the cheapest uniform
   level near this accuracy (1.8 % off at the transitions,
-  docs/PERFORMANCE.md "Equal accuracy against CalculiX").
+  docs/performance/index.md).
 """
 import os
 import sys

@@ -38,7 +38,7 @@ Asserted (bars are named constants; each can fail):
 With the correction, issue 14's targets on the default mesh (k and TE within
 TARGET_POS = 2 % at every position, cycle and single-contact means within
 TARGET_MEAN = 1 %) are met and asserted (BAR_K_O2_NF, BAR_TE_O2_NF are
-TARGET_POS): docs/CONVERGENCE.md "Near-field correction, fourth revision".
+TARGET_POS): docs/validation/calculix.md.
 """
 import os
 import sys
@@ -74,7 +74,7 @@ TARGET_POS = 0.02
 TARGET_MEAN = 0.01
 # The near-field correction as revised in issue 14, fourth revision (tip
 # corners located on the line of action, the truncated-contact law there;
-# docs/CONVERGENCE.md "Near-field correction, fourth revision"), in brackets
+# docs/validation/calculix.md), in brackets
 # the third revision's figure and the previous ones':
 BAR_K_O2_NF = TARGET_POS   # |k error| per position, near-field (1.56%; 3.01%; 3.29%; 4.7%)
 BAR_TE_O2_NF = TARGET_POS  # |TE error| per position, near-field (1.54%; 2.92%; 3.18%; 4.5%)
