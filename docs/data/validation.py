@@ -48,12 +48,12 @@ COMMANDS = {
 }
 # Relative and absolute tolerance of a number when a rerun is checked.
 TOLERANCE = {"calculix": (1e-3, 0.02), "iso6336": (1e-3, 0.0), "hertz": (1e-4, 0.002),
-             "lin_parker": (1e-6, 1e-12), "impact": (0.0, 0.0), "seed": (0.02, 1e-11),
+             "lin_parker": (1e-6, 1e-12), "impact": (0.0, 0.0), "seed": (1e-3, 1e-11),
              "lowspeed": (1e-3, 0.02), "modes": (1e-3, 0.0)}
 CHEAP = ["calculix", "iso6336", "hertz", "lin_parker", "impact", "seed", "lowspeed", "modes"]
 
 
-def run(cmd):
+def run(cmd, check=True):
     env = dict(os.environ, GEARSIM_BUILD_ROOT=BUILD, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     env.pop("CMOCKA_MESSAGE_OUTPUT", None)  # the tests' own messages, as a user running them sees them
     argv = shlex.split(cmd)
@@ -64,7 +64,7 @@ def run(cmd):
     if argv[0].endswith("compare.py"):
         argv[2:2] = ["--build", BUILD]
     r = subprocess.run(argv, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if r.returncode != 0:
+    if r.returncode != 0 and check:
         raise RuntimeError("%s: exit %d\n%s" % (cmd, r.returncode, r.stdout[-3000:]))
     return r.stdout
 
@@ -141,7 +141,7 @@ def fig_hertz():
 def fig_lin_parker():
     head = ["planets N", "rotational (Hz, single)", "translational (Hz, double)", "planet (Hz, N - 3 each)",
             "largest relative difference from the paper's model"]
-    independent = run(COMMANDS["lin_parker"][3])
+    independent = run(COMMANDS["lin_parker"][3], check=False)  # its comparison lines decide, not its daemon checks
     rows = []
     for n, cmd in zip((3, 4, 5), COMMANDS["lin_parker"]):
         g = json.loads(run(cmd))["groups"]
@@ -198,8 +198,18 @@ def fig_seed():
     rate = re.search(r"rate over two decades ([\d.]+)", out)
     for h, p in pen:
         rows.append(["7.1 impacts, first 0.2 ms", "max penetration at h %s s (m)" % h, "%.3e" % float(p), "", ""])
-    if rate:
-        rows.append(["7.1 impacts, first 0.2 ms", "order of penetration in h", rate.group(1), "1", "METHOD.md"])
+    if not rate or len(pen) != 3:
+        raise RuntimeError("vtest_contact_pair printed no penetration study")
+    rows.append(["7.1 impacts, first 0.2 ms", "order of penetration in h", rate.group(1), "1",
+                 "the scheme's order"])
+    f = re.search(r"friction ([\d.]+), [^:]*: balance ([\d.e+-]+) of ([\d.e+-]+) J; .*?mesh efficiency "
+                  r"([\d.]+)% \(ISO/TR 14179: H_v ([\d.]+), ([\d.]+)%\)", out)
+    if not f:
+        raise RuntimeError("vtest_contact_pair printed no friction run")
+    rows.append(["7.2 drive, friction %s" % f.group(1), "mesh efficiency, 30-60 ms", f.group(4) + " %",
+                 f.group(6) + " %", "ISO/TR 14179, loss factor H_v %s" % f.group(5)])
+    rows.append(["7.2 drive, friction %s" % f.group(1), "energy balance residual / energy",
+                 "%.1e" % (float(f.group(2)) / float(f.group(3))), "0", "energy balance"])
     return head, rows
 
 
@@ -392,7 +402,12 @@ def main(argv):
         if mode == "plot":
             plot(n, *read(n))
             continue
-        head, rows = FIGURES[n]()
+        try:
+            head, rows = FIGURES[n]()
+        except (OSError, RuntimeError, ValueError, KeyError) as e:
+            print("FAIL: %s\n    %s" % (n, str(e).replace("\n", "\n    ")))
+            failed += 1
+            continue
         if mode == "write":
             write(n, head, rows)
             print("wrote", os.path.relpath(csv_path(n), ROOT))
