@@ -224,7 +224,7 @@ def main():
         if f.endswith((".c", ".h", ".py", ".sh", ".md", ".json", ".build", ".1", ".slurm", ".conf", ".service")) \
                 or os.path.basename(f) == "gearctl":
             with open(os.path.join(root, f), errors="replace") as fh:
-                for m in re.finditer(r"\bdocs/[A-Za-z0-9_./-]+\.md\b", fh.read()):
+                for m in re.finditer(r"\bdocs/[A-Za-z][A-Za-z0-9_./-]*\.md\b", fh.read()):
                     named.setdefault(m.group(0), []).append(f)
     missing = {p: sorted(set(w))[:5] for p, w in named.items() if not os.path.isfile(os.path.join(root, p))}
     R.check("every docs/*.md path named in the repository exists", not missing,

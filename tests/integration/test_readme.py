@@ -378,8 +378,20 @@ def break_copy(tree):
     return want
 
 
+def toctree_docs(d):
+    """The pages of directory d (relative to the source) in the order of the
+    toctree of its index.md."""
+    with open(os.path.join(SOURCE_ROOT, d, "index.md")) as f:
+        m = re.search(r"```\{toctree\}\n(.*?)```", f.read(), re.S)
+    names = [ln.strip() for ln in (m.group(1) if m else "").splitlines()
+             if ln.strip() and not ln.strip().startswith(":")]
+    return [os.path.join(d, n + ".md") for n in names]
+
+
 def run_tutorials(docs):
+    docs = [p for d in docs for p in (toctree_docs(d) if os.path.isdir(os.path.join(SOURCE_ROOT, d)) else [d])]
     R = Results("tutorials run as typed: " + " ".join(docs))
+    R.check("documents to run", len(docs) > 0, docs)
     with scratch_dir("gearsim-tutorials-") as tmp:
         tree = copy_tree(tmp)
         missing = [d for d in docs if not os.path.isfile(os.path.join(tree, d))]
