@@ -84,7 +84,7 @@ void gs_mesh_free(gs_mesh **m);
 gs_err gs_mesh_rectangle(double lx, double ly, int nx, int ny, gs_mesh **out);
 
 /* ------------------------------------------------------------------------ */
-/* Gear meshes (docs/GEOMETRY.md: layout, grading, refinement)              */
+/* Gear meshes (docs/explanation/geometry.md: layout, grading, refinement)              */
 /* ------------------------------------------------------------------------ */
 
 typedef struct gs_gear_mesh_opts {
@@ -97,7 +97,7 @@ typedef struct gs_gear_mesh_opts {
                       * under the teeth (smallest at the root); 1 = uniform; 1..8 */
     int order;       /* element order: 1 linear (CST), 2 quadratic 6-node triangles with
                       * curved boundary edges (scene mesh.order) */
-    /* Local refinement (docs/GEOMETRY.md "Local refinement"; 0 = none): the
+    /* Local refinement (docs/explanation/geometry.md "Local refinement"; 0 = none): the
      * teeth of the fine_teeth sectors centred on tooth fine_centre are meshed
      * fine_refine levels finer than `refine` (rim band and fillets under
      * them one level less, the sectors beside them graded one level per tooth),

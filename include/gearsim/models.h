@@ -100,7 +100,7 @@ typedef struct gs_gmesh_ops {
 } gs_gmesh_ops;
 
 /* A compliant support (joint) with a potential and a damper on rigid
- * coordinates (docs/MODAL.md): the `bearing` joint holds a body's centre
+ * coordinates (docs/explanation/modal.md): the `bearing` joint holds a body's centre
  * displacement (x, y) with an isotropic radial spring and damper and its
  * rotation with a torsional one. Its force is the discrete gradient of its
  * potential between q0 and q0 + dq (exact: V(q1) - V(q0) = g . dq) plus the

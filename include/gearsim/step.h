@@ -42,7 +42,7 @@ struct gs_gmesh_rt {
     double s_pin;            /* lumped meshes: deflection the planets' pin errors set at the
                               * initial state, along the line of action (m) */
     /* Translations along the true line of action (bodies on bearing joints,
-     * docs/MODAL.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
+     * docs/explanation/modal.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
      * centre displacement of gear k (coordinates tr_coord[k], tr_coord[k]+1),
      * n_k = R(q[tr_carrier]) tr_n0[k] when a gear rides on a carrier (the
      * line turns with it), tr_n0[k] otherwise. abar: scratch, n_coords. */
@@ -56,7 +56,7 @@ struct gs_gmesh_rt {
     double tr_off[2][2], tr_c[2];
     int tr_carrier;          /* carrier coordinate, -1 none */
     double *abar;
-    /* Tooth errors of lumped meshes (docs/GEOMETRY.md): s gains
+    /* Tooth errors of lumped meshes (docs/explanation/geometry.md): s gains
      * E(q) = sum_k E_k(v_k), v_k = theta_k - theta_C the angle of gear k in
      * the carrier's frame (housing: theta_C = 0). err[k]: coord / carrier
      * coordinates (-1 none), teeth z, beta the direction to the other gear,
@@ -256,7 +256,7 @@ static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
     return (size_t)(s->n_coords + 1 + s->n_meshes + GS_SOL_CONTACT * m);
 }
 
-/* Limits of the scene's numerics against the current state (docs/STABILITY.md):
+/* Limits of the scene's numerics against the current state (docs/explanation/stability.md):
  *  - the rigid state and the mesh forces are finite;
  *  - contact meshes: the approach speed along the line of action times h,
  *    and the deepest penetration of the last step, stay within 0.1 module
@@ -286,7 +286,7 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf);
  * so that every rank sums identically) as dissipated, after the step's
  * energy report has been adopted. */
 void gs_system_book_damping(gs_system *sys);
-/* numerics.contact "closure_energy" (docs/CONTACT.md): after the step's
+/* numerics.contact "closure_energy" (docs/explanation/contact.md): after the step's
  * energy report has been adopted, give the work of each contact mesh's
  * reactions in the step (sol's contact figures) back as a velocity update
  * of its gears' rotations along the reactions' moments (an impulse pair

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: quasi-static mesh stiffness and static transmission error of a
  * gear pair with elastic FE bodies and frictionless contact
- * (docs/STIFFNESS.md; METHOD.md sections 1, 3, 5 and 7 rung 3).
+ * (docs/explanation/stiffness.md; METHOD.md sections 1, 3, 5 and 7 rung 3).
  *
  * The pair of a scene mesh is rolled slowly through one mesh cycle (no
  * inertia). At each of N roll positions the driver (gear 0 of the mesh unless
@@ -62,7 +62,7 @@ typedef struct gs_stiffness_opts {
     int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
                         * for both gears */
     int nearfield;     /* 2 (default, auto): near-field (Hertz) correction of the contact
-                        * compliance (docs/STIFFNESS.md "Near-field correction") when both
+                        * compliance (docs/explanation/stiffness.md "Near-field correction") when both
                         * gears have quadratic elements and neither has flank modifications
                         * or pitch errors, else the plain FE; 1: the
                         * correction on any mesh; 0: the plain FE contact (what the dynamic
@@ -74,10 +74,10 @@ typedef struct gs_stiffness_opts {
                         * of them rounded up to odd; replaces the scene's mesh density, refine
                         * and order) */
     int all_rows;      /* 0 (default): the contact QP takes the rows within a window of the
-                        * contact, checked at the solution (docs/STIFFNESS.md "Contact
+                        * contact, checked at the solution (docs/explanation/stiffness.md "Contact
                         * window"); 1: every closing row of the search (the reference) */
     int all_dofs;      /* 0 (default): the displacements for the contact search only at the
-                        * teeth it reads, by partial back substitutions (docs/STIFFNESS.md
+                        * teeth it reads, by partial back substitutions (docs/explanation/stiffness.md
                         * "Displacement zone"); 1: at every boundary dof (the reference) */
 } gs_stiffness_opts;
 
@@ -210,11 +210,11 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
 
 /* The result as a JSON object (owned by the caller, json_object_put): the
  * document `gearsim-stiffness --json` prints and the service's `stiffness`
- * command returns (docs/STIFFNESS.md). s is the analysed scene. */
+ * command returns (docs/explanation/stiffness.md). s is the analysed scene. */
 struct json_object;
 struct json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s);
 
-/* Near-field correction (docs/STIFFNESS.md "Near-field correction"): the
+/* Near-field correction (docs/explanation/stiffness.md "Near-field correction"): the
  * Hertzian line contact of two cylinders, per unit length.
  *
  * gs_hertz_line_modulus: the contact modulus E* of two bodies, 1/E* =
@@ -236,7 +236,7 @@ double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, dou
 
 /* The smallest gap between two smooth flanks from three samples of it
  * along their common tangent (the contact rows of the nodes nearest the
- * contact and their neighbours, docs/STIFFNESS.md "Near-field correction"):
+ * contact and their neighbours, docs/explanation/stiffness.md "Near-field correction"):
  * the parabola g(s) = g_m + B s + C s^2 through (s_l, g_l), (0, g_m),
  * (s_h, g_h), s_l < 0 < s_h; its vertex s_v = -B / (2 C) in *s_v and
  * g_0 = g_m - B^2 / (4 C) in *g0. Returns 1 when the parabola is convex
@@ -246,7 +246,7 @@ int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, d
                    double *g0);
 
 /* Near-field law of a line contact next to a sharp tip corner
- * (docs/STIFFNESS.md "Tip-corner contact"): x along the common tangent from
+ * (docs/explanation/stiffness.md "Tip-corner contact"): x along the common tangent from
  * the corner into the corner body's flank, rigid gap (x - xv)^2 / (2 R)
  * (xv > 0: the flanks' touching point inside the flank; xv < 0: beyond the
  * corner, whose flank face then leaves the other flank at -xv / R).

@@ -16,7 +16,7 @@ typedef struct gsi_fe_props {
 } gsi_fe_props;
 
 /* An element type: the operations the model needs. Nodes in the mesh's
- * order (corners, then mid-side nodes for quadratic elements; docs/FE.md).
+ * order (corners, then mid-side nodes for quadratic elements; docs/explanation/elastic_body.md).
  * matrices: stiffness ke (2 nn x 2 nn, row-major, dofs x1 y1 x2 y2 ...,
  *   thickness t included), consistent mass me (nn x nn per direction, rho t
  *   included) and the mass properties; GS_EGEOMETRY for an inverted or

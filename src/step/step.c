@@ -511,7 +511,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
 
 /* numerics.contact "closure_energy": the closure's rows close the gap, so
  * their reactions do the work W = lambda^T G x in the step (the contact
- * nodes' inelastic share at a contact onset, docs/CONTACT.md). It is given
+ * nodes' inelastic share at a contact onset, docs/explanation/contact.md). It is given
  * back, exactly, as a velocity update of the mesh's two gears (Laursen and
  * Love's velocity update, here restricted to the rigid rotations): an
  * impulse P along the reactions' moments v_k = sum_r lambda_r G_r,theta_k

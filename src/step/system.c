@@ -414,7 +414,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes "
                       "yet (the contact step has no translations)";
         if (why) {
-            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
+            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/explanation/modal.md)", sb->name, why);
             gs_scene_free(&scene);
             free(s);
             return GS_ERANGE;

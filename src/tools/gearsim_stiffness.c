@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim-stiffness: quasi-static mesh stiffness and static transmission
  * error of one gear mesh of a scene over one mesh cycle
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
@@ -13,7 +13,7 @@
  * 200 N/mm line load; --refine to the scene's mesh density; --driver to
  * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
- * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
+ * docs/explanation/stiffness.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. The near-field (Hertz)
  * correction of the contact compliance is on by default when both gears
  * have quadratic elements (the default mesh; linear triangles keep the plain

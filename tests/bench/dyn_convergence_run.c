@@ -206,7 +206,7 @@ int main(int argc, char **argv)
             json_object_object_add(m, "across", json_object_new_int(across));
             json_object_object_add(m, "rim", json_object_new_int(rim));
         }
-        if (fmax > 0) /* the reduced body (docs/FE.md "Reduced elastic body") */
+        if (fmax > 0) /* the reduced body (docs/explanation/elastic_body.md "Reduced elastic body") */
             json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
         if (fmax > 0 && residual)
             json_object_object_add(tj_child(b, "reduction"), "residual", json_object_new_string(residual));

@@ -9,7 +9,7 @@
  * The CSV also has per step the TE's rate a . w (m/s), the mesh force (N),
  * the loaded and all contact rows and the deepest penetration (m); the JSON
  * the share of the window's steps with no loaded row ("apart": the teeth
- * separated; docs/STIFFNESS.md "A non-rattling FE reference run").
+ * separated; docs/explanation/stiffness.md "A non-rattling FE reference run").
  * The dynamic TE includes the no-load closing of the flanks (backlash and
  * chord sag, `te0` of gearsim-stiffness): subtract its mean to compare the
  * mean with the static TE.

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The `fine` setting of the quasi-static analysis (gearsim-stiffness --fine:
-the teeth in contact meshed three levels finer than the rest, docs/GEOMETRY.md
+the teeth in contact meshed three levels finer than the rest, docs/explanation/geometry.md
 "Local refinement") against the stored CalculiX reference of the steel 20/30
 pair (tests/reference/stiffness_30_20; the reference code is never run here),
 at all 12 reference positions, transitions included (about 10 s CPU).

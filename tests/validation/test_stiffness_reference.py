@@ -60,8 +60,8 @@ BAR_K_O1 = 0.25            # |k / k_ref - 1| per position (20.7%)
 BAR_TE_O1 = 0.25           # |TE / TE_ref - 1| per position (17.2%)
 BAR_SINGLE_O1 = 0.25       # single-contact mean k error (> 0 asserted; +16.4%)
 # The default mesh (order 2 {8, 4, 2, 3}, 38 060 unknowns), gaps to the
-# parabolic edges (docs/CONTACT.md "Quadratic edges"), and the near-field
-# correction (--nearfield, docs/STIFFNESS.md "Near-field correction");
+# parabolic edges (docs/explanation/contact.md "Quadratic edges"), and the near-field
+# correction (--nearfield, docs/explanation/stiffness.md "Near-field correction");
 # measured on the merged main, in brackets with the chord gap:
 BAR_K_O2 = 0.115           # |k error| per position, plain FE (10.3%; 11.6%)
 BAR_TE_O2 = 0.105          # |TE error| per position, plain FE (9.4%; 10.4%)
