@@ -93,13 +93,15 @@ typedef struct gs_stiffness_point {
     double angle_rad;     /* driver's kinematic rotation from the first position, rad
                            * (in the torque direction) */
     double delta_rad;     /* driver's loaded rotation beyond its kinematic angle (signed) */
-    double te_um;         /* te_raw - te0 (header) */
+    double te_um;         /* te_raw - te0 (header): the elastic part of the TE, output as
+                           * te_elastic_um (and, for one release, te_um) */
     double te_raw_um;
     double te0_um;
     double te_ref_um;     /* r_b1 s delta_ref: the no-load closing of the perfect gears (the
                            * same meshes without modifications and tooth errors); te0 when
                            * neither gear is modified */
-    double te_loaded_um;  /* te_raw - te_ref: the loaded static TE including the geometric
+    double te_loaded_um;  /* te_raw - te_ref: the loaded static TE (the analysis' main output,
+                           * te_loaded_um in JSON and HDF5) including the geometric
                            * TE of the modifications (the Harris map's quantity); te when
                            * neither gear is modified */
     double k;             /* F / te / b, N/(mm um) */
@@ -198,12 +200,16 @@ const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k);
 void gs_stiffness_result_clear(gs_stiffness_result *r);
 
 /* Write the result to an HDF5 file (created or truncated): group /stiffness
- * with datasets roll, angle_deg, te_um, te_raw_um, te0_um, k, te_half_um,
- * k_tan (doubles, one per position), pairs (int), pair_tooth (positions x
+ * with datasets roll, angle_deg, te_elastic_um, te_raw_um, te0_um, k,
+ * te_half_um, k_tan, te_ref_um, te_loaded_um (doubles, one per position; te_um
+ * a soft link to te_elastic_um, its former name, for one release), pairs
+ * (int), pair_tooth (positions x
  * GS_STIFF_MAX_PAIRS x 2 ints, -1 when unused), pair_force_n (positions x
  * GS_STIFF_MAX_PAIRS); attributes scene (the scene JSON, sc may be NULL),
  * mesh, driver, torque_nm, force_n, face_width_mm, base_radius_m,
- * contact_ratio, k_min, k_mean, k_max, te_min, te_mean, te_max.
+ * contact_ratio, k_min, k_mean, k_max, te_loaded_min/mean/max (the loaded
+ * static TE), te_elastic_min/mean/max (and their former names te_min,
+ * te_mean, te_max, for one release).
  * Errors: GS_EINVAL, GS_EIO (d names "out"). */
 gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stiffness_result *r,
                              gs_diag *d);

@@ -65,6 +65,55 @@ def diff(a, b):
     return f"only in first: {sorted(set(a) - set(b))}; only in second: {sorted(set(b) - set(a))}"
 
 
+# The stiffness analysis' outputs: the loaded static TE is te_loaded_um (JSON
+# and HDF5 datasets, te_loaded_* HDF5 attributes and CSV columns), its elastic
+# part te_elastic_um; te_um is the elastic part's former name, kept for one
+# release as an equal alias (JSON key, HDF5 soft link, te_min/mean/max attrs).
+TE_NAMES = ("te_loaded_um", "te_elastic_um")
+TE_ALIAS = "te_um"
+
+
+def names_check(R, r, rr, h5):
+    """The TE names in the daemon's stiffness result, its HDF5 file, the
+    result schema and the outputs page."""
+    pts = r.get("points", [])
+    R.check("stiffness result: te_loaded_um and te_elastic_um per point and as ranges",
+            all(n in r and all(n in p for p in pts) for n in TE_NAMES), sorted(r))
+    R.check("stiffness result: te_um is an equal alias of te_elastic_um (points and range)",
+            r.get(TE_ALIAS) == r.get("te_elastic_um")
+            and all(p.get(TE_ALIAS) == p.get("te_elastic_um") for p in pts), r.get(TE_ALIAS))
+    R.check("stiffness result of an unmodified pair: the loaded static TE equals its elastic part",
+            r.get("modified") is False and all(p["te_loaded_um"] == p["te_elastic_um"] for p in pts), pts)
+    try:
+        import h5py
+        with h5py.File(h5, "r") as f:
+            g = f["stiffness"]
+            link = g.get(TE_ALIAS, getlink=True)
+            R.check("stiffness HDF5: datasets te_loaded_um, te_elastic_um; te_um a soft link to te_elastic_um",
+                    all(n in g for n in TE_NAMES) and isinstance(link, h5py.SoftLink)
+                    and link.path == "te_elastic_um" and list(g[TE_ALIAS][()]) == list(g["te_elastic_um"][()]),
+                    sorted(g))
+            want = [f"te_{w}_{s}" for w in ("loaded", "elastic") for s in ("min", "mean", "max")]
+            R.check("stiffness HDF5: attributes te_loaded_min/mean/max, te_elastic_min/mean/max and the "
+                    "former te_min/mean/max equal to te_elastic_*",
+                    all(a in g.attrs for a in want)
+                    and all(g.attrs[f"te_{s}"] == g.attrs[f"te_elastic_{s}"] for s in ("min", "mean", "max")),
+                    sorted(g.attrs))
+    except ImportError:
+        R.skip("stiffness HDF5 names", "python3-h5py is not installed")
+    R.check("stiffness with path: the same TE names", all(n in rr for n in TE_NAMES), sorted(rr))
+    schema = json.loads(read("proto", "v1", "results", "stiffness.json"))
+    props = schema["properties"]
+    item = props["points"]["items"]["properties"]
+    R.check("results/stiffness.json: te_loaded_um, te_elastic_um documented (points and ranges), te_um "
+            "described as the former name", all(n in props and n in item for n in TE_NAMES)
+            and "former name" in item[TE_ALIAS].get("description", "")
+            and "former name" in props[TE_ALIAS].get("description", ""), sorted(item))
+    outputs = read("docs", "reference", "outputs.md")
+    R.check("docs/reference/outputs.md names te_loaded_um, te_elastic_um and te_um as their alias",
+            all(f"`{n}`" in outputs for n in TE_NAMES + (TE_ALIAS,)) and "alias" in outputs)
+
+
 def main():
     R = Results("docs and schemas against the daemon's hello, command table and error table")
     with Daemon(ranks=1) as d:
@@ -74,8 +123,11 @@ def main():
             c.load(builtin="stiffness_pair")
             mesh = c.state()["meshes"][0]["name"]
             r = c.stiffness(mesh, positions=2)
+            rr = c.stiffness(mesh, positions=2, path="names.h5")
         R.check("Client.stiffness returns the schema's result", r.get("positions") == 2 and len(r.get("points", [])) == 2
                 and 0 < r["k"]["min"] <= r["k"]["max"], r)
+        h5 = os.path.join(d.dir, "names.h5")
+        names_check(R, r, rr, h5)
     cmds = set(hello["commands"])
     R.check("hello lists commands", len(cmds) > 10, hello.get("commands"))
 
