@@ -56,6 +56,7 @@ CHEAP = ["calculix", "iso6336", "hertz", "lin_parker", "impact", "seed", "lowspe
 def run(cmd, check=True):
     env = dict(os.environ, GEARSIM_BUILD_ROOT=BUILD, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     env.pop("CMOCKA_MESSAGE_OUTPUT", None)  # the tests' own messages, as a user running them sees them
+    env.pop("GEARSIM_LONG", None)  # the commands as the pages give them, not the tests' long modes
     argv = shlex.split(cmd)
     if argv[0].startswith("build/"):
         argv[0] = os.path.join(BUILD, argv[0][len("build/"):])
