@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: conforming linear-triangle meshes of the elastic part of a gear
- * (docs/GEOMETRY.md, "Meshes").
+ * (docs/explanation/geometry.md, "Meshes").
  *
  * One tooth sector (from the middle of one space to the middle of the next)
  * is meshed once, in the frame of tooth 0, as four blocks, each filled row
