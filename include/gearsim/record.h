@@ -10,7 +10,7 @@
  * Rows are buffered and appended at gs_record_flush(); everything flushed is
  * on disk (H5Fflush) and readable by a serial reader. Not collective.
  *
- * Field snapshots of elastic bodies (docs/RECORD.md, "Field snapshots"); only
+ * Field snapshots of elastic bodies (docs/reference/hdf5.md, "Field snapshots"); only
  * present after gs_record_add_meshes(), a record without them is laid out
  * exactly as above. For body <name> (T = frames written, n = nodes):
  *   /bodies        attr names (JSON list, in the order given to add_meshes)
@@ -38,7 +38,7 @@
  * or before that time). It is rewritten atomically (tmp + rename) by
  * add_meshes, gs_record_flush and gs_record_close, and lists only flushed
  * frames. ParaView 5.11: open it with the "XDMF Reader"; its Xdmf3 readers
- * cannot read a HyperSlab geometry (docs/RECORD.md). */
+ * cannot read a HyperSlab geometry (docs/reference/hdf5.md). */
 #ifndef GEARSIM_RECORD_H
 #define GEARSIM_RECORD_H
 

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim: parameter sweeps (src/sweep, docs/MODAL.md "Sweeps").
+ * gearsim: parameter sweeps (src/sweep, docs/explanation/modal.md "Sweeps").
  *
  * A sweep is a scene and one to four parameters, each a list of values:
  * `driver_rpm` (the driver's speed; every point then starts in steady state

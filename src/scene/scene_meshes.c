@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing (scene.c, docs/SCENE.md): gear meshes (model, stiffness,
+ * Scene parsing (scene.c, docs/reference/scene.md): gear meshes (model, stiffness,
  * damping, contact and impact settings) and loads. */
 #include <math.h>
 #include <stdio.h>
@@ -125,7 +125,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     }
     if (m->model == GS_MESH_COMPLIANT) {
         /* Rigid gears, tooth pairs through the compliant patch model
-         * (docs/IMPACT.md "The compliant mesh"): no stiffness to give. */
+         * (docs/explanation/impact.md "The compliant mesh"): no stiffness to give. */
         if (json_object_object_get_ex(o, "stiffness", NULL)) {
             gsi_path(p, sizeof p, path, "stiffness");
             return gs_diag_set(d, GS_ESCHEMA, p,
@@ -168,7 +168,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
             m->stiffness_type = (gs_stiffness_type)ty;
             if (ty == GS_STIFF_CALIBRATED) {
                 /* From the quasi-static FE analysis of the pair at load
-                 * (docs/STIFFNESS.md), at the gears' scene mesh density. */
+                 * (docs/explanation/stiffness.md), at the gears' scene mesh density. */
                 int64_t np;
                 GS_TRY(gsi_json_int(st, "positions", p, 4, 720, false, 24, &np, d));
                 m->calibrate_positions = (int)np;

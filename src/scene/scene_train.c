@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing (scene.c, docs/SCENE.md): the `fidelity` switch and the
+ * Scene parsing (scene.c, docs/reference/scene.md): the `fidelity` switch and the
  * `train` shorthand expanded into bodies, joints and meshes. */
 #include <math.h>
 #include <stdio.h>
@@ -91,7 +91,7 @@ static json_object *train_gear(json_object *tr, const char *key, const char *nam
 }
 
 /* `train: {type: "planetary", ...}` expands into bodies, joints and meshes
- * (docs/SCENE.md): sun, planets on a carrier at the tight-mesh centre
+ * (docs/reference/scene.md): sun, planets on a carrier at the tight-mesh centre
  * distance (or radius_mm), ring held or on its own axis. Everything it
  * writes is then validated like a scene written out in full, so assembly
  * errors name the generated field (bodies[..], joints[..], meshes[..]). */

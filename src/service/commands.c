@@ -1085,7 +1085,7 @@ static gs_err stiffness_result(gs_service *s, gs_stiffness_result *r, const char
 }
 
 /* Quasi-static mesh stiffness and transmission error of one mesh of the
- * loaded scene (docs/STIFFNESS.md): rank 0 alone, no inertia, the run's
+ * loaded scene (docs/explanation/stiffness.md): rank 0 alone, no inertia, the run's
  * state untouched. Runs in chunks like `advance` (one roll position per
  * poll of the command socket): accepted at once, progress events, a done
  * event carrying the result, cancel ends it. With wait: true the reply
@@ -1177,7 +1177,7 @@ static const char *const sweep_args[] = {"scene", "builtin", "parameters", "sett
                                          "driver_rpm", "groups", "path", "resume", NULL};
 
 /* Natural frequencies and mode shapes of the linearised rigid/lumped train
- * (docs/MODAL.md): of the scene in args.scene or the builtin args.builtin,
+ * (docs/explanation/modal.md): of the scene in args.scene or the builtin args.builtin,
  * else of the loaded scene. Rank 0 alone, milliseconds; the run's state is
  * untouched. */
 static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)

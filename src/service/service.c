@@ -868,7 +868,7 @@ static gs_err write_connection_file(gs_service *s)
     const char *cpub, *csec;
     if (gsi_curve_local_client(&cpub, &csec)) {
         /* The loopback client key pair: who can read this 0600 file can
-         * talk to the daemon, nobody else (docs/PROTOCOL.md). */
+         * talk to the daemon, nobody else (docs/reference/protocol.md). */
         json_object_object_add(o, "curve_client_public_key", json_object_new_string(cpub));
         json_object_object_add(o, "curve_client_secret_key", json_object_new_string(csec));
     }

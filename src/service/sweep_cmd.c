@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * The `sweep` service job (docs/PROTOCOL.md, docs/MODAL.md "Sweeps"): a
+ * The `sweep` service job (docs/reference/protocol.md, docs/explanation/modal.md "Sweeps"): a
  * scene and parameters to vary, points run concurrently on groups of ranks
  * (src/sweep/group.c), one progress event per finished point, the table
  * written as CSV at the start and the finished points' rows appended to it

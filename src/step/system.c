@@ -78,7 +78,7 @@ static double body_weight(const gs_body_rt *br, const gs_scene_body *b)
  * index), each to the least loaded bin (ties: the lowest). Then the bins go
  * to ranks by increasing load (ties: the lower bin), so that rank 0, which
  * alone selects the contact rows and solves the QP, holds the lightest share
- * of the bodies (docs/PERFORMANCE.md, "Sixth pass"). Deterministic: the same
+ * of the bodies (docs/performance/index.md). Deterministic: the same
  * scene and rank count give the same map. */
 static void assign_owners(gs_system *s)
 {
@@ -413,7 +413,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes "
                       "yet (the contact step has no translations)";
         if (why) {
-            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
+            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/explanation/modal.md)", sb->name, why);
             gs_scene_free(&scene);
             free(s);
             return GS_ERANGE;

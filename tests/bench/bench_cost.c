@@ -11,8 +11,7 @@
  * again with linear triangles, mesh.order 1) and planetary_contact (five
  * elastic gears, six contact meshes) at their scene step: a warm-up (the ramp, the
  * first teeth into mesh), then a timed chunk through the engine, as the
- * daemon steps it, and the rank-0 breakdown (docs/PERFORMANCE.md, "Cost
- * per step").
+ * daemon steps it, and the rank-0 breakdown (docs/performance/index.md).
  *
  *   bench_cost                    one rank
  *   mpirun -n 2 bench_cost        two ranks

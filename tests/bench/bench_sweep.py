@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Benchmark: throughput of the daemon's `sweep` job (docs/MODAL.md,
+"""Benchmark: throughput of the daemon's `sweep` job (docs/explanation/modal.md,
 "Sweeps") on the lumped planetary (planetary_sweep), points per second at
 mpirun -n 1 with 1 group (the reference, timed in the same run), at -n 2
 with 1 group of 2 ranks and at -n 2 with 2 groups of 1 rank; prints the

@@ -22,7 +22,7 @@
  *             tracking, so speed fluctuations do not smear it), m
  *   balance   worst energy balance residual / energy scale
  * and the errors of speed, dte, force and mesh against the reference: the
- * last row of the scene, the converged setting of docs/CONVERGENCE.md
+ * last row of the scene, the converged setting of docs/validation/data.md
  * (reduced bodies at h 1e-5 s, damped, on the mesh o2s3 for the pair and
  * o2r2 for the planetary train: within 1-2 % of the mesh limits). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
@@ -37,7 +37,7 @@
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
  * elastic gear the reduced body (bodies[i].reduction, static residual) with
  * f_max = 0.3 / h (15, 30, 60 kHz at 2e-5, 1e-5, 5e-6 s: near 1 / (2 pi h),
- * docs/CONVERGENCE.md "The static residual rule"). Every elastic row runs
+ * docs/validation/data.md). Every elastic row runs
  * with the study's damping (ELASTIC_ZETA at ELASTIC_FHZ on the elastic
  * gears' material); the rigid-gear meshes keep their default damping. */
 #include <json-c/json.h>
@@ -58,7 +58,7 @@ typedef struct spec {
 } spec;
 
 /* The damping of every elastic row (the convergence study's): Rayleigh,
- * 2 % at 9.2 kHz on the elastic gears' material (docs/CONVERGENCE.md).
+ * 2 % at 9.2 kHz on the elastic gears' material (docs/validation/data.md).
  * Undamped, the tooth and body vibration a coarse step excites does not
  * settle and the DTE rms moves with h; the rigid-gear levels keep their
  * meshes' default damping (5 % of the mesh mode). */

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Frequency response of the contact_drive pair (docs/MODAL.md "Frequency
+"""Frequency response of the contact_drive pair (docs/explanation/modal.md "Frequency
 response of the elastic pair"): DTE rms and dynamic factor against the mesh
 frequency for the contact model and the lumped, calibrated and compliant
 meshes of the same pair, with the first torsional mesh mode of the FE model
@@ -13,18 +13,18 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
                                  [--contact closure_energy|closure|seed] [--coarse]
                                  [--settle S] [--min-measure S] [--min-cycles N]
                                  [--quick] [--no-run] [--plot docs/img/freq_response.png]
-                                 [--csv docs/freq_response.csv]
+                                 [--csv docs/data/freq_response.csv]
 
-The order-2 figures of docs/MODAL.md (default mesh): --order 2 --torque 80
+The order-2 figures of docs/explanation/modal.md (default mesh): --order 2 --torque 80
 --damping 0.12 --settle 0.002 --min-measure 0.0012 for the lumped models
 (grid 10 and dense 7, the defaults), then with --models contact --contact
 closure --grid 1 --grid-from 1.0 --dense 0
 --extra-rel 0.35,0.6,0.85,0.92,1.08,1.15,1.3,1.6,2.0 (with the default
-"closure_energy" the pair keeps rattling: docs/MODAL.md). --quick (the meson benchmark): order 1 (the linear
+"closure_energy" the pair keeps rattling: docs/explanation/modal.md). --quick (the meson benchmark): order 1 (the linear
 mesh), numerics.contact "closure", 80 N m, 12 %, 7 points from 0.7 to 1.3
 times the mode, FE mode from 4 positions, settle 2 ms (minutes of CPU).
 
-The order-1 figures of docs/MODAL.md (contact "closure"): the defaults (20 N m, 5 %) plus
+The order-1 figures of docs/explanation/modal.md (contact "closure"): the defaults (20 N m, 5 %) plus
 --extra 6000,6500,6800,7000,7150,7450,7600,7800,8250,8400,8550,9400,9700;
 --damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
 --grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
@@ -35,7 +35,7 @@ of two gears; a scene without loads (deploy/scenes/pair_relief.json) gets
 contact_drive's: the moment (ramp to 20 N m, --torque sets it) on the gear
 with more teeth, the brake on the other; the mesh's gears are put driver
 first (gearsim-modal --fe --torque loads the mesh's first gear). The relief
-pair at its design load (docs/MODAL.md "The relief pair at its design
+pair at its design load (docs/explanation/modal.md "The relief pair at its design
 load"): --scene deploy/scenes/pair_relief.json --thinning 0.05 --order 2
 --torque 70.5 --damping 0.05 --settle 0.002 --min-measure 0.0012 --contact
 closure --models contact --grid 1 --grid-from 1.0 --dense 0 --extra-rel ...
@@ -64,14 +64,14 @@ in fe_mode.json the report adds linear_parametric: the DTE rms of the
 single-degree-of-freedom mesh with those modes as a stiffness over the
 cycle and the same damping, a spring that also pulls (its peak is where
 the damped time-varying mesh resonates; the plot draws its curve).
-The order-2 figures with the tip-corner rule (docs/MODAL.md, work directory
+The order-2 figures with the tip-corner rule (docs/explanation/modal.md, work directory
 of their own): --order 2 --torque 80 --damping 0.12 --settle 0.002
 --min-measure 0.0012 --contact closure --models contact --grid 1 --grid-from
 1.0 --dense 0 --extra-rel 0.8,0.86,0.9,0.94,0.955,0.97,0.985,1.03,1.06,1.1,1.14,1.2;
 the same with --models modal on 0.86-1.06; the lumped models with the
 default grid and those points.
 
-The damping study (docs/MODAL.md "Damping and contact loss"): the same
+The damping study (docs/explanation/modal.md "Damping and contact loss"): the same
 with --damping 0.08 / 0.05 (and --torque 200), --grid 1 --grid-from 0.97
 --extra-rel 0.86,...,1.06, one --work directory each; then
 --compare "DIR:DAMPING:TORQUE:LABEL;..." --compare-plot
@@ -157,7 +157,7 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
-        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/STIFFNESS.md)
+        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/explanation/stiffness.md)
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
         else:

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: MIT
 """gearsim.Client: commands over a DEALER socket, events over a SUB socket.
 
-The protocol is docs/PROTOCOL.md (schemas in proto/v1). A request is one JSON
+The protocol is docs/reference/protocol.md (schemas in proto/v1). A request is one JSON
 frame {v, id, cmd, args}; the reply carries the same id. Retries resend the
 very same frame (same id), so the daemon answers them from its reply cache
 and never executes a command twice. Events arrive as two frames, topic then
@@ -176,7 +176,7 @@ class Client:
         return self.request("unload")
 
     def modal(self, scene=None, builtin=None, shapes=True):
-        """Natural frequencies and mode shapes (docs/MODAL.md) of a scene (dict
+        """Natural frequencies and mode shapes (docs/explanation/modal.md) of a scene (dict
         or JSON file path), a builtin, or (neither) the loaded scene."""
         args = {"shapes": bool(shapes)}
         if scene is not None:
@@ -239,7 +239,7 @@ class Client:
 
     def sweep(self, parameters, scene=None, builtin=None, settle=None, measure=None, time_step=None, mesh=None,
               driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None):
-        """A parameter sweep run by the daemon on groups of its ranks (docs/MODAL.md,
+        """A parameter sweep run by the daemon on groups of its ranks (docs/explanation/modal.md,
         "Sweeps"): `parameters` a list of {path, values} or {path, from, to, points}
         (path "driver_rpm" or a JSON path into the scene); the scene a dict or a JSON
         file path, or a builtin name. wait=True: the `done` event (its csv and h5

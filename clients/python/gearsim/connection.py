@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: MIT
-"""Where the connection file lives and how it is read (docs/PROTOCOL.md)."""
+"""Where the connection file lives and how it is read (docs/reference/protocol.md)."""
 import json
 import os
 
@@ -35,7 +35,7 @@ def read_connection_file(path=None):
 
 
 # ---------------------------------------------------------------- CURVE keys
-# Key files are Z85 text (docs/PROTOCOL.md, "Authentication"): NAME.key holds
+# Key files are Z85 text (docs/reference/protocol.md, "Authentication"): NAME.key holds
 # `public-key = ...` and `secret-key = ...` (mode 0600), NAME.pub only the
 # public key. `gearctl keys NAME` writes both.
 

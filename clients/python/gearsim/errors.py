@@ -5,7 +5,7 @@
 class GearsimError(Exception):
     """An error reply from gearsimd (or a client-side failure with the same shape).
 
-    code    -- stable machine-readable string (docs/PROTOCOL.md), e.g. "out_of_range";
+    code    -- stable machine-readable string (docs/reference/protocol.md), e.g. "out_of_range";
                client-side failures use "timeout", "not_found" and "bad_json"
     message -- human sentence
     field   -- JSON path of the offending field ("" or None when no field is at fault)

@@ -27,7 +27,7 @@ def layout(pkg=PKG, extra_prefixes=()):
     root = _checkout_root(pkg)
     if root:
         return {"scenes": os.path.join(root, "deploy", "scenes"),
-                "table": os.path.join(root, "docs", "tradeoff.csv"),
+                "table": os.path.join(root, "docs", "data", "tradeoff.csv"),
                 "tools": os.path.join(root, "build", "src", "tools"),
                 "build": os.path.join(root, "build")}
     # P/lib/python3/dist-packages/gearsim -> P; then the prefix of the
