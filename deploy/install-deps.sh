@@ -10,7 +10,9 @@ pkgs=(build-essential pkgconf meson ninja-build
       python3-matplotlib python3-cvxopt
       clang libclang-rt-14-dev  # clang + libFuzzer: tests/fuzz, deploy/fuzz.sh
       jupyter-nbconvert python3-ipykernel python3-nbclient python3-nbformat  # the example notebook
-      python3-pip python3-setuptools python3-wheel)  # pip install ./clients/python (test_install)
+      python3-pip python3-setuptools python3-wheel  # pip install ./clients/python (test_install)
+      slurmctld slurmd slurm-client munge  # test_slurm: a one-node Slurm of the test's own
+      iproute2 util-linux)  # test_two_hosts: ip netns, ss, unshare
 # The FE reference (tests/reference/) and bench_reference.py: no test needs
 # them, so they come only with --reference.
 if [ "${1:-}" = "--reference" ]; then
