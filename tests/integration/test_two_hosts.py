@@ -33,7 +33,7 @@ import time
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 SKIP = 77
-TAG = f"gs{os.getpid() % 100000}"
+TAG = f"gs{os.getpid() % 100000}{os.urandom(2).hex()}"   # unique per run; stale names never collide
 NS = {"nodea": TAG + "a", "nodeb": TAG + "b"}
 ADDR = {"nodea": "10.213.37.1", "nodeb": "10.213.37.2"}
 IFACE = "gsnet0"
