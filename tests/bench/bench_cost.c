@@ -22,8 +22,9 @@
  *                                 (seed, closure, closure_energy)
  *   bench_cost count SCENE [STEPS]  instruction counts under callgrind
  *                                 (count_case; one scene)
- *   mpirun -n K bench_cost weak N   planetary_contact with N planets (3-6;
- *                                 weak scaling: K = N + 2 is one gear per rank)
+ *   mpirun -n K bench_cost weak N   planetary_contact with N planets (3, 4 or
+ *                                 6: 5 cannot be assembled on 24/24/72; weak
+ *                                 scaling: K = N + 2 is one gear per rank)
  *
  * RESULT_PATH and the rounds' "critical path" read the engine's CPU
  * critical path (gs_step_timing cpu_path): at -n 2 on a loaded machine the
