@@ -508,7 +508,7 @@ static gs_err parse_joint(gs_scene *s, json_object *o, const char *path, bool *s
 static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                               gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
+    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant", "ltca"};
     static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
     static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
@@ -537,7 +537,7 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(enum_field(o, "model", path, NULL, models, 5, &model, d));
+    GS_TRY(enum_field(o, "model", path, NULL, models, 6, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
@@ -627,6 +627,24 @@ static gs_err parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_
         GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, 0.05, &m->damping_ratio, d));
         GS_TRY(gsi_json_number(o, "backlash_mm", path, 0, 100, false, 0, &bl, d));
         m->backlash = bl * 1e-3;
+        return GS_OK;
+    }
+    if (m->model == GS_MESH_LTCA) {
+        /* Rigid gears, the loaded tooth contact analysis' tables
+         * (docs/explanation/ltca.md): stiffness and backlash come from the
+         * pair's geometry. Damping: given, else the gears' material damping
+         * of the mesh mode, else 5 % (damping_ratio -1: not given). */
+        static const char *const no[] = {"stiffness", "backlash_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p,
+                                   "an ltca mesh has no '%s': the pair's quasi-static analysis gives it", *k);
+            }
+        if (json_object_object_get_ex(o, "damping", NULL) && json_object_object_get_ex(o, "damping_ratio", NULL))
+            return gs_diag_set(d, GS_ESCHEMA, path, "give 'damping' or 'damping_ratio', not both");
+        GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, -1, &m->damping, d));
+        GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, -1, &m->damping_ratio, d));
         return GS_OK;
     }
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
@@ -914,11 +932,11 @@ gs_err gs_scene_parse(const char *text, size_t len, gs_scene **out, gs_diag *d)
  * itself, or a new tree the caller frees when *copy is set). */
 static gs_err apply_fidelity(json_object *root, json_object **out, bool *copy, gs_diag *d)
 {
-    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact", "compliant"};
+    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact", "compliant", "ltca"};
     *out = root;
     *copy = false;
     int lv;
-    GS_TRY(enum_field(root, "fidelity", "", "as_given", levels, 5, &lv, d));
+    GS_TRY(enum_field(root, "fidelity", "", "as_given", levels, 6, &lv, d));
     if (lv == 0)
         return GS_OK;
     json_object *c = NULL;
@@ -1004,11 +1022,11 @@ static gs_err expand_train(json_object *c, gs_diag *d)
         if (json_object_object_get_ex(c, *k, NULL))
             return gs_diag_set(d, GS_ESCHEMA, *k, "give either 'train' or '%s', not both", *k);
     static const char *const models[] = {"rigid", "elastic"};
-    static const char *const mmodels[] = {"kinematic", "lumped", "contact", "compliant"};
+    static const char *const mmodels[] = {"kinematic", "lumped", "contact", "compliant", "ltca"};
     static const char *const rj[] = {"held", "fixed_axis"};
     int bm, mm, ringj;
     GS_TRY(enum_field(tr, "model", "train", "rigid", models, 2, &bm, d));
-    GS_TRY(enum_field(tr, "mesh_model", "train", "lumped", mmodels, 4, &mm, d));
+    GS_TRY(enum_field(tr, "mesh_model", "train", "lumped", mmodels, 5, &mm, d));
     GS_TRY(enum_field(tr, "ring_joint", "train", "held", rj, 2, &ringj, d));
     json_object *angles = NULL;
     GS_TRY(gsi_json_array(tr, "angles_deg", "train", false, &angles, d));
