@@ -12,6 +12,7 @@
 #include "gearsim/modification.h"
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
+#include "models/ltca_paths.h"
 #include "mesh_common.h"
 
 /* Front-flank loads as fractions of the reference line load of 200 N/mm
@@ -608,6 +609,14 @@ gs_err gs_ltca_tables(const gs_scene *sc, int mesh, const gs_ltca_opts *o, gs_lt
             t->key = key;
             return GS_OK;
         }
+    }
+    /* the tables shipped for the example scenes */
+    const char *sh = getenv("GEARSIM_LTCA_DATA");
+    char spath[4200];
+    snprintf(spath, sizeof spath, "%s/%016llx.ltca", sh && sh[0] ? sh : GS_LTCA_SHIPPED, (unsigned long long)key);
+    if (cache_read(spath, key, t)) {
+        t->key = key;
+        return GS_OK;
     }
     gs_diag sd;
     gs_err e = build(sc, mesh, o->positions, t, &sd);
