@@ -89,7 +89,7 @@ void gs_ltca_grad(const gs_ltca_table *t, double x0, double dx, double p0, doubl
 void gs_ltca_closing(const gs_ltca_table *t, double p, double *back, double *front);
 
 typedef struct gs_ltca_opts {
-    int positions;    /* roll positions per mesh cycle (default 24) */
+    int positions;    /* roll positions per mesh cycle (default 48) */
     const char *cache_dir; /* NULL: $GEARSIM_LTCA_CACHE, else $XDG_CACHE_HOME/gearsim/ltca,
                             * else $HOME/.cache/gearsim/ltca; "" no cache */
 } gs_ltca_opts;

@@ -255,6 +255,20 @@ void gs_ltca_grad(const gs_ltca_table *t, double x0, double dx, double p0, doubl
     double qa0, qb0, qa1, qb1, da0, db0, da1, db1;
     qa0 = row_mean(t, a0, x0, x1, &da0);
     qb0 = row_mean(t, b0, x0, x1, &db0);
+    if (a1 == a0 && b1 == b0) { /* the usual step: within one cell */
+        qa1 = qa0, qb1 = qb0, da1 = da0, db1 = db0;
+        double ua0 = gs_ltca_row_energy(t, a0, x0), ub0 = gs_ltca_row_energy(t, b0, x0);
+        double ua1 = gs_ltca_row_energy(t, a0, x1), ub1 = gs_ltca_row_energy(t, b0, x1);
+        *gx = 0.5 * ((1.0 - w0) * qa0 + w0 * qb0 + (1.0 - w1) * qa1 + w1 * qb1);
+        *gp = 0.5 * ((ub0 - ua0) + (ub1 - ua1)) * t->n;
+        if (jac) {
+            jac[0] = 0.5 * ((1.0 - w0) * da0 + w0 * db0 + (1.0 - w1) * da1 + w1 * db1);
+            jac[1] = 0.5 * (qb1 - qa1) * t->n;
+            jac[2] = 0.5 * (gs_ltca_row_force(t, b0, x1, NULL) - gs_ltca_row_force(t, a0, x1, NULL)) * t->n;
+            jac[3] = 0.0;
+        }
+        return;
+    }
     qa1 = row_mean(t, a1, x0, x1, &da1);
     qb1 = row_mean(t, b1, x0, x1, &db1);
     double Q0 = (1.0 - w0) * qa0 + w0 * qb0, Q1 = (1.0 - w1) * qa1 + w1 * qb1;
@@ -279,7 +293,7 @@ void gs_ltca_grad(const gs_ltca_table *t, double x0, double dx, double p0, doubl
 
 void gs_ltca_opts_defaults(gs_ltca_opts *o)
 {
-    o->positions = 24;
+    o->positions = 48;
     o->cache_dir = NULL;
 }
 
@@ -392,7 +406,7 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
             h = fnv_d(fnv_d(fnv_d(h, sc->bodies[b->carrier].angle0), b->carrier_radius), b->carrier_angle);
     }
     h = fnv_d(h, driver_moment(sc, sm->gear[driver_of(sc, mesh)]));
-    h = fnv_i(h, o ? o->positions : 24);
+    h = fnv_i(h, o ? o->positions : 48);
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
     for (int i = 0; i < N_BACK; i++)

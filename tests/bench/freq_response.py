@@ -93,7 +93,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
+MODELS = ["contact", "lumped", "calibrated", "compliant", "modal", "ltca"]
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel", "dte_h1_um"]
@@ -157,6 +157,8 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
+        elif model == "ltca":  # the loaded tooth contact analysis' tables (docs/explanation/ltca.md)
+            m["model"] = "ltca"
         elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/STIFFNESS.md)
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
@@ -566,7 +568,8 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v"}
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v",
+                 "ltca": "m-P"}
         for m in MODELS:
             pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
             if not pts:
