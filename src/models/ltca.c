@@ -414,32 +414,6 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     return h;
 }
 
-/* The scene without tooth errors (pitch tables, run-out) on the gears of
- * mesh `mesh`: bodies (n_bodies, to free) and mods (2) are its storage. */
-static gs_err clean_scene(const gs_scene *sc, int mesh, gs_scene *clean, gs_scene_body **bodies,
-                          gs_gear_mods mods[2])
-{
-    const gs_scene_mesh *sm = &sc->meshes[mesh];
-    *clean = *sc;
-    *bodies = gs_calloc((size_t)sc->n_bodies, sizeof **bodies);
-    if (!*bodies)
-        return GS_ENOMEM;
-    memcpy(*bodies, sc->bodies, (size_t)sc->n_bodies * sizeof **bodies);
-    for (int k = 0; k < 2; k++) {
-        gs_scene_body *b = &(*bodies)[sm->gear[k]];
-        b->pitch_error_tooth = -1;
-        if (!b->mods)
-            continue;
-        mods[k] = *b->mods;
-        mods[k].n_pitch = 0;
-        mods[k].pitch_m = NULL;
-        mods[k].runout_m = 0.0;
-        b->mods = &mods[k];
-    }
-    clean->bodies = *bodies;
-    return GS_OK;
-}
-
 /* One analysis at moment T (0: the default) into the knots: position j of
  * the run at grid index (T > 0 ? j : n - 1 - j), deflection and force in
  * the mesh coordinate (the driver is the external gear: s grows with its
@@ -480,7 +454,7 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
     gs_scene sc;
     gs_scene_body *bodies = NULL;
     gs_gear_mods mods[2];
-    GS_TRY(clean_scene(sc0, mesh, &sc, &bodies, mods));
+    GS_TRY(gsi_mesh_clean_scene(sc0, mesh, &sc, &bodies, mods));
     const gs_scene_mesh *sm = &sc.meshes[mesh];
     double b = fmin(sc.bodies[sm->gear[0]].gear.face_width_m, sc.bodies[sm->gear[1]].gear.face_width_m);
     double Fref = LINE_LOAD_N_PER_M * b;
