@@ -360,7 +360,8 @@ def fit_report(cache, f0):
     harmonic (dte_h1_um, when freq_point measured it)."""
     for m in MODELS:
         for col in ("dte_rms_um", "dte_h1_um"):
-            pts = sorted((r for r in cache if r["model"] == m and r.get(col) == r.get(col)), key=lambda r: r["mesh_hz"])
+            pts = sorted((r for r in cache if r["model"] == m and r.get(col) is not None and r[col] == r[col]),
+                         key=lambda r: r["mesh_hz"])
             if len(pts) < 4:
                 continue
             x = [r["mesh_hz"] for r in pts]
