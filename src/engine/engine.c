@@ -9,7 +9,6 @@
 #include "gearsim/engine.h"
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
-#include "models/mesh_common.h"
 
 struct gs_engine {
     MPI_Comm comm;
@@ -274,10 +273,12 @@ static bool energy_due(const gs_system *s, bool last)
 static gs_err refresh_energy(gs_engine *e, gs_err err)
 {
     gs_system *s = e->sys;
+    gs_model_view v;
+    gs_system_view(s, &v);
     for (int i = 0; i < s->n_bodies; i++) {
         gs_body_rt *b = &s->bodies[i];
         if (b->ops->state_size && b->owner == e->rank)
-            b->ops->energy(s, b, &b->T, &b->V);
+            b->ops->energy(&v, b, &b->T, &b->V);
     }
     return sync_energy(e, err, 0.0);
 }
@@ -576,8 +577,10 @@ static void sync_solo(gs_engine *e)
         memcpy(s->w, b + n, n * sizeof(double));
         s->time = b[k], s->step = (int64_t)b[k + 1], s->work_in = b[k + 2];
         s->dissipated = b[k + 3], s->level = (int)b[k + 4], s->h_sub = b[k + 5];
+        gs_model_view v;
+        gs_system_view(s, &v);
         for (int i = 0; i < s->n_meshes; i++)
-            s->meshes[i].deflection = gsi_mesh_s(s, &s->meshes[i], s->q) - s->meshes[i].s_ref;
+            s->meshes[i].deflection = gs_gmesh_s(&v, &s->meshes[i], s->q) - s->meshes[i].s_ref;
     }
     free(b);
 }
@@ -826,8 +829,10 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
                    b->ops->state_size(b) * sizeof(double));
             if (b->owner == e->rank) {
                 gs_err le = b->ops->load(b, x);
+                gs_model_view v;
+                gs_system_view(s, &v);
                 if (le == GS_OK)
-                    b->ops->energy(s, b, &b->T, &b->V);
+                    b->ops->energy(&v, b, &b->T, &b->V);
                 else if (lerr == GS_OK)
                     lerr = le;
             }
@@ -847,13 +852,15 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     s->work_in = wi;
     s->dissipated = di;
     s->energy0 = e0;
-    s->level = lv >= 0 && lv <= s->scene->adapt_levels ? (int)lv : 0;
+    s->level = lv >= 0 && lv <= s->adapt_levels ? (int)lv : 0;
     s->sub_ticks = 0;
     s->refined = false;
     s->h_sub = s->h / (double)((int64_t)1 << s->level);
+    gs_model_view v;
+    gs_system_view(s, &v);
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
-        m->deflection = gsi_mesh_s(s, m, s->q) - m->s_ref;
+        m->deflection = gs_gmesh_s(&v, m, s->q) - m->s_ref;
         double ct[MESH_SNAP];
         memcpy(ct, (const char *)forces + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
         m->force = ct[0];

@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "gearsim/ltca.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 #include "mesh_common.h"
 
@@ -46,7 +46,7 @@ static void ltca_destroy(gs_gmesh_rt *m)
  * k_t the table's mean tangent stiffness at the scene's load. Otherwise (or
  * with the mesh's own damping / damping_ratio given) the lumped rule of
  * gsi_mesh_damping at k_t. */
-static double ltca_damping(const gs_system *sys, const gs_gmesh_rt *m, double kt)
+static double ltca_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double kt)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     if (sm->damping >= 0)
@@ -68,7 +68,7 @@ static double ltca_damping(const gs_system *sys, const gs_gmesh_rt *m, double kt
     return inv > 0 ? 2 * zeta * sqrt(kt / inv) : 0;
 }
 
-static gs_err ltca_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     GS_TRY(gsi_mesh_needs_rigid(sys, m, "ltca", d));
@@ -92,7 +92,7 @@ static gs_err ltca_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     return GS_OK;
 }
 
-static void ltca_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
+static void ltca_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
                        double *g, double *J, double *diss, double *force)
 {
     const ltca_rt *L = m->contact;
@@ -118,7 +118,7 @@ static void ltca_force(const gs_system *sys, const gs_gmesh_rt *m, const double 
     *force = gs + fd;
 }
 
-static double ltca_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double ltca_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     const ltca_rt *L = m->contact;
     double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = dot(m->c, q, sys->n_coords) - L->phase0;
