@@ -27,7 +27,8 @@ typedef enum {
     GS_MESH_LUMPED = 1,
     GS_MESH_CONTACT = 2,
     GS_MESH_IMPACT = 3,
-    GS_MESH_COMPLIANT = 4
+    GS_MESH_COMPLIANT = 4,
+    GS_MESH_LTCA = 5           /* rigid gears, the LTCA tables' mesh potential (gearsim/ltca.h) */
 } gs_mesh_model;
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1, GS_STIFF_CALIBRATED = 2 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;

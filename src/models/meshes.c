@@ -304,26 +304,11 @@ static gs_err calibrate(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
      * table, run-out): the mesh adds those itself along the line of action
      * (gsi_mesh_error), one cycle of FE would only see a few teeth's. */
     const gs_scene *sc = sys->scene;
-    gs_scene clean = *sc;
+    gs_scene clean;
     gs_gear_mods mods[2];
     gs_scene_body *bodies = NULL;
     if (m->n_err) {
-        bodies = gs_calloc((size_t)sc->n_bodies, sizeof *bodies);
-        if (!bodies)
-            return GS_ENOMEM;
-        memcpy(bodies, sc->bodies, (size_t)sc->n_bodies * sizeof *bodies);
-        for (int k = 0; k < 2; k++) {
-            gs_scene_body *b = &bodies[sm->gear[k]];
-            if (!b->mods)
-                continue;
-            mods[k] = *b->mods;
-            mods[k].n_pitch = 0;
-            mods[k].pitch_m = NULL;
-            mods[k].runout_m = 0.0;
-            b->mods = &mods[k];
-            b->pitch_error_tooth = -1;
-        }
-        clean.bodies = bodies;
+        GS_TRY(gsi_mesh_clean_scene(sc, m->index, &clean, &bodies, mods));
         sc = &clean;
     }
     gs_err e = gs_stiffness_analyse(sc, m->index, &o, &r, &sd);

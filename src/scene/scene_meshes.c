@@ -28,7 +28,7 @@ static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_
 gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                                  gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
+    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant", "ltca"};
     static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
     static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
@@ -57,7 +57,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(gsi_scene_enum_field(o, "model", path, NULL, models, 5, &model, d));
+    GS_TRY(gsi_scene_enum_field(o, "model", path, NULL, models, 6, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
@@ -147,6 +147,24 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
         GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, 0.05, &m->damping_ratio, d));
         GS_TRY(gsi_json_number(o, "backlash_mm", path, 0, 100, false, 0, &bl, d));
         m->backlash = bl * 1e-3;
+        return GS_OK;
+    }
+    if (m->model == GS_MESH_LTCA) {
+        /* Rigid gears, the loaded tooth contact analysis' tables
+         * (docs/explanation/ltca.md): stiffness and backlash come from the
+         * pair's geometry. Damping: given, else the gears' material damping
+         * of the mesh mode, else 5 % (damping_ratio -1: not given). */
+        static const char *const no[] = {"stiffness", "backlash_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p,
+                                   "an ltca mesh has no '%s': the pair's quasi-static analysis gives it", *k);
+            }
+        if (json_object_object_get_ex(o, "damping", NULL) && json_object_object_get_ex(o, "damping_ratio", NULL))
+            return gs_diag_set(d, GS_ESCHEMA, path, "give 'damping' or 'damping_ratio', not both");
+        GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, -1, &m->damping, d));
+        GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, -1, &m->damping_ratio, d));
         return GS_OK;
     }
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth

@@ -93,7 +93,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
+MODELS = ["contact", "lumped", "calibrated", "compliant", "modal", "ltca"]
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel", "dte_h1_um"]
@@ -157,6 +157,8 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
+        elif model == "ltca":  # the loaded tooth contact analysis' tables (docs/explanation/ltca.md)
+            m["model"] = "ltca"
         elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/explanation/stiffness.md)
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
@@ -358,7 +360,8 @@ def fit_report(cache, f0):
     harmonic (dte_h1_um, when freq_point measured it)."""
     for m in MODELS:
         for col in ("dte_rms_um", "dte_h1_um"):
-            pts = sorted((r for r in cache if r["model"] == m and r.get(col) == r.get(col)), key=lambda r: r["mesh_hz"])
+            pts = sorted((r for r in cache if r["model"] == m and r.get(col) is not None and r[col] == r[col]),
+                         key=lambda r: r["mesh_hz"])
             if len(pts) < 4:
                 continue
             x = [r["mesh_hz"] for r in pts]
@@ -566,7 +569,8 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v"}
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v",
+                 "ltca": "m-P"}
         for m in MODELS:
             pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
             if not pts:

@@ -2,7 +2,7 @@
 """Where gearctl finds its data and the build's tools.
 
 Three layouts: the source checkout (clients/python/gearsim beside
-deploy/scenes and docs/tradeoff.csv, the tools in build/src/tools), a
+deploy/scenes and docs/data/tradeoff.csv, the tools in build/src/tools), a
 `meson install` prefix P (the package in P/lib/python3/dist-packages, the
 data in P/share/gearsim, the tools in P/bin), and a pip install (the package
 in some site-packages: the data of the meson install whose gearsimd is on

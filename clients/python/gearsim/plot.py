@@ -157,7 +157,7 @@ def plot_tradeoff(csv_path, png):
         rows = list(csv.DictReader(f))
     scenes = sorted({r["scene"] for r in rows})
     fig, axes = plt.subplots(len(scenes), 2, figsize=(11, 4.2 * len(scenes)), squeeze=False)
-    known = {"kinematic": "o", "impact": "v", "lumped": "s", "calibrated": "D", "compliant": "P",
+    known = {"kinematic": "o", "impact": "v", "lumped": "s", "calibrated": "D", "ltca": "X", "compliant": "P",
              "adaptive": "*", "contact_seed": "<", "contact": "^"}
     # every level of the table, in the ladder's order, unknown ones after
     levels = [lv for lv in known if any(r["level"] == lv for r in rows)]
