@@ -579,6 +579,34 @@ static gs_err cmd_checkpoint(gs_service *s, json_object *args, const char *id, j
     return GS_OK;
 }
 
+/* A checkpoint file is input like a request: the snapshot at most the
+ * daemon's scene limit in bytes (checked before it is allocated), its
+ * content checked (gs_engine_snapshot_check) and its scene through the same
+ * size limit as `load`, all on rank 0 before anything is broadcast. */
+static gs_err read_checkpoint(const char *via_fd, char **bytes, size_t *len, gs_diag *d)
+{
+    size_t max = (size_t)gsi_opt_max_scene_mb() * 1048576u;
+    GS_TRY(gs_checkpoint_read(via_fd, max, bytes, len, d));
+    gs_snapshot_view v;
+    gs_scene *sc = NULL;
+    gs_err e = gs_engine_snapshot_check(*bytes, *len, &v, d);
+    if (e == GS_OK && (e = gs_scene_parse(v.scene, strlen(v.scene), &sc, d)) != GS_OK) {
+        char m[sizeof d->message], f[sizeof d->field];
+        snprintf(m, sizeof m, "%s", d->message);
+        snprintf(f, sizeof f, "%s", d->field);
+        gs_diag_set(d, e, "path", "the checkpoint's scene is refused (%.60s): %.240s", f, m);
+    }
+    if (e == GS_OK)
+        e = check_scene_size(sc, d);
+    gs_scene_free(&sc);
+    if (e != GS_OK) {
+        free(*bytes);
+        *bytes = NULL;
+        *len = 0;
+    }
+    return e;
+}
+
 static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
@@ -591,10 +619,12 @@ static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json
     gsi_fd_path(b.fd, via_fd, sizeof via_fd);
     char *bytes;
     size_t len;
-    gs_err e = gs_checkpoint_read(via_fd, &bytes, &len, d);
+    gs_err e = read_checkpoint(via_fd, &bytes, &len, d);
     gsi_beneath_close(&b);
     if (e != GS_OK) {
-        gs_diag_set(d, e, "args.path", "'%s' is not a readable gearsim checkpoint", rel_of(s, full));
+        char m[sizeof d->message];
+        snprintf(m, sizeof m, "%s", d->message);
+        gs_diag_set(d, e, "args.path", "'%s' is not a readable gearsim checkpoint: %.300s", rel_of(s, full), m);
         return e;
     }
     gs_record_close(&s->record);
@@ -691,9 +721,15 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
     char *bytes = NULL;
     size_t len;
     gs_err ie = gs_autosave_read_info(via_fd, &a, d);
+    if (ie == GS_OK && a.target_step - a.start_step > GSI_MAX_STEPS_PER_ADVANCE)
+        ie = gs_diag_set(d, GS_ERANGE, "path", "%s holds an advance of %lld steps; at most %lld steps per advance",
+                         GSI_AUTOSAVE_NAME, (long long)(a.target_step - a.start_step),
+                         (long long)GSI_MAX_STEPS_PER_ADVANCE);
     if (ie == GS_OK)
-        ie = gs_checkpoint_read(via_fd, &bytes, &len, d);
+        ie = read_checkpoint(via_fd, &bytes, &len, d);
     gsi_beneath_close(&b);
+    if (ie == GS_ENOTFOUND) /* the file is there: "not found" would read as nothing to resume */
+        ie = GS_EIO;
     if (ie != GS_OK)
         return ie;
     gs_record_close(&s->record);
@@ -702,7 +738,7 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
     gs_system *sys = gs_engine_system(s->eng);
     s->state = sys ? SVC_LOADED : SVC_EMPTY;
     if (e != GS_OK)
-        return e;
+        return e == GS_ENOTFOUND ? GS_EIO : e;
     if (a.target_step <= sys->step || a.start_step > sys->step)
         return gs_diag_set(d, GS_EIO, "path", "%s holds no unfinished advance (step %lld, target %lld)",
                            GSI_AUTOSAVE_NAME, (long long)sys->step, (long long)a.target_step);
