@@ -56,6 +56,37 @@ void gs_service_catch_signals(void)
     sigaction(SIGINT, &sa, NULL);
 }
 
+/* The last guard of the JSON writer: a non-finite number is not JSON
+ * (json-c would write NaN or Infinity), so every one left in a reply or an
+ * event becomes null; returns how many were. The run itself stops at the
+ * first non-finite value (gsi_check_finite); this is for anything else. */
+int gsi_json_scrub(json_object *o)
+{
+    int n = 0;
+    if (json_object_get_type(o) == json_type_object) {
+        json_object_object_foreach(o, k, v) {
+            if (json_object_get_type(v) == json_type_double && !isfinite(json_object_get_double(v))) {
+                json_object_object_add(o, k, NULL);
+                n++;
+            } else {
+                n += gsi_json_scrub(v);
+            }
+        }
+    } else if (json_object_get_type(o) == json_type_array) {
+        size_t len = json_object_array_length(o);
+        for (size_t i = 0; i < len; i++) {
+            json_object *v = json_object_array_get_idx(o, i);
+            if (json_object_get_type(v) == json_type_double && !isfinite(json_object_get_double(v))) {
+                json_object_array_put_idx(o, i, NULL);
+                n++;
+            } else {
+                n += gsi_json_scrub(v);
+            }
+        }
+    }
+    return n;
+}
+
 void gsi_publish(gs_service *s, const char *type, json_object *o)
 {
     gs_system *sys = gs_engine_system(s->eng);
@@ -68,6 +99,7 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     json_object_object_add(ev, "time", json_object_new_double(sys ? sys->time : 0.0));
     json_object_object_foreach(o, k, v) json_object_object_add(ev, k, json_object_get(v));
     json_object_put(o);
+    gsi_json_scrub(ev);
     const char *txt = json_object_to_json_string_ext(ev, JSON_C_TO_STRING_PLAIN);
     if (!s->pub) { /* socket-free use (tests/fuzz) */
         json_object_put(ev);
@@ -249,12 +281,54 @@ static gs_err record_fields(gs_service *s, gs_system *sys)
     return GS_OK;
 }
 
+bool gsi_state_finite(gs_service *s, bool energies, char *msg, size_t cap)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    if (!sys)
+        return true;
+    gs_energy e = {0};
+    if (energies)
+        gs_system_energy(sys, &e);
+    const char *what = NULL;
+    int idx = -1;
+    for (int i = 0; i < sys->n_coords && !what; i++)
+        if (!isfinite(sys->q[i]) || !isfinite(sys->w[i]))
+            what = isfinite(sys->q[i]) ? "a speed" : "a coordinate", idx = i;
+    if (!what) {
+        const double v[] = {sys->time, e.kinetic, e.potential, e.elastic, e.total, e.work_in, e.dissipated};
+        static const char *const nv[] = {"the time", "the kinetic energy", "the potential energy",
+                                         "the elastic energy", "the total energy", "the work in",
+                                         "the dissipated energy"};
+        for (int i = 0; i < 7 && !what; i++)
+            if (!isfinite(v[i]))
+                what = nv[i];
+    }
+    for (int i = 0; i < sys->n_meshes && !what; i++)
+        if (!isfinite(sys->meshes[i].force))
+            what = "a mesh force", idx = i;
+    if (!what)
+        return true;
+    char at[40] = "";
+    if (idx >= 0)
+        snprintf(at, sizeof at, " (#%d)", idx);
+    snprintf(msg, cap, "the run stopped: %s%s is not a finite number at step %lld; the scene's physical "
+             "parameters are out of what the model can integrate (for example a material's E, a mass or "
+             "a stiffness many orders from real ones)", what, at, (long long)sys->step);
+    return false;
+}
+
 /* Runs on rank 0 after every step of a chunk. */
 static bool step_hook(gs_engine *eng, void *user)
 {
     gs_service *s = user;
     gs_system *sys = gs_engine_system(eng);
     int64_t st = sys->step;
+    /* The first non-finite value stops the advance at the end of this
+     * chunk (every rank stops there); nothing after it is published. */
+    if (s->nonfinite[0])
+        return true;
+    if (!gsi_state_finite(s, false, s->nonfinite, sizeof s->nonfinite))
+        return true;
     if (st % sys->scene->telemetry_every == 0) {
         double t0 = gs_now();
         json_object *o = gsi_state_json(s);
@@ -685,6 +759,7 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
 answer:
     if (!reply)
         reply = error_reply(idv, e, &d);
+    gsi_json_scrub(reply);
     const char *txt = json_object_to_json_string_ext(reply, JSON_C_TO_STRING_PLAIN);
     if (idv && json_object_get_type(idv) == json_type_string && e != GS_ETOOBIG) {
         char k2[GSI_CACHE_KEY];
@@ -817,6 +892,14 @@ static void run_chunk(gs_service *s)
         s->chunk_steps = want < 1 ? 1 : (want > 1000000 ? 1000000 : want);
     }
     gsi_record_flush_or_stop(s, "the record could not be written");
+    if (e == GS_OK && !s->nonfinite[0])
+        gsi_state_finite(s, true, s->nonfinite, sizeof s->nonfinite);
+    if (s->nonfinite[0]) {
+        fprintf(stderr, "gearsimd: %s\n", s->nonfinite);
+        gsi_finish_advance(s, false, GS_ERANGE, s->nonfinite);
+        s->nonfinite[0] = '\0';
+        return;
+    }
     if (e != GS_OK) {
         /* A limit of the scene's numerics (gs_system_check) says which field to change. */
         char why[sizeof sys->diag.field + sizeof sys->diag.message + 4];
