@@ -133,6 +133,30 @@ static gs_err check_scene_size(const gs_scene *sc, gs_diag *d)
                        (long long)gsi_opt_max_scene_mb());
 }
 
+/* The stiffness analysis meshes both gears of mesh mi at `refine` (-1: the
+ * scene's density): the same memory limit as `load`, with the same
+ * estimate, before anything is meshed. */
+static gs_err check_stiffness_size(const gs_scene *sc, int mi, int refine, gs_diag *d)
+{
+    double bytes = GS_SCENE_BASE_BYTES, unknowns = 0;
+    for (int k = 0; k < 2; k++) {
+        gs_scene_body b = sc->bodies[sc->meshes[mi].gear[k]];
+        if (refine >= 0)
+            b.mesh.refine = refine;
+        if (b.type == GS_BODY_GEAR)
+            b.model = GS_MODEL_ELASTIC;
+        unknowns += gs_scene_body_unknowns(&b);
+    }
+    bytes += GS_SCENE_BYTES_PER_UNKNOWN * unknowns;
+    double limit = (double)gsi_opt_max_scene_mb() * 1048576.0;
+    if (bytes <= limit)
+        return GS_OK;
+    return gs_diag_set(d, GS_ETOOBIG, refine >= 0 ? "args.refine" : "args.mesh",
+                       "the stiffness analysis would need about %.0f MiB (estimate: %.3g FE unknowns in both "
+                       "gears%s); this daemon's limit is %lld MiB (--max-scene-mb)", bytes / 1048576.0, unknowns,
+                       refine >= 0 ? " at this refine" : "", (long long)gsi_opt_max_scene_mb());
+}
+
 /* Validate on rank 0 (with a diagnostic naming the field), then broadcast. */
 static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
 {
@@ -1132,6 +1156,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     o.positions = (int)v;
     GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
     o.refine = (int)v;
+    GS_TRY(check_stiffness_size(sys->scene, mi, o.refine, d));
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
     bool nearfield = true;
     GS_TRY(gsi_json_bool(args, "nearfield", "args", true, &nearfield, d));

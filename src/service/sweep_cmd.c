@@ -149,18 +149,17 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     json_object_put(spec);
     if (e != GS_OK)
         return e;
-    /* Each group loads the scene: the daemon's scene size limit holds. */
-    char *pt = NULL;
-    gs_scene *sc = NULL;
-    if ((e = gs_sweep_point_scene(sw, 0, &pt, d)) == GS_OK && (e = gs_scene_parse(pt, strlen(pt), &sc, d)) == GS_OK) {
-        int big;
-        double mb = gs_scene_estimate_bytes(sc, &big) / 1048576.0;
-        if (mb > (double)gsi_opt_max_scene_mb())
-            e = gs_diag_set(d, GS_ETOOBIG, "args.scene", "a point's scene would need about %.0f MiB (estimate); this "
-                            "daemon's limit is %lld MiB (--max-scene-mb)", mb, (long long)gsi_opt_max_scene_mb());
-    }
-    free(pt);
-    gs_scene_free(&sc);
+    /* Each group loads every point's scene: the daemon's scene size limit
+     * and step cap hold at every point, not only the first. */
+    int bp, sp;
+    double mb = gs_sweep_max_scene_bytes(sw, &bp) / 1048576.0, steps = gs_sweep_max_steps(sw, &sp);
+    if (mb > (double)gsi_opt_max_scene_mb())
+        e = gs_diag_set(d, GS_ETOOBIG, "args.parameters", "point %d's scene would need about %.0f MiB (estimate); "
+                        "this daemon's limit is %lld MiB (--max-scene-mb)", bp, mb, (long long)gsi_opt_max_scene_mb());
+    else if (steps > (double)GSI_MAX_STEPS_PER_ADVANCE)
+        e = gs_diag_set(d, GS_ETOOBIG, "args.measure", "point %d takes %.3g steps (settle + measure at its time "
+                        "step); at most %lld steps per point, as per advance", sp, steps,
+                        (long long)GSI_MAX_STEPS_PER_ADVANCE);
     if (e != GS_OK) {
         gs_sweep_free(&sw);
         return e;
