@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gearsim/record.h"
@@ -41,6 +42,11 @@ static gs_err write_file(const char *path, const char *bytes, size_t len, const 
      * replaces a symlink at the target instead of following it. */
     char tmp[1200], via_fd[64];
     int fd = gs_tmp_create_beside(path, tmp, sizeof tmp);
+    if (fd >= 0 && fchmod(fd, 0644) != 0) { /* every output's mode (docs/RELIABILITY.md) */
+        close(fd);
+        remove(tmp);
+        fd = -1;
+    }
     if (fd < 0)
         return gs_diag_set(d, GS_EIO, "path", "cannot create the checkpoint '%s'", path);
     snprintf(via_fd, sizeof via_fd, "/proc/self/fd/%d", fd);
