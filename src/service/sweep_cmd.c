@@ -178,6 +178,13 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     size_t rl = strlen(rel);
     if (e == GS_OK && rl > 4 && !strcmp(rel + rl - 4, ".csv"))
         rel[rl - 4] = '\0';
+    /* The files are <path>.csv, .h5, .sweep.json: the last component must
+     * be a name ('.', '..' or a trailing '/' would make '..csv'). */
+    const char *leaf = strrchr(rel, '/');
+    leaf = leaf ? leaf + 1 : rel;
+    if (e == GS_OK && (!leaf[0] || !strcmp(leaf, ".") || !strcmp(leaf, "..")))
+        e = gs_diag_set(d, GS_ERANGE, "args.path", "'%s' does not end in a file name: the sweep writes "
+                        "<path>.csv, <path>.h5 and <path>.sweep.json", rel);
     svc_sweep *w = gs_calloc(1, sizeof *w);
     if (e == GS_OK && !w)
         e = GS_ENOMEM;
@@ -367,7 +374,10 @@ void gsi_sweep_stop(gs_service *s, bool cancelled)
     gs_sweep_run_end(w->run); /* the groups stop; points that finished meanwhile are kept */
     take_points(s);
     int k = points_done(w);
-    bool complete = k == w->n_points;
+    /* Complete when every point is in the table, or when the run went to
+     * its end and the missing points failed (listed in the done event): a
+     * resume would only fail them again, and the path stays usable. */
+    bool complete = k == w->n_points || (!cancelled && w->n_computed >= w->n_todo);
     gs_diag d;
     gs_diag_clear(&d);
     /* The table whole, in point order, and closed; then the HDF5 table and

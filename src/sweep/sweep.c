@@ -294,7 +294,11 @@ gs_err gs_sweep_point_scene(const gs_sweep *sw, int p, char **text, gs_diag *d)
 
 static bool path_chars_ok(const char *p)
 {
-    if (!p[0])
+    /* No empty segment: not '.x', 'x.', 'a..b' nor '.[' (the column keeps
+     * the path as written, so it must be the one path it means). */
+    size_t n = strlen(p);
+    if (!p[0] || p[0] == '.' || p[0] == '[' || p[n - 1] == '.' || strstr(p, "..") || strstr(p, ".[") ||
+        strstr(p, "[]") || strstr(p, "]]"))
         return false;
     for (; *p; p++)
         if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') || *p == '_' ||
