@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 #include <zmq.h>
 
@@ -843,6 +844,40 @@ static void receive_one(gs_service *s)
     zmq_msg_close(&ident);
 }
 
+/* A rank died (watchdog.c): the error event, the done events of the work
+ * in progress (its error names the cause), the record flushed, then the
+ * job aborted: nothing more can be computed, and a broadcast to the dead
+ * rank would block. The autosave of an unfinished advance is kept. */
+static void rank_lost(gs_service *s)
+{
+    const char *msg = gsi_watchdog_lost();
+    json_object *w = json_object_new_object();
+    json_object_object_add(w, "code", json_object_new_string("rank_lost"));
+    json_object_object_add(w, "message", json_object_new_string(msg));
+    gsi_publish(s, "error", w);
+    const char *pid[3] = {s->adv.active ? s->adv.parent_id : NULL, s->sweep ? gsi_sweep_parent(s) : NULL,
+                          s->stiff.run ? s->stiff.parent_id : NULL};
+    static const char *const kind[3] = {"advance", "sweep", "stiffness"};
+    for (int k = 0; k < 3; k++) {
+        if (!pid[k])
+            continue;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "parent_id", json_object_new_string(pid[k]));
+        json_object_object_add(o, "cancelled", json_object_new_boolean(0));
+        json_object *e = json_object_new_object();
+        json_object_object_add(e, "code", json_object_new_string("rank_lost"));
+        json_object_object_add(e, "message", json_object_new_string(msg));
+        json_object_object_add(o, "error", e);
+        gsi_publish_done(s, k == 0 && s->adv.job >= 0 ? "job" : kind[k], o);
+    }
+    gsi_record_flush_or_stop(s, "the record could not be written");
+    gs_record_close(&s->record);
+    /* The events leave before the abort. */
+    struct timespec ts = {0, 300000000};
+    nanosleep(&ts, NULL);
+    MPI_Abort(MPI_COMM_WORLD, 3);
+}
+
 static void heartbeat(gs_service *s)
 {
     static const char *const names[] = {"empty", "loaded", "running", "paused"};
@@ -957,10 +992,12 @@ static gs_err write_connection_file(gs_service *s)
     }
     char err[PATH_MAX + 200];
     gs_err e = GS_OK;
-    if (gsi_write_connection_text(path, json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY), err,
-                                  sizeof err) != 0) {
+    const char *txt = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY);
+    if (gsi_write_connection_text(path, txt, err, sizeof err) != 0) {
         fprintf(stderr, "gearsimd: %s\n", err);
         e = GS_EIO;
+    } else {
+        gsi_watchdog_start(path, txt);
     }
     json_object_put(o);
     return e;
@@ -1140,7 +1177,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             s->last_heartbeat = now;
             heartbeat(s);
         }
+        if (gsi_watchdog_lost())
+            rank_lost(s);
     }
+    gsi_watchdog_stop();
     if (s->adv.active) {
         s->keep_autosave = true; /* still resumable with --resume */
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");

@@ -195,6 +195,9 @@ gs_err gsi_resume(gs_service *s, gs_diag *d);
  * null: the JSON writer's guard. Returns how many there were. */
 int gsi_json_scrub(json_object *o);
 
+/* The running sweep's request id ("" none). */
+const char *gsi_sweep_parent(gs_service *s);
+
 /* The run's state (coordinates, speeds, time, mesh forces, and with
  * `energies` the energies) all finite? When not, msg says which value,
  * at which step. */

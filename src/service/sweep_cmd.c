@@ -435,6 +435,8 @@ json_object *gsi_sweep_status(gs_service *s)
     return a;
 }
 
+const char *gsi_sweep_parent(gs_service *s) { return s->sweep ? s->sweep->parent_id : ""; }
+
 bool gsi_sweep_allows(const char *cmd)
 {
     /* Commands that do not use the other ranks (they are in the sweep). */
