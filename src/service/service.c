@@ -740,6 +740,9 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
         else if (s->stiff.run && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
+        else if (s->validating && !gsi_validating_allows(c->name))
+            e = gs_diag_set(&d, GS_EBUSY, "cmd", "'%s' waits: a sweep request is being validated (a second or "
+                            "so; ask again)", c->name);
         else if (s->sweep && !gsi_sweep_allows(c->name))
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a sweep runs (cancel ends it)", c->name);
         else {
@@ -876,6 +879,44 @@ static void rank_lost(gs_service *s)
     struct timespec ts = {0, 300000000};
     nanosleep(&ts, NULL);
     MPI_Abort(MPI_COMM_WORLD, 3);
+}
+
+static void heartbeat(gs_service *s);
+
+bool gsi_validating_allows(const char *cmd)
+{
+    static const char *const ok[] = {"hello", "status", "state", "jobs", "fetch", "modal", NULL};
+    for (int i = 0; ok[i]; i++)
+        if (!strcmp(cmd, ok[i]))
+            return true;
+    return false;
+}
+
+/* Long validation on rank 0 (a sweep's every point) calls this every few
+ * milliseconds: requests are answered meanwhile (those that change nothing;
+ * the others are told to wait), and heartbeats go on, so the service is
+ * never silent for longer than a slice (docs/RELIABILITY.md, "Limits"). */
+void gsi_poll_during(void *user)
+{
+    gs_service *s = user;
+    double now = gs_now();
+    if (now - s->last_poll_during < 0.005)
+        return;
+    s->last_poll_during = now;
+    if (!s->router)
+        return;
+    for (int i = 0; i < 64; i++) {
+        int ev = 0;
+        size_t n = sizeof ev;
+        zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
+        if (!(ev & ZMQ_POLLIN))
+            break;
+        receive_one(s);
+    }
+    if (now - s->last_heartbeat >= 1.0) {
+        s->last_heartbeat = now;
+        heartbeat(s);
+    }
 }
 
 static void heartbeat(gs_service *s)

@@ -114,6 +114,8 @@ typedef struct gs_service {
     svc_cache_entry cache[GSI_CACHE];
     size_t cache_bytes;      /* sum of the entries' bytes */
     bool shutdown;
+    bool validating;           /* a long validation polls the socket (gsi_poll_during) */
+    double last_poll_during;
     char nonfinite[320];       /* the first non-finite value of the running advance, "" none */
     double timing_step, timing_telemetry, timing_record;
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
@@ -194,6 +196,11 @@ gs_err gsi_resume(gs_service *s, gs_diag *d);
 /* Every non-finite number in o (objects and arrays, recursively) made
  * null: the JSON writer's guard. Returns how many there were. */
 int gsi_json_scrub(json_object *o);
+
+/* Answer pending requests (those gsi_validating_allows) from within a long
+ * validation; at most every 5 ms. */
+void gsi_poll_during(void *user);
+bool gsi_validating_allows(const char *cmd);
 
 /* The running sweep's request id ("" none). */
 const char *gsi_sweep_parent(gs_service *s);

@@ -145,7 +145,13 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     json_object *spec;
     GS_TRY(gs_sweep_spec_from_args(args, "args", &spec, d));
     gs_sweep *sw = NULL;
+    /* Every point is validated here (seconds for thousands): requests that
+     * change nothing are answered meanwhile. */
+    s->validating = true;
+    gs_sweep_set_poll(gsi_poll_during, s);
     gs_err e = gs_sweep_parse(spec, "args", NULL, &sw, d);
+    gs_sweep_set_poll(NULL, NULL);
+    s->validating = false;
     json_object_put(spec);
     if (e != GS_OK)
         return e;

@@ -50,6 +50,15 @@ const char *gs_sweep_canonical(const gs_sweep *sw) { return sw->canonical; }
 const char *gs_sweep_scene_name(const gs_sweep *sw) { return sw->scene_name; }
 const char *gs_sweep_spec_text(const gs_sweep *sw) { return sw->spec_text; }
 
+static void (*poll_fn)(void *);
+static void *poll_user;
+
+void gs_sweep_set_poll(void (*fn)(void *user), void *user)
+{
+    poll_fn = fn;
+    poll_user = user;
+}
+
 double gs_sweep_max_scene_bytes(const gs_sweep *sw, int *point)
 {
     *point = sw->max_bytes_point;
@@ -488,6 +497,8 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
     json_object *copy = NULL;
     for (int p = 0; p < sw->n_points; p++) {
         char *pt = NULL;
+        if (poll_fn)
+            poll_fn(poll_user);
         if (p == 0 || p == sw->n_points - 1) {
             e = gs_sweep_point_scene(sw, p, &pt, d);
         } else {
