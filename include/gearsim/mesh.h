@@ -15,6 +15,7 @@
 #define GEARSIM_MESH_H
 
 #include "gearsim/geometry.h"
+#include "gearsim/modification.h"
 #include "gearsim/types.h"
 
 /* What a node is (gs_mesh.node_tag). */
@@ -178,5 +179,16 @@ gs_index *gs_mesh_triangle6(const gs_mesh *m);
  * *n_boundary_edges and the number of boundary loops in *n_loops (either
  * may be NULL). GS_EINVAL when the mesh is not a conforming 2-manifold. */
 gs_err gs_mesh_check_topology(const gs_mesh *m, gs_index *n_boundary_edges, int *n_loops);
+
+/* Apply a set to a mesh of the gear (gs_gear_mesh of g's parameters): flank
+ * nodes (tag GS_NODE_FLANK) move to the modified flank at their radius;
+ * each tooth's pitch error turns the tooth about the axis (fully from half
+ * way between root and pitch circle outwards, fading to nothing at the root
+ * circle, so the elements there take up the step); run-out translates every
+ * node. Checks that no element turned over (GS_EGEOMETRY, field
+ * "modification"). A NULL or empty set leaves the mesh untouched
+ * (src/mesh/mesh_mods.c). */
+gs_err gs_gear_mods_apply_mesh(const gs_gear_geom *g, const gs_gear_mods *m, gs_mesh *mesh,
+                               gs_diag *d);
 
 #endif

@@ -29,15 +29,13 @@
  * offset from the rotation axis by the eccentricity at a phase angle in the
  * body frame.
  *
- * Plain data; functions are pure except gs_gear_mods_apply_mesh, which
- * moves the nodes of a mesh it is given. */
+ * Plain data; the functions are pure. Applying a set to a gear's FE mesh
+ * belongs to the mesh layer (gs_gear_mods_apply_mesh, gearsim/mesh.h). */
 #ifndef GEARSIM_MODIFICATION_H
 #define GEARSIM_MODIFICATION_H
 
 #include "gearsim/geometry.h"
 #include "gearsim/types.h"
-
-struct gs_mesh;
 
 #define GS_MOD_TABLE_MAX 64
 
@@ -95,16 +93,6 @@ double gs_gear_flank_offset(const gs_gear_geom *g, const gs_gear_mods *m, int si
 /* Half tooth angle of the modified flank `side` at radius R: the polar angle
  * from the tooth centreline, psi(R) + f(R) / rb. */
 double gs_gear_modified_psi(const gs_gear_geom *g, const gs_gear_mods *m, int side, double R);
-
-/* Apply a set to a mesh of the gear (gs_gear_mesh of g's parameters): flank
- * nodes (tag GS_NODE_FLANK) move to the modified flank at their radius;
- * each tooth's pitch error turns the tooth about the axis (fully from half
- * way between root and pitch circle outwards, fading to nothing at the root
- * circle, so the elements there take up the step); run-out translates every
- * node. Checks that no element turned over (GS_EGEOMETRY, field
- * "modification"). A NULL or empty set leaves the mesh untouched. */
-gs_err gs_gear_mods_apply_mesh(const gs_gear_geom *g, const gs_gear_mods *m, struct gs_mesh *mesh,
-                               gs_diag *d);
 
 /* Roll length L = sqrt(R^2 - rb^2) and its inverse. */
 double gs_gear_roll_length(const gs_gear_geom *g, double R);

@@ -75,115 +75,12 @@
 #include <string.h>
 
 #include "fe/fe_internal.h"
+#include "fe/fe_reduced_internal.h"
 #include "gearsim/util.h"
-
-#define DENSE_MAX 1600
-#define MODES_MAX 4000
-/* Lanczos vectors of one run (memory 2 ne of them); restarts go on */
-#define LANCZOS_MAX 600
-#define RESTARTS_MAX 40
-/* candidate nodes whose residual columns one solve computes */
-#define BATCH_NODES 8
-
-struct gs_fe_reduced {
-    const gs_fe_model *m;
-    gs_index ne, n;       /* elastic unknowns; n = ne + 1 */
-    bool held;
-    double fmax;
-    double Itot;          /* inertia_total */
-    double beta;
-    double alpha;         /* mass-proportional damping (material damping_m) */
-
-    /* modes */
-    int N;                /* kept modes (rigid one included for a free body) */
-    double *Phi;          /* n x N column-major (theta last in each) */
-    double *om2;          /* N: w_i^2 */
-    double *PR;           /* nr x N, row-major: Phi at the rows */
-
-    /* rows */
-    gs_index nr;          /* 1 + 2 ncand */
-    gs_index ncand;
-    gs_index *cand_of;    /* n_nodes: candidate index or -1 */
-    gs_index *rowq;       /* nr: index in x, or -1 (fixed node, held theta) */
-    double **col;         /* ncand: 2 nr values (G_res columns x, y at the rows), or NULL */
-    double *tcol;         /* nr: G_res column of theta */
-    gs_index ncols;
-
-    cholmod_common cc;
-    cholmod_sparse *K;
-    cholmod_factor *L;
-    /* the residual columns' solve: right-hand sides, solution and CHOLMOD's
-     * workspace, kept between groups (tens of MB that were allocated and
-     * zeroed by the kernel once per group) */
-    cholmod_dense *cB, *cX, *cY, *cE;
-    double *cf;           /* 2 BATCH_NODES columns of length n: the unit forces */
-
-    /* step */
-    double h, c, d, r, kc;
-    double gamma, dr;       /* residual rule: gamma 1/2 midpoint, 1 static; dr = gamma + beta/h */
-    bool have_step, in_step;
-    double *inv_a;        /* N */
-    /* alpha M on u' in the modes: alpha (E + t t^T), E = 1 on the elastic
-     * modes, t_i = sqrt(I) theta_i (free body; 0 held); the step's modal
-     * matrix diag(a) + (alpha/h)(E + t t^T) is inverted by Sherman-Morrison:
-     * H = diag(inv_a) - kap w w^T, w_i = t_i inv_a_i (kap 0: diagonal) */
-    double *tt, *ww;      /* N */
-    double kap;
-
-    /* state */
-    double *qm, *vm;      /* N */
-    double *Y;            /* nr */
-    gs_index *ysup;       /* rows with Y != 0 */
-    gs_index nys;
-    unsigned char *yin;   /* nr: in ysup */
-    double az;            /* amplitude of z0 */
-    double *z0, *z0R, e0; /* n; at the rows; z0^T K z0 */
-
-    /* the begun step */
-    double *dqm;          /* N: modal increment for the forces so far */
-    double *Fa, *Fi, *Rf; /* nr: applied, interface forces; (F - Y)/d */
-    gs_index *fl;         /* rows in Rf's support */
-    gs_index nfl;
-    unsigned char *fin;   /* nr */
-    double moment;
-
-    /* the last compliance block: raw G_res entries over rows blk_r (the
-     * next step's block shares most rows and copies them: the columns are
-     * far apart in memory) */
-    gs_index *blk_r, *blk_pos; /* blk_n rows; nr: position or -1 */
-    double *blk_G;
-    double *blk_M;        /* the modal sums of the same entries, valid for h == blk_h */
-    size_t blk_cap;       /* entries allocated in blk_G, blk_M, blk_r */
-    double *sp_G, *sp_M;  /* the spare block buffers (swapped with blk_*: no allocation per step) */
-    gs_index *sp_r;
-    size_t sp_cap;
-    double blk_h;
-    gs_index blk_n, blk_rows;
-    /* the last block as returned (C) and its selected rows in order (-1:
-     * immovable): a step whose rows, h and brake are the same copies C
-     * whole (the plan changes every few steps only) */
-    double *blk_C, *sp_C;
-    gs_index *blk_rr, *sp_rr;
-    double blk_dr, blk_kc;
-    bool blk_C_ok;
-
-    double energy0, work_in, work_iface, dissipated, damped;
-    double residual_loss;   /* the static rule's loss (in damped and dissipated) */
-    double col_cpu;       /* CPU seconds spent computing residual columns */
-    int lz_runs, lz_added[4]; /* Lanczos runs; modes the first ones added (the log) */
-    uint64_t steps;
-    double *scratch;      /* n */
-};
 
 /* ---- small helpers ------------------------------------------------------ */
 
-/* Mode i carries elastic displacement u (not the free body's rigid rotation). */
-static inline bool is_elastic(const gs_fe_reduced *b, int i)
-{
-    return b->held || i > 0;
-}
-
-static double dotn(gs_index n, const double *a, const double *b)
+double gsi_fe_red_dotn(gs_index n, const double *a, const double *b)
 {
     double s = 0;
     for (gs_index i = 0; i < n; i++)
@@ -192,19 +89,19 @@ static double dotn(gs_index n, const double *a, const double *b)
 }
 
 /* y = Mbar x on the elastic block (Mbar = M - s s^T / I, or M held). */
-static void mbar(const gs_fe_reduced *b, const double *x, double *y)
+void gsi_fe_red_mbar(const gs_fe_reduced *b, const double *x, double *y)
 {
     memset(y, 0, (size_t)b->ne * sizeof *y);
     gsi_fe_symv2(b->m, 1.0, x, 0.0, x, y);
     if (!b->held) {
-        double st = dotn(b->ne, b->m->s, x) / b->Itot;
+        double st = gsi_fe_red_dotn(b->ne, b->m->s, x) / b->Itot;
         for (gs_index i = 0; i < b->ne; i++)
             y[i] -= b->m->s[i] * st;
     }
 }
 
 /* x = K^{-1} f (ncol right-hand sides of length ne, column-major). */
-static gs_err ksolve(gs_fe_reduced *b, int ncol, const double *f, double *x)
+gs_err gsi_fe_red_ksolve(gs_fe_reduced *b, int ncol, const double *f, double *x)
 {
     cholmod_dense *B = cholmod_l_allocate_dense((size_t)b->ne, (size_t)ncol, (size_t)b->ne, CHOLMOD_REAL, &b->cc);
     if (!B)
@@ -220,233 +117,9 @@ static gs_err ksolve(gs_fe_reduced *b, int ncol, const double *f, double *x)
 }
 
 /* The full mode of an elastic vector: theta = -s^T u / I (0 held). */
-static double theta_of(const gs_fe_reduced *b, const double *u)
+double gsi_fe_red_theta_of(const gs_fe_reduced *b, const double *u)
 {
-    return b->held ? 0.0 : -dotn(b->ne, b->m->s, u) / b->Itot;
-}
-
-/* ---- modes -------------------------------------------------------------- */
-
-static gs_err add_mode(gs_fe_reduced *b, int *cap, const double *u, double lam)
-{
-    if (b->N >= MODES_MAX)
-        return GS_ETOOBIG;
-    if (b->N >= *cap) {
-        int nc = *cap ? 2 * *cap : 64;
-        double *P = realloc(b->Phi, (size_t)nc * (size_t)b->n * sizeof *P);
-        if (!P)
-            return GS_ENOMEM;
-        b->Phi = P;
-        double *o = realloc(b->om2, (size_t)nc * sizeof *o);
-        if (!o)
-            return GS_ENOMEM;
-        b->om2 = o;
-        *cap = nc;
-    }
-    double *p = b->Phi + (size_t)b->N * (size_t)b->n;
-    if (u) {
-        memcpy(p, u, (size_t)b->ne * sizeof *p);
-        p[b->ne] = theta_of(b, u);
-    } else { /* the rigid rotation */
-        memset(p, 0, (size_t)b->ne * sizeof *p);
-        p[b->ne] = 1.0 / sqrt(b->Itot);
-    }
-    b->om2[b->N++] = lam;
-    return GS_OK;
-}
-
-static gs_err modes_dense(gs_fe_reduced *b, int *cap, double lmax)
-{
-    gs_index ne = b->ne, n = b->n;
-    double *Kd = gs_calloc((size_t)(n * n), sizeof *Kd), *Md = gs_calloc((size_t)(n * n), sizeof *Md);
-    double *Ke = gs_calloc((size_t)(ne * ne), sizeof *Ke), *Me = gs_calloc((size_t)(ne * ne), sizeof *Me);
-    double *wv = gs_calloc((size_t)ne, sizeof *wv);
-    gs_err e = (!Kd || !Md || !Ke || !Me || !wv) ? GS_ENOMEM : gs_fe_model_dense(b->m, Kd, Md);
-    if (e == GS_OK) {
-        for (gs_index j = 0; j < ne; j++)
-            for (gs_index i = 0; i < ne; i++) {
-                Ke[i + j * ne] = Kd[i + j * n];
-                Me[i + j * ne] = Md[i + j * n] - (b->held ? 0.0 : b->m->s[i] * b->m->s[j] / b->Itot);
-            }
-        if (LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', (lapack_int)ne, Ke, (lapack_int)ne, Me,
-                           (lapack_int)ne, wv) != 0)
-            e = GS_ESINGULAR;
-    }
-    for (gs_index j = 0; e == GS_OK && j < ne && wv[j] <= lmax; j++)
-        e = add_mode(b, cap, Ke + j * ne, wv[j]);
-    free(Kd), free(Md), free(Ke), free(Me), free(wv);
-    return e;
-}
-
-/* One Lanczos run on K^{-1} Mbar, orthogonal to the modes b->Phi[first..N)
- * (elastic parts) in Mbar; adds the converged Ritz pairs with lambda <= lmax.
- * *added: how many. */
-static gs_err lanczos_run(gs_fe_reduced *b, int *cap, int first, double lmax, unsigned seed, int *added)
-{
-    gs_index ne = b->ne, n = b->n;
-    int nlock = b->N - first;
-    *added = 0;
-    int mmax = (int)(ne < LANCZOS_MAX ? ne : LANCZOS_MAX);
-    int m = 0, cv = 0;
-    double *V = NULL, *MV = NULL, *al = NULL, *be = NULL;
-    double *MX = gs_calloc((size_t)ne * (size_t)(nlock > 0 ? nlock : 1), sizeof *MX);
-    double *w = gs_calloc((size_t)ne, sizeof *w), *mw = gs_calloc((size_t)ne, sizeof *mw);
-    gs_err e = (!MX || !w || !mw) ? GS_ENOMEM : GS_OK;
-    for (int k = 0; e == GS_OK && k < nlock; k++)
-        mbar(b, b->Phi + (size_t)(first + k) * (size_t)n, MX + (size_t)k * (size_t)ne);
-    /* start vector: pseudo-random */
-    uint64_t st = 0x9E3779B97F4A7C15ULL * (seed + 1);
-    for (gs_index i = 0; i < ne; i++) {
-        st ^= st << 13, st ^= st >> 7, st ^= st << 17;
-        w[i] = (double)(st >> 11) / 9007199254740992.0 - 0.5;
-    }
-    double thmin = 1.0 / lmax;
-    double *S = NULL, *dd = NULL, *ee = NULL;
-    int done = 0;
-    while (e == GS_OK && !done) {
-        /* orthogonalise w against the locked modes and V (twice), in Mbar */
-        for (int pass = 0; pass < 2; pass++) {
-            for (int k = 0; k < nlock; k++) {
-                double cf = dotn(ne, MX + (size_t)k * (size_t)ne, w);
-                const double *x = b->Phi + (size_t)(first + k) * (size_t)n;
-                for (gs_index i = 0; i < ne; i++)
-                    w[i] -= cf * x[i];
-            }
-            for (int k = 0; k < m; k++) {
-                double cf = dotn(ne, MV + (size_t)k * (size_t)ne, w);
-                const double *x = V + (size_t)k * (size_t)ne;
-                for (gs_index i = 0; i < ne; i++)
-                    w[i] -= cf * x[i];
-            }
-        }
-        mbar(b, w, mw);
-        double bn = sqrt(fabs(dotn(ne, w, mw)));
-        if (m > 0)
-            be[m - 1] = bn;
-        if (m > 0 && (m % 20 == 0 || bn < 1e-12 * fabs(al[m - 1]) || m == mmax)) {
-            /* Ritz values of T_m: converged ones with theta >= thmin margin */
-            memcpy(dd, al, (size_t)m * sizeof *dd);
-            memcpy(ee, be, (size_t)m * sizeof *ee);
-            if (LAPACKE_dstev(LAPACK_COL_MAJOR, 'V', (lapack_int)m, dd, ee, S, (lapack_int)m) != 0) {
-                e = GS_ENOCONV;
-                break;
-            }
-            bool all = true;
-            cv = 0;
-            for (int i = m - 1; i >= 0; i--) {
-                if (dd[i] < 0.7 * thmin)
-                    break;
-                double res = fabs(bn * S[(size_t)i * (size_t)m + (size_t)(m - 1)]);
-                if (res > 1e-10 * dd[i]) {
-                    all = false;
-                    break;
-                }
-                if (dd[i] >= thmin)
-                    cv++;
-            }
-            if (all || bn < 1e-12 * fabs(al[m - 1]) || m == mmax)
-                done = 1;
-            if (done)
-                break;
-        }
-        if (m == mmax)
-            break;
-        /* new Lanczos vector */
-        if (m % 64 == 0) {
-            size_t nc = (size_t)m + 64;
-            double *t;
-            if (!(t = realloc(V, nc * (size_t)ne * sizeof *t)) || !((V = t), 1) ||
-                !(t = realloc(MV, nc * (size_t)ne * sizeof *t)) || !((MV = t), 1) ||
-                !(t = realloc(al, nc * sizeof *t)) || !((al = t), 1) || !(t = realloc(be, nc * sizeof *t)) ||
-                !((be = t), 1) || !(t = realloc(dd, nc * sizeof *t)) || !((dd = t), 1) ||
-                !(t = realloc(ee, nc * sizeof *t)) || !((ee = t), 1) ||
-                !(t = realloc(S, nc * nc * sizeof *t)) || !((S = t), 1)) {
-                e = GS_ENOMEM;
-                break;
-            }
-        }
-        if (!(bn > 0)) {
-            e = GS_ENOCONV;
-            break;
-        }
-        double *v = V + (size_t)m * (size_t)ne, *mv = MV + (size_t)m * (size_t)ne;
-        for (gs_index i = 0; i < ne; i++) {
-            v[i] = w[i] / bn;
-            mv[i] = mw[i] / bn;
-        }
-        e = ksolve(b, 1, mv, w);
-        if (e != GS_OK)
-            break;
-        double a = dotn(ne, mv, w);
-        al[m] = a;
-        for (gs_index i = 0; i < ne; i++)
-            w[i] -= a * v[i] + (m > 0 ? bn * V[(size_t)(m - 1) * (size_t)ne + (size_t)i] : 0.0);
-        m++;
-    }
-    /* Ritz vectors of the converged pairs below f_max */
-    for (int i = m - 1; e == GS_OK && i >= 0 && i >= m - cv; i--) {
-        memset(w, 0, (size_t)ne * sizeof *w);
-        const double *y = S + (size_t)i * (size_t)m;
-        for (int k = 0; k < m; k++) {
-            const double *x = V + (size_t)k * (size_t)ne;
-            for (gs_index j = 0; j < ne; j++)
-                w[j] += y[k] * x[j];
-        }
-        mbar(b, w, mw);
-        double nn = sqrt(dotn(ne, w, mw));
-        for (gs_index j = 0; j < ne; j++)
-            w[j] /= nn;
-        e = add_mode(b, cap, w, 1.0 / dd[i]);
-        if (e == GS_OK)
-            (*added)++;
-    }
-    free(V), free(MV), free(al), free(be), free(dd), free(ee), free(S), free(MX), free(w), free(mw);
-    return e;
-}
-
-/* Sort the elastic modes [first, N) by frequency (insertion: few). */
-static void sort_modes(gs_fe_reduced *b, int first)
-{
-    double *t = b->scratch;
-    for (int i = first + 1; i < b->N; i++) {
-        double lam = b->om2[i];
-        memcpy(t, b->Phi + (size_t)i * (size_t)b->n, (size_t)b->n * sizeof *t);
-        int j = i - 1;
-        while (j >= first && b->om2[j] > lam) {
-            b->om2[j + 1] = b->om2[j];
-            memcpy(b->Phi + (size_t)(j + 1) * (size_t)b->n, b->Phi + (size_t)j * (size_t)b->n,
-                   (size_t)b->n * sizeof *t);
-            j--;
-        }
-        b->om2[j + 1] = lam;
-        memcpy(b->Phi + (size_t)(j + 1) * (size_t)b->n, t, (size_t)b->n * sizeof *t);
-    }
-}
-
-static gs_err compute_modes(gs_fe_reduced *b, int solver)
-{
-    int cap = 0;
-    double w = 2.0 * GS_PI * b->fmax, lmax = isfinite(w) ? w * w : INFINITY;
-    if (!b->held)
-        GS_TRY(add_mode(b, &cap, NULL, 0.0));
-    int first = b->N;
-    if (solver == 1 || (solver == 0 && b->ne <= DENSE_MAX)) {
-        GS_TRY(modes_dense(b, &cap, lmax));
-    } else {
-        if (!isfinite(lmax))
-            return GS_ETOOBIG;
-        for (unsigned run = 0; run < RESTARTS_MAX; run++) {
-            int added = 0;
-            GS_TRY(lanczos_run(b, &cap, first, lmax, run, &added));
-            if (run < 4)
-                b->lz_added[run] = added;
-            b->lz_runs = (int)run + 1;
-            if (added == 0)
-                break;
-        }
-        sort_modes(b, first);
-    }
-    return GS_OK;
+    return b->held ? 0.0 : -gsi_fe_red_dotn(b->ne, b->m->s, u) / b->Itot;
 }
 
 /* ---- lifecycle ---------------------------------------------------------- */
@@ -505,7 +178,7 @@ static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **
     const double *x = b->cX->x;
     for (int c = 0; c < ncol; c++) {
         const double *xc = x + (size_t)c * (size_t)ne, *fc = f + (size_t)c * (size_t)n;
-        double xt = theta_of(b, xc);
+        double xt = gsi_fe_red_theta_of(b, xc);
         /* modal part phi_i^T f / w_i^2 of the kept elastic modes */
         double *pf = b->scratch;
         gs_index nz[8], nnz = 0;
@@ -519,14 +192,14 @@ static gs_err gres_column(gs_fe_reduced *b, int ncol, const double *f, double **
                 for (gs_index t = 0; t < nnz; t++)
                     v += p[nz[t]] * fc[nz[t]];
             else
-                v = dotn(n, p, fc);
+                v = gsi_fe_red_dotn(n, p, fc);
             pf[i] = b->om2[i] > 0 ? v / b->om2[i] : 0.0;
         }
         for (gs_index r = 0; r < b->nr; r++) {
             gs_index k = b->rowq[r];
             double v = k < 0 ? 0.0 : (k == ne ? xt : xc[k]);
             if (k >= 0)
-                v -= dotn(b->N, b->PR + (size_t)r * (size_t)b->N, pf);
+                v -= gsi_fe_red_dotn(b->N, b->PR + (size_t)r * (size_t)b->N, pf);
             out[c][r] = v;
         }
     }
@@ -610,16 +283,7 @@ static gs_err ensure_node_now(gs_fe_reduced *b, gs_index k)
     return e;
 }
 
-/* G_res entry (row r, column c); column c's node must be present. */
-static inline double gres(const gs_fe_reduced *b, gs_index r, gs_index c)
-{
-    if (c == 0)
-        return b->tcol[r];
-    gs_index k = (c - 1) >> 1;
-    return b->col[k][(size_t)((c - 1) & 1) * (size_t)b->nr + (size_t)r];
-}
-
-static gs_err ensure_row(gs_fe_reduced *b, gs_index r)
+gs_err gsi_fe_red_ensure_row(gs_fe_reduced *b, gs_index r)
 {
     return r > 0 ? ensure_node(b, (r - 1) >> 1) : GS_OK;
 }
@@ -701,7 +365,7 @@ gs_err gs_fe_reduced_new(const gs_fe_model *m, const gs_fe_reduced_opts *o, gs_f
             e = GS_ESINGULAR;
     }
     if (e == GS_OK) {
-        e = compute_modes(b, o->eigensolver);
+        e = gsi_fe_red_compute_modes(b, o->eigensolver);
         if (e == GS_OK && getenv("GEARSIM_REDUCED_LOG"))
             fprintf(stderr, "reduced body: %ld elastic unknowns, %d modes kept (f_max %.6g Hz, highest %.6g Hz), "
                             "%ld candidate nodes; Lanczos runs %d, modes added by the first %d %d %d\n",
@@ -765,14 +429,14 @@ void gs_fe_reduced_get_info(const gs_fe_reduced *b, gs_fe_reduced_info *info)
 /* ---- energies ----------------------------------------------------------- */
 
 /* Y^T G_res Y over the support (columns present for every row of it). */
-static double ygy(const gs_fe_reduced *b, const double *Yv, const gs_index *sup, gs_index ns)
+double gsi_fe_red_ygy(const gs_fe_reduced *b, const double *Yv, const gs_index *sup, gs_index ns)
 {
     double s = 0;
     for (gs_index a = 0; a < ns; a++) {
         gs_index c = sup[a];
         double t = 0;
         for (gs_index k = 0; k < ns; k++)
-            t += gres(b, sup[k], c) * Yv[sup[k]];
+            t += gsi_fe_red_gres(b, sup[k], c) * Yv[sup[k]];
         s += Yv[c] * t;
     }
     return s;
@@ -785,7 +449,7 @@ void gs_fe_reduced_energy(const gs_fe_reduced *b, double *T, double *V)
         t += b->vm[i] * b->vm[i];
         v += b->om2[i] * b->qm[i] * b->qm[i];
     }
-    v += ygy(b, b->Y, b->ysup, b->nys);
+    v += gsi_fe_red_ygy(b, b->Y, b->ysup, b->nys);
     if (b->az != 0.0) {
         double zy = 0;
         for (gs_index a = 0; a < b->nys; a++)
@@ -859,7 +523,7 @@ gs_err gs_fe_reduced_set_state(gs_fe_reduced *b, double theta, double omega, con
         x[ne] = b->held ? 0.0 : (pass ? omega : theta);
         memset(mx, 0, (size_t)n * sizeof *mx);
         gsi_fe_symv2(m, 1.0, x, 0.0, x, mx);
-        double st = dotn(ne, m->s, x);
+        double st = gsi_fe_red_dotn(ne, m->s, x);
         for (gs_index i = 0; i < ne; i++)
             mx[i] += m->s[i] * x[ne];
         mx[ne] = st + b->Itot * x[ne];
@@ -867,7 +531,7 @@ gs_err gs_fe_reduced_set_state(gs_fe_reduced *b, double theta, double omega, con
             mx[ne] = 0;
         double *qv = pass ? b->vm : b->qm;
         for (int i = 0; i < b->N; i++)
-            qv[i] = dotn(n, b->Phi + (size_t)i * (size_t)n, mx);
+            qv[i] = gsi_fe_red_dotn(n, b->Phi + (size_t)i * (size_t)n, mx);
         if (pass == 0) { /* the residual displacement z0 = x - Phi q */
             memcpy(z, x, (size_t)n * sizeof *z);
             for (int i = 0; i < b->N; i++) {
@@ -920,7 +584,7 @@ gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c)
     b->dr = b->gamma + b->beta / h;
     b->r = (b->beta / h + b->gamma - 1.0) / b->dr;
     for (int i = 0; i < b->N; i++)
-        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i] + (b->alpha > 0 && is_elastic(b, i) ? b->alpha / h : 0.0));
+        b->inv_a[i] = 1.0 / (2.0 / (h * h) + b->d * b->om2[i] + (b->alpha > 0 && gsi_fe_red_is_elastic(b, i) ? b->alpha / h : 0.0));
     b->kap = 0;
     if (b->alpha > 0 && !b->held) {
         double tw = 0;
@@ -935,461 +599,11 @@ gs_err gs_fe_reduced_set_step(gs_fe_reduced *b, double h, double brake_c)
     for (int i = 0; i < b->N; i++)
         yt += b->PR[i] * b->PR[i] * b->inv_a[i];
     if (b->kap != 0.0) {
-        double w0 = dotn(b->N, b->ww, b->PR);
+        double w0 = gsi_fe_red_dotn(b->N, b->ww, b->PR);
         yt -= b->kap * w0 * w0;
     }
     b->kc = (b->held || brake_c == 0) ? 0.0 : (brake_c / h) / (1.0 + (brake_c / h) * yt);
     b->have_step = true;
-    return GS_OK;
-}
-
-/* ---- the step ----------------------------------------------------------- */
-
-static void fl_add(gs_fe_reduced *b, gs_index r)
-{
-    if (!b->fin[r]) {
-        b->fin[r] = 1;
-        b->fl[b->nfl++] = r;
-    }
-}
-
-/* Row of a dof name: >= 0, -1 immovable (fixed node, held theta), -2 bad. */
-static gs_index row_of(const gs_fe_reduced *b, gs_index dof)
-{
-    if (dof == GS_FE_DOF_THETA)
-        return b->held ? -1 : 0;
-    if (dof < 0 || dof >= 2 * b->m->n_nodes)
-        return -2;
-    gs_index node = dof >> 1;
-    if (b->m->dof[dof] < 0)
-        return -1;
-    gs_index k = b->cand_of[node];
-    return k < 0 ? -2 : 1 + 2 * k + (dof & 1);
-}
-
-gs_err gs_fe_reduced_begin_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes)
-{
-    if (!b)
-        return GS_EINVAL;
-    if (!b->have_step || b->in_step)
-        return GS_ESTATE;
-    double h = b->h;
-    /* applied forces on the rows */
-    b->nfl = 0;
-    b->moment = b->held ? 0.0 : moment_nm;
-    if (b->moment != 0.0) {
-        b->Fa[0] = b->moment;
-        fl_add(b, 0);
-    }
-    for (gs_index i = 0; f_nodes && i < 2 * b->m->n_nodes; i++) {
-        if (f_nodes[i] == 0.0)
-            continue;
-        gs_index r = row_of(b, i);
-        if (r == -1)
-            continue;
-        if (r < 0) {
-            for (gs_index a = 0; a < b->nfl; a++)
-                b->Fa[b->fl[a]] = 0, b->fin[b->fl[a]] = 0;
-            b->nfl = 0;
-            return GS_EINVAL; /* a load on a node that is not a candidate */
-        }
-        GS_TRY(ensure_row(b, r));
-        b->Fa[r] += f_nodes[i];
-        fl_add(b, r);
-    }
-    for (gs_index a = 0; a < b->nys; a++)
-        fl_add(b, b->ysup[a]);
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        b->Rf[r] = (b->Fa[r] - b->Y[r]) / b->dr;
-    }
-    /* modal free increments: g = Phi_rows^T Fa row by row (each row's modes
-     * contiguous; the same order of sums per mode), then the scheme */
-    double hb = 0.5 * h + b->beta;
-    memset(b->dqm, 0, (size_t)b->N * sizeof *b->dqm);
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        if (b->Fa[r] == 0.0)
-            continue;
-        const double *p = b->PR + (size_t)r * (size_t)b->N;
-        for (int i = 0; i < b->N; i++)
-            b->dqm[i] += p[i] * b->Fa[r];
-    }
-    if (b->alpha > 0) { /* - alpha (E + t t^T) v on the right-hand side, then H */
-        double tv = dotn(b->N, b->tt, b->vm);
-        for (int i = 0; i < b->N; i++)
-            b->dqm[i] -= b->alpha * ((is_elastic(b, i) ? b->vm[i] : 0.0) + b->tt[i] * tv);
-        double wr = 0;
-        for (int i = 0; i < b->N; i++)
-            wr += b->ww[i] * (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i]));
-        for (int i = 0; i < b->N; i++)
-            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i] -
-                        b->kap * b->ww[i] * wr;
-    } else {
-        for (int i = 0; i < b->N; i++)
-            b->dqm[i] = h * b->vm[i] + (b->dqm[i] - b->om2[i] * (b->qm[i] + hb * b->vm[i])) * b->inv_a[i];
-    }
-    b->in_step = true;
-    return GS_OK;
-}
-
-gs_err gs_fe_reduced_step(gs_fe_reduced *b, double moment_nm, const double *f_nodes)
-{
-    GS_TRY(gs_fe_reduced_begin_step(b, moment_nm, f_nodes));
-    return gs_fe_reduced_end_step(b);
-}
-
-/* The unbraked increment at row r for the forces so far (r's column
- * present). */
-static double row_inc_bar(const gs_fe_reduced *b, gs_index r)
-{
-    if (b->rowq[r] < 0)
-        return 0.0;
-    double v = dotn(b->N, b->PR + (size_t)r * (size_t)b->N, b->dqm);
-    /* column r (symmetric): its entries at the force rows lie close together */
-    for (gs_index a = 0; a < b->nfl; a++)
-        v += gres(b, b->fl[a], r) * b->Rf[b->fl[a]];
-    if (b->az != 0.0)
-        v += (b->r - 1.0) * b->az * b->z0R[r];
-    return v;
-}
-
-/* The unbraked compliance column of theta at row r. */
-static double ycol(const gs_fe_reduced *b, gs_index r)
-{
-    if (b->held || b->rowq[r] < 0)
-        return 0.0;
-    double v = b->tcol[r] / b->dr;
-    const double *p = b->PR + (size_t)r * (size_t)b->N;
-    for (int i = 0; i < b->N; i++)
-        v += p[i] * b->PR[i] * b->inv_a[i];
-    if (b->kap != 0.0)
-        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, b->PR);
-    return v;
-}
-
-gs_err gs_fe_reduced_increment(gs_fe_reduced *b, int n, const gs_index *dofs, double *dq_out)
-{
-    if (!b || n < 0 || (n > 0 && (!dofs || !dq_out)))
-        return GS_EINVAL;
-    if (!b->in_step)
-        return GS_ESTATE;
-    double ut = b->kc != 0.0 ? row_inc_bar(b, 0) : 0.0;
-    for (int k = 0; k < n; k++) {
-        gs_index r = row_of(b, dofs[k]);
-        if (r == -2)
-            return GS_EINVAL;
-        if (r < 0) {
-            dq_out[k] = 0.0;
-            continue;
-        }
-        GS_TRY(ensure_row(b, r));
-        dq_out[k] = row_inc_bar(b, r) - (b->kc != 0.0 ? b->kc * ycol(b, r) * ut : 0.0);
-    }
-    return GS_OK;
-}
-
-gs_err gs_fe_reduced_node_displacement(const gs_fe_reduced *b, gs_index node, double u[2])
-{
-    u[0] = u[1] = 0;
-    if (!b || node < 0 || node >= b->m->n_nodes)
-        return GS_EINVAL;
-    for (int c = 0; c < 2; c++) {
-        gs_index r = row_of(b, 2 * node + c);
-        if (r == -2)
-            return GS_EINVAL;
-        if (r < 0)
-            continue;
-        double v = dotn(b->N, b->PR + (size_t)r * (size_t)b->N, b->qm);
-        for (gs_index a = 0; a < b->nys; a++)
-            v += gres(b, r, b->ysup[a]) * b->Y[b->ysup[a]];
-        v += b->az * b->z0R[r];
-        u[c] = v;
-    }
-    return GS_OK;
-}
-
-gs_err gs_fe_reduced_compliance_sub(gs_fe_reduced *b, int n, const gs_index *dofs, int k, const int *sel,
-                                    double *C)
-{
-    if (!b || n < 0 || k < 0 || (n > 0 && !dofs) || (k > 0 && (!sel || !C)))
-        return GS_EINVAL;
-    if (!b->have_step)
-        return GS_ESTATE;
-    gs_index *rr = gs_calloc((size_t)(k > 0 ? k : 1), sizeof *rr);
-    double *yy = gs_calloc((size_t)(k > 0 ? k : 1), sizeof *yy);
-    if (!rr || !yy) {
-        free(rr), free(yy);
-        return GS_ENOMEM;
-    }
-    gs_err e = GS_OK;
-    for (int j = 0; j < n && e == GS_OK; j++) {
-        gs_index r = row_of(b, dofs[j]);
-        if (r == -2)
-            e = GS_EINVAL;
-        else if (r >= 0)
-            e = ensure_row(b, r);
-    }
-    for (int j = 0; j < k && e == GS_OK; j++) {
-        if (sel[j] < 0 || sel[j] >= n) {
-            e = GS_EINVAL;
-            break;
-        }
-        rr[j] = row_of(b, dofs[sel[j]]);
-        if (rr[j] >= 0 && b->rowq[rr[j]] < 0)
-            rr[j] = -1;
-        yy[j] = rr[j] >= 0 && b->kc != 0.0 ? ycol(b, rr[j]) : 0.0;
-    }
-    /* raw G_res and the modal sums over the selected rows: copied from the
-     * last block where both rows were in it (the modal sums only for the
-     * same h), else computed (bit for bit the same values) */
-    double *G = NULL, *Mm = NULL;
-    gs_index *nrw = NULL;
-    size_t need = (size_t)k * (size_t)k + 1;
-    bool same_h = b->blk_M && b->blk_h == b->h;
-    /* the same rows in the same order, h and brake as the last block: its C */
-    bool same = e == GS_OK && b->blk_C_ok && same_h && (gs_index)k == b->blk_n && b->blk_dr == b->dr &&
-                b->blk_kc == b->kc;
-    for (int j = 0; same && j < k; j++)
-        same = rr[j] == b->blk_rr[j];
-    if (same) {
-        memcpy(C, b->blk_C, (size_t)k * (size_t)k * sizeof *C);
-        free(rr), free(yy);
-        return GS_OK;
-    }
-    if (e == GS_OK && b->sp_cap < need) {
-        free(b->sp_G), free(b->sp_M), free(b->sp_r), free(b->sp_C), free(b->sp_rr);
-        b->sp_G = malloc(need * sizeof *b->sp_G);
-        b->sp_M = malloc(need * sizeof *b->sp_M);
-        b->sp_r = malloc(need * sizeof *b->sp_r);
-        b->sp_C = malloc(need * sizeof *b->sp_C);
-        b->sp_rr = malloc(need * sizeof *b->sp_rr);
-        b->sp_cap = (b->sp_G && b->sp_M && b->sp_r && b->sp_C && b->sp_rr) ? need : 0;
-        if (!b->sp_cap)
-            e = GS_ENOMEM;
-    }
-    if (e == GS_OK) {
-        G = b->sp_G;
-        Mm = b->sp_M;
-        nrw = b->sp_r;
-    }
-    /* positions in the last block (-1: new or immovable) */
-    gs_index *pos = e == GS_OK ? b->sp_rr : NULL;
-    for (int j = 0; j < k && e == GS_OK; j++)
-        pos[j] = rr[j] >= 0 ? b->blk_pos[rr[j]] : -1;
-    for (int j = 0; j < k && e == GS_OK; j++) {
-        gs_index pj = pos[j];
-        double *Gj = G + (size_t)j * (size_t)k, *Mj = Mm + (size_t)j * (size_t)k, *Cj = C + (size_t)j * (size_t)k;
-        for (int i = 0; i <= j; i++) {
-            double g = 0, v = 0, cv = 0;
-            if (rr[i] >= 0 && rr[j] >= 0) {
-                gs_index pi = pos[i];
-                bool old = pi >= 0 && pj >= 0;
-                g = old ? b->blk_G[pi + pj * b->blk_n] : gres(b, rr[i], rr[j]);
-                if (old && same_h) {
-                    v = b->blk_M[pi + pj * b->blk_n];
-                } else {
-                    const double *p = b->PR + (size_t)rr[i] * (size_t)b->N,
-                                 *q = b->PR + (size_t)rr[j] * (size_t)b->N;
-                    for (int t = 0; t < b->N; t++)
-                        v += p[t] * q[t] * b->inv_a[t];
-                    if (b->kap != 0.0)
-                        v -= b->kap * dotn(b->N, b->ww, p) * dotn(b->N, b->ww, q);
-                }
-                cv = v + g / b->dr - b->kc * yy[i] * yy[j];
-            }
-            Gj[i] = G[j + (size_t)i * (size_t)k] = g;
-            Mj[i] = Mm[j + (size_t)i * (size_t)k] = v;
-            Cj[i] = C[j + (size_t)i * (size_t)k] = cv;
-        }
-    }
-    if (e == GS_OK) { /* keep this block: rows listed in blk_r, positions in blk_pos */
-        double *tc = b->blk_C;
-        b->blk_C = b->sp_C;
-        b->sp_C = tc;
-        gs_index *tr = b->blk_rr;
-        b->blk_rr = b->sp_rr;
-        b->sp_rr = tr;
-        memcpy(b->blk_C, C, (size_t)k * (size_t)k * sizeof *C);
-        memcpy(b->blk_rr, rr, (size_t)k * sizeof *rr);
-        b->blk_dr = b->dr;
-        b->blk_kc = b->kc;
-        b->blk_C_ok = true;
-        for (gs_index t = 0; t < b->blk_rows; t++)
-            b->blk_pos[b->blk_r[t]] = -1;
-        /* swap: the last block's buffers become the spares */
-        b->sp_G = b->blk_G;
-        b->sp_M = b->blk_M;
-        b->sp_r = b->blk_r;
-        size_t cap = b->blk_cap;
-        b->blk_cap = b->sp_cap;
-        b->sp_cap = b->sp_G && b->sp_M && b->sp_r && b->sp_C && b->sp_rr ? cap : 0;
-        if (!b->sp_cap) {
-            free(b->sp_G), free(b->sp_M), free(b->sp_r), free(b->sp_C), free(b->sp_rr);
-            b->sp_G = b->sp_M = b->sp_C = NULL;
-            b->sp_r = b->sp_rr = NULL;
-        }
-        b->blk_G = G;
-        b->blk_M = Mm;
-        b->blk_h = b->h;
-        b->blk_r = nrw;
-        b->blk_n = k;
-        b->blk_rows = 0;
-        for (int j = 0; j < k; j++)
-            if (rr[j] >= 0 && b->blk_pos[rr[j]] < 0) {
-                b->blk_pos[rr[j]] = j;
-                b->blk_r[b->blk_rows++] = rr[j];
-            }
-    }
-    free(rr), free(yy);
-    return e;
-}
-
-gs_err gs_fe_reduced_compliance(gs_fe_reduced *b, int n, const gs_index *dofs, double *C)
-{
-    int *sel = gs_calloc((size_t)(n > 0 ? n : 1), sizeof *sel);
-    if (!sel)
-        return GS_ENOMEM;
-    for (int j = 0; j < n; j++)
-        sel[j] = j;
-    gs_err e = gs_fe_reduced_compliance_sub(b, n, dofs, n, sel, C);
-    free(sel);
-    return e;
-}
-
-/* Add force f on row r to the step (modal and residual parts). */
-static void add_force(gs_fe_reduced *b, gs_index r, double f)
-{
-    const double *p = b->PR + (size_t)r * (size_t)b->N;
-    for (int i = 0; i < b->N; i++)
-        b->dqm[i] += p[i] * f * b->inv_a[i];
-    if (b->kap != 0.0) {
-        double c = b->kap * dotn(b->N, b->ww, p) * f;
-        for (int i = 0; i < b->N; i++)
-            b->dqm[i] -= c * b->ww[i];
-    }
-    fl_add(b, r);
-    b->Rf[r] += f / b->dr;
-}
-
-gs_err gs_fe_reduced_apply(gs_fe_reduced *b, int n, const gs_index *dofs, const double *f)
-{
-    if (!b || n < 0 || (n > 0 && (!dofs || !f)))
-        return GS_EINVAL;
-    if (!b->in_step)
-        return GS_ESTATE;
-    for (int k = 0; k < n; k++) {
-        gs_index r = row_of(b, dofs[k]);
-        if (r == -2)
-            return GS_EINVAL;
-    }
-    for (int k = 0; k < n; k++) {
-        gs_index r = row_of(b, dofs[k]);
-        if (r < 0 || b->rowq[r] < 0 || f[k] == 0.0)
-            continue;
-        GS_TRY(ensure_row(b, r));
-        b->Fi[r] += f[k];
-        add_force(b, r, f[k]);
-    }
-    return GS_OK;
-}
-
-static void step_clear(gs_fe_reduced *b)
-{
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        b->Fa[r] = b->Fi[r] = b->Rf[r] = 0;
-        b->fin[r] = 0;
-    }
-    b->nfl = 0;
-    b->in_step = false;
-}
-
-void gs_fe_reduced_cancel_step(gs_fe_reduced *b)
-{
-    if (b && b->in_step)
-        step_clear(b);
-}
-
-gs_err gs_fe_reduced_end_step(gs_fe_reduced *b)
-{
-    if (!b)
-        return GS_EINVAL;
-    if (!b->in_step)
-        return GS_ESTATE;
-    double h = b->h;
-    /* the brake: a force on theta from the unbraked increment */
-    double fb = 0;
-    if (b->kc != 0.0) {
-        fb = -b->kc * row_inc_bar(b, 0);
-        add_force(b, 0, fb);
-    }
-    /* increments at the force rows: work and the brake's dissipation */
-    double win = 0, wif = 0, dt = 0;
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        if (b->Fa[r] == 0.0 && b->Fi[r] == 0.0 && !(r == 0 && fb != 0.0))
-            continue;
-        double dq = row_inc_bar(b, r);
-        win += b->Fa[r] * dq;
-        wif += b->Fi[r] * dq;
-        if (r == 0)
-            dt = dq;
-    }
-    double dis = -fb * dt;
-    /* material damping: modal part and the residual's */
-    double dmp = 0;
-    for (int i = 0; i < b->N; i++)
-        dmp += b->om2[i] * b->dqm[i] * b->dqm[i];
-    double dres = ygy(b, b->Rf, b->fl, b->nfl);
-    if (b->az != 0.0) {
-        double zr = 0, f = (b->r - 1.0) * b->az;
-        for (gs_index a = 0; a < b->nfl; a++)
-            zr += b->z0R[b->fl[a]] * b->Rf[b->fl[a]];
-        dres += 2 * f * zr + f * f * b->e0;
-    }
-    /* the static rule's own loss (gamma - 1/2) dY^T G_res dY, booked */
-    double rloss = (b->gamma - 0.5) * dres;
-    dmp = b->beta / h * (dmp + dres);
-    if (b->alpha > 0) { /* dq^T alpha (E + t t^T) dq / h on the modes */
-        double me = 0, td = dotn(b->N, b->tt, b->dqm);
-        for (int i = 0; i < b->N; i++)
-            me += is_elastic(b, i) ? b->dqm[i] * b->dqm[i] : 0.0;
-        dmp += b->alpha / h * (me + td * td);
-    }
-    /* the new state */
-    for (int i = 0; i < b->N; i++) {
-        b->qm[i] += b->dqm[i];
-        b->vm[i] = 2.0 * b->dqm[i] / h - b->vm[i];
-    }
-    double ymax = 0;
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        b->Y[r] += b->Rf[r];
-        ymax = fmax(ymax, fabs(b->Y[r]));
-    }
-    b->az *= b->r;
-    if (fabs(b->az) < 1e-300)
-        b->az = 0;
-    /* the support: rows with |Y| above round-off of the largest */
-    b->nys = 0;
-    for (gs_index a = 0; a < b->nfl; a++) {
-        gs_index r = b->fl[a];
-        if (fabs(b->Y[r]) > 1e-15 * ymax) {
-            b->ysup[b->nys++] = r;
-            b->yin[r] = 1;
-        } else {
-            b->Y[r] = 0;
-            b->yin[r] = 0;
-        }
-    }
-    b->work_in += win;
-    b->work_iface += wif;
-    b->damped += dmp + rloss; /* the body's own dissipation, as the step books it */
-    b->dissipated += dis + dmp + rloss;
-    b->residual_loss += rloss;
-    b->steps++;
-    step_clear(b);
     return GS_OK;
 }
 
@@ -1399,15 +613,15 @@ double gs_fe_reduced_theta(const gs_fe_reduced *b)
 {
     if (b->held)
         return 0.0;
-    double v = dotn(b->N, b->PR, b->qm);
+    double v = gsi_fe_red_dotn(b->N, b->PR, b->qm);
     for (gs_index a = 0; a < b->nys; a++)
-        v += gres(b, 0, b->ysup[a]) * b->Y[b->ysup[a]];
+        v += gsi_fe_red_gres(b, 0, b->ysup[a]) * b->Y[b->ysup[a]];
     return v + b->az * b->z0R[0];
 }
 
 double gs_fe_reduced_omega(const gs_fe_reduced *b)
 {
-    return b->held ? 0.0 : dotn(b->N, b->PR, b->vm);
+    return b->held ? 0.0 : gsi_fe_red_dotn(b->N, b->PR, b->vm);
 }
 
 gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
@@ -1442,7 +656,7 @@ gs_err gs_fe_reduced_nodal(gs_fe_reduced *b, double *u_nodes, double *v_nodes)
             double ft = b->held ? 0.0 : f[ne] / b->Itot;
             for (gs_index i = 0; i < ne; i++)
                 f[i] -= b->held ? 0.0 : b->m->s[i] * ft;
-            e = ksolve(b, 1, f, o);
+            e = gsi_fe_red_ksolve(b, 1, f, o);
         }
         if (e == GS_OK) {
             for (gs_index i = 0; i < ne; i++)
@@ -1555,7 +769,7 @@ gs_err gs_fe_reduced_load(gs_fe_reduced *b, const double *x)
     memcpy(b->vm, x + 1 + b->N, (size_t)b->N * sizeof *x);
     for (gs_index a = 0; a < ns; a++) {
         gs_index r = (gs_index)x[off + nr + 2 + (size_t)a];
-        GS_TRY(ensure_row(b, r));
+        GS_TRY(gsi_fe_red_ensure_row(b, r));
         b->Y[r] = x[off + (size_t)r];
         b->yin[r] = 1;
         b->ysup[b->nys++] = r;
