@@ -855,7 +855,7 @@ static void rank_lost(gs_service *s)
 {
     const char *msg = gsi_watchdog_lost();
     json_object *w = json_object_new_object();
-    json_object_object_add(w, "code", json_object_new_string("rank_lost"));
+    json_object_object_add(w, "code", json_object_new_string(gs_errcode(GS_ERANKLOST)));
     json_object_object_add(w, "message", json_object_new_string(msg));
     gsi_publish(s, "error", w);
     const char *pid[3] = {s->adv.active ? s->adv.parent_id : NULL, s->sweep ? gsi_sweep_parent(s) : NULL,
@@ -868,7 +868,7 @@ static void rank_lost(gs_service *s)
         json_object_object_add(o, "parent_id", json_object_new_string(pid[k]));
         json_object_object_add(o, "cancelled", json_object_new_boolean(0));
         json_object *e = json_object_new_object();
-        json_object_object_add(e, "code", json_object_new_string("rank_lost"));
+        json_object_object_add(e, "code", json_object_new_string(gs_errcode(GS_ERANKLOST)));
         json_object_object_add(e, "message", json_object_new_string(msg));
         json_object_object_add(o, "error", e);
         gsi_publish_done(s, k == 0 && s->adv.job >= 0 ? "job" : kind[k], o);
