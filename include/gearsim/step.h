@@ -13,84 +13,7 @@
 #include "gearsim/scene.h"
 #include "gearsim/types.h"
 
-struct gs_body_rt {
-    int index;               /* body index in the scene */
-    int coord;               /* rigid coordinate index, -1 when held */
-    int tcoord;              /* bearing joint: x coordinate of the centre's displacement
-                              * (y at tcoord + 1), m; -1 for a centre that does not move */
-    int owner;               /* rank that owns the body */
-    double inertia_eff;      /* I + sum m d^2 of planets for a carrier */
-    const gs_body_ops *ops;
-    void *model;             /* model data (elastic: FE body) */
-    double T, V;             /* kinetic and potential energy of the body's own state,
-                              * as the owner last reported it (gs_system_energy_adopt) */
-    double work_s;           /* seconds its owner spent in its interface and finish, summed */
-    double D_step;           /* energy its own damping dissipated in the last step (owner
-                              * report, booked by gs_system_book_damping) */
-    double L;                /* angular momentum of the body's own state about its axis
-                              * (owner report, like T; 0 without own state) */
-    struct gs_mesh *mesh;    /* an elastic gear's mesh, made once by gs_system_new (its
-                              * weight in the owner map); the model takes it at init */
-};
-
-struct gs_gmesh_rt {
-    int index;               /* mesh index in the scene */
-    const gs_gmesh_ops *ops;
-    double *a;               /* n_coords: line-of-action displacement s = a . q (m/rad) */
-    double *c;               /* n_coords: mesh phase (cycles) phi = c . q */
-    double s_ref;            /* s at zero deflection: the initial state's, less s_pin */
-    double s_pin;            /* lumped meshes: deflection the planets' pin errors set at the
-                              * initial state, along the line of action (m) */
-    /* Translations along the true line of action (bodies on bearing joints,
-     * docs/MODAL.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
-     * centre displacement of gear k (coordinates tr_coord[k], tr_coord[k]+1),
-     * n_k = R(q[tr_carrier]) tr_n0[k] when a gear rides on a carrier (the
-     * line turns with it), tr_n0[k] otherwise. abar: scratch, n_coords. */
-    int n_tr;
-    int tr_coord[2];
-    double tr_n0[2][2];
-    /* A planet on a pin bearing: its term is n . (X + tr_off) - tr_c, the
-     * centre's offset from the point R(theta_C) pin0 that turns with the
-     * carrier about its nominal centre (tr_off = R(theta_C0) pin0,
-     * tr_c = tr_n0 . pin0; both 0 for a gear on a bearing joint). */
-    double tr_off[2][2], tr_c[2];
-    int tr_carrier;          /* carrier coordinate, -1 none */
-    double *abar;
-    /* Tooth errors of lumped meshes (docs/GEOMETRY.md): s gains
-     * E(q) = sum_k E_k(v_k), v_k = theta_k - theta_C the angle of gear k in
-     * the carrier's frame (housing: theta_C = 0). err[k]: coord / carrier
-     * coordinates (-1 none), teeth z, beta the direction to the other gear,
-     * kp = sigma r_b / r the pitch-error gain, pitch the tooth table (NULL
-     * none), runout (e, phase) and n the signed line-of-action direction. */
-    int n_err;
-    struct {
-        int coord, carrier, z;
-        double beta, kp, runout, phase, n[2];
-        const double *pitch;
-    } err[2];
-    double contact_ratio;
-    double k_single, k_double, damping, half_backlash;
-    double transition;       /* width of the single/double stiffness change, fraction of a cycle */
-    double *k_table;         /* calibrated stiffness over one mesh cycle (N/m), n_table values:
-                              * the secant F / TE, or the tangent dF/dTE at the load */
-    double *d0_table;        /* tangent calibration: the spring's offset delta_0 = TE - F / k
-                              * (m), n_table values; NULL otherwise (no offset) */
-    int n_table;
-    double phase0, phase_dir; /* table entry 0 at phase phase0, advancing with phase_dir (+-1) */
-    double force;            /* last step's force along the line of action, N */
-    double deflection;       /* s - s_ref at the end of the last step, m */
-    /* contact meshes: */
-    void *contact;           /* model data (the search, meshes of rigid gears) */
-    int n_active;            /* constraints with a positive multiplier in the last step */
-    int n_rows;              /* constraints in the last step */
-    double penetration;      /* deepest penetration at the last step's start, m (>= 0) */
-    double friction_loss;    /* energy dissipated by flank friction since load, J */
-    double contact_work;     /* work of the contact reactions since load, J (numerics.contact
-                              * "closure": the gap closure's; exactly 0 with "seed") */
-    /* impact meshes (rattle): */
-    int64_t impacts;         /* impacts since the start (sustained-contact impulses not counted) */
-    double impact_loss;      /* kinetic energy its impulses dissipated since the start, J */
-};
+typedef struct gs_system gs_system;
 
 /* What crosses ranks in one step, identical on every rank (src/step/plan.c).
  * Body i offers n_dof[i] interface unknowns: its coordinate (when it has
@@ -137,6 +60,15 @@ struct gs_system {
     double time;
     int64_t step;            /* steps of h taken */
     double h;                /* the scene's time step */
+    /* The scene's numerics, copied when the system is built (the step reads
+     * these, not the scene): Newton's iteration limit and tolerance,
+     * numerics.contact (gs_contact_scheme), numerics.adaptive's halvings and
+     * penetration (m). */
+    int max_newton;
+    double newton_tol;
+    int contact_scheme;
+    int adapt_levels;
+    double adapt_penetration;
     /* Adaptive step (scene numerics.adaptive): a step of h is taken as
      * substeps of h_sub = h / 2^level; sub_ticks counts the part of the
      * current step done, in units of h / 2^adapt_levels. Fixed step: level 0,
@@ -174,6 +106,10 @@ struct gs_system {
  * rank/nranks decide which bodies this process owns (balanced by work). */
 gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_diag *d);
 void gs_system_free(gs_system **sys);
+
+/* The view of the system its models see (gearsim/models.h), current: build
+ * it again after the state, the time, the plan or the loads change. */
+void gs_system_view(const gs_system *sys, gs_model_view *v);
 
 /* Replace or add a load by its name (the system's scene owns it after). */
 gs_err gs_system_set_load(gs_system *sys, const gs_scene_load *l);

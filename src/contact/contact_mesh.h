@@ -7,7 +7,7 @@
 #define GEARSIM_CONTACT_MESH_H
 
 #include "gearsim/contact.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 
 typedef struct gsi_contact_mesh {
     int body[2];                       /* the two gears (body indices) */

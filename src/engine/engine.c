@@ -10,7 +10,6 @@
 #include "gearsim/record.h"
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
-#include "models/mesh_common.h"
 
 struct gs_engine {
     MPI_Comm comm;
@@ -275,10 +274,12 @@ static bool energy_due(const gs_system *s, bool last)
 static gs_err refresh_energy(gs_engine *e, gs_err err)
 {
     gs_system *s = e->sys;
+    gs_model_view v;
+    gs_system_view(s, &v);
     for (int i = 0; i < s->n_bodies; i++) {
         gs_body_rt *b = &s->bodies[i];
         if (b->ops->state_size && b->owner == e->rank)
-            b->ops->energy(s, b, &b->T, &b->V);
+            b->ops->energy(&v, b, &b->T, &b->V);
     }
     return sync_energy(e, err, 0.0);
 }
@@ -577,8 +578,10 @@ static void sync_solo(gs_engine *e)
         memcpy(s->w, b + n, n * sizeof(double));
         s->time = b[k], s->step = (int64_t)b[k + 1], s->work_in = b[k + 2];
         s->dissipated = b[k + 3], s->level = (int)b[k + 4], s->h_sub = b[k + 5];
+        gs_model_view v;
+        gs_system_view(s, &v);
         for (int i = 0; i < s->n_meshes; i++)
-            s->meshes[i].deflection = gsi_mesh_s(s, &s->meshes[i], s->q) - s->meshes[i].s_ref;
+            s->meshes[i].deflection = gs_gmesh_s(&v, &s->meshes[i], s->q) - s->meshes[i].s_ref;
     }
     free(b);
 }
@@ -826,11 +829,11 @@ gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, 
 
 static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
 {
-    gs_snapshot_view v;
-    GS_TRY(gs_engine_snapshot_check(b, len, &v, d));
-    uint32_t nc = v.n_coords, nm = v.n_meshes;
-    size_t ns = v.n_states;
-    const char *scene = v.scene, *lj = v.loads;
+    gs_snapshot_view sv;
+    GS_TRY(gs_engine_snapshot_check(b, len, &sv, d));
+    uint32_t nc = sv.n_coords, nm = sv.n_meshes;
+    size_t ns = sv.n_states;
+    const char *scene = sv.scene, *lj = sv.loads;
     gs_scene *sc;
     GS_TRY(gs_scene_parse(scene, strlen(scene), &sc, d));
     json_object *loads = json_tokener_parse(lj);
@@ -872,12 +875,12 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     }
     /* The clock follows the step count (time = step h, or within the step
      * when it was taken between substeps), the level the scene's range. */
-    double t_lo = (double)v.step * s->h, tol = 1e-9 * (t_lo + s->h);
-    if (!(v.time >= t_lo - tol && v.time <= t_lo + s->h + tol) || v.level > s->scene->adapt_levels) {
+    double t_lo = (double)sv.step * s->h, tol = 1e-9 * (t_lo + s->h);
+    if (!(sv.time >= t_lo - tol && sv.time <= t_lo + s->h + tol) || sv.level > s->adapt_levels) {
         unload(e);
         return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's time %.17g s or adaptive level %d does not "
-                           "match step %lld of its scene (time step %g s, %d levels)", v.time, v.level,
-                           (long long)v.step, s->h, s->scene->adapt_levels);
+                           "match step %lld of its scene (time step %g s, %d levels)", sv.time, sv.level,
+                           (long long)sv.step, s->h, s->adapt_levels);
     }
     gs_err lerr = GS_OK;
     for (int i = 0, off = 0; i < s->n_bodies; i++) {
@@ -889,12 +892,14 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
             lerr = GS_ENOMEM;
         } else {
             /* The payload is not aligned for doubles: copy out. */
-            memcpy(x, v.states + (size_t)off * sizeof(double),
+            memcpy(x, sv.states + (size_t)off * sizeof(double),
                    b->ops->state_size(b) * sizeof(double));
             if (b->owner == e->rank) {
                 gs_err le = b->ops->load(b, x);
+                gs_model_view v;
+                gs_system_view(s, &v);
                 if (le == GS_OK)
-                    b->ops->energy(s, b, &b->T, &b->V);
+                    b->ops->energy(&v, b, &b->T, &b->V);
                 else if (lerr == GS_OK)
                     lerr = le;
             }
@@ -907,22 +912,24 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         unload(e);
         return gs_diag_set(d, lerr, "path", "the checkpoint's body states could not be restored");
     }
-    memcpy(s->q, v.q, nc * sizeof(double));
-    memcpy(s->w, v.q + nc * sizeof(double), nc * sizeof(double));
-    s->step = v.step;
-    s->time = v.time;
-    s->work_in = v.work_in;
-    s->dissipated = v.dissipated;
-    s->energy0 = v.energy0;
-    s->level = v.level;
+    memcpy(s->q, sv.q, nc * sizeof(double));
+    memcpy(s->w, sv.q + nc * sizeof(double), nc * sizeof(double));
+    s->step = sv.step;
+    s->time = sv.time;
+    s->work_in = sv.work_in;
+    s->dissipated = sv.dissipated;
+    s->energy0 = sv.energy0;
+    s->level = sv.level;
     s->sub_ticks = 0;
     s->refined = false;
     s->h_sub = s->h / (double)((int64_t)1 << s->level);
+    gs_model_view v;
+    gs_system_view(s, &v);
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
-        m->deflection = gsi_mesh_s(s, m, s->q) - m->s_ref;
+        m->deflection = gs_gmesh_s(&v, m, s->q) - m->s_ref;
         double ct[MESH_SNAP];
-        memcpy(ct, v.meshes + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
+        memcpy(ct, sv.meshes + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
         m->force = ct[0];
         m->n_active = (int)ct[1];
         m->n_rows = (int)ct[2];

@@ -36,7 +36,7 @@
 #include "gearsim/geometry.h"
 #include "gearsim/modification.h"
 #include "gearsim/impact.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 
 #define LOADS 24    /* line loads per station: Pmax (i / LOADS)^2 */
@@ -437,7 +437,7 @@ static gs_err relieve_table(cmesh *cm, const gs_scene_mesh *sm, const gs_scene_b
     return GS_OK;
 }
 
-static gs_err cm_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err cm_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
@@ -661,7 +661,7 @@ static double grad_phi(const gs_gmesh_rt *m, double x, double phi0, double phi1)
  * as the exact mean of the derivative over the interval (grad_x, grad_phi),
  * so it stays accurate for increments far below the deflection, near a
  * static equilibrium, where differences of V would lose all their digits. */
-static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
+static void cm_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
                      double *g, double *J, double *diss, double *force)
 {
     int n = sys->n_coords;
@@ -690,7 +690,7 @@ static void cm_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q
     *force = gx + fd;
 }
 
-static double cm_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double cm_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     int n = sys->n_coords;
     return eval(m, gsi_mesh_s(sys, m, q) - m->s_ref, dot(m->c, q, n)).V;

@@ -6,7 +6,7 @@
 #ifndef GEARSIM_MODELS_COMPLIANT_MESH_H
 #define GEARSIM_MODELS_COMPLIANT_MESH_H
 
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 
 /* One tooth pair in contact at distance v (m) along the path of contact from
  * the start of active profile of the phase gear ("pinion", the mesh's

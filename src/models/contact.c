@@ -9,6 +9,7 @@
 #include <stdlib.h>
 
 #include "contact/contact_mesh.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 
 static void contact_destroy(gs_gmesh_rt *m)
@@ -23,7 +24,7 @@ static void contact_destroy(gs_gmesh_rt *m)
     m->contact = NULL;
 }
 
-static gs_err contact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err contact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
@@ -66,7 +67,7 @@ static gs_err contact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     return GS_OK;
 }
 
-static double contact_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double contact_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     (void)sys, (void)m, (void)q;
     return 0.0;

@@ -7,7 +7,7 @@
  *
  * Interface to the step solver: the body's rotation and, when a contact
  * mesh found them near the other gear, the displacements of a few flank
- * nodes (the plan, step.h). Per step the owner solves for the free motion
+ * nodes (the step's plan, in the view). Per step the owner solves for the free motion
  * and offers the free increments d0 and the compliance block C of A^-1 at
  * those unknowns (from the per-node cache: teeth come back every turn), the
  * condensed midpoint equation d = d0 + C f. After the global solve the
@@ -20,7 +20,7 @@
 
 #include "gearsim/fe.h"
 #include "gearsim/mesh.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 
 typedef struct elastic elastic;
@@ -253,7 +253,7 @@ static gs_err tip_deflection(const elastic *el, double F, double *u)
     return e;
 }
 
-static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
+static gs_err elastic_init(const gs_model_view *sys, gs_body_rt *b, gs_diag *d)
 {
     const gs_scene_body *sb = &sys->scene->bodies[b->index];
     char field[160];
@@ -267,7 +267,7 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
     gs_diag md;
     gs_diag_clear(&md);
     gs_err e = GS_OK;
-    if (b->mesh) /* made by gs_system_new */
+    if (b->mesh) /* made when the system was built */
         el->mesh = b->mesh, b->mesh = NULL;
     else
         e = gs_scene_gear_mesh(sb, &el->mesh, &md);
@@ -355,19 +355,18 @@ static gs_err elastic_init(gs_system *sys, gs_body_rt *b, gs_diag *d)
 
 /* The interface unknowns in FE body names: theta (when the body has a
  * coordinate), then x, y of the plan's nodes. */
-static gs_err interface_dofs(const gs_system *sys, const gs_body_rt *b, elastic *el, int *n)
+static gs_err interface_dofs(const gs_model_view *sys, const gs_body_rt *b, elastic *el, int *n)
 {
-    const gs_step_plan *p = &sys->plan;
-    int nd = p->n_dof[b->index], k = 0;
+    int nd = sys->n_dof[b->index], k = 0;
     gs_index *nw = gs_grow(el->dofs, &el->cap_dofs, (size_t)nd, sizeof(gs_index));
     if (!nw)
         return GS_ENOMEM;
     el->dofs = nw;
     if (b->coord >= 0)
         el->dofs[k++] = GS_FE_DOF_THETA;
-    for (int j = 0; j < p->n_nodes[b->index]; j++) {
-        el->dofs[k++] = gs_fe_dof_node(p->nodes[b->index][j], 0);
-        el->dofs[k++] = gs_fe_dof_node(p->nodes[b->index][j], 1);
+    for (int j = 0; j < sys->n_nodes[b->index]; j++) {
+        el->dofs[k++] = gs_fe_dof_node(sys->nodes[b->index][j], 0);
+        el->dofs[k++] = gs_fe_dof_node(sys->nodes[b->index][j], 1);
     }
     *n = k;
     return GS_OK;
@@ -375,13 +374,13 @@ static gs_err interface_dofs(const gs_system *sys, const gs_body_rt *b, elastic 
 
 /* Begin the body's step and write d0 and the nodes' displacements into rec
  * (its C block untouched); the number of interface dofs in *n. */
-static gs_err interface_begin(const gs_system *sys, gs_body_rt *b, double h, double *rec, int *n)
+static gs_err interface_begin(const gs_model_view *sys, gs_body_rt *b, double h, double *rec, int *n)
 {
     elastic *el = b->model;
     double M = 0, c = 0;
     *n = 0;
     if (b->coord >= 0)
-        gs_system_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
+        gs_model_body_load(sys, b->index, sys->time + 0.5 * h, &M, &c);
     if (el->begun) /* the previous global solve failed: start again */
         el->be->cancel_step(el);
     el->begun = false;
@@ -399,14 +398,13 @@ static gs_err interface_begin(const gs_system *sys, gs_body_rt *b, double h, dou
         return GS_OK;
     GS_TRY(el->be->increment(el, *n, el->dofs, rec + (size_t)*n * *n));
     /* Current displacements of the nodes (body frame). */
-    const gs_step_plan *p = &sys->plan;
     double *u = rec + (size_t)*n * *n + *n;
-    for (int j = 0; j < p->n_nodes[b->index]; j++)
-        el->be->node_u(el, p->nodes[b->index][j], u + 2 * j);
+    for (int j = 0; j < sys->n_nodes[b->index]; j++)
+        el->be->node_u(el, sys->nodes[b->index][j], u + 2 * j);
     return GS_OK;
 }
 
-static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+static void elastic_interface(const gs_model_view *sys, gs_body_rt *b, double h, double *rec)
 {
     elastic *el = b->model;
     int n = 0;
@@ -417,19 +415,19 @@ static void elastic_interface(const gs_system *sys, gs_body_rt *b, double h, dou
         rec[0] = NAN;
 }
 
-static void elastic_interface_free(const gs_system *sys, gs_body_rt *b, double h, double *rec)
+static void elastic_interface_free(const gs_model_view *sys, gs_body_rt *b, double h, double *rec)
 {
     int n = 0;
     gs_err e = interface_begin(sys, b, h, rec, &n);
-    int nd = sys->plan.n_dof[b->index];
+    int nd = sys->n_dof[b->index];
     if (e != GS_OK && nd > 0)
         rec[(size_t)nd * nd] = NAN;
 }
 
-static void elastic_compliance(const gs_system *sys, gs_body_rt *b, int k, const int *sel, double *Cs)
+static void elastic_compliance(const gs_model_view *sys, gs_body_rt *b, int k, const int *sel, double *Cs)
 {
     elastic *el = b->model;
-    int n = sys->plan.n_dof[b->index];
+    int n = sys->n_dof[b->index];
     if (k == 0)
         return;
     /* The dofs are still those of interface_free() (the plan has not changed). */
@@ -438,12 +436,12 @@ static void elastic_compliance(const gs_system *sys, gs_body_rt *b, int k, const
         Cs[0] = NAN;
 }
 
-static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *f)
+static gs_err elastic_finish(const gs_model_view *sys, gs_body_rt *b, const double *f)
 {
     elastic *el = b->model;
     if (!el->begun)
         return GS_ESTATE;
-    int n = sys->plan.n_dof[b->index];
+    int n = sys->n_dof[b->index];
     bool any = false;
     for (int k = 0; k < n; k++)
         any |= f[k] != 0.0;
@@ -452,7 +450,7 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
         GS_TRY(el->be->apply(el, n, el->dofs, f));
     el->begun = false;
     double damped = el->be->damped(el);
-    /* Energies on the engine's schedule only (gs_system energy_deferred;
+    /* Energies on the engine's schedule only (sys->energy_deferred;
      * the engine keeps every step of closure_energy, which books on them). */
     const bool due = !sys->energy_deferred;
     GS_TRY(el->be->end_step(el, due));
@@ -462,8 +460,8 @@ static gs_err elastic_finish(const gs_system *sys, gs_body_rt *b, const double *
     else
         b->T = b->V = NAN;
     /* The angular momentum (a pass over every elastic unknown) is read only
-     * by closure_energy's velocity update (gs_step_contact_return). */
-    b->L = sys->scene->contact_scheme == GS_CONTACT_CLOSURE_ENERGY ? el->be->angular_momentum(el) : 0.0;
+     * by closure_energy's velocity update (sys->momentum). */
+    b->L = sys->momentum ? el->be->angular_momentum(el) : 0.0;
     return GS_OK;
 }
 
@@ -474,7 +472,7 @@ static void elastic_spin(gs_body_rt *b, double dw)
         el->be->spin(el, dw);
 }
 
-static void elastic_energy(const gs_system *sys, const gs_body_rt *b, double *T, double *V)
+static void elastic_energy(const gs_model_view *sys, const gs_body_rt *b, double *T, double *V)
 {
     (void)sys;
     const elastic *el = b->model;

@@ -35,7 +35,7 @@
 #include <stdlib.h>
 
 #include "gearsim/impact.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 #include "mesh_common.h"
 
@@ -60,7 +60,7 @@ static void impact_destroy(gs_gmesh_rt *m)
     m->contact = NULL;
 }
 
-static double minv(const gs_system *sys, int coord)
+static double minv(const gs_model_view *sys, int coord)
 {
     for (int i = 0; i < sys->n_bodies; i++)
         if (sys->bodies[i].coord == coord)
@@ -68,7 +68,7 @@ static double minv(const gs_system *sys, int coord)
     return 0.0;
 }
 
-static gs_err impact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err impact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     GS_TRY(gsi_mesh_mods_supported(sys, m, "impact", 0, 0, d));
     const gs_scene *sc = sys->scene;
@@ -109,7 +109,7 @@ static gs_err impact_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
 
 /* u = M^-1 a - M^-1 G^T (G M^-1 G^T)^-1 G M^-1 a: the velocity change of
  * a unit impulse along a that keeps the kinematic rows G w = 0. */
-static void restrict_to_rows(const gs_system *sys, const gs_gmesh_rt *m, impact_mesh *im)
+static void restrict_to_rows(const gs_model_view *sys, const gs_gmesh_rt *m, impact_mesh *im)
 {
     int n = sys->n_coords, k = sys->n_eq;
     im->ready = true;
@@ -145,7 +145,7 @@ static void restrict_to_rows(const gs_system *sys, const gs_gmesh_rt *m, impact_
     }
 }
 
-static void impact_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0,
+static void impact_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0,
                          const double *dq, double h, double *g, double *J, double *diss,
                          double *force)
 {
@@ -154,7 +154,7 @@ static void impact_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     *force = 0.0; /* free flight in the step; the impulses come after it */
 }
 
-static double impact_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double impact_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     (void)sys, (void)m, (void)q;
     return 0.0;
@@ -170,7 +170,7 @@ static double dot(const double *x, const double *y, int n)
 
 /* Potential energy of the other meshes (lumped springs on the same
  * coordinates): what a position projection could change. */
-static double other_potential(const gs_system *sys, const gs_gmesh_rt *m)
+static double other_potential(const gs_model_view *sys, const gs_gmesh_rt *m)
 {
     double v = 0.0;
     for (int i = 0; i < sys->n_meshes; i++)
@@ -179,7 +179,7 @@ static double other_potential(const gs_system *sys, const gs_gmesh_rt *m)
     return v;
 }
 
-static double impact_after_step(gs_system *sys, gs_gmesh_rt *m)
+static double impact_after_step(const gs_model_view *sys, gs_gmesh_rt *m)
 {
     impact_mesh *im = m->contact;
     int n = sys->n_coords;
@@ -203,7 +203,7 @@ static double impact_after_step(gs_system *sys, gs_gmesh_rt *m)
             if (c < 0 || im->u[c] == 0.0)
                 continue;
             double M, cb;
-            gs_system_body_load(sys, i, t, &M, &cb);
+            gs_model_body_load(sys, i, t, &M, &cb);
             alpha += im->u[c] * (M - cb * sys->w[c]);
         }
         double scale = 0.0;

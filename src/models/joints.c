@@ -6,10 +6,10 @@
  * c dq / h dissipates c dq^2 / h per step. */
 #include <math.h>
 
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "mesh_common.h"
 
-static void bearing_force(const gs_system *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
+static void bearing_force(const gs_model_view *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
                           double *g, double *J, double *diss)
 {
     int n = sys->n_coords;
@@ -26,7 +26,7 @@ static void bearing_force(const gs_system *sys, const gs_joint_rt *j, const doub
     *diss = D;
 }
 
-static double bearing_energy(const gs_system *sys, const gs_joint_rt *j, const double *q)
+static double bearing_energy(const gs_model_view *sys, const gs_joint_rt *j, const double *q)
 {
     (void)sys;
     double V = 0;
@@ -66,7 +66,7 @@ static void pin_stretch(const gs_joint_rt *j, const double *q, double e[2])
         e[i] = q[j->coord[i]] + j->d0[i] - r[i] - (j->carrier_t >= 0 ? q[j->carrier_t + i] : 0.0);
 }
 
-static void pin_bearing_force(const gs_system *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
+static void pin_bearing_force(const gs_model_view *sys, const gs_joint_rt *j, const double *q0, const double *dq, double h,
                               double *g, double *J, double *diss)
 {
     int n = sys->n_coords, c = j->carrier, xc = j->carrier_t;
@@ -119,7 +119,7 @@ static void pin_bearing_force(const gs_system *sys, const gs_joint_rt *j, const 
     *diss = D;
 }
 
-static double pin_bearing_energy(const gs_system *sys, const gs_joint_rt *j, const double *q)
+static double pin_bearing_energy(const gs_model_view *sys, const gs_joint_rt *j, const double *q)
 {
     (void)sys;
     double e[2];

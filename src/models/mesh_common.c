@@ -5,7 +5,7 @@
 
 #include "mesh_common.h"
 
-gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d)
+gs_err gsi_mesh_needs_rigid(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d)
 {
     const gs_scene *sc = sys->scene;
     const gs_scene_mesh *sm = &sc->meshes[m->index];
@@ -22,7 +22,7 @@ gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const ch
     return GS_OK;
 }
 
-gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, int profile,
+gs_err gsi_mesh_mods_supported(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, int profile,
                                int errors, gs_diag *d)
 {
     const gs_scene *sc = sys->scene;
@@ -52,7 +52,7 @@ gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const
     return GS_OK;
 }
 
-double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mean)
+double gsi_mesh_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double k_mean)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     if (sm->damping >= 0)
@@ -92,7 +92,7 @@ static double wet_share(double x0, double x1, double hb, double *dW)
     return W;
 }
 
-double gsi_mesh_contact_damping(const gs_system *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
+double gsi_mesh_contact_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
                                 double *dW)
 {
     *dW = 0.0;
@@ -328,7 +328,7 @@ void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, con
     }
 }
 
-double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+double gsi_mesh_s(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     double s = gsi_mesh_error(m, q);
     for (int i = 0; i < sys->n_coords; i++)
@@ -342,7 +342,7 @@ double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
     return s;
 }
 
-const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq)
+const double *gsi_mesh_grad(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq)
 {
     if (!m->n_tr && !m->n_err)
         return m->a;
@@ -374,4 +374,14 @@ const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const do
     }
     error_grad(m, q0, dq, m->abar);
     return m->abar;
+}
+
+double gs_gmesh_s(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
+{
+    return gsi_mesh_s(sys, m, q);
+}
+
+double gs_gmesh_error(const gs_gmesh_rt *m, const double *q)
+{
+    return gsi_mesh_error(m, q);
 }

@@ -7,23 +7,23 @@
 
 #include <math.h>
 
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 
 /* Refuse a mesh of model `kind` whose gears are not both rigid, naming
  * meshes[i].gears. */
-gs_err gsi_mesh_needs_rigid(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d);
+gs_err gsi_mesh_needs_rigid(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d);
 
 /* Refuse modifications a mesh model of `kind` cannot represent, naming
  * bodies[i].modification (profile) or bodies[i].pitch_errors_um / runout
  * (tooth errors): `profile` and `errors` say what the model can carry. */
-gs_err gsi_mesh_mods_supported(const gs_system *sys, const gs_gmesh_rt *m, const char *kind, int profile,
+gs_err gsi_mesh_mods_supported(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, int profile,
                                int errors, gs_diag *d);
 
 /* The mesh's damper coefficient (N s/m): the scene's `damping`, or from its
  * `damping_ratio` zeta at the mesh mode of mean stiffness k_mean:
  * c = 2 zeta sqrt(k_mean m_eq), m_eq = 1 / sum a_i^2 / I_i over the
  * coordinates the mesh moves. */
-double gsi_mesh_damping(const gs_system *sys, const gs_gmesh_rt *m, double k_mean);
+double gsi_mesh_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double k_mean);
 /* Fraction of the step segment [x0, x1] on which x > 0 (the share of a step
  * a flank spends in contact, continuous in the step's end) and its
  * derivative in x1. */
@@ -34,7 +34,7 @@ double gsi_mesh_wet(double x0, double x1, double *dw1);
  * errors) m->damping times the share of the step either flank spends in
  * contact (gsi_mesh_wet on both), continuous in the step's end, with dW its
  * derivative in the end (0 otherwise). */
-double gsi_mesh_contact_damping(const gs_system *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
+double gsi_mesh_contact_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double x0, double dx, double hb,
                                 double *dW);
 
 /* 2 sin(t / 2) / t, its series near 0: (R(th + t) - R(th)) v = t times this
@@ -56,7 +56,7 @@ void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, doubl
 
 /* Line-of-action displacement s(q) = a . q plus the translations (step.h,
  * gs_gmesh_rt.n_tr) and the tooth errors (gs_gmesh_rt.n_err). */
-double gsi_mesh_s(const gs_system *sys, const gs_gmesh_rt *m, const double *q);
+double gsi_mesh_s(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q);
 /* The tooth errors' part of s (lumped meshes, gs_gmesh_rt.n_err): the
  * pitch errors of the teeth in contact, weighted by their load share, times
  * sigma r_b / r, plus each run-out offset along the line of action. */
@@ -76,6 +76,6 @@ void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, con
 /* Its discrete gradient over the step from q0 by dq: a vector abar with
  * abar . dq = s(q0 + dq) - s(q0) exactly (m->a itself when nothing
  * translates; else written into m->abar). */
-const double *gsi_mesh_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq);
+const double *gsi_mesh_grad(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq);
 
 #endif

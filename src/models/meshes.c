@@ -22,7 +22,7 @@
 #include "gearsim/fe_modes.h"
 #include "gearsim/modification.h"
 #include "gearsim/stiffness.h"
-#include "gearsim/step.h"
+#include "gearsim/models.h"
 #include "gearsim/util.h"
 #include "mesh_common.h"
 
@@ -140,7 +140,7 @@ static double dot(const double *a, const double *b, int n)
     return s;
 }
 
-static gs_err kin_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err kin_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     (void)sys;
     (void)m;
@@ -148,7 +148,7 @@ static gs_err kin_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     return GS_OK;
 }
 
-static void kin_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0,
+static void kin_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0,
                       const double *dq, double h, double *g, double *J, double *diss, double *force)
 {
     (void)sys, (void)m, (void)q0, (void)dq, (void)h, (void)g, (void)J;
@@ -156,7 +156,7 @@ static void kin_force(const gs_system *sys, const gs_gmesh_rt *m, const double *
     *force = NAN; /* filled from the multiplier by the solver */
 }
 
-static double kin_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double kin_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     (void)sys, (void)m, (void)q;
     return 0.0;
@@ -176,14 +176,14 @@ typedef struct lumped_pm {
     double *cbar;
 } lumped_pm;
 
-static double lumped_phase(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double lumped_phase(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     const lumped_pm *pm = m->contact;
     double p = dot(m->c, q, sys->n_coords);
     return pm ? p + pm->inv_pb * gsi_mesh_runout(m, q) : p;
 }
 
-static const double *lumped_phase_grad(const gs_system *sys, const gs_gmesh_rt *m, const double *q0,
+static const double *lumped_phase_grad(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0,
                                        const double *dq)
 {
     const lumped_pm *pm = m->contact;
@@ -277,7 +277,7 @@ static gs_err modal_factors(const gs_scene *sc, int mesh, int driver, double pha
  * and oscillates about it with the tangent stiffness. A position whose
  * tangent comes out softer than its secant (delta_0 < 0: not met beyond
  * round-off on the validation pair) keeps the secant law (delta_0 = 0). */
-static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err calibrate(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     gs_stiffness_opts o;
@@ -387,7 +387,7 @@ static gs_err calibrate(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
     return GS_OK;
 }
 
-static gs_err lumped_init(gs_system *sys, gs_gmesh_rt *m, gs_diag *d)
+static gs_err lumped_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     GS_TRY(gsi_mesh_mods_supported(sys, m, sm->stiffness_type == GS_STIFF_CALIBRATED ? "calibrated lumped" : "lumped",
@@ -472,7 +472,7 @@ static double Hq(double x0, double x1, double *d0, double *d1)
  * residual continuous when a flank closes or opens inside the step (the
  * midpoint test of lumped_force switches the damping force on and off
  * there, which Newton cannot resolve once delta_0 opens a clearance). */
-static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0, const double *dq,
+static void tangent_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq,
                           double h, double *g, double *J, double *diss, double *force)
 {
     int n = sys->n_coords;
@@ -535,7 +535,7 @@ static void tangent_force(const gs_system *sys, const gs_gmesh_rt *m, const doub
 /* Discrete gradient split (see file comment):
  *   dV = (k0+k1)/2 * (f1^2 - f0^2)/2  +  (f0^2+f1^2)/2 * (k1 - k0)/2
  * and each difference quotient is taken along its own scalar argument. */
-static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const double *q0,
+static void lumped_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0,
                          const double *dq, double h, double *g, double *J, double *diss,
                          double *force)
 {
@@ -599,7 +599,7 @@ static void lumped_force(const gs_system *sys, const gs_gmesh_rt *m, const doubl
     *force = gs + fd;
 }
 
-static double lumped_energy(const gs_system *sys, const gs_gmesh_rt *m, const double *q)
+static double lumped_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
     double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = lumped_phase(sys, m, q);
     if (m->d0_table) {

@@ -241,7 +241,7 @@ static bool corner_is_slave(const gsi_contact_mesh *cm, int k, gs_index node)
 static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec, double *pen)
 {
     gsi_contact_mesh *cm = sys->meshes[mi].contact;
-    bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
+    bool closure = sys->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
     gs_contact_pose pose[2];
     for (int k = 0; k < 2; k++) {
         gs_system_body_pose(sys, cm->body[k], pose[k].c, &pose[k].theta);
@@ -261,7 +261,7 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
         if (take)
             GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, mi, j, &r));
-        else if (closure || sys->level < sys->scene->adapt_levels)
+        else if (closure || sys->level < sys->adapt_levels)
             GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, j, &r));
     }
     return GS_OK;
@@ -331,13 +331,13 @@ static double inc_dot(const gs_system *sys, const solver *s, const gs_contact_ro
         int b = cm->body[k];
         if (sys->bodies[b].coord >= 0)
             g += r->dg_dtheta[k] * s->inc[s->base[b]];
-        const gs_scene_body *sb = &sys->scene->bodies[b];
-        if (carrier && sb->joint == GS_JOINT_ON_CARRIER) {
-            int cc = sys->bodies[sb->carrier].coord;
+        const gs_body_rt *br = &sys->bodies[b];
+        if (carrier && br->carrier >= 0) {
+            int cc = sys->bodies[br->carrier].coord;
             if (cc >= 0) {
                 double pc[2], th;
                 gs_system_body_pose(sys, b, pc, &th);
-                const double *cC = sys->scene->bodies[sb->carrier].centre;
+                const double *cC = sys->bodies[br->carrier].centre;
                 g += (r->dg_dc[k][0] * -(pc[1] - cC[1]) + r->dg_dc[k][1] * (pc[0] - cC[0])) * s->x[cc];
             }
         }
@@ -477,11 +477,11 @@ static void point_velocity(const gs_system *sys, int b, const double x[2], doubl
     double w = k >= 0 ? sys->w[k] : 0.0;
     v[0] += -w * (x[1] - c[1]);
     v[1] += w * (x[0] - c[0]);
-    const gs_scene_body *sb = &sys->scene->bodies[b];
-    if (sb->joint == GS_JOINT_ON_CARRIER) {
-        int kc = sys->bodies[sb->carrier].coord;
+    const gs_body_rt *br = &sys->bodies[b];
+    if (br->carrier >= 0) {
+        int kc = sys->bodies[br->carrier].coord;
         double wc = kc >= 0 ? sys->w[kc] : 0.0;
-        const double *cc = sys->scene->bodies[sb->carrier].centre;
+        const double *cc = sys->bodies[br->carrier].centre;
         v[0] += -wc * (x[1] - cc[1]);
         v[1] += wc * (x[0] - cc[0]);
     }
@@ -501,10 +501,10 @@ static void point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k,
     int kc = sys->bodies[b].coord;
     if (kc >= 0)
         fm[kc] += -(x[1] - c[1]) * F[0] + (x[0] - c[0]) * F[1];
-    const gs_scene_body *sb = &sys->scene->bodies[b];
-    if (sb->joint == GS_JOINT_ON_CARRIER) {
-        int cc = sys->bodies[sb->carrier].coord;
-        const double *cC = sys->scene->bodies[sb->carrier].centre;
+    const gs_body_rt *br = &sys->bodies[b];
+    if (br->carrier >= 0) {
+        int cc = sys->bodies[br->carrier].coord;
+        const double *cC = sys->bodies[br->carrier].centre;
         if (cc >= 0)
             fm[cc] += -(c[1] - cC[1]) * F[0] + (c[0] - cC[0]) * F[1];
     }
@@ -621,7 +621,7 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
     GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
     sys->last_iterations += res->iterations;
     gs_err status = GS_ENOCONV;
-    for (int it = 0; it < sys->scene->max_newton; it++) {
+    for (int it = 0; it < sys->max_newton; it++) {
         memcpy(s->xp, s->x, (size_t)N * sizeof(double));
         gsi_mesh_forces(sys, s->xp, s->mg, s->mJ, s->mf);
         for (int i = 0; i < n; i++) {
@@ -640,7 +640,7 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
             dx = fmax(dx, fabs(s->x[j] - s->xp[j]));
             sc = fmax(sc, fabs(s->x[j]));
         }
-        if (dx <= sys->scene->newton_tol * sc) {
+        if (dx <= sys->newton_tol * sc) {
             status = GS_OK;
             break;
         }
@@ -718,7 +718,7 @@ static gs_err contact_solve(gs_system *sys, const double *rec, double *sol, int 
         ct[1] = s->mct[2 * mi];
         ct[2] = s->mct[2 * mi + 1];
     }
-    bool closure = sys->scene->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
+    bool closure = sys->contact_scheme != GS_CONTACT_SEED; /* closure, closure_energy */
     int passes = 0, newton = 0;
 again:;
     /* 2. Unknowns: coordinates, then the nodes that enter a row. */
@@ -820,13 +820,13 @@ again:;
             if (c >= 0)
                 G[c] += cr->dg_dtheta[k];
             /* A planet's centre turns with its carrier: dc = J (c - c_C) dtheta_C. */
-            const gs_scene_body *sb = &sys->scene->bodies[b];
-            if (sb->joint == GS_JOINT_ON_CARRIER) {
-                int cc = sys->bodies[sb->carrier].coord;
+            const gs_body_rt *br = &sys->bodies[b];
+            if (br->carrier >= 0) {
+                int cc = sys->bodies[br->carrier].coord;
                 if (cc >= 0) {
                     double pc[2], th;
                     gs_system_body_pose(sys, b, pc, &th);
-                    const double *cC = sys->scene->bodies[sb->carrier].centre;
+                    const double *cC = sys->bodies[br->carrier].centre;
                     G[cc] += cr->dg_dc[k][0] * -(pc[1] - cC[1]) + cr->dg_dc[k][1] * (pc[0] - cC[0]);
                 }
             }
@@ -887,8 +887,8 @@ again:;
     }
     /* 5d. Adaptive step: a solution that would push a watched node deeper
      * than the threshold is not taken; the step is taken again finer. */
-    if (s->n_watch > 0 && sys->level < sys->scene->adapt_levels &&
-        watched_penetration(sys, s, rec, s->x) > sys->scene->adapt_penetration)
+    if (s->n_watch > 0 && sys->level < sys->adapt_levels &&
+        watched_penetration(sys, s, rec, s->x) > sys->adapt_penetration)
         return GS_EREFINE;
     /* 6. Solution: rigid increments, contact figures, interface forces. */
     memcpy(sol, s->x, (size_t)n * sizeof(double));

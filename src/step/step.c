@@ -19,7 +19,6 @@
 #include "gearsim/step.h"
 #include "gearsim/util.h"
 #include "contact/contact_mesh.h"
-#include "models/mesh_common.h"
 #include "step_internal.h"
 
 /* Bodies that give their record in two phases (models.h): the free part
@@ -58,6 +57,8 @@ static void records(gs_system *sys, double *rec, bool all)
      * docs/PERFORMANCE.md, ninth pass). The bodies are independent here,
      * so the records are the same bit for bit. */
     const bool back = sys->substeps & 1;
+    gs_model_view v;
+    gs_system_view(sys, &v);
     for (int k = 0; k < sys->n_bodies; k++) {
         int i = back ? sys->n_bodies - 1 - k : k;
         gs_body_rt *b = &sys->bodies[i];
@@ -68,14 +69,14 @@ static void records(gs_system *sys, double *rec, bool all)
          * per rigid body were a sixth of the lumped planetary's step
          * (tests/bench/bench_lumped.c). */
         if (!b->ops->state_size) {
-            b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+            b->ops->interface(&v, b, sys->h_sub, rec + sys->plan.rec_off[i]);
             continue;
         }
         double t0 = gs_now();
         if (two_phase(sys, b))
-            b->ops->interface_free(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+            b->ops->interface_free(&v, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         else
-            b->ops->interface(sys, b, sys->h_sub, rec + sys->plan.rec_off[i]);
+            b->ops->interface(&v, b, sys->h_sub, rec + sys->plan.rec_off[i]);
         b->work_s += gs_now() - t0;
     }
 }
@@ -190,6 +191,8 @@ static gs_err compliance(gs_system *sys, const int *mask, double *buf, double *r
     if (!sel)
         return GS_ENOMEM;
     sys->rec_sel = sel;
+    gs_model_view v;
+    gs_system_view(sys, &v);
     for (int i = 0; i < sys->n_bodies; i++) {
         gs_body_rt *b = &sys->bodies[i];
         int nd = p->n_dof[i];
@@ -205,7 +208,7 @@ static gs_err compliance(gs_system *sys, const int *mask, double *buf, double *r
                     C[(size_t)sel[c] * nd + sel[r]] = buf[r + (size_t)c * k];
         } else if (all || b->owner == sys->rank) {
             double t0 = gs_now();
-            b->ops->compliance(sys, b, k, sel, buf);
+            b->ops->compliance(&v, b, k, sel, buf);
             b->work_s += gs_now() - t0;
         } else {
             memset(buf, 0, kk * sizeof(double));
@@ -244,18 +247,20 @@ double gsi_mesh_forces(const gs_system *sys, const double *dq, double *g, double
     memset(g, 0, (size_t)n * sizeof(double));
     memset(J, 0, (size_t)n * n * sizeof(double));
     double diss = 0;
+    gs_model_view v;
+    gs_system_view(sys, &v);
     for (int i = 0; i < sys->n_meshes; i++) {
         const gs_gmesh_rt *me = &sys->meshes[i];
         if (!me->ops->force)
             continue;
         double dd, f;
-        me->ops->force(sys, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
+        me->ops->force(&v, me, sys->q, dq, sys->h_sub, g, J, &dd, &f);
         diss += dd;
         force[i] = f;
     }
     for (int i = 0; i < sys->n_joints; i++) {
         double dd;
-        sys->joints[i].ops->force(sys, &sys->joints[i], sys->q, dq, sys->h_sub, g, J, &dd);
+        sys->joints[i].ops->force(&v, &sys->joints[i], sys->q, dq, sys->h_sub, g, J, &dd);
         diss += dd;
     }
     return diss;
@@ -367,7 +372,7 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
         int tc = sys->bodies[i].tcoord;
         if (tc < 0)
             continue;
-        double h = sys->h_sub, mass = sys->scene->bodies[i].mass;
+        double h = sys->h_sub, mass = sys->bodies[i].mass;
         for (int k = 0; k < 2; k++) {
             C[tc + k] = h * h / (2.0 * mass);
             d0[tc + k] = h * sys->w[tc + k];
@@ -386,10 +391,10 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
     int it;
     gs_err status = GS_ENOCONV;
     bool small_step = false;
-    for (it = 0; it < sys->scene->max_newton; it++) {
+    for (it = 0; it < sys->max_newton; it++) {
         /* Converged: a linear problem after its one solve, or a residual at
          * the tolerance, or a Newton update that no longer changes dq. */
-        if (it > 0 && (!nonlinear || fres <= sys->scene->newton_tol * scale || small_step)) {
+        if (it > 0 && (!nonlinear || fres <= sys->newton_tol * scale || small_step)) {
             status = GS_OK;
             break;
         }
@@ -413,7 +418,7 @@ static gs_err newton_solve(gs_system *sys, const double *rec, double *out)
             for (int i = 0; i < k; i++)
                 trial[i] = (i < n ? dq[i] : lambda[i - n]) + t * F[i];
             ft = residual(sys, C, d0, trial, trial + n, g, J, Ft, out, &st);
-            if (ft < fres || ft <= sys->scene->newton_tol * st || !nonlinear)
+            if (ft < fres || ft <= sys->newton_tol * st || !nonlinear)
                 break;
             t *= 0.5;
         }
@@ -454,12 +459,14 @@ gs_err gs_step_solve(gs_system *sys, const double *rec, double *sol)
 static gs_err finish(gs_system *sys, const double *sol, bool all)
 {
     gs_err err = GS_OK;
+    gs_model_view v;
+    gs_system_view(sys, &v);
     for (int i = 0; i < sys->n_bodies; i++) {
         gs_body_rt *b = &sys->bodies[i];
         if ((!all && b->owner != sys->rank) || !b->ops->finish)
             continue;
         double t0 = gs_now();
-        gs_err e = b->ops->finish(sys, b, sol + sys->plan.sol_off[i]);
+        gs_err e = b->ops->finish(&v, b, sol + sys->plan.sol_off[i]);
         b->work_s += gs_now() - t0;
         if (err == GS_OK)
             err = e;
@@ -486,11 +493,13 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         sys->w[i] = 2.0 * sol[i] / h - sys->w[i];
         sys->q[i] += sol[i];
     }
+    gs_model_view v;
+    gs_system_view(sys, &v);
     for (int i = 0; i < sys->n_meshes; i++) {
         gs_gmesh_rt *me = &sys->meshes[i];
         if (me->ops->after_step)
-            sys->dissipated += me->ops->after_step(sys, me);
-        me->deflection = gsi_mesh_s(sys, me, sys->q) - me->s_ref;
+            sys->dissipated += me->ops->after_step(&v, me);
+        me->deflection = gs_gmesh_s(&v, me, sys->q) - me->s_ref;
         me->force = sol[gs_sol_mesh_force(sys, i)];
         const double *ct = sol + gs_sol_mesh_contact(sys, i);
         me->n_active = (int)ct[0];
@@ -582,7 +591,7 @@ static bool in_eq_row(const gs_system *sys, int c)
 
 double gs_step_contact_return(gs_system *sys, const double *sol)
 {
-    if (sys->scene->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
+    if (sys->contact_scheme != GS_CONTACT_CLOSURE_ENERGY)
         return 0.0;
     double rest = 0.0;
     for (int i = 0; i < sys->n_meshes; i++) {
@@ -647,7 +656,7 @@ void gs_step_refine(gs_system *sys)
 
 bool gs_step_advance(gs_system *sys)
 {
-    int L = sys->scene->adapt_levels;
+    int L = sys->adapt_levels;
     sys->substeps++;
     if (L == 0) {
         sys->step++;

@@ -13,7 +13,6 @@
 #include "gearsim/step.h"
 #include "gearsim/modification.h"
 #include "gearsim/util.h"
-#include "models/mesh_common.h"
 #include "step_internal.h"
 
 void gs_system_free(gs_system **ps)
@@ -427,6 +426,11 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     s->n_meshes = scene->n_meshes;
     s->h = scene->time_step;
     s->h_sub = s->h;
+    s->max_newton = scene->max_newton;
+    s->newton_tol = scene->newton_tol;
+    s->contact_scheme = scene->contact_scheme;
+    s->adapt_levels = scene->adapt_levels;
+    s->adapt_penetration = scene->adapt_penetration;
     gs_err e = GS_ENOMEM;
     s->bodies = gs_calloc((size_t)s->n_bodies, sizeof *s->bodies);
     s->meshes = gs_calloc((size_t)(s->n_meshes ? s->n_meshes : 1), sizeof *s->meshes);
@@ -438,6 +442,11 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
         b->index = i;
         b->coord = sb->joint == GS_JOINT_HELD ? -1 : s->n_coords++;
         b->inertia_eff = sb->inertia;
+        b->mass = sb->mass;
+        gs_scene_body_centre(scene, i, b->centre);
+        b->carrier = sb->joint == GS_JOINT_ON_CARRIER ? sb->carrier : -1;
+        b->carrier_radius = sb->carrier_radius;
+        b->carrier_angle = sb->carrier_angle;
         if (sb->type == GS_BODY_CARRIER)
             for (int j = 0; j < s->n_bodies; j++) {
                 const gs_scene_body *p = &scene->bodies[j];
@@ -486,6 +495,8 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 j->carrier = s->bodies[sb->carrier].coord;
                 j->carrier_t = s->bodies[sb->carrier].tcoord;
                 pin_offsets(s, i, j->pin0, j->d0);
+                s->bodies[i].pin_off[0] = j->d0[0];
+                s->bodies[i].pin_off[1] = j->d0[1];
                 j->k[0] = j->k[1] = sb->bearing_k;
                 j->c[0] = j->c[1] = sb->bearing_c;
                 continue;
@@ -512,7 +523,9 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     if (e != GS_OK)
         goto fail;
     for (int i = 0; i < s->n_bodies; i++) {
-        e = s->bodies[i].ops->init(s, &s->bodies[i], d);
+        gs_model_view v;
+        gs_system_view(s, &v);
+        e = s->bodies[i].ops->init(&v, &s->bodies[i], d);
         if (e != GS_OK) {
             for (int j = i; j < s->n_bodies; j++)
                 s->bodies[j].ops = NULL;
@@ -541,10 +554,13 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
             goto fail;
         /* the translations' terms too (zero at the start but for round-off
          * with planets on pin bearings); tooth errors stay out of s_ref */
-        double sref = gsi_mesh_s(s, m, s->q) - gsi_mesh_error(m, s->q);
+        gs_model_view v;
+        gs_system_view(s, &v);
+        double sref = gs_gmesh_s(&v, m, s->q) - gs_gmesh_error(m, s->q);
         m->s_ref = sref - m->s_pin;
         s->smooth_contact |= s->n_joints > 0 || m->s_pin != 0.0;
-        e = m->ops->init(s, m, d);
+        v.smooth_contact = s->smooth_contact;
+        e = m->ops->init(&v, m, d);
         if (e != GS_OK)
             goto fail;
         s->n_eq += m->ops->n_eq;
@@ -644,7 +660,7 @@ gs_err gs_system_check(const gs_system *s, gs_diag *d)
              * approach speed times h. */
             double lim = 0.1 * mesh_module(s, sm);
             /* with numerics.adaptive, the finest substep it may take */
-            double hc = s->h / (double)((int64_t)1 << s->scene->adapt_levels);
+            double hc = s->h / (double)((int64_t)1 << s->adapt_levels);
             if (v * hc > lim)
                 return gs_diag_set(d, GS_ERANGE, "numerics.time_step",
                                    "contact mesh '%s' (t = %.6g s): the gears approach at %.3g m/s, so a step of "
@@ -671,51 +687,9 @@ gs_err gs_system_check(const gs_system *s, gs_diag *d)
     return GS_OK;
 }
 
-static double load_moment(const gs_scene_load *l, double t)
-{
-    switch (l->type) {
-    case GS_LOAD_CONSTANT:
-        return l->moment;
-    case GS_LOAD_RAMP:
-        return t >= l->ramp_time ? l->moment : l->moment * t / l->ramp_time;
-    case GS_LOAD_TABLE: {
-        int n = l->n_table;
-        if (t <= l->times[0])
-            return l->moments[0];
-        if (t >= l->times[n - 1])
-            return l->moments[n - 1];
-        int lo = 0, hi = n - 1;
-        while (hi - lo > 1) {
-            int mid = (lo + hi) / 2;
-            if (l->times[mid] <= t)
-                lo = mid;
-            else
-                hi = mid;
-        }
-        double u = (t - l->times[lo]) / (l->times[hi] - l->times[lo]);
-        return l->moments[lo] + u * (l->moments[hi] - l->moments[lo]);
-    }
-    case GS_LOAD_BRAKE:
-        return 0.0;
-    }
-    return 0.0;
-}
-
 void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, double *brake)
 {
-    double M = 0, c = 0;
-    const gs_scene *sc = sys->scene;
-    for (int i = 0; i < sc->n_loads; i++) {
-        const gs_scene_load *l = &sc->loads[i];
-        if (l->body != b)
-            continue;
-        if (l->type == GS_LOAD_BRAKE)
-            c += l->coefficient;
-        else
-            M += load_moment(l, t);
-    }
-    *moment = M;
-    *brake = c;
+    gs_model_loads(sys->scene->loads, sys->scene->n_loads, b, t, moment, brake);
 }
 
 gs_err gs_system_set_load(gs_system *sys, const gs_scene_load *l)
@@ -795,8 +769,35 @@ void gs_system_book_damping(gs_system *sys)
     }
 }
 
+void gs_system_view(const gs_system *s, gs_model_view *v)
+{
+    v->scene = s->scene;
+    v->rank = s->rank;
+    v->n_coords = s->n_coords;
+    v->n_bodies = s->n_bodies;
+    v->n_meshes = s->n_meshes;
+    v->bodies = s->bodies;
+    v->meshes = s->meshes;
+    v->n_eq = s->n_eq;
+    v->eq_rows = s->eq_rows;
+    v->q = s->q;
+    v->w = s->w;
+    v->time = s->time;
+    v->h_sub = s->h_sub;
+    v->smooth_contact = s->smooth_contact;
+    v->energy_deferred = s->energy_deferred;
+    v->momentum = s->contact_scheme == GS_CONTACT_CLOSURE_ENERGY;
+    v->n_dof = s->plan.n_dof;
+    v->n_nodes = s->plan.n_nodes;
+    v->nodes = s->plan.nodes;
+    v->loads = s->scene->loads;
+    v->n_loads = s->scene->n_loads;
+}
+
 void gs_system_energy(const gs_system *sys, gs_energy *e)
 {
+    gs_model_view v;
+    gs_system_view(sys, &v);
     double T = 0, V = 0, Ve = 0;
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
@@ -808,20 +809,20 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
         }
         if (b->coord < 0)
             continue;
-        double t, v;
-        b->ops->energy(sys, b, &t, &v);
+        double t, vb;
+        b->ops->energy(&v, b, &t, &vb);
         T += t;
-        V += v;
+        V += vb;
     }
     for (int i = 0; i < sys->n_meshes; i++)
-        V += sys->meshes[i].ops->energy(sys, &sys->meshes[i], sys->q);
+        V += sys->meshes[i].ops->energy(&v, &sys->meshes[i], sys->q);
     for (int i = 0; i < sys->n_bodies; i++) { /* translating centres */
         int tc = sys->bodies[i].tcoord;
         if (tc >= 0)
-            T += 0.5 * sys->scene->bodies[i].mass * (sys->w[tc] * sys->w[tc] + sys->w[tc + 1] * sys->w[tc + 1]);
+            T += 0.5 * sys->bodies[i].mass * (sys->w[tc] * sys->w[tc] + sys->w[tc + 1] * sys->w[tc + 1]);
     }
     for (int i = 0; i < sys->n_joints; i++)
-        V += sys->joints[i].ops->energy(sys, &sys->joints[i], sys->q);
+        V += sys->joints[i].ops->energy(&v, &sys->joints[i], sys->q);
     e->kinetic = T;
     e->potential = V;
     e->elastic = Ve;
@@ -834,31 +835,29 @@ void gs_system_energy(const gs_system *sys, gs_energy *e)
 
 void gs_system_body_pose(const gs_system *sys, int body, double c[2], double *theta)
 {
-    const gs_scene_body *b = &sys->scene->bodies[body];
-    if (b->joint == GS_JOINT_ON_CARRIER && sys->bodies[body].tcoord >= 0) {
+    const gs_body_rt *b = &sys->bodies[body];
+    int tc = b->tcoord;
+    if (b->carrier >= 0 && tc >= 0) {
         /* on a pin bearing: where it started plus its own displacement */
-        double pin0[2], off[2];
-        int tc = sys->bodies[body].tcoord;
-        pin_offsets(sys, body, pin0, off);
-        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
-        c[0] = cb->centre[0] + off[0] + sys->q[tc];
-        c[1] = cb->centre[1] + off[1] + sys->q[tc + 1];
-    } else if (b->joint == GS_JOINT_ON_CARRIER) {
+        const gs_body_rt *cb = &sys->bodies[b->carrier];
+        c[0] = cb->centre[0] + b->pin_off[0] + sys->q[tc];
+        c[1] = cb->centre[1] + b->pin_off[1] + sys->q[tc + 1];
+    } else if (b->carrier >= 0) {
         /* The planet's polar position turns with the carrier. */
-        const gs_scene_body *cb = &sys->scene->bodies[b->carrier];
-        int kc = sys->bodies[b->carrier].coord;
+        const gs_body_rt *cb = &sys->bodies[b->carrier];
+        int kc = cb->coord;
         double a = b->carrier_angle + (kc >= 0 ? sys->q[kc] : 0.0);
         c[0] = cb->centre[0] + b->carrier_radius * cos(a);
         c[1] = cb->centre[1] + b->carrier_radius * sin(a);
     } else {
-        gs_scene_body_centre(sys->scene, body, c);
-        int tc = sys->bodies[body].tcoord;
+        c[0] = b->centre[0];
+        c[1] = b->centre[1];
         if (tc >= 0) {
             c[0] += sys->q[tc];
             c[1] += sys->q[tc + 1];
         }
     }
-    int k = sys->bodies[body].coord;
+    int k = b->coord;
     *theta = k >= 0 ? sys->q[k] : 0.0;
 }
 

@@ -54,8 +54,10 @@ static double compare(const char *builtin, const char *scheme, int warm, int ste
         double *sol1 = calloc(sn, sizeof(double)), *sol2 = calloc(sn, sizeof(double));
         assert_true(rec1 && rec2 && sol1 && sol2);
         /* the whole records, as before the two phases */
+        gs_model_view v;
+        gs_system_view(sys, &v);
         for (int i = 0; i < sys->n_bodies; i++)
-            sys->bodies[i].ops->interface(sys, &sys->bodies[i], sys->h_sub, rec1 + p->rec_off[i]);
+            sys->bodies[i].ops->interface(&v, &sys->bodies[i], sys->h_sub, rec1 + p->rec_off[i]);
         assert_int_equal(gs_step_solve(sys, rec1, sol1), GS_OK);
         /* the two phases (the bodies' steps begun again from the same state) */
         assert_true(gs_step_two_phase(sys));
