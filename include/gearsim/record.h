@@ -99,7 +99,15 @@ int64_t gs_record_field_frames(const gs_record *r, int body);
  * as an attribute for people who look inside. */
 gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, const char *scene_json,
                            int64_t step, double time, gs_diag *d);
-gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *d);
+/* Reading a checkpoint treats the file as input: the snapshot dataset must
+ * be one dimension of bytes, stored whole, at most max_bytes (checked
+ * before anything is allocated); its content is checked by the engine
+ * (gs_engine_snapshot_check). */
+gs_err gs_checkpoint_read(const char *path, size_t max_bytes, char **bytes, size_t *len, gs_diag *d);
+
+/* The largest step count a checkpoint may hold (2^53: exact as a double,
+ * far from the overflow of int64 steps plus any advance). */
+#define GS_CHECKPOINT_MAX_STEP ((int64_t)1 << 53)
 
 /* Automatic checkpoints (docs/RELIABILITY.md, "Automatic checkpoints and
  * --resume"): a checkpoint file as above plus the group /autosave with what

@@ -144,12 +144,14 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
         char mp[256];
         gsi_path(mp, sizeof mp, path, "material");
         GS_TRY(gsi_json_only(mat, mp, material_keys, d));
-        GS_TRY(gsi_json_positive(mat, "E", mp, 1e13, false, b->material.youngs_pa,
-                                 &b->material.youngs_pa, d));
+        /* Bounds of real solids (rubber to diamond), so that no compliance
+         * or wave speed of the model overflows. */
+        GS_TRY(gsi_json_number(mat, "E", mp, 1e6, 1e13, false, b->material.youngs_pa,
+                               &b->material.youngs_pa, d));
         GS_TRY(gsi_json_number(mat, "nu", mp, 0, 0.49, false, b->material.poisson,
                                &b->material.poisson, d));
-        GS_TRY(gsi_json_positive(mat, "density", mp, 1e5, false, b->material.density,
-                                 &b->material.density, d));
+        GS_TRY(gsi_json_number(mat, "density", mp, 1, 1e5, false, b->material.density,
+                               &b->material.density, d));
         GS_TRY(gsi_json_number(mat, "damping_s", mp, 0, 1, false, b->material.damping_s,
                                &b->material.damping_s, d));
         GS_TRY(gsi_json_number(mat, "damping_m", mp, 0, 1e6, false, b->material.damping_m,

@@ -17,7 +17,7 @@ import time as _time
 
 import zmq
 
-from .connection import apply_curve, default_connection_file, read_connection_file
+from .connection import apply_curve, daemon_stopped, default_connection_file, read_connection_file
 from .errors import GearsimError, GearsimTimeout
 
 PROTOCOL = 1
@@ -129,14 +129,26 @@ class Client:
         raise GearsimError(err.get("code", "internal"), err.get("message", "error reply without a message"),
                            err.get("field"), reply)
 
+    def check_daemon(self):
+        """Raise GearsimError("daemon_stopped") naming the cause when the
+        daemon is gone (gearsim.connection.daemon_stopped): its connection
+        file removed or marked stopped (a rank died), or its process gone.
+        Every wait of this client calls it about once a second."""
+        why = daemon_stopped(self.info)
+        if why:
+            raise GearsimError("daemon_stopped", f"the daemon stopped: {why}")
+
     def _recv_reply(self, rid, timeout):
         if rid in self._replies:
             return self._replies.pop(rid)
         deadline = _time.monotonic() + timeout
         while True:
             left = deadline - _time.monotonic()
-            if left <= 0 or not self._cmd.poll(int(left * 1000) + 1):
+            if left <= 0:
                 return None
+            if not self._cmd.poll(int(min(left, 1.0) * 1000) + 1):
+                self.check_daemon()
+                continue
             frames = self._cmd.recv_multipart()
             try:
                 reply = json.loads(frames[-1])
@@ -448,10 +460,13 @@ class Client:
     def wait_done(self, parent_id, on_telemetry=None, on_progress=None, on_event=None, timeout=None):
         """Wait for the `done` event of advance request `parent_id`; see advance()."""
         start = _time.monotonic()
-        last_check = start
+        last_check = last_alive = start
         while True:
             ev = self.next_event(0.5)
             now = _time.monotonic()
+            if now - last_alive >= 1.0:
+                last_alive = now
+                self.check_daemon()
             if ev is not None and self._dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
                 err = ev.get("error")
                 if err:
