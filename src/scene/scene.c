@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing and validation (docs/SCENE.md). Every value is checked and
+ * Scene parsing and validation (docs/reference/scene.md). Every value is checked and
  * defaulted here, so the layers below (geometry, models, step) can trust it. */
 #include <math.h>
 #include <stdio.h>
@@ -438,7 +438,7 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_number(o, "newton_tol", "numerics", 1e-16, 1e-3, false, 1e-13, &s->newton_tol, d));
         CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
         s->max_newton = (int)v;
-        /* Contact treatment (docs/CONTACT.md, "Contact treatments"). */
+        /* Contact treatment (docs/explanation/contact.md, "Contact treatments"). */
         static const char *const schemes[] = {"seed", "closure", "closure_energy"};
         int cs;
         CHECK(gsi_scene_enum_field(o, "contact", "numerics", "seed", schemes, 3, &cs, d));

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim-stiffness: quasi-static mesh stiffness and static transmission
  * error of one gear mesh of a scene over one mesh cycle
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
@@ -13,7 +13,7 @@
  * 200 N/mm line load; --refine to the scene's mesh density; --driver to
  * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
- * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
+ * docs/explanation/stiffness.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. The near-field (Hertz)
  * correction of the contact compliance is on by default when both gears
  * have quadratic elements (the default mesh; linear triangles keep the plain
@@ -22,8 +22,8 @@
  * --nearfield-depth sets its depth (mm; default 0.2 module; implies
  * --nearfield; not with --no-nearfield). --fine meshes
  * both gears on the `fine` setting (the teeth in contact locally refined,
- * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
- * error (message on stderr naming the field). Not an MPI program. */
+ * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on an
+ * error (message on stderr naming the field), 2 on bad usage. Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -84,7 +84,7 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
     for (int j = 0; j < r->positions; j++) {
         const gs_stiffness_point *p = &r->pt[j];
         printf("%6.3f %9.4f %10.4f %10.4f %9.4f %12.4f %12s %5d ", p->roll,
-               p->angle_rad * 180.0 / 3.14159265358979323846, p->te_um, p->te0_um, p->k, p->k_tan,
+               p->angle_rad * 180.0 / 3.14159265358979323846, p->te_loaded_um, p->te0_um, p->k, p->k_tan,
                p->converged ? "" : "(unconv.)", p->pairs);
         for (int k = 0; k < p->n_pair; k++)
             printf(" %d/%d:%.0f", p->pair[k].tooth[0], p->pair[k].tooth[1], p->pair[k].force_n);
@@ -92,13 +92,14 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
     }
     printf("k  min %.4f  mean %.4f  max %.4f N/(mm um)   (tangent mean %.4f)\n", r->k_min,
            r->k_mean, r->k_max, r->k_tan_mean);
-    printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um\n", r->te_min, r->te_mean,
-           r->te_max, r->te_max - r->te_min);
+    /* TE: the loaded static TE (te_loaded_um of the JSON); with modified flanks
+     * the elastic part (te_elastic_um) follows on its own line. */
+    printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um   (loaded static TE)\n",
+           r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max, r->te_loaded_max - r->te_loaded_min);
     if (r->modified)
-        printf("loaded TE with modifications (from the perfect gears' no-load position) min %.4f  "
-               "mean %.4f  max %.4f um   peak-to-peak %.4f um\n",
-               r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max,
-               r->te_loaded_max - r->te_loaded_min);
+        printf("elastic part, without the modifications' geometric TE: min %.4f  mean %.4f  max %.4f um"
+               "   peak-to-peak %.4f um\n",
+               r->te_min, r->te_mean, r->te_max, r->te_max - r->te_min);
     printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
            r->solves);
     printf("CPU %.3f s: mesh and FE models %.3f, factorisation %.3f, %ld columns %.3f, "
@@ -126,52 +127,52 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--positions") && has) {
             if (!parse_long(argv[++i], 1, 100000, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --positions must be 1..100000\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.positions = (int)v;
         } else if (!strcmp(a, "--cycles") && has) {
             if (!parse_long(argv[++i], 1, 10000, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --cycles must be 1..10000\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.cycles = (int)v;
         } else if (!strcmp(a, "--refine") && has) {
             if (!parse_long(argv[++i], 0, 6, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --refine must be 0..6\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.refine = (int)v;
         } else if (!strcmp(a, "--order") && has) {
             if (!parse_long(argv[++i], 1, 2, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --order must be 1 or 2\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.order = (int)v;
         } else if (!strcmp(a, "--driver") && has) {
             if (!parse_long(argv[++i], 0, 1, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --driver must be 0 or 1\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.driver = (int)v;
         } else if (!strcmp(a, "--torque") && has) {
             if (!parse_double(argv[++i], &o.torque_nm) || o.torque_nm == 0.0) {
                 fprintf(stderr, "gearsim-stiffness: --torque must be a non-zero number (N m)\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--phase") && has) {
             if (!parse_double(argv[++i], &o.phase)) {
                 fprintf(stderr, "gearsim-stiffness: --phase must be a number (pitches)\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--tangent-step") && has) {
             if (!parse_double(argv[++i], &o.tangent_step) || !(o.tangent_step >= 0.0 && o.tangent_step <= 0.5)) {
                 fprintf(stderr, "gearsim-stiffness: --tangent-step must be in [0, 0.5]\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--nearfield-depth") && has) {
             if (!parse_double(argv[++i], &o.nearfield_depth_mm) || !(o.nearfield_depth_mm > 0.0)) {
                 fprintf(stderr, "gearsim-stiffness: --nearfield-depth must be a positive number (mm)\n");
-                return 1;
+                return TOOL_USAGE;
             }
             depth_set = true;
             o.nearfield = 1;
@@ -196,22 +197,22 @@ int main(int argc, char **argv)
             scene_path = a;
         else {
             usage(stderr);
-            return 1;
+            return TOOL_USAGE;
         }
     }
     if (!scene_path) {
         usage(stderr);
-        return 1;
+        return TOOL_USAGE;
     }
     if (plain && depth_set) {
         fprintf(stderr, "gearsim-stiffness: --nearfield-depth sets the near-field correction, which --no-nearfield switches off\n");
-        return 1;
+        return TOOL_USAGE;
     }
     if (plain)
         o.nearfield = 0;
     gs_scene *s = tool_load_scene("gearsim-stiffness", scene_path);
     if (!s)
-        return 2;
+        return TOOL_FAIL;
     int mi = s->n_meshes > 0 ? 0 : -1;
     if (mesh) {
         mi = -1;
@@ -223,7 +224,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "gearsim-stiffness: %s: meshes: no mesh named '%s' (not_found)\n",
                 scene_path, mesh ? mesh : "");
         gs_scene_free(&s);
-        return 2;
+        return TOOL_FAIL;
     }
     gs_stiffness_result r;
     gs_diag d;
@@ -232,7 +233,7 @@ int main(int argc, char **argv)
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
         gs_scene_free(&s);
-        return 2;
+        return TOOL_FAIL;
     }
     int rc = 0;
     if (out) {
@@ -240,7 +241,7 @@ int main(int argc, char **argv)
         e = gs_stiffness_write_h5(out, s, &r, &d);
         if (e != GS_OK) {
             fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
-            rc = 2;
+            rc = TOOL_FAIL;
         }
     }
     if (json)

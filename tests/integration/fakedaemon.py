@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""A tiny stand-in for gearsimd that speaks docs/PROTOCOL.md, for testing the
+"""A tiny stand-in for gearsimd that speaks docs/reference/protocol.md, for testing the
 clients and the test helpers themselves (GEARSIM_FAKE_DAEMON=1 makes
 daemon.py start this instead of mpirun gearsimd). Its physics is a toy: free
 rigid bodies driven by their loads, meshes ignored. Never used to judge the
@@ -303,8 +303,13 @@ class Fake:
         with open(p, "rb") as f:
             f.seek(off)
             data = f.read(ln)
-        return {"path": a["path"], "offset": off, "length": len(data), "size": size,
-                "eof": off + len(data) >= size, "data_b64": base64.b64encode(data).decode()}
+        res = {"path": a["path"], "offset": off, "length": len(data), "size": size,
+               "eof": off + len(data) >= size, "data_b64": base64.b64encode(data).decode()}
+        if a.get("remove"):
+            res["removed"] = res["eof"]
+            if res["eof"]:
+                os.unlink(p)
+        return res
 
     def cmd_shutdown(self, a):
         self.running = False
