@@ -4,7 +4,7 @@
  *    braked: energy balance E - E0 - W_in + D at round-off, the speed ratio
  *    and the steady speed of the closed form;
  *  - the helical planetary scene: energy balance and the sun/carrier ratio;
- *  - the contact mesh and the planar quasi-static analysis refuse a helical
+ *  - the contact and ltca meshes and the planar quasi-static analysis refuse a helical
  *    pair naming bodies[i].helix_angle_deg; lead modifications and
  *    misalignment are refused by the planar models naming the field. */
 #include <setjmp.h>
@@ -132,6 +132,15 @@ static void refusals(void **state)
     assert_non_null(f);
     assert_string_equal(f, "bodies[0].helix_angle_deg");
     assert_non_null(strstr(d.message, "contact mesh"));
+
+    root = vt_scene("helical_pair");
+    m = mesh0(root);
+    json_object_object_del(m, "stiffness");
+    json_object_object_del(m, "backlash_mm");
+    json_object_object_add(m, "model", json_object_new_string("ltca"));
+    f = fails(root, &d);
+    assert_non_null(f);
+    assert_string_equal(f, "bodies[0].helix_angle_deg");
 
     root = vt_scene("helical_pair");
     json_object *lead = json_object_new_object();
