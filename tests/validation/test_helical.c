@@ -115,6 +115,13 @@ static const char *fails(json_object *root, gs_diag *d)
     return d->field;
 }
 
+static void expect_refused(json_object *root, const char *field, gs_diag *d)
+{
+    const char *f = fails(root, d);
+    assert_non_null(f);
+    assert_string_equal(f, field);
+}
+
 static void refusals(void **state)
 {
     (void)state;
@@ -125,9 +132,7 @@ static void refusals(void **state)
     json_object_object_del(m, "damping_ratio");
     json_object_object_del(m, "backlash_mm");
     json_object_object_add(m, "model", json_object_new_string("contact"));
-    const char *f = fails(root, &d);
-    assert_non_null(f);
-    assert_string_equal(f, "bodies[0].helix_angle_deg");
+    expect_refused(root, "bodies[0].helix_angle_deg", &d);
     assert_non_null(strstr(d.message, "contact mesh"));
 
     root = vt_scene("helical_pair");
@@ -135,33 +140,25 @@ static void refusals(void **state)
     json_object_object_del(m, "stiffness");
     json_object_object_del(m, "backlash_mm");
     json_object_object_add(m, "model", json_object_new_string("ltca"));
-    f = fails(root, &d);
-    assert_non_null(f);
-    assert_string_equal(f, "bodies[0].helix_angle_deg");
+    expect_refused(root, "bodies[0].helix_angle_deg", &d);
 
     root = vt_scene("helical_pair");
     json_object *lead = json_object_new_object();
     json_object_object_add(lead, "crowning_um", json_object_new_double(10));
     json_object_object_add(body(root, 1), "lead", lead);
-    f = fails(root, &d);
-    assert_non_null(f);
-    assert_string_equal(f, "bodies[1].lead");
+    expect_refused(root, "bodies[1].lead", &d);
 
     root = vt_scene("helical_pair");
     json_object *mis = json_object_new_object();
     json_object_object_add(mis, "in_plane_um", json_object_new_double(20));
     json_object_object_add(mesh0(root), "misalignment", mis);
-    f = fails(root, &d);
-    assert_non_null(f);
-    assert_string_equal(f, "meshes[0].misalignment");
+    expect_refused(root, "meshes[0].misalignment", &d);
 
     root = vt_scene("helical_pair");
     json_object *st = json_object_new_object();
     json_object_object_add(st, "type", json_object_new_string("calibrated"));
     json_object_object_add(mesh0(root), "stiffness", st);
-    f = fails(root, &d);
-    assert_non_null(f);
-    assert_string_equal(f, "meshes[0].stiffness.type");
+    expect_refused(root, "meshes[0].stiffness.type", &d);
 
     /* the planar quasi-static analysis (stiffness command) */
     gs_scene *sc = vt_scene_parse(vt_scene("helical_pair"));
