@@ -9,16 +9,18 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 deploy/install-deps.sh
 . deploy/env.sh
+. deploy/progress.sh
 build=${GEARSIM_BUILD:-build}
-[ -f "$build/build.ninja" ] || meson setup "$build" >/dev/null
-ninja -C "$build" >/dev/null
+gs_build "$build"
 out=${GEARSIM_OUT:-$root/out}
 mkdir -p "$out"
 chmod 700 "$out"   # the connection file in it holds the client key pair
 rm -f "$out/gearsimd.json"
 ranks=${GEARSIM_RANKS:-2}
-# mpirun's own listeners on loopback too (deploy/env.sh, docs/RELIABILITY.md)
-LD_PRELOAD="$build/src/daemon/gearsim-loopback.so" mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \
+echo "starting gearsimd under mpirun -n $ranks (log: $out/gearsimd.log)"
+# mpirun's own listeners on loopback too (deploy/env.sh, docs/RELIABILITY.md):
+# this build's shim (env.sh's mpirun function would preload the default build's)
+LD_PRELOAD="$build/src/daemon/gearsim-loopback.so" command mpirun -n "$ranks" "$build/src/daemon/gearsimd" --connection-file "$out/gearsimd.json" \
   --data-dir "$out" 2>"$out/gearsimd.log" &
 daemon=$!
 cleanup() { kill "$daemon" 2>/dev/null || true; }

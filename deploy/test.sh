@@ -8,16 +8,10 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 cd "$root"
 deploy/install-deps.sh || { echo "dependency installation failed"; echo "0 passed, 1 failed"; exit 1; }
 . deploy/env.sh
+. deploy/progress.sh
 build=${GEARSIM_BUILD:-build}
-if [ ! -f "$build/build.ninja" ]; then
-  meson setup "$build" -Dwerror=true >/dev/null || { echo "meson setup failed"; echo "0 passed, 1 failed"; exit 1; }
-fi
-if ! ninja -C "$build" >"$build/ninja.log" 2>&1; then
-  tail -40 "$build/ninja.log"
-  echo "build failed"
-  echo "0 passed, 1 failed"
-  exit 1
-fi
+gs_build "$build" -Dwerror=true || { echo "0 passed, 1 failed"; exit 1; }
+echo "running the unit, validation and integration suites (meson test; one line per test)"
 meson test -C "$build" --no-rebuild --print-errorlogs --num-processes 2 \
   --suite unit --suite validation --suite integration "$@"
 status=$?

@@ -992,7 +992,13 @@ static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_o
     int64_t off, len;
     GS_TRY(gsi_json_int(args, "offset", "args", 0, INT64_MAX / 2, false, 0, &off, d));
     GS_TRY(gsi_json_int(args, "length", "args", 1, 1 << 20, false, 1 << 20, &len, d));
-    if (s->record && strcmp(full, gs_record_path(s->record)) == 0)
+    bool remove = false;
+    GS_TRY(gsi_json_bool(args, "remove", "args", false, &remove, d));
+    bool recording = s->record && strcmp(full, gs_record_path(s->record)) == 0;
+    if (recording && remove)
+        return gs_diag_set(d, GS_ERANGE, "args.remove", "'%s' is being recorded; stop the record first",
+                           rel_of(s, full));
+    if (recording)
         gsi_record_flush_or_stop(s, "the record could not be written");
     /* Never through a symlink, never a FIFO or device (which could block
      * the daemon), never a file with a second name (a hard link). */
@@ -1005,12 +1011,23 @@ static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_o
         return gs_diag_set(d, GS_EIO, "args.path", "cannot read that file");
     }
     b.fd = -1; /* owned by f now */
-    gsi_beneath_close(&b);
     unsigned char *buf = malloc((size_t)len);
     size_t got = 0;
     if (buf && fseeko(f, (off_t)off, SEEK_SET) == 0)
         got = fread(buf, 1, (size_t)len, f);
     fclose(f);
+    bool eof = off + (int64_t)got >= (int64_t)st.st_size;
+    /* remove: the file goes once a chunk reaches its end, if the name still
+     * holds the file just read (a retried request is answered from the
+     * reply cache, so the deletion happens once). */
+    bool removed = false;
+    if (remove && eof && buf) {
+        struct stat now;
+        if (fstatat(b.dirfd, b.leaf, &now, AT_SYMLINK_NOFOLLOW) == 0 && now.st_ino == st.st_ino &&
+            now.st_dev == st.st_dev)
+            removed = unlinkat(b.dirfd, b.leaf, 0) == 0;
+    }
+    gsi_beneath_close(&b);
     char *b64 = buf ? base64(buf, got) : NULL;
     free(buf);
     if (!b64)
@@ -1020,7 +1037,9 @@ static gs_err cmd_fetch(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "offset", json_object_new_int64(off));
     json_object_object_add(o, "length", json_object_new_int64((int64_t)got));
     json_object_object_add(o, "size", json_object_new_int64((int64_t)st.st_size));
-    json_object_object_add(o, "eof", json_object_new_boolean(off + (int64_t)got >= (int64_t)st.st_size));
+    json_object_object_add(o, "eof", json_object_new_boolean(eof));
+    if (remove)
+        json_object_object_add(o, "removed", json_object_new_boolean(removed));
     json_object_object_add(o, "data_b64", json_object_new_string(b64));
     free(b64);
     *res = o;
@@ -1041,7 +1060,7 @@ static const char *const advance_args[] = {"time", "steps", NULL};
 static const char *const record_args[] = {"path", "stop", NULL};
 static const char *const path_args[] = {"path", NULL};
 static const char *const submit_args[] = {"scene", "schedule", "duration", "record", NULL};
-static const char *const fetch_args[] = {"path", "offset", "length", NULL};
+static const char *const fetch_args[] = {"path", "offset", "length", "remove", NULL};
 static const char *const stiffness_args[] = {"mesh", "positions", "torque", "refine", "nearfield", "path", "wait", NULL};
 
 /* The result of a finished analysis: written to its HDF5 file when asked,

@@ -9,8 +9,8 @@
  * result per hypothesis). A case with "contacts" is one velocity-level step
  * with several contacts (Lemke; frictionless also checked as a QP). Prints
  * one JSON object on stdout (keys in docs/IMPACT.md). Exit status 0 on
- * success, 1 on bad usage, 2 on an error (message on stderr naming the
- * field). Not an MPI program. */
+ * success, 1 on an error (message on stderr naming the field), 2 on bad
+ * usage. Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,6 +20,7 @@
 
 #include "gearsim/impact.h"
 #include "scene/jsonv.h"
+#include "tool.h"
 
 static json_object *vec2(const double v[2])
 {
@@ -331,14 +332,14 @@ int main(int argc, char **argv)
 {
     if (argc != 2 || argv[1][0] == '-') {
         fprintf(stderr, "usage: gearsim-impact CASE.json\n");
-        return 1;
+        return TOOL_USAGE;
     }
     gs_diag d;
     gs_diag_clear(&d);
     json_object *root = json_object_from_file(argv[1]);
     if (!root) {
         fprintf(stderr, "gearsim-impact: error: %s: cannot read or parse JSON\n", argv[1]);
-        return 2;
+        return TOOL_FAIL;
     }
     gs_err err = GS_OK;
     json_object *out = NULL, *ba, *cts = NULL, *ct = NULL;
@@ -394,5 +395,5 @@ int main(int argc, char **argv)
     json_object_put(out);
     json_object_put(root);
     free(bodies);
-    return err == GS_OK ? 0 : 2;
+    return err == GS_OK ? 0 : TOOL_FAIL;
 }

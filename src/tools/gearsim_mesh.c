@@ -11,8 +11,8 @@
  * meshes keeps its scene angle, every other one takes the mesh phase nearest
  * to its own scene angle (gs_pair_mesh_phase). Prints one line per gear
  * (nodes, triangles, element quality) and any geometry warnings to stdout.
- * Exit status 0 on success, 1 on bad usage, 2 on an error (message on
- * stderr naming the field). Not an MPI program. */
+ * Exit status 0 on success, 1 on an error (message on stderr naming the
+ * field), 2 on bad usage. Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -44,7 +44,7 @@ int main(int argc, char **argv)
             long v = strtol(argv[++i], &end, 10);
             if (*end || v < 0 || v > 8) {
                 fprintf(stderr, "gearsim-mesh: --refine must be 0..8\n");
-                return 1;
+                return TOOL_USAGE;
             }
             refine = (int)v;
         } else if (!strcmp(argv[i], "--quiet"))
@@ -56,16 +56,16 @@ int main(int argc, char **argv)
             scene_path = argv[i];
         else {
             usage(stderr);
-            return 1;
+            return TOOL_USAGE;
         }
     }
     if (!scene_path || !out) {
         usage(stderr);
-        return 1;
+        return TOOL_USAGE;
     }
     gs_scene *s = tool_load_scene("gearsim-mesh", scene_path);
     if (!s)
-        return 2;
+        return TOOL_FAIL;
     gs_diag d;
     gs_err e;
     int n = s->n_bodies, ng = 0, rc = 0;
@@ -76,7 +76,7 @@ int main(int argc, char **argv)
     int *placed = calloc((size_t)n, sizeof *placed), *queue = calloc((size_t)n, sizeof *queue);
     if (!meshes || !ent || !rot || !ctr || !placed || !queue) {
         fprintf(stderr, "gearsim-mesh: out of memory\n");
-        rc = 2;
+        rc = TOOL_FAIL;
         goto done;
     }
     for (int i = 0; i < n; i++) {
@@ -113,7 +113,7 @@ int main(int argc, char **argv)
         if (e != GS_OK) {
             fprintf(stderr, "gearsim-mesh: bodies[%d] (%s): %s: %s (%s)\n", i, b->name, d.field,
                     d.message, gs_errcode(e));
-            rc = 2;
+            rc = TOOL_FAIL;
             goto done;
         }
         char warn[1024];
@@ -140,14 +140,14 @@ int main(int argc, char **argv)
     }
     if (ng == 0) {
         fprintf(stderr, "gearsim-mesh: %s has no gear\n", scene_path);
-        rc = 2;
+        rc = TOOL_FAIL;
         goto done;
     }
     gs_diag_clear(&d);
     e = gs_mesh_io_write(out, xmf, ent, ng, &d);
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-mesh: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
-        rc = 2;
+        rc = TOOL_FAIL;
         goto done;
     }
     if (!quiet) {

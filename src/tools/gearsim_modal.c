@@ -12,8 +12,8 @@
  * mesh's elastic pair from the FE model's generalised eigenproblem at the
  * loaded static contact (include/gearsim/fe_modes.h), one line per roll
  * position and the mean, or (--json) gs_fe_modes_json's object.
- * Exit status 0 on success, 1 on bad usage,
- * 2 on an error (message on stderr naming the field). Not an MPI program. */
+ * Exit status 0 on success, 1 on an error (message on stderr naming the
+ * field), 2 on bad usage. Not an MPI program. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,7 +39,7 @@ static int fe_modes(const char *path, gs_scene *s, const char *mesh, const gs_fe
                 mi = i;
         if (mi < 0) {
             fprintf(stderr, "gearsim-modal: %s: mesh: no mesh '%s'\n", path, mesh);
-            return 2;
+            return TOOL_FAIL;
         }
     }
     gs_diag d;
@@ -48,7 +48,7 @@ static int fe_modes(const char *path, gs_scene *s, const char *mesh, const gs_fe
     gs_err e = gs_fe_modes_analyse(s, mi, o, &r, &d);
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-modal: %s: %s: %s (%s)\n", path, d.field, d.message, gs_errcode(e));
-        return 2;
+        return TOOL_FAIL;
     }
     if (json) {
         json_object *j = gs_fe_modes_json(&r);
@@ -103,16 +103,16 @@ int main(int argc, char **argv)
             path = a;
         else {
             fprintf(stderr, USAGE);
-            return 1;
+            return TOOL_USAGE;
         }
     }
     if (!path) {
         fprintf(stderr, USAGE);
-        return 1;
+        return TOOL_USAGE;
     }
     gs_scene *s = tool_load_scene("gearsim-modal", path);
     if (!s)
-        return 2;
+        return TOOL_FAIL;
     if (fe) {
         int rc = fe_modes(path, s, mesh, &o, json);
         gs_scene_free(&s);
@@ -125,7 +125,7 @@ int main(int argc, char **argv)
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-modal: %s: %s: %s (%s)\n", path, d.field, d.message, gs_errcode(e));
         gs_scene_free(&s);
-        return 2;
+        return TOOL_FAIL;
     }
     if (json) {
         json_object *o = gs_modal_json(m, s);

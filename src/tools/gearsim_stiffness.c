@@ -22,8 +22,8 @@
  * --nearfield-depth sets its depth (mm; default 0.2 module; implies
  * --nearfield; not with --no-nearfield). --fine meshes
  * both gears on the `fine` setting (the teeth in contact locally refined,
- * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on bad usage, 2 on an
- * error (message on stderr naming the field). Not an MPI program. */
+ * gs_gear_mesh_opts_fine; not with --refine or --order). Exit status 0 on success, 1 on an
+ * error (message on stderr naming the field), 2 on bad usage. Not an MPI program. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -126,52 +126,52 @@ int main(int argc, char **argv)
         else if (!strcmp(a, "--positions") && has) {
             if (!parse_long(argv[++i], 1, 100000, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --positions must be 1..100000\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.positions = (int)v;
         } else if (!strcmp(a, "--cycles") && has) {
             if (!parse_long(argv[++i], 1, 10000, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --cycles must be 1..10000\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.cycles = (int)v;
         } else if (!strcmp(a, "--refine") && has) {
             if (!parse_long(argv[++i], 0, 6, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --refine must be 0..6\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.refine = (int)v;
         } else if (!strcmp(a, "--order") && has) {
             if (!parse_long(argv[++i], 1, 2, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --order must be 1 or 2\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.order = (int)v;
         } else if (!strcmp(a, "--driver") && has) {
             if (!parse_long(argv[++i], 0, 1, &v)) {
                 fprintf(stderr, "gearsim-stiffness: --driver must be 0 or 1\n");
-                return 1;
+                return TOOL_USAGE;
             }
             o.driver = (int)v;
         } else if (!strcmp(a, "--torque") && has) {
             if (!parse_double(argv[++i], &o.torque_nm) || o.torque_nm == 0.0) {
                 fprintf(stderr, "gearsim-stiffness: --torque must be a non-zero number (N m)\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--phase") && has) {
             if (!parse_double(argv[++i], &o.phase)) {
                 fprintf(stderr, "gearsim-stiffness: --phase must be a number (pitches)\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--tangent-step") && has) {
             if (!parse_double(argv[++i], &o.tangent_step) || !(o.tangent_step >= 0.0 && o.tangent_step <= 0.5)) {
                 fprintf(stderr, "gearsim-stiffness: --tangent-step must be in [0, 0.5]\n");
-                return 1;
+                return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--nearfield-depth") && has) {
             if (!parse_double(argv[++i], &o.nearfield_depth_mm) || !(o.nearfield_depth_mm > 0.0)) {
                 fprintf(stderr, "gearsim-stiffness: --nearfield-depth must be a positive number (mm)\n");
-                return 1;
+                return TOOL_USAGE;
             }
             depth_set = true;
             o.nearfield = 1;
@@ -196,22 +196,22 @@ int main(int argc, char **argv)
             scene_path = a;
         else {
             usage(stderr);
-            return 1;
+            return TOOL_USAGE;
         }
     }
     if (!scene_path) {
         usage(stderr);
-        return 1;
+        return TOOL_USAGE;
     }
     if (plain && depth_set) {
         fprintf(stderr, "gearsim-stiffness: --nearfield-depth sets the near-field correction, which --no-nearfield switches off\n");
-        return 1;
+        return TOOL_USAGE;
     }
     if (plain)
         o.nearfield = 0;
     gs_scene *s = tool_load_scene("gearsim-stiffness", scene_path);
     if (!s)
-        return 2;
+        return TOOL_FAIL;
     int mi = s->n_meshes > 0 ? 0 : -1;
     if (mesh) {
         mi = -1;
@@ -223,7 +223,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "gearsim-stiffness: %s: meshes: no mesh named '%s' (not_found)\n",
                 scene_path, mesh ? mesh : "");
         gs_scene_free(&s);
-        return 2;
+        return TOOL_FAIL;
     }
     gs_stiffness_result r;
     gs_diag d;
@@ -232,7 +232,7 @@ int main(int argc, char **argv)
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
         gs_scene_free(&s);
-        return 2;
+        return TOOL_FAIL;
     }
     int rc = 0;
     if (out) {
@@ -240,7 +240,7 @@ int main(int argc, char **argv)
         e = gs_stiffness_write_h5(out, s, &r, &d);
         if (e != GS_OK) {
             fprintf(stderr, "gearsim-stiffness: %s: %s (%s)\n", d.field, d.message, gs_errcode(e));
-            rc = 2;
+            rc = TOOL_FAIL;
         }
     }
     if (json)

@@ -22,8 +22,8 @@
  * state. Columns: point, the parameters, mesh frequency (Hz), DTE rms (um),
  * dynamic factor, load-sharing factor (empty without planets), each body's
  * mean speed (rpm), the balance residual over the energy scale. Progress on
- * stderr. Exit status 0, 1 bad usage, 2 an error (message naming the
- * field). Not an MPI program. */
+ * stderr. Exit status 0, 1 an error (message naming the field), 2 bad
+ * usage. Not an MPI program. */
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -32,6 +32,7 @@
 
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
+#include "tool.h"
 
 static void usage(void)
 {
@@ -124,7 +125,7 @@ int main(int argc, char **argv)
             path = a;
         else {
             usage();
-            return 1;
+            return TOOL_USAGE;
         }
     }
     json_object *spec;
@@ -133,21 +134,21 @@ int main(int argc, char **argv)
         if (path || (task >= 0) != (tasks > 0) || (tasks > 0 && task >= tasks) || (first_part && (!n_parts || !out)) ||
             (first_part && task >= 0)) {
             usage();
-            return 1;
+            return TOOL_USAGE;
         }
         if (!(spec = read_spec(spec_path)))
-            return 2;
+            return TOOL_FAIL;
         what = spec_path;
     } else {
         if (!path || !isfinite(from) || !isfinite(to) || points < 1 || points > GS_SWEEP_MAX_POINTS ||
             !(settle >= 0) || !(measure > 0) || !(h >= 0) || first_part || task >= 0) {
             usage();
-            return 1;
+            return TOOL_USAGE;
         }
         json_object *scene = json_object_from_file(path);
         if (!scene) {
             fprintf(stderr, "gearsim-sweep: %s: cannot read the scene (%s)\n", path, json_util_get_last_err());
-            return 2;
+            return TOOL_FAIL;
         }
         spec = json_object_new_object();
         json_object_object_add(spec, "scene", scene);
@@ -173,7 +174,7 @@ int main(int argc, char **argv)
     json_object_put(spec);
     if (e != GS_OK) {
         fprintf(stderr, "gearsim-sweep: %s: %s: %s (%s)\n", what, d.field, d.message, gs_errcode(e));
-        return 2;
+        return TOOL_FAIL;
     }
     int n = gs_sweep_points(sw), nc = gs_sweep_columns(sw);
     double *rows = gs_calloc((size_t)n * nc, sizeof(double));
@@ -198,7 +199,7 @@ int main(int argc, char **argv)
             e = gs_sweep_write_h5(sw, rows, done, f, &d);
         if (e != GS_OK)
             fprintf(stderr, "gearsim-sweep: %s: %s\n", d.field, d.message);
-        status = e != GS_OK || missing ? 2 : 0;
+        status = e != GS_OK || missing ? TOOL_FAIL : 0;
     } else {
         if (!out) {
             printf("point");
@@ -212,7 +213,7 @@ int main(int argc, char **argv)
             e = gs_sweep_point_serial(sw, p, rows + (size_t)p * nc, &d);
             if (e != GS_OK) {
                 fprintf(stderr, "gearsim-sweep: point %d: %s: %s\n", p, d.field, d.message);
-                status = 2;
+                status = TOOL_FAIL;
                 continue;
             }
             done[p] = 1;
@@ -222,7 +223,7 @@ int main(int argc, char **argv)
         }
         if (out && gs_sweep_write_csv(sw, rows, done, out, NULL, &d) != GS_OK) {
             fprintf(stderr, "gearsim-sweep: %s: %s\n", out, d.message);
-            status = 2;
+            status = TOOL_FAIL;
         }
     }
     free(rows);

@@ -8,6 +8,10 @@
 
 #include "gearsim/scene.h"
 
+/* Exit statuses of every tool, as gearsimd's and gearctl's: 0 success,
+ * TOOL_FAIL an error (message on stderr), TOOL_USAGE bad usage. */
+enum { TOOL_FAIL = 1, TOOL_USAGE = 2 };
+
 /* The scene in the file at path; NULL after printing
  * "TOOL: PATH: FIELD: MESSAGE (CODE)" on stderr. The caller frees it. */
 static inline gs_scene *tool_load_scene(const char *tool, const char *path)

@@ -303,8 +303,13 @@ class Fake:
         with open(p, "rb") as f:
             f.seek(off)
             data = f.read(ln)
-        return {"path": a["path"], "offset": off, "length": len(data), "size": size,
-                "eof": off + len(data) >= size, "data_b64": base64.b64encode(data).decode()}
+        res = {"path": a["path"], "offset": off, "length": len(data), "size": size,
+               "eof": off + len(data) >= size, "data_b64": base64.b64encode(data).decode()}
+        if a.get("remove"):
+            res["removed"] = res["eof"]
+            if res["eof"]:
+                os.unlink(p)
+        return res
 
     def cmd_shutdown(self, a):
         self.running = False

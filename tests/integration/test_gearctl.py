@@ -68,6 +68,8 @@ def run_and_plot(d):
                     {k: g[k].shape for k in g})
     except Exception as e:  # noqa: BLE001
         R.check("record file: valid HDF5", False, repr(e))
+    left = [n for n in os.listdir(d.dir) if n.startswith("gearctl-")]
+    R.check("gearctl run --record: no copy left in the data directory", not left, left)
     png = os.path.join(d.dir, "out.png")
     r = gearctl(d, "plot", out_h, "-o", png, conn=False)
     R.check("gearctl plot: exit 0 and a PNG", r.returncode == 0 and is_png(png), r.stderr[-2000:])
@@ -219,6 +221,7 @@ def simple(d):
 def shutdown(d):
     r = gearctl(d, "shutdown")
     R.check("gearctl shutdown: exit 0", r.returncode == 0, r.stderr)
+    R.check("gearctl shutdown: says so in words", "shutting down" in r.stdout and "{}" not in r.stdout, r.stdout)
     try:
         d.proc.wait(timeout=30)
         R.check("daemon exited after gearctl shutdown", True)

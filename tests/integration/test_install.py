@@ -13,21 +13,36 @@ P/lib/python3/dist-packages for the Python session):
     package, headers, libraries, pkg-config files, schemas, scenes, the
     trade-off table, systemd unit and Slurm script (pointing at P/bin),
     env.sh, man pages;
-  * gearsimd --help and gearctl --help; the man pages format;
-  * gearsimd under mpirun (with the installed env.sh), found through the
-    default connection file; hello lists every installed scene as builtin,
-    including one added to share/gearsim/scenes, which loads by name;
-  * gearctl run (telemetry and record downloaded), gearctl plot, gearctl
-    advise (the installed table), gearctl mesh (the installed gearsim-mesh);
+  * the installed env.sh, systemd unit and Slurm script name the installed
+    loopback shim (P/<libdir>/gearsim/gearsim-loopback.so), which exists;
+  * gearsimd --help, gearctl --help and `python3 -m gearsim --help`; the
+    man pages format, and `man gearsimd` finds the installed page (man-db
+    derives the manual path from P/bin on PATH);
+  * gearctl modal builtin:lin_parker_3, gearctl stiffness
+    builtin:stiffness_pair, gearctl sweep --offline builtin:planetary_sweep
+    (the installed scenes and tools, no daemon);
+  * gearsimd under `mpirun` typed after sourcing the installed env.sh (its
+    mpirun preloads the shim), found through the default connection file;
+    `ss -ltnp`: every listening socket of its process tree on loopback;
+    hello lists every installed scene as builtin, including one added to
+    share/gearsim/scenes, which loads by name;
+  * gearctl run (telemetry and record downloaded, no copy left in the data
+    directory), gearctl plot, gearctl advise (the installed table), gearctl
+    mesh (the installed gearsim-mesh);
   * a C program built with `pkg-config gearsim-client` against the installed
     header and library, run against the daemon; one built with
     `pkg-config gearsim` calling libgearsim;
   * a Python session importing gearsim from P;
-  * pip install --no-deps --no-build-isolation of clients/python (a copy)
-    into its own prefix: the package imports and that gearctl works."""
+  * pip, the Debian way (Debian's Python refuses pip outside a virtual
+    environment): `python3 -m venv --system-site-packages V`, then
+    `V/bin/pip install --no-deps --no-build-isolation` of clients/python (a
+    copy): the package imports, V/bin/gearctl (the entry point) talks to the
+    daemon and finds the installed scenes."""
 import glob
+import ipaddress
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -40,7 +55,9 @@ from daemon import BUILD_ROOT, MPI_ENV, SOURCE_ROOT  # noqa: E402
 from harness import Results, scratch_dir  # noqa: E402
 
 LONG = os.environ.get("GEARSIM_LONG") == "1"
-CHECKOUT_VARS = ("GEARSIM_SOURCE_ROOT", "GEARSIM_BUILD_ROOT", "PYTHONPATH", "PKG_CONFIG_PATH")
+CHECKOUT_VARS = ("GEARSIM_SOURCE_ROOT", "GEARSIM_BUILD_ROOT", "PYTHONPATH", "PKG_CONFIG_PATH", "LD_PRELOAD", "MANPATH",
+                 "GEARSIM_LOOPBACK_PRELOAD")
+PREFIX = []   # the configured prefix (P itself, or P without the --destdir part)
 
 
 def run(cmd, env, cwd, timeout=300, **kw):
@@ -72,6 +89,7 @@ def install(R, tmp):
                                      text=True).stdout)
     o = {x["name"]: x["value"] for x in opts}
     P = o["prefix"] if LONG else os.path.join(tmp, "destdir", o["prefix"].lstrip("/"))
+    PREFIX[:] = [o["prefix"]]
     return P, o["libdir"]
 
 
@@ -103,6 +121,19 @@ def check_layout(R, P, libdir):
     with open(os.path.join(P, "share/gearsim/deploy/gearsimd.slurm")) as f:
         slurm = f.read()
     R.check("Slurm script defaults to the installed gearsimd", "/bin/gearsimd}" in slurm and "build/src" not in slurm)
+    # The shim's installed path as the files name it (the final prefix, also
+    # under --destdir), and the file under P.
+    shim = os.path.join(P, libdir, "gearsim", "gearsim-loopback.so")
+    R.check("the loopback shim is installed", os.path.isfile(shim), shim)
+    named = os.path.join(PREFIX[0], libdir, "gearsim", "gearsim-loopback.so")
+    with open(os.path.join(P, "share/gearsim/deploy/env.sh")) as f:
+        env_sh = f.read()
+    for name, text, pat in (("env.sh", env_sh, r"GEARSIM_LOOPBACK_PRELOAD:-([^}]*)\}"),
+                            ("systemd unit", unit, r"^Environment=LD_PRELOAD=(\S+)$"),
+                            ("Slurm script", slurm, r"GEARSIM_LOOPBACK_PRELOAD:-([^}]*)\}")):
+        m = re.search(pat, text, re.M)
+        R.check(f"installed {name} points the shim at the installed one", m is not None and m.group(1) == named,
+                (m.group(1) if m else None, named))
 
 
 def user_env(P, tmp):
@@ -179,13 +210,21 @@ def with_daemon(R, P, libdir, tmp):
     R.check("gearsimd --help", r.returncode == 0 and "--data-dir" in r.stdout, r.stdout + r.stderr)
     r = run(["gearctl", "--help"], env, work, timeout=60)
     R.check("gearctl --help", r.returncode == 0 and "run" in r.stdout, r.stdout + r.stderr)
+    pyenv = dict(env, PYTHONPATH=os.path.join(P, "lib", "python3", "dist-packages"))
+    m = run(["/usr/bin/python3", "-m", "gearsim", "--help"], pyenv, work, timeout=60)
+    R.check("python3 -m gearsim --help (the installed package) = gearctl --help", m.returncode == 0 and
+            m.stdout == r.stdout and "advise" in m.stdout, m.stdout[-500:] + m.stderr[-1000:])
     for page in ("gearsimd", "gearctl"):
-        if not shutil.which("man"):
-            R.skip(f"man page {page}(1) formats", "man is not installed (Debian package man-db)")
-            continue
         r = run(["man", "-l", "-P", "cat", os.path.join(P, "share", "man", "man1", page + ".1")],
                 dict(env, MANWIDTH="80"), work, timeout=60)
         R.check(f"man page {page}(1) formats", r.returncode == 0 and "SYNOPSIS" in r.stdout, r.stderr[-500:])
+        r = run(["man", "-w", page], env, work, timeout=60)
+        R.check(f"man {page}: the installed page, found through P/bin on PATH",
+                r.returncode == 0 and r.stdout.strip() == os.path.join(P, "share", "man", "man1", page + ".1"),
+                r.stdout + r.stderr)
+    r = run(["man", "-P", "cat", "gearsimd"], dict(env, MANWIDTH="80"), work, timeout=60)
+    R.check("man gearsimd", r.returncode == 0 and "--data-dir" in r.stdout.replace("\u2010", "-"), r.stderr[-500:])
+    offline(R, env, work)
     # A scene added to the installation is a builtin too. With --destdir the
     # daemon's compiled-in scenes directory is the final prefix's, so point
     # it at P (GEARSIM_SCENE_DIR); the fresh-clone mode uses the default.
@@ -197,8 +236,13 @@ def with_daemon(R, P, libdir, tmp):
         json.dump(mine, f)
     if not LONG:
         env["GEARSIM_SCENE_DIR"] = scenes
+    # The documented start: source the installed env.sh, then `mpirun`
+    # (env.sh's mpirun preloads the shim it names). With --destdir the name
+    # is the final prefix's, so point it at P the same way.
+    if not LONG:
+        env["GEARSIM_LOOPBACK_PRELOAD"] = os.path.join(P, libdir, "gearsim", "gearsim-loopback.so")
     env_sh = os.path.join(P, "share", "gearsim", "deploy", "env.sh")
-    daemon = subprocess.Popen(["bash", "-c", f'. "{env_sh}" && exec mpirun -n 2 gearsimd --data-dir data'],
+    daemon = subprocess.Popen(["bash", "-c", f'. "{env_sh}" && mpirun -n 2 gearsimd --data-dir data'],
                               env=env, cwd=work, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                               stdin=subprocess.DEVNULL, start_new_session=True)
     conn = os.path.join(env["XDG_RUNTIME_DIR"], "gearsim", "gearsimd.json")
@@ -208,6 +252,7 @@ def with_daemon(R, P, libdir, tmp):
     try:
         if not R.check("installed gearsimd starts, default connection file", os.path.exists(conn)):
             return
+        listeners(R, daemon.pid)
         r = run(["gearctl", "hello"], env, work, timeout=60)
         hello = json.loads(r.stdout) if r.returncode == 0 else {}
         inst = sorted(os.path.splitext(os.path.basename(p))[0]
@@ -222,6 +267,8 @@ def with_daemon(R, P, libdir, tmp):
                  "--record", "run.h5"], env, work)
         ok = r.returncode == 0 and os.path.isfile(os.path.join(work, "run.h5"))
         R.check("gearctl run builtin:pair --record run.h5", ok, r.stdout[-2000:] + r.stderr[-2000:])
+        left = [n for n in os.listdir(os.path.join(work, "data")) if n.startswith("gearctl-")]
+        R.check("gearctl run --record: no copy left in the data directory", not left, left)
         lines = open(os.path.join(work, "out.jsonl")).read().splitlines() if ok else []
         R.check("gearctl run: telemetry lines", len(lines) > 0 and json.loads(lines[-1]).get("time", 0) > 0.019,
                 lines[-1:] if lines else r.stderr)
@@ -275,28 +322,87 @@ def with_daemon(R, P, libdir, tmp):
                 daemon.stdout.read().decode(errors="replace")[-2000:])
 
 
+def offline(R, env, work):
+    """gearctl's commands that run the installed tools on installed scenes."""
+    r = run(["gearctl", "modal", "builtin:lin_parker_3"], env, work)
+    R.check("gearctl modal builtin:lin_parker_3", r.returncode == 0 and "rotational" in r.stdout
+            and "planet" in r.stdout, r.stdout[-1000:] + r.stderr[-1000:])
+    r = run(["gearctl", "stiffness", "builtin:stiffness_pair", "--positions", "4", "--refine", "0"], env, work)
+    R.check("gearctl stiffness builtin:stiffness_pair", r.returncode == 0 and "peak-to-peak" in r.stdout,
+            r.stdout[-1000:] + r.stderr[-1000:])
+    r = run(["gearctl", "sweep", "builtin:planetary_sweep", "--offline", "--from", "1000", "--to", "3000",
+             "--points", "3", "--settle", "0.002", "--measure", "0.002", "--json"], env, work)
+    try:
+        res = json.loads(r.stdout) if r.returncode == 0 else {}
+    except ValueError:
+        res = {}
+    R.check("gearctl sweep --offline builtin:planetary_sweep: 3 points and the modes",
+            len(res.get("points", [])) == 3 and len(res.get("modes", [])) > 0, r.stdout[-1000:] + r.stderr[-1000:])
+
+
+def listeners(R, sid):
+    """`ss -ltnp`: the listening TCP sockets of the daemon's process tree
+    (session sid: bash, mpirun, the ranks), each on a loopback address."""
+    time.sleep(0.5)   # mpirun's runtime listeners are up before the ranks start; the ranks' too by now
+    tree = set()
+    for n in os.listdir("/proc"):
+        try:
+            if n.isdigit() and os.getsid(int(n)) == sid:
+                tree.add(int(n))
+        except OSError:
+            pass
+    r = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, timeout=60)
+    if not R.check("ss -ltnp lists sockets", r.returncode == 0, r.stderr):
+        return
+    mine = []
+    for line in r.stdout.splitlines():
+        f = line.split()
+        pids = {int(x) for x in re.findall(r"pid=(\d+)", line)}
+        if len(f) >= 4 and pids & tree:
+            addr = f[3].rsplit(":", 1)[0].strip("[]").split("%")[0]
+            mine.append((addr, line.split("users:")[-1]))
+    R.note(f"listening sockets of the installed daemon's tree: {mine}")
+    R.check("the daemon's tree listens (commands, telemetry, mpirun's runtime)", len(mine) >= 3, mine)
+
+    def loopback(a):
+        try:
+            return ipaddress.ip_address(a).is_loopback
+        except ValueError:   # "*": every address
+            return False
+    bad = [m for m in mine if not loopback(m[0])]
+    R.check("no listener outside loopback (mpirun started after the installed env.sh)", not bad, bad)
+
+
 def pip_install(R, P, env, tmp, work):
+    """The Debian way: a virtual environment that sees the system's packages
+    (python3-zmq and the rest), pip inside it, offline."""
     src = os.path.join(tmp, "pysrc")
     shutil.copytree(os.path.join(SOURCE_ROOT, "clients", "python"), src,
                     ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
-    target = os.path.join(tmp, "pip")
-    r = run(["/usr/bin/python3", "-m", "pip", "install", "--no-deps", "--no-build-isolation", "--no-index",
-             "--prefix", target, src], dict(env, PIP_DISABLE_PIP_VERSION_CHECK="1"), work)
-    if not R.check("pip install --no-deps --no-build-isolation ./clients/python (offline)", r.returncode == 0,
+    venv = os.path.join(tmp, "venv")
+    r = run(["/usr/bin/python3", "-m", "venv", "--system-site-packages", venv], env, work)
+    if not R.check("python3 -m venv --system-site-packages V", r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]):
+        return
+    r = run([os.path.join(venv, "bin", "pip"), "install", "--no-deps", "--no-build-isolation", "--no-index", src],
+            dict(env, PIP_DISABLE_PIP_VERSION_CHECK="1"), work)
+    if not R.check("V/bin/pip install --no-deps --no-build-isolation ./clients/python (offline)", r.returncode == 0,
                    r.stdout[-2000:] + r.stderr[-2000:]):
         return
-    ctl = glob.glob(os.path.join(target, "**", "bin", "gearctl"), recursive=True)
-    R.check("pip install: gearctl script installed", len(ctl) == 1, ctl)
-    if ctl:
-        r = run([ctl[0], "status"], env, work, timeout=60)
-        R.check("pip-installed gearctl status", r.returncode == 0 and '"ranks": 2' in r.stdout, r.stderr[-2000:])
-    pkg = glob.glob(os.path.join(target, "**", "gearsim", "__init__.py"), recursive=True)
-    if R.check("pip install: package installed", len(pkg) == 1, pkg):
-        e = dict(env, PYTHONPATH=os.path.dirname(os.path.dirname(pkg[0])))
-        r = run(["/usr/bin/python3", "-c", "import gearsim; print(gearsim.__file__); "
-                 "print(gearsim.Client().hello()['protocol'])"], e, work, timeout=60)
-        R.check("pip-installed package imports and connects", r.returncode == 0 and
-                r.stdout.split()[0].startswith(target) and r.stdout.split()[1] == "1", r.stdout + r.stderr)
+    ctl = os.path.join(venv, "bin", "gearctl")
+    R.check("pip install: the gearctl entry point", os.access(ctl, os.X_OK), ctl)
+    r = run([ctl, "status"], env, work, timeout=60)
+    R.check("pip-installed gearctl status", r.returncode == 0 and '"ranks": 2' in r.stdout, r.stderr[-2000:])
+    r = run([ctl, "modal", "builtin:lin_parker_3"], env, work, timeout=120)
+    R.check("pip-installed gearctl finds the installed scenes and tools (gearsimd's prefix on PATH)",
+            r.returncode == 0 and "rotational" in r.stdout, r.stdout[-500:] + r.stderr[-1000:])
+    py = os.path.join(venv, "bin", "python3")
+    r = run([py, "-c", "import gearsim; print(gearsim.__file__); print(gearsim.Client().hello()['protocol'])"],
+            env, work, timeout=60)
+    out = r.stdout.split()
+    R.check("pip-installed package imports from V and connects", r.returncode == 0 and len(out) == 2 and
+            os.path.realpath(out[0]).startswith(os.path.realpath(venv) + "/") and out[1] == "1", r.stdout + r.stderr)
+    r = run([py, "-m", "gearsim", "--help"], env, work, timeout=60)
+    R.check("V/bin/python3 -m gearsim --help", r.returncode == 0 and "advise" in r.stdout, r.stderr[-1000:])
 
 
 def main():

@@ -312,10 +312,11 @@ class Client:
     def jobs(self):
         return self.request("jobs")
 
-    def fetch(self, path, out_path=None, chunk=FETCH_CHUNK):
+    def fetch(self, path, out_path=None, chunk=FETCH_CHUNK, remove=False):
         """Download a file of the daemon's data directory in chunks (base64).
         Writes it to out_path and returns its size, or returns the bytes if
-        out_path is None."""
+        out_path is None. remove=True: once the whole file is here, the
+        daemon deletes its copy (a last request at its end with `remove`)."""
         chunks, offset = [], 0
         out = open(out_path, "wb") if out_path is not None else None
         try:
@@ -338,6 +339,10 @@ class Client:
         finally:
             if out:
                 out.close()
+        if remove:
+            r = self.request("fetch", {"path": str(path), "offset": offset, "length": 1, "remove": True})
+            if not r.get("removed"):
+                raise GearsimError("io_error", f"fetch {path}: the daemon kept its copy (it changed meanwhile)")
         return offset if out_path is not None else b"".join(chunks)
 
     def shutdown(self):

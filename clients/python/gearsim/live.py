@@ -4,7 +4,12 @@
 On a terminal it redraws a block of lines in place (ANSI cursor movement) at
 most ten times a second: progress bar, simulated time, steps/s, rpm of each
 body and the energy account. When the stream is not a terminal (a pipe, a
-log file) it prints one line each time the run crosses another 10%."""
+log file) it prints one line each time the run crosses another 10%.
+
+The rate shown is the current one: steps per wall second over the events of
+the last `rate_window` seconds (telemetry and progress both carry the step),
+the daemon's own figure only until two events have come."""
+import collections
 import shutil
 import sys
 import time
@@ -23,10 +28,12 @@ class LiveDisplay:
     target_time -- simulated time at which the run ends (for the fraction
                    when no progress event has arrived yet)
     start_time  -- simulated time at which it starts
+    rate_window -- wall seconds over which the current rate is measured
+    clock       -- the wall clock (time.monotonic)
     """
 
     def __init__(self, stream=None, title="", target_time=None, start_time=0.0, tty=None,
-                 min_interval=0.1):
+                 min_interval=0.1, rate_window=1.0, clock=time.monotonic):
         self.stream = stream or sys.stdout
         self.tty = self.stream.isatty() if tty is None else tty
         self.title = title
@@ -43,34 +50,39 @@ class LiveDisplay:
         self._lines = 0
         self._last_draw = 0.0
         self._decile = -1
-        self._wall0 = time.monotonic()
-        self._step0 = None
+        self.rate_window = rate_window
+        self._clock = clock
+        self._samples = collections.deque()   # (wall, step) of recent events
 
     # ---------------------------------------------------------------- events
     def on_telemetry(self, ev):
         self.telemetry_count += 1
         self.time = ev.get("time", self.time)
         self.step = ev.get("step", self.step)
-        if self._step0 is None:
-            self._step0 = self.step
+        self._sample()
         self.bodies = ev.get("bodies", self.bodies) or []
         self.energy = ev.get("energy", self.energy) or {}
         if self.target_time and self.target_time > self.start_time:
             f = (self.time - self.start_time) / (self.target_time - self.start_time)
             self.fraction = max(self.fraction, min(max(f, 0.0), 1.0))
-        if self.steps_per_second is None:
-            wall = time.monotonic() - self._wall0
-            if wall > 0.2 and self.step > self._step0:
-                self._sps_estimate = (self.step - self._step0) / wall
         self.update()
 
     def on_progress(self, ev):
         self.fraction = max(self.fraction, float(ev.get("fraction", self.fraction)))
         self.time = ev.get("time", self.time)
-        self.step = ev.get("step", self.step)
+        if ev.get("step") is not None:
+            self.step = ev["step"]
+            self._sample()
         if ev.get("steps_per_second") is not None:
             self.steps_per_second = float(ev["steps_per_second"])
         self.update()
+
+    def _sample(self):
+        """Remember (now, step); keep the last rate_window seconds (at least two)."""
+        now = self._clock()
+        self._samples.append((now, self.step))
+        while len(self._samples) > 2 and now - self._samples[1][0] >= self.rate_window:
+            self._samples.popleft()
 
     def on_event(self, ev):
         t = ev.get("type")
@@ -81,9 +93,13 @@ class LiveDisplay:
 
     # ---------------------------------------------------------------- output
     def sps(self):
-        if self.steps_per_second is not None:
-            return self.steps_per_second
-        return getattr(self, "_sps_estimate", None)
+        """Steps per wall second now: over the recent events, else the
+        daemon's last figure (None before either)."""
+        if len(self._samples) >= 2:
+            (t0, s0), (t1, s1) = self._samples[0], self._samples[-1]
+            if t1 - t0 > 0.02 and s1 > s0:   # two of the daemon's chunks (about 10 ms each)
+                return (s1 - s0) / (t1 - t0)
+        return self.steps_per_second
 
     def lines(self):
         width = max(shutil.get_terminal_size((80, 24)).columns, 40)
@@ -150,8 +166,9 @@ class LiveDisplay:
             self.time = done.get("time", self.time)
             self.step = done.get("step", self.step)
             wall = done.get("wall_seconds")
-            if wall and done.get("steps"):
+            if wall and done.get("steps"):   # the final line: the whole run's mean rate
                 self.steps_per_second = done["steps"] / wall
+                self._samples.clear()
         if self.tty:
             self._draw()
         elif int(self.fraction * 10 + 1e-9) > self._decile or (done is not None and self._decile < 10):
