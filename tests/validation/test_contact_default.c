@@ -77,6 +77,7 @@ static void run_shipped(const char *name, double t_end, double *pen, gs_system *
 {
     gs_system *s = vt_system(vt_scene(name));
     assert_int_equal(s->scene->contact_scheme, GS_CONTACT_CLOSURE_ENERGY);
+    assert_true(s->n_meshes <= 64);
     int n = (int)lround(t_end / s->h);
     gs_energy e;
     double worst = 0, scale = 0;
