@@ -17,7 +17,7 @@ set -uo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 time=600
 build="$root/build-fuzz"
-targets="request scene"
+targets="request scene checkpoint"
 skip_missing=0
 jobs=1
 while [ $# -gt 0 ]; do
@@ -31,7 +31,7 @@ while [ $# -gt 0 ]; do
     *) echo "fuzz.sh: unknown argument $1" >&2; exit 2 ;;
   esac
 done
-[ "$targets" = all ] && targets="request scene"
+[ "$targets" = all ] && targets="request scene checkpoint"
 
 # Is libFuzzer there? (clang alone is not enough: the runtime is libclang-rt-*-dev.)
 probe=$(mktemp -d)
@@ -68,7 +68,7 @@ for t in $targets; do
   # (the scene target keeps leak detection).
   leaks=1
   asan=$ASAN_OPTIONS
-  if [ "$t" = request ]; then leaks=0; asan="$ASAN_OPTIONS:detect_leaks=0"; fi
+  if [ "$t" = request ] || [ "$t" = checkpoint ]; then leaks=0; asan="$ASAN_OPTIONS:detect_leaks=0"; fi
   (cd "$out" && ASAN_OPTIONS=$asan "$build/tests/fuzz/fuzz_$t" -detect_leaks=$leaks \
      -max_total_time="$time" -timeout=30 -rss_limit_mb=4096 \
      -max_len=65536 -print_final_stats=1 $([ "$jobs" -gt 1 ] && echo "-jobs=$jobs -workers=$jobs") \

@@ -12,11 +12,18 @@ pkgs=(build-essential pkgconf meson ninja-build
       jupyter-nbconvert python3-ipykernel python3-nbclient python3-nbformat  # the example notebook
       python3-pip python3-setuptools python3-wheel python3-venv  # pip install ./clients/python in a venv
       man-db  # man gearsimd, man gearctl
-      git iproute2)  # test_install: a fresh clone; ss, the socket listing
+      python3-sphinx python3-myst-parser furo  # the manual (docs/conf.py, ninja -C build manual, test manual)
+      slurmctld slurmd slurm-client munge  # test_slurm: a one-node Slurm of the test's own
+      git iproute2 util-linux)  # test_install: a fresh clone; ss; test_two_hosts: ip netns, unshare
 # The FE reference (tests/reference/) and bench_reference.py: no test needs
 # them, so they come only with --reference.
 if [ "${1:-}" = "--reference" ]; then
   pkgs+=(gmsh calculix-ccx)
+fi
+# docs/tools/screenshots.py (the manual's page screenshots, headless): no test
+# needs a browser, so it comes only with --screenshots.
+if [ "${1:-}" = "--screenshots" ]; then
+  pkgs+=(chromium)
 fi
 missing=()
 for p in "${pkgs[@]}"; do

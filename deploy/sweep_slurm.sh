@@ -1,7 +1,7 @@
 #!/bin/bash
 # SPDX-License-Identifier: MIT
 # Submit a sweep as a Slurm array of TASKS tasks and its collect step, which
-# runs when every task has succeeded (docs/MODAL.md, "Sweeps as a Slurm
+# runs when every task has succeeded (docs/explanation/modal.md, "Sweeps as a Slurm
 # array"):
 #
 #   deploy/sweep_slurm.sh SWEEP.json OUTDIR [TASKS]     (TASKS default 16)

@@ -30,6 +30,10 @@ struct gsc_client {
     /* CURVE (Z85): the daemon's key and this client's pair, from the
      * connection file (a loopback daemon's own pair); empty when off. */
     char curve_server[41], curve_public[41], curve_secret[41];
+    char conn_path[1024];  /* the connection file, watched while waiting */
+    int pid;               /* rank 0's process id (0: unknown) */
+    char stopped[1600];    /* why the daemon is gone, "" while it runs */
+    double last_check;     /* now_ms() of the last look */
 };
 
 /* Make sock a CURVE client when the connection file named a server key. */
@@ -113,6 +117,16 @@ int gsc_client_new(const char *connection_file, gsc_client **out, gsc_error *err
         return -1;
     }
     copy_string(info, "session", c->session, sizeof c->session);
+    snprintf(c->conn_path, sizeof c->conn_path, "%s", connection_file);
+    json_object *pv, *sv;
+    if (json_object_object_get_ex(info, "pid", &pv) && json_object_get_type(pv) == json_type_int)
+        c->pid = json_object_get_int(pv);
+    if (json_object_object_get_ex(info, "stopped", &sv) && json_object_get_type(sv) == json_type_string) {
+        set_err(err, "daemon_stopped", "", "the daemon stopped: %s", json_object_get_string(sv));
+        json_object_put(info);
+        free(c);
+        return -1;
+    }
     if (copy_string(info, "curve_server_key", c->curve_server, sizeof c->curve_server) == 0 &&
         (copy_string(info, "curve_client_public_key", c->curve_public, sizeof c->curve_public) ||
          copy_string(info, "curve_client_secret_key", c->curve_secret, sizeof c->curve_secret) ||
@@ -209,6 +223,59 @@ static json_object *parse(const char *text)
     return o;
 }
 
+static int local_endpoint(const char *ep)
+{
+    return !strncmp(ep, "ipc://", 6) || !strncmp(ep, "tcp://127.", 10) || !strncmp(ep, "tcp://[::1]", 11) ||
+           !strncmp(ep, "tcp://localhost", 15);
+}
+
+/* Is the daemon gone (docs/RELIABILITY.md, "When a rank dies")? Its
+ * connection file removed, marked `stopped` (a rank died) or taken by
+ * another session, or (on this host) its process gone: c->stopped says
+ * why. Looked at about once a second. */
+static int daemon_gone(gsc_client *c)
+{
+    if (c->stopped[0])
+        return 1;
+    double t = now_ms();
+    if (t - c->last_check < 1000)
+        return 0;
+    c->last_check = t;
+    if (c->conn_path[0]) {
+        if (access(c->conn_path, F_OK) != 0) {
+            snprintf(c->stopped, sizeof c->stopped, "the daemon stopped: its connection file %.1024s was removed",
+                     c->conn_path);
+            return 1;
+        }
+        json_object *o = json_object_from_file(c->conn_path), *v;
+        if (o && json_object_object_get_ex(o, "stopped", &v) && json_object_get_type(v) == json_type_string)
+            snprintf(c->stopped, sizeof c->stopped, "the daemon stopped: %s", json_object_get_string(v));
+        else if (o && json_object_object_get_ex(o, "session", &v) && c->session[0] &&
+                 strcmp(json_object_get_string(v), c->session) != 0)
+            snprintf(c->stopped, sizeof c->stopped, "the daemon stopped: %.1024s now belongs to another daemon",
+                     c->conn_path);
+        json_object_put(o);
+        if (c->stopped[0])
+            return 1;
+    }
+    if (c->pid > 0 && local_endpoint(c->command_ep)) {
+        char p[64], buf[512];
+        snprintf(p, sizeof p, "/proc/%d/stat", c->pid);
+        FILE *f = fopen(p, "r");
+        size_t n = f ? fread(buf, 1, sizeof buf - 1, f) : 0;
+        if (f)
+            fclose(f);
+        buf[n] = '\0';
+        const char *rp = strrchr(buf, ')');
+        if (!f || !rp || rp[1] != ' ' || rp[2] == 'Z' || rp[2] == 'X') {
+            snprintf(c->stopped, sizeof c->stopped, "the daemon stopped: its process %d is gone (killed, or a "
+                     "rank died and MPI aborted the job)", c->pid);
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* Wait for the reply whose id is c->last_id; NULL after timeout_ms. Replies
  * to other ids (late answers to abandoned requests) are dropped. */
 static json_object *wait_reply(gsc_client *c, int timeout_ms)
@@ -219,9 +286,12 @@ static json_object *wait_reply(gsc_client *c, int timeout_ms)
         if (left <= 0)
             return NULL;
         zmq_pollitem_t it = {c->cmd, 0, ZMQ_POLLIN, 0};
-        int r = zmq_poll(&it, 1, (long)left + 1);
-        if (r <= 0)
+        int r = zmq_poll(&it, 1, (long)(left < 1000 ? left : 1000) + 1);
+        if (r <= 0) {
+            if (daemon_gone(c))
+                return NULL;
             continue;
+        }
         int nf;
         char *text = recv_message(c->cmd, &nf, NULL, 0);
         json_object *reply = parse(text);
@@ -257,8 +327,14 @@ int gsc_request(gsc_client *c, const char *cmd, json_object *args, int timeout_m
             return -1;
         }
         reply = wait_reply(c, timeout_ms);
+        if (!reply && c->stopped[0])
+            break;
     }
     json_object_put(req);
+    if (!reply && c->stopped[0]) {
+        set_err(err, "daemon_stopped", "", "%s", c->stopped);
+        return -1;
+    }
     if (!reply) {
         set_err(err, "timeout", "", "no reply to %s (%s) after %d attempts of %d ms", cmd, c->last_id,
                 retries + 1, timeout_ms);
@@ -406,6 +482,10 @@ int gsc_wait_done(gsc_client *c, const char *parent_id, int timeout_ms,
             nanosleep(&ts, NULL);
         }
         double now = now_ms();
+        if (daemon_gone(c)) {
+            set_err(err, "daemon_stopped", "", "%s", c->stopped);
+            return -1;
+        }
         if (now - last_poll >= GSC_DONE_POLL_MS) {
             /* The done event may be lost (PUB drops, a subscriber gone):
              * status lists the last finished requests. */

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim_client: a small C client of gearsimd (docs/PROTOCOL.md).
+ * gearsim_client: a small C client of gearsimd (docs/reference/protocol.md).
  *
  * One gsc_client holds a DEALER socket for commands and, after
  * gsc_subscribe(), a SUB socket for events. Requests carry ids unique to the

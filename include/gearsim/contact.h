@@ -98,7 +98,7 @@ typedef struct gs_gap {
 } gs_gap;
 
 /* Gap of slave point x against the master polyline pts (k >= 2 nodes,
- * 2 k doubles, material on the left). The rule (docs/CONTACT.md):
+ * 2 k doubles, material on the left). The rule (docs/explanation/contact.md):
  *
  *  1. The nearest segment i (Euclidean distance to the closed segment; ties
  *     go to the lower index) gives the line gap gL of p_i -> p_{i+1}
@@ -127,7 +127,7 @@ gs_err gs_gap_eval(const double x[2], const double *pts, int k, gs_gap *out);
  * edge e runs through pts[2e] (corner), pts[2e+1] (mid-side, at xi = 1/2),
  * pts[2e+2] (corner), P_e(xi) = sum_i N_i(xi) p_i with the quadratic shape
  * functions N = ((1-xi)(1-2xi), 4xi(1-xi), xi(2xi-1)), xi in [0, 1]). The
- * rule (docs/CONTACT.md "Quadratic edges"):
+ * rule (docs/explanation/contact.md "Quadratic edges"):
  *
  *  1. Closest point: on each edge the xi minimising |x - P_e(xi)| (the roots
  *     of the cubic (P - x).P' by safeguarded Newton in each sign-change
@@ -281,7 +281,7 @@ typedef struct gs_contact_row {
                              * cone holds the slave (the corner is the master's
                              * nearest point, the slave outside it), -1 otherwise:
                              * the step leaves such a row out when the corner is a
-                             * slave itself (docs/CONTACT.md "Tip corners") */
+                             * slave itself (docs/explanation/contact.md "Tip corners") */
 } gs_contact_row;
 
 /* Evaluate a candidate at the poses (current displacements included):

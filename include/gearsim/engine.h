@@ -101,6 +101,27 @@ gs_err gs_engine_serve(gs_engine *e);
  * call it only where gs_engine_run may be called. */
 gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len);
 
+/* A snapshot's bytes read back (from a checkpoint file: input like a
+ * request): the layout, every count within the bytes, every value finite,
+ * the step count in [0, GS_CHECKPOINT_MAX_STEP], the level a level, the
+ * scene and loads texts NUL-terminated and nothing after them. Pointers in
+ * the view are into b (not aligned for doubles). GS_OK, or an error with a
+ * message naming what is wrong. GS_OP_RESTORE checks the rest against the
+ * scene (sizes, time against the step count, the level's range). */
+typedef struct gs_snapshot_view {
+    int64_t step;
+    double time, work_in, dissipated, energy0;
+    int level;
+    uint32_t n_coords, n_meshes;
+    size_t n_states;
+    const char *q;      /* 2 n_coords doubles: coordinates then speeds */
+    const char *meshes; /* 8 doubles per mesh */
+    const char *states; /* n_states doubles */
+    const char *scene;  /* the scene's JSON */
+    const char *loads;  /* the loads in force, a JSON array */
+} gs_snapshot_view;
+gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, gs_diag *d);
+
 /* This rank's timing breakdown since load. */
 void gs_engine_timing(const gs_engine *e, gs_step_timing *out);
 

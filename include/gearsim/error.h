@@ -32,7 +32,8 @@
     X(GS_EMPI, "mpi_error", "an MPI operation failed")                                \
     X(GS_EBUSY, "busy", "the service is busy")                                        \
     X(GS_EREFINE, "refine", "the step is to be taken again with a smaller time step") \
-    X(GS_EINTERNAL, "internal", "internal error")
+    X(GS_EINTERNAL, "internal", "internal error")                                    \
+    X(GS_ERANKLOST, "rank_lost", "a rank of the daemon died")
 
 typedef enum {
 #define GS_ERR_ENUM(e, code, msg) e,

@@ -311,7 +311,7 @@ void gs_fe_body_get_stats(const gs_fe_body *b, gs_fe_stats *out);
 gs_err gs_fe_body_set_cache_limit(gs_fe_body *b, size_t max_bytes);
 
 /* ------------------------------------------------------------------------ */
-/* Reduced body (src/fe/fe_reduced.c, docs/FE.md "Reduced elastic body")     */
+/* Reduced body (src/fe/fe_reduced.c, docs/explanation/elastic_body.md "Reduced elastic body")     */
 /* ------------------------------------------------------------------------ */
 
 /* The FE body with its modes above f_max taken as massless: the rigid
@@ -393,7 +393,7 @@ void gs_fe_reduced_get_balance(const gs_fe_reduced *b, gs_fe_balance *out);
  * of its support, the amplitude of the residual displacement of the last
  * set_state, the energy books (energy0, work, dissipation, damping, the
  * static rule's loss) and the step count: a body loaded from it steps on
- * bit for bit as the saved one would have (docs/FE.md "Reduced elastic
+ * bit for bit as the saved one would have (docs/explanation/elastic_body.md "Reduced elastic
  * body"). Its size does not depend on the modes (every rank knows it from
  * the mesh: gs_fe_reduced_state_size_for(ne, candidate nodes); N <= ne + 1).
  * Loading a snapshot of another basis (N differs), a damaged support, or a

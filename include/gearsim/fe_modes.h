@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: the torsional mesh modes of an elastic gear pair from the FE
- * model's own generalised eigenproblem (docs/MODAL.md "FE mesh modes").
+ * model's own generalised eigenproblem (docs/explanation/modal.md "FE mesh modes").
  *
  * Both gears of a scene mesh are the FE bodies of the time integration: the
  * elastic unknowns u of each (CST or quadratic triangles, fixed hub nodes
@@ -96,7 +96,7 @@ void gs_fe_modes_result_clear(gs_fe_modes_result *r);
  * 1.6 % apart), and two rows held closed
  * whose lever ratios differ then lock the rolling through the teeth's
  * elasticity: a spurious mode of 17-144 Hz with the whole kinetic energy in
- * the rotations (docs/MODAL.md). The correction gives both lever arms the
+ * the rotations (docs/explanation/modal.md). The correction gives both lever arms the
  * mean of their relative departures from the base radii:
  * eps = a0 / rb0 + sigma a1 / rb1, a0 -= eps rb0 / 2, a1 -= sigma eps rb1 / 2
  * (then a0 / rb0 + sigma a1 / rb1 = 0). Returns |eps| / (|a0| / rb0 + |a1| / rb1)

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: static solves of an elastic body with its stiffness factored once
- * (the quasi-static mesh stiffness of docs/STIFFNESS.md; METHOD.md section 1).
+ * (the quasi-static mesh stiffness of docs/explanation/stiffness.md; METHOD.md section 1).
  *
  * gs_fe_model_static() factorises K on every call; this object keeps the
  * sparse Cholesky factor of the elastic block K (fixed nodes held, no theta)
@@ -40,7 +40,7 @@ gs_err gs_fe_static_columns(gs_fe_static *s, int n, const gs_index *cols, gs_ind
                             const gs_index *rows, double *out);
 
 /* Half columns of the compliance, for the few-columns-of-a-large-body case
- * (the quasi-static contact of docs/STIFFNESS.md). With K = P^T L L^T P
+ * (the quasi-static contact of docs/explanation/stiffness.md). With K = P^T L L^T P
  * (the sparse Cholesky factor, fill-reducing permutation P), the half
  * column of dof j is y_j = L^{-1} P e_j, sparse (the elimination-tree
  * ancestors of j's pivot: a few per cent of L's rows, where a solve touches

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: frictional impact of rigid bodies and compliant contact patches
- * (METHOD.md section 6; docs/IMPACT.md for the derivations and figures).
+ * (METHOD.md section 6; docs/explanation/impact.md for the derivations and figures).
  *
  * Three layers:
  *  1. one planar frictional impact at a point, integrated in the normal
@@ -47,7 +47,7 @@ typedef enum {
 const char *gs_restitution_name(gs_restitution law);
 bool gs_restitution_parse(const char *name, gs_restitution *law);
 
-/* What happened to the slip during the impact (docs/IMPACT.md, "processes"). */
+/* What happened to the slip during the impact (docs/explanation/impact.md, "processes"). */
 typedef enum {
     GS_IMPACT_NONE,                  /* not approaching (v_n,0 >= 0): no impulse */
     GS_IMPACT_FRICTIONLESS,          /* mu = 0 */
@@ -174,7 +174,7 @@ typedef struct gs_impact_multi_result {
     gs_lcp_info lcp;
     int lcp_size;      /* 4 n_contact (normal, two friction directions, slip speed) */
     bool several;      /* the impulses are not unique: impulse can be moved between
-                        * contacts without changing velocities (docs/IMPACT.md) */
+                        * contacts without changing velocities (docs/explanation/impact.md) */
     double energy_before, energy_after;
 } gs_impact_multi_result;
 
@@ -213,7 +213,7 @@ typedef struct gs_compliant_result {
     double *x;        /* [n] strip centres (caller-owned, or NULL) */
     double *pressure; /* [n] (caller-owned) */
     double approach;  /* rigid approach delta relative to the datum */
-    double half_width;   /* contact half-width from the pressure edges (docs/IMPACT.md) */
+    double half_width;   /* contact half-width from the pressure edges (docs/explanation/impact.md) */
     double peak;         /* max pressure */
     int n_loaded;        /* strips with p > 0 */
     int qp_iterations;
@@ -221,7 +221,7 @@ typedef struct gs_compliant_result {
     double *traction;    /* [n] tangential traction q (caller-owned, or NULL) */
     double shift;        /* rigid tangential shift of body 1 relative to body 2 */
     double stick_half_width; /* half-width of the stick zone from the traction deficit
-                              * mu p - |q| (docs/IMPACT.md); 0 in full slip */
+                              * mu p - |q| (docs/explanation/impact.md); 0 in full slip */
     int n_stick;         /* loaded strips that stick */
     gs_lcp_info lcp;
 } gs_compliant_result;

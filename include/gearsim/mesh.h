@@ -85,7 +85,7 @@ void gs_mesh_free(gs_mesh **m);
 gs_err gs_mesh_rectangle(double lx, double ly, int nx, int ny, gs_mesh **out);
 
 /* ------------------------------------------------------------------------ */
-/* Gear meshes (docs/GEOMETRY.md: layout, grading, refinement)              */
+/* Gear meshes (docs/explanation/geometry.md: layout, grading, refinement)              */
 /* ------------------------------------------------------------------------ */
 
 typedef struct gs_gear_mesh_opts {
@@ -98,7 +98,7 @@ typedef struct gs_gear_mesh_opts {
                       * under the teeth (smallest at the root); 1 = uniform; 1..8 */
     int order;       /* element order: 1 linear (CST), 2 quadratic 6-node triangles with
                       * curved boundary edges (scene mesh.order) */
-    /* Local refinement (docs/GEOMETRY.md "Local refinement"; 0 = none): the
+    /* Local refinement (docs/explanation/geometry.md "Local refinement"; 0 = none): the
      * teeth of the fine_teeth sectors centred on tooth fine_centre are meshed
      * fine_refine levels finer than `refine` (rim band and fillets under
      * them one level less, the sectors beside them graded one level per tooth),
@@ -118,12 +118,12 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o);
 /* The default counts of element order `order` (1 or 2; anything else: the
  * default order), refine 0. The one table of default counts (gear_mesh.c):
  * order 2 {flank 8, across 4, rim 2, grading 3} (38 060 unknowns for the
- * 20/30 pair of docs/CONVERGENCE.md), order 1 {flank 8, across 4, rim 3,
+ * 20/30 pair of docs/validation/calculix.md), order 1 {flank 8, across 4, rim 3,
  * grading 2} (the linear default before order 2 was: 11 224 unknowns). */
 void gs_gear_mesh_opts_for_order(gs_gear_mesh_opts *o, int order);
 
 /* The `fine` setting of the quasi-static analysis (gearsim-stiffness --fine;
- * docs/CONVERGENCE.md "Local refinement and the fine setting"): order 2
+ * docs/validation/calculix.md): order 2
  * {flank 8, across 4, rim 1, grading 3}, the 3 teeth centred on fine_centre
  * (the analysis puts it on the teeth in contact) 3 levels finer (their rim
  * band and fillets 2). The

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: gear meshes to and from HDF5, with an XDMF 3 file beside so that
- * ParaView opens them (docs/GEOMETRY.md, "HDF5 layout").
+ * ParaView opens them (docs/explanation/geometry.md, "HDF5 layout").
  *
  * Layout of a mesh file (all lengths in metres, angles in radians):
  *

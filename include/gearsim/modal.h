@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: modal analysis of the linearised rigid/lumped train
- * (docs/MODAL.md).
+ * (docs/explanation/modal.md).
  *
  * Every body that moves gets generalised coordinates from its joint:
  * fixed_axis a rotation; bearing x, y and the rotation; on_carrier the
@@ -68,7 +68,7 @@ void gs_modal_free(gs_modal **m);
 const char *gs_mode_kind_name(int kind);
 /* Relative frequency gap below which modes count as one group. */
 #define GS_MODAL_GROUP_TOL 1e-7
-/* The result as JSON (docs/MODAL.md, proto/v1/results/modal.json). */
+/* The result as JSON (docs/explanation/modal.md, proto/v1/results/modal.json). */
 struct json_object;
 struct json_object *gs_modal_json(const gs_modal *m, const gs_scene *s);
 

@@ -192,7 +192,7 @@ struct gs_gmesh_rt {
     double s_pin;            /* lumped meshes: deflection the planets' pin errors set at the
                               * initial state, along the line of action (m) */
     /* Translations along the true line of action (bodies on bearing joints,
-     * docs/MODAL.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
+     * docs/explanation/modal.md): s = a . q + sum_k tr_sign[k] n_k(q) . X_k, X_k the
      * centre displacement of gear k (coordinates tr_coord[k], tr_coord[k]+1),
      * n_k = R(q[tr_carrier]) tr_n0[k] when a gear rides on a carrier (the
      * line turns with it), tr_n0[k] otherwise. abar: scratch, n_coords. */
@@ -206,7 +206,7 @@ struct gs_gmesh_rt {
     double tr_off[2][2], tr_c[2];
     int tr_carrier;          /* carrier coordinate, -1 none */
     double *abar;
-    /* Tooth errors of lumped meshes (docs/GEOMETRY.md): s gains
+    /* Tooth errors of lumped meshes (docs/explanation/geometry.md): s gains
      * E(q) = sum_k E_k(v_k), v_k = theta_k - theta_C the angle of gear k in
      * the carrier's frame (housing: theta_C = 0). err[k]: coord / carrier
      * coordinates (-1 none), teeth z, beta the direction to the other gear,
@@ -244,7 +244,7 @@ struct gs_gmesh_rt {
 
 
 /* A compliant support (joint) with a potential and a damper on rigid
- * coordinates (docs/MODAL.md): the `bearing` joint holds a body's centre
+ * coordinates (docs/explanation/modal.md): the `bearing` joint holds a body's centre
  * displacement (x, y) with an isotropic radial spring and damper and its
  * rotation with a torsional one. Its force is the discrete gradient of its
  * potential between q0 and q0 + dq (exact: V(q1) - V(q0) = g . dq) plus the

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: profile modifications and tooth errors of a spur gear
- * (docs/GEOMETRY.md "Profile modifications and tooth errors").
+ * (docs/explanation/geometry.md "Profile modifications and tooth errors").
  *
  * Owned by the geometry module. A modification is a normal offset of a
  * flank from its involute, a function of the roll length
@@ -54,7 +54,7 @@ typedef struct gs_flank_mod {
 
 /* Flank sides: GS_FLANK_CW the clockwise side of each tooth (polar angle
  * below its centreline), GS_FLANK_CCW the counter-clockwise side. Which one
- * drives depends on the direction of the torque (docs/GEOMETRY.md). */
+ * drives depends on the direction of the torque (docs/explanation/geometry.md). */
 enum { GS_FLANK_CW = 0, GS_FLANK_CCW = 1 };
 
 typedef struct gs_gear_mods {

@@ -21,7 +21,7 @@
  * Matrices are dense, row-major, with leading dimension n (row i of E starts
  * at E + i*n). None of the calls involve MPI: each rank may call them on its
  * own problems. A workspace is not thread-safe; use one per thread.
- * See docs/QP.md for the algorithm, its tolerances and its measured accuracy. */
+ * See docs/explanation/qp.md for the algorithm, its tolerances and its measured accuracy. */
 #ifndef GEARSIM_QP_H
 #define GEARSIM_QP_H
 
@@ -46,7 +46,7 @@ typedef struct gs_qp_options {
      * are degenerate, not infeasible. Default 1e-12. */
     double feas_tol;
     /* A row is linearly dependent on the active rows when its part outside
-     * their span, in the metric of H^{-1} (|J2^T n_i|, see docs/QP.md), is
+     * their span, in the metric of H^{-1} (|J2^T n_i|, see docs/explanation/qp.md), is
      * below dep_tol * (|L^{-1} n_i| + sum_k |r_k| |L^{-1} n_k|): its own size
      * plus that of the combination expressing it through the active rows.
      * Default 1e-11. */

@@ -10,7 +10,7 @@
  * Rows are buffered and appended at gs_record_flush(); everything flushed is
  * on disk (H5Fflush) and readable by a serial reader. Not collective.
  *
- * Field snapshots of elastic bodies (docs/RECORD.md, "Field snapshots"); only
+ * Field snapshots of elastic bodies (docs/reference/hdf5.md, "Field snapshots"); only
  * present after gs_record_add_meshes(), a record without them is laid out
  * exactly as above. For body <name> (T = frames written, n = nodes):
  *   /bodies        attr names (JSON list, in the order given to add_meshes)
@@ -38,7 +38,7 @@
  * or before that time). It is rewritten atomically (tmp + rename) by
  * add_meshes, gs_record_flush and gs_record_close, and lists only flushed
  * frames. ParaView 5.11: open it with the "XDMF Reader"; its Xdmf3 readers
- * cannot read a HyperSlab geometry (docs/RECORD.md). */
+ * cannot read a HyperSlab geometry (docs/reference/hdf5.md). */
 #ifndef GEARSIM_RECORD_H
 #define GEARSIM_RECORD_H
 
@@ -99,7 +99,15 @@ int64_t gs_record_field_frames(const gs_record *r, int body);
  * as an attribute for people who look inside. */
 gs_err gs_checkpoint_write(const char *path, const char *bytes, size_t len, const char *scene_json,
                            int64_t step, double time, gs_diag *d);
-gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *d);
+/* Reading a checkpoint treats the file as input: the snapshot dataset must
+ * be one dimension of bytes, stored whole, at most max_bytes (checked
+ * before anything is allocated); its content is checked by the engine
+ * (gs_engine_snapshot_check). */
+gs_err gs_checkpoint_read(const char *path, size_t max_bytes, char **bytes, size_t *len, gs_diag *d);
+
+/* The largest step count a checkpoint may hold (2^53: exact as a double,
+ * far from the overflow of int64 steps plus any advance). */
+#define GS_CHECKPOINT_MAX_STEP ((int64_t)1 << 53)
 
 /* Automatic checkpoints (docs/RELIABILITY.md, "Automatic checkpoints and
  * --resume"): a checkpoint file as above plus the group /autosave with what

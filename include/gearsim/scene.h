@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim: the scene, parsed and validated (docs/SCENE.md, proto/v1/scene.json).
+ * gearsim: the scene, parsed and validated (docs/reference/scene.md, proto/v1/scene.json).
  *
  * gs_scene_parse() turns JSON text into a gs_scene with every default filled
  * and every value checked; on error the gs_diag names the offending field by
@@ -20,18 +20,19 @@ typedef enum {
     GS_JOINT_FIXED_AXIS = 0,
     GS_JOINT_ON_CARRIER = 1,
     GS_JOINT_HELD = 2,
-    GS_JOINT_BEARING = 3       /* centre moves in the plane on a radial bearing (docs/MODAL.md) */
+    GS_JOINT_BEARING = 3       /* centre moves in the plane on a radial bearing (docs/explanation/modal.md) */
 } gs_joint_type;
 typedef enum {
     GS_MESH_KINEMATIC = 0,
     GS_MESH_LUMPED = 1,
     GS_MESH_CONTACT = 2,
     GS_MESH_IMPACT = 3,
-    GS_MESH_COMPLIANT = 4
+    GS_MESH_COMPLIANT = 4,
+    GS_MESH_LTCA = 5           /* rigid gears, the LTCA tables' mesh potential (gearsim/ltca.h) */
 } gs_mesh_model;
 typedef enum { GS_STIFF_CONSTANT = 0, GS_STIFF_RECTANGULAR = 1, GS_STIFF_CALIBRATED = 2 } gs_stiffness_type;
 typedef enum { GS_LOAD_CONSTANT = 0, GS_LOAD_RAMP, GS_LOAD_BRAKE, GS_LOAD_TABLE } gs_load_type;
-/* numerics.contact: how contact rows treat the gap (docs/CONTACT.md). */
+/* numerics.contact: how contact rows treat the gap (docs/explanation/contact.md). */
 typedef enum { GS_CONTACT_SEED = 0, GS_CONTACT_CLOSURE = 1, GS_CONTACT_CLOSURE_ENERGY = 2 } gs_contact_scheme;
 
 typedef struct gs_mesh_density {
@@ -64,7 +65,7 @@ typedef struct gs_scene_body {
     double carrier_angle;      /* rad */
     /* manufacturing errors */
     double pin_error[2];       /* m: radial, tangential error of a planet's pin (on_carrier) */
-    /* compliant supports (docs/MODAL.md): `bearing` joint, and a planet's
+    /* compliant supports (docs/explanation/modal.md): `bearing` joint, and a planet's
      * bearing on its carrier pin (on_carrier with bearing_stiffness) */
     double bearing_k, bearing_c; /* N/m, N s/m: isotropic radial bearing (0: floating) */
     double torsion_k, torsion_c; /* N m/rad, N m s/rad: torsional support (bearing joint; 0: free) */
@@ -172,7 +173,7 @@ void gs_scene_body_centre(const gs_scene *s, int i, double c[2]);
 /* Index of a body by name, -1 if none. */
 int gs_scene_find_body(const gs_scene *s, const char *name);
 
-/* Size limits, checked before anything is meshed (docs/SCENE.md, "Size
+/* Size limits, checked before anything is meshed (docs/reference/scene.md, "Size
  * limits"). The estimate of an elastic gear's FE unknowns is
  *   2 * teeth * 1.5 * (flank + rim) * (2 across + 2) * 4^refine
  * (two displacements per node; 1.3-1.6x the unknowns the mesher makes for

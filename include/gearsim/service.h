@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: the service on rank 0 — ZeroMQ command (ROUTER) and telemetry
  * (PUB) sockets, the command table, advance in chunks, jobs, recording
- * (docs/PROTOCOL.md). Other ranks run gs_engine_serve(). */
+ * (docs/reference/protocol.md). Other ranks run gs_engine_serve(). */
 #ifndef GEARSIM_SERVICE_H
 #define GEARSIM_SERVICE_H
 

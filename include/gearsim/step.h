@@ -142,7 +142,7 @@ void gs_system_body_load(const gs_system *sys, int b, double t, double *moment, 
  * (gs_step_compliance, packed k x k per two-phase body, zeros for the
  * others' so that a sum over ranks assembles them), and rank 0 places them
  * into its records (gs_step_compliance_unpack) before gs_step_solve. The
- * solution is bit for bit that of the whole blocks (docs/PERFORMANCE.md).
+ * solution is bit for bit that of the whole blocks (docs/performance/index.md).
  *
  * Solution layout: dq (n_coords), the meshes' dissipation of the step, the
  * meshes' forces (n_meshes), per mesh the contact figures (n_active,
@@ -192,7 +192,7 @@ static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
     return (size_t)(s->n_coords + 1 + s->n_meshes + GS_SOL_CONTACT * m);
 }
 
-/* Limits of the scene's numerics against the current state (docs/STABILITY.md):
+/* Limits of the scene's numerics against the current state (docs/explanation/stability.md):
  *  - the rigid state and the mesh forces are finite;
  *  - contact meshes: the approach speed along the line of action times h,
  *    and the deepest penetration of the last step, stay within 0.1 module
@@ -222,7 +222,7 @@ void gs_system_energy_adopt(gs_system *sys, const double *buf);
  * so that every rank sums identically) as dissipated, after the step's
  * energy report has been adopted. */
 void gs_system_book_damping(gs_system *sys);
-/* numerics.contact "closure_energy" (docs/CONTACT.md): after the step's
+/* numerics.contact "closure_energy" (docs/explanation/contact.md): after the step's
  * energy report has been adopted, give the work of each contact mesh's
  * reactions in the step (sol's contact figures) back as a velocity update
  * of its gears' rotations along the reactions' moments (an impulse pair

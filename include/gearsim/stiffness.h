@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: quasi-static mesh stiffness and static transmission error of a
  * gear pair with elastic FE bodies and frictionless contact
- * (docs/STIFFNESS.md; METHOD.md sections 1, 3, 5 and 7 rung 3).
+ * (docs/explanation/stiffness.md; METHOD.md sections 1, 3, 5 and 7 rung 3).
  *
  * The pair of a scene mesh is rolled slowly through one mesh cycle (no
  * inertia). At each of N roll positions the driver (gear 0 of the mesh unless
@@ -62,7 +62,7 @@ typedef struct gs_stiffness_opts {
     int order;         /* 0 (default): the scene's element order (mesh.order); else 1 or 2
                         * for both gears */
     int nearfield;     /* 2 (default, auto): near-field (Hertz) correction of the contact
-                        * compliance (docs/STIFFNESS.md "Near-field correction") when both
+                        * compliance (docs/explanation/stiffness.md "Near-field correction") when both
                         * gears have quadratic elements and neither has flank modifications
                         * or pitch errors, else the plain FE; 1: the
                         * correction on any mesh; 0: the plain FE contact (what the dynamic
@@ -74,10 +74,10 @@ typedef struct gs_stiffness_opts {
                         * of them rounded up to odd; replaces the scene's mesh density, refine
                         * and order) */
     int all_rows;      /* 0 (default): the contact QP takes the rows within a window of the
-                        * contact, checked at the solution (docs/STIFFNESS.md "Contact
+                        * contact, checked at the solution (docs/explanation/stiffness.md "Contact
                         * window"); 1: every closing row of the search (the reference) */
     int all_dofs;      /* 0 (default): the displacements for the contact search only at the
-                        * teeth it reads, by partial back substitutions (docs/STIFFNESS.md
+                        * teeth it reads, by partial back substitutions (docs/explanation/stiffness.md
                         * "Displacement zone"); 1: at every boundary dof (the reference) */
 } gs_stiffness_opts;
 
@@ -93,13 +93,15 @@ typedef struct gs_stiffness_point {
     double angle_rad;     /* driver's kinematic rotation from the first position, rad
                            * (in the torque direction) */
     double delta_rad;     /* driver's loaded rotation beyond its kinematic angle (signed) */
-    double te_um;         /* te_raw - te0 (header) */
+    double te_um;         /* te_raw - te0 (header): the elastic part of the TE, output as
+                           * te_elastic_um (and, for one release, te_um) */
     double te_raw_um;
     double te0_um;
     double te_ref_um;     /* r_b1 s delta_ref: the no-load closing of the perfect gears (the
                            * same meshes without modifications and tooth errors); te0 when
                            * neither gear is modified */
-    double te_loaded_um;  /* te_raw - te_ref: the loaded static TE including the geometric
+    double te_loaded_um;  /* te_raw - te_ref: the loaded static TE (the analysis' main output,
+                           * te_loaded_um in JSON and HDF5) including the geometric
                            * TE of the modifications (the Harris map's quantity); te when
                            * neither gear is modified */
     double k;             /* F / te / b, N/(mm um) */
@@ -198,23 +200,27 @@ const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k);
 void gs_stiffness_result_clear(gs_stiffness_result *r);
 
 /* Write the result to an HDF5 file (created or truncated): group /stiffness
- * with datasets roll, angle_deg, te_um, te_raw_um, te0_um, k, te_half_um,
- * k_tan (doubles, one per position), pairs (int), pair_tooth (positions x
+ * with datasets roll, angle_deg, te_elastic_um, te_raw_um, te0_um, k,
+ * te_half_um, k_tan, te_ref_um, te_loaded_um (doubles, one per position; te_um
+ * a soft link to te_elastic_um, its former name, for one release), pairs
+ * (int), pair_tooth (positions x
  * GS_STIFF_MAX_PAIRS x 2 ints, -1 when unused), pair_force_n (positions x
  * GS_STIFF_MAX_PAIRS); attributes scene (the scene JSON, sc may be NULL),
  * mesh, driver, torque_nm, force_n, face_width_mm, base_radius_m,
- * contact_ratio, k_min, k_mean, k_max, te_min, te_mean, te_max.
+ * contact_ratio, k_min, k_mean, k_max, te_loaded_min/mean/max (the loaded
+ * static TE), te_elastic_min/mean/max (and their former names te_min,
+ * te_mean, te_max, for one release).
  * Errors: GS_EINVAL, GS_EIO (d names "out"). */
 gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stiffness_result *r,
                              gs_diag *d);
 
 /* The result as a JSON object (owned by the caller, json_object_put): the
  * document `gearsim-stiffness --json` prints and the service's `stiffness`
- * command returns (docs/STIFFNESS.md). s is the analysed scene. */
+ * command returns (docs/explanation/stiffness.md). s is the analysed scene. */
 struct json_object;
 struct json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s);
 
-/* Near-field correction (docs/STIFFNESS.md "Near-field correction"): the
+/* Near-field correction (docs/explanation/stiffness.md "Near-field correction"): the
  * Hertzian line contact of two cylinders, per unit length.
  *
  * gs_hertz_line_modulus: the contact modulus E* of two bodies, 1/E* =
@@ -236,7 +242,7 @@ double gs_hertz_line_approach(double load_per_m, double a_m, double depth_m, dou
 
 /* The smallest gap between two smooth flanks from three samples of it
  * along their common tangent (the contact rows of the nodes nearest the
- * contact and their neighbours, docs/STIFFNESS.md "Near-field correction"):
+ * contact and their neighbours, docs/explanation/stiffness.md "Near-field correction"):
  * the parabola g(s) = g_m + B s + C s^2 through (s_l, g_l), (0, g_m),
  * (s_h, g_h), s_l < 0 < s_h; its vertex s_v = -B / (2 C) in *s_v and
  * g_0 = g_m - B^2 / (4 C) in *g0. Returns 1 when the parabola is convex
@@ -246,7 +252,7 @@ int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, d
                    double *g0);
 
 /* Near-field law of a line contact next to a sharp tip corner
- * (docs/STIFFNESS.md "Tip-corner contact"): x along the common tangent from
+ * (docs/explanation/stiffness.md "Tip-corner contact"): x along the common tangent from
  * the corner into the corner body's flank, rigid gap (x - xv)^2 / (2 R)
  * (xv > 0: the flanks' touching point inside the flank; xv < 0: beyond the
  * corner, whose flank face then leaves the other flank at -xv / R).

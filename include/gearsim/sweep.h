@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim: parameter sweeps (src/sweep, docs/MODAL.md "Sweeps").
+ * gearsim: parameter sweeps (src/sweep, docs/explanation/modal.md "Sweeps").
  *
  * A sweep is a scene and one to four parameters, each a list of values:
  * `driver_rpm` (the driver's speed; every point then starts in steady state
@@ -42,6 +42,14 @@ gs_err gs_sweep_parse(json_object *spec, const char *prefix, const char *const *
                       gs_diag *d);
 void gs_sweep_free(gs_sweep **sw);
 int gs_sweep_points(const gs_sweep *sw);
+/* The largest memory estimate of a point's scene (gs_scene_estimate_bytes)
+ * and the most steps a point takes (settle + measure at its time step),
+ * over every point, with the point where each is reached. */
+double gs_sweep_max_scene_bytes(const gs_sweep *sw, int *point);
+/* A function gs_sweep_parse calls between points while it validates them
+ * (the daemon answers requests meanwhile); NULL: none. */
+void gs_sweep_set_poll(void (*fn)(void *user), void *user);
+double gs_sweep_max_steps(const gs_sweep *sw, int *point);
 int gs_sweep_columns(const gs_sweep *sw);            /* row length (point index excluded) */
 const char *gs_sweep_column(const gs_sweep *sw, int c); /* column name */
 /* The canonical JSON text of what determines the results (scene, parameters,

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Near-field (Hertz) correction of the quasi-static contact compliance
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md "Near-field correction").
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md "Near-field correction").
  *
  * Half-plane z > 0 under the Hertzian line load p(x) = p0 sqrt(1 - x^2/a^2),
  * P = pi a p0 / 2 per unit length. On the load's axis x = 0 (Johnson,
@@ -79,7 +79,7 @@ int gs_gap_vertex3(double s_l, double g_l, double g_m, double s_h, double g_h, d
     return 1;
 }
 
-/* A line contact next to a sharp corner (docs/STIFFNESS.md "Tip-corner
+/* A line contact next to a sharp corner (docs/explanation/stiffness.md "Tip-corner
  * contact"). Coordinate x along the common tangent from the corner into the
  * corner body's flank, rigid gap g(x) = (x - xv)^2 / (2 R). When the
  * Hertzian zone reaches the corner (xv < a) the contact is [0, c], complete

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Contact search of one gear mesh (METHOD.md section 5) and the scene-frame
  * gap of a candidate with its chain rule (section 3). Conventions and the
- * contract are in gearsim/contact.h; the reasoning in docs/CONTACT.md.
+ * contract are in gearsim/contact.h; the reasoning in docs/explanation/contact.md.
  *
  * Outline of a search, for each gear A as slave against gear B:
  *
@@ -580,7 +580,7 @@ gs_err gs_contact_search_run(gs_contact_search *s, const gs_contact_pose pose[2]
  * the blended
  * R-function wedge, whose gradient off the zero set turns towards the
  * corner's bisector (a predicted row of a flank node beside the flank then
- * pushes along neither flank nor tip: locking, docs/CONTACT.md "Tip
+ * pushes along neither flank nor tip: locking, docs/explanation/contact.md "Tip
  * corners"). Used where gs_gap_eval blends V's wedge or projects beyond V
  * on a segment ending at V; elsewhere the gap is untouched. The distance
  * is that of gs_gap_eval_quad on the two segments as straight parabolic

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Localised Rvachev sign (gap) functions of a slave point against a short
  * master polyline (METHOD.md section 3; conventions in gearsim/contact.h,
- * the blending rule and its continuity argument in docs/CONTACT.md).
+ * the blending rule and its continuity argument in docs/explanation/contact.md).
  *
  * Line gap of a -> b, d = b - a, L = |d|, w = x - a:
  *     g = cross(w, d) / L = w . n,   n = (d_y, -d_x) / L,

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Quasi-static mesh stiffness and static transmission error of a gear pair
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md).
  *
  * Per load case the unknowns are the contact forces lambda (one per contact
  * row i, gap g_i) and the driver's rotation delta; the elastic displacements
@@ -228,14 +228,14 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
      * unconverged, and on modified flanks there is no reference (it doubled
      * the relieved TE of the Harris map against the plain FE before the
      * vertex fit's curvature bound and the rigid gaps against the flank
-     * gap; 0.89 times it since: docs/STIFFNESS.md). */
+     * gap; 0.89 times it since: docs/explanation/stiffness.md). */
     double nf_gap = 0.0; /* conjugate flanks' gap at the kinematic angle, m */
     w.nf = o.nearfield == 2 ? gs_mesh_order(w.b[0].mesh) == 2 && gs_mesh_order(w.b[1].mesh) == 2 &&
                                   !w.b[0].xy_ref && !w.b[1].xy_ref
                             : o.nearfield;
     if (w.nf) {
         /* Depth of the FE field point below the contact: given, or a fixed
-         * fraction of the smaller module (docs/STIFFNESS.md). */
+         * fraction of the smaller module (docs/explanation/stiffness.md). */
         double mmin = fmin(gA->module_m, gB->module_m);
         w.nf_depth = o.nearfield_depth_mm > 0.0 ? o.nearfield_depth_mm * 1e-3 : GS_NF_DEPTH * mmin;
         if (w.nf_depth > mmin) {

@@ -62,7 +62,7 @@ static int contact_tooth(const gs_gear_params *g, const double c[2], const doubl
 }
 
 /* Local refinement (mesh.fine_teeth): centre the fine teeth of both gears
- * on the teeth in contact halfway through the roll range (docs/GEOMETRY.md
+ * on the teeth in contact halfway through the roll range (docs/explanation/geometry.md
  * "Local refinement"), the rotations those of gs_stiffness_next. */
 void gsi_stiff_fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffness_opts *o,
                             int centre[2])

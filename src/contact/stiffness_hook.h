@@ -11,7 +11,7 @@
  * search that covers everything on the involute pairs), so every tooth it
  * needs is added once the solution has nearly settled on stale zero
  * displacements there, and the position is solved again
- * (gs_stiffness_result.zone_restarts; docs/STIFFNESS.md "Displacement
+ * (gs_stiffness_result.zone_restarts; docs/explanation/stiffness.md "Displacement
  * zone"). The results must not change. */
 extern int gsi_stiffness_zone_late;
 

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim contact module, library-internal: the quasi-static stiffness
- * analysis's working state (include/gearsim/stiffness.h, docs/STIFFNESS.md),
+ * analysis's working state (include/gearsim/stiffness.h, docs/explanation/stiffness.md),
  * shared by its files: the run and its roll positions (stiffness.c), the
  * elastic bodies' compliance cache (stiffness_body.c), one load case's
  * contact rows, near-field correction and solve (stiffness_load.c), and the
@@ -64,7 +64,7 @@ typedef struct sbody {
     long nback;           /* back substitutions for displacements so far */
     double backw;         /* their cost in full back substitutions (partial ones: the
                            * fraction of L visited) */
-    /* Displacement zone (docs/STIFFNESS.md "Displacement zone"): the
+    /* Displacement zone (docs/explanation/stiffness.md "Displacement zone"): the
      * displacements are computed only at the boundary nodes of the teeth the
      * contact search reads (gs_fe_static_back_rows), the others stay 0. */
     int zone_on;          /* 0: every boundary dof (gs_stiffness_opts.all_dofs) */

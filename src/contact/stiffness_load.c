@@ -876,7 +876,7 @@ static gs_err nearfield_measure(work *w, int nr, double delta)
 /* One load case from the current state (delta in *delta, displacements in
  * the bodies): iterate linearisations. Fills lambda in w->x, the rows in
  * w->row (nr), and the outcome. */
-/* The contact window (docs/STIFFNESS.md "Contact window"): the first
+/* The contact window (docs/explanation/stiffness.md "Contact window"): the first
  * linearisation takes the rows whose gap is below the TE of a soft mesh
  * (GS_WIN_K, a quarter of a usual steel spur mesh stiffness) under the load,
  * the next ones those below GS_WIN_FACTOR times the current elastic TE; the

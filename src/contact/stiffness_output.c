@@ -73,7 +73,7 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
     hid_t f = H5Fcreate(path, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     hid_t g = f < 0 ? -1 : H5Gcreate2(f, "stiffness", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);
     if (g >= 0) {
-        static const char *const names[10] = {"roll", "angle_deg", "te_um", "te_raw_um",
+        static const char *const names[10] = {"roll", "angle_deg", "te_elastic_um", "te_raw_um",
                                               "te0_um", "k", "te_half_um", "k_tan",
                                               "te_ref_um", "te_loaded_um"};
         hsize_t d1[1] = {(hsize_t)n}, d2[2] = {(hsize_t)n, GS_STIFF_MAX_PAIRS},
@@ -81,6 +81,8 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
         herr_t st = 0;
         for (int c = 0; c < 10; c++)
             st |= put_ds(g, names[c], H5T_NATIVE_DOUBLE, 1, d1, col + (size_t)c * nn);
+        /* te_um: the former name of te_elastic_um, a soft link for one release */
+        st |= H5Lcreate_soft("te_elastic_um", g, "te_um", H5P_DEFAULT, H5P_DEFAULT) < 0 ? -1 : 0;
         st |= put_ds(g, "pairs", H5T_NATIVE_INT, 1, d1, pairs);
         st |= put_ds(g, "pair_tooth", H5T_NATIVE_INT, 3, d3, pt_tooth);
         st |= put_ds(g, "pair_force_n", H5T_NATIVE_DOUBLE, 2, d2, pf);
@@ -97,9 +99,12 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
                        {"face_width_mm", r->face_width_mm}, {"base_radius_m", r->base_radius_m},
                        {"contact_ratio", r->contact_ratio}, {"k_min", r->k_min},
                        {"k_mean", r->k_mean},               {"k_max", r->k_max},
+                       {"te_elastic_min", r->te_min},       {"te_elastic_mean", r->te_mean},
+                       {"te_elastic_max", r->te_max},       {"te_loaded_min", r->te_loaded_min},
+                       {"te_loaded_mean", r->te_loaded_mean}, {"te_loaded_max", r->te_loaded_max},
+                       /* the former names of te_elastic_min/mean/max, for one release */
                        {"te_min", r->te_min},               {"te_mean", r->te_mean},
-                       {"te_max", r->te_max},               {"te_loaded_min", r->te_loaded_min},
-                       {"te_loaded_mean", r->te_loaded_mean}, {"te_loaded_max", r->te_loaded_max}};
+                       {"te_max", r->te_max}};
         for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
             st |= gsi_h5_scalar_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
         if (st >= 0)
@@ -166,6 +171,10 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
         json_object_object_add(q, "roll", json_num(p->roll));
         json_object_object_add(q, "angle_deg", json_num(p->angle_rad * 180.0 / 3.14159265358979323846));
         json_object_object_add(q, "k", json_num(p->k));
+        /* te_loaded_um: the loaded static TE (the main output); te_elastic_um its
+         * elastic part (they differ on modified flanks); te_um: the former name of
+         * te_elastic_um, kept for one release (docs/reference/outputs.md). */
+        json_object_object_add(q, "te_elastic_um", json_num(p->te_um));
         json_object_object_add(q, "te_um", json_num(p->te_um));
         json_object_object_add(q, "te_raw_um", json_num(p->te_raw_um));
         json_object_object_add(q, "te0_um", json_num(p->te0_um));
@@ -195,7 +204,8 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(k, "max", json_num(r->k_max));
     json_object_object_add(k, "tangent_mean", json_num(r->k_tan_mean));
     json_object_object_add(o, "k", k);
-    json_object_object_add(o, "te_um", json_te_range(r->te_min, r->te_mean, r->te_max));
+    json_object_object_add(o, "te_elastic_um", json_te_range(r->te_min, r->te_mean, r->te_max));
+    json_object_object_add(o, "te_um", json_te_range(r->te_min, r->te_mean, r->te_max)); /* alias, one release */
     json_object_object_add(o, "te_loaded_um",
                            json_te_range(r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max));
     json_object_object_add(o, "modified", json_object_new_boolean(r->modified));

@@ -363,6 +363,25 @@ int main(int argc, char **argv)
     gs_service_set_max_scene_mb(o.max_scene_mb);
     gs_service_set_max_record_mb(o.max_record_mb);
     gs_service_set_max_clients(o.max_clients);
+    /* Rank 0 watches the ranks on its host (a dead rank is reported to
+     * clients, docs/RELIABILITY.md): their process ids and host names. */
+    int size;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    struct {
+        int pid;
+        char host[60];
+    } me = {(int)getpid(), ""}, *all = rank == 0 ? calloc((size_t)size, sizeof me) : NULL;
+    gethostname(me.host, sizeof me.host - 1);
+    MPI_Gather(&me, (int)sizeof me, MPI_BYTE, all, (int)sizeof me, MPI_BYTE, 0, MPI_COMM_WORLD);
+    if (rank == 0 && all) {
+        int *pids = calloc((size_t)size, sizeof *pids);
+        for (int r = 1; pids && r < size; r++)
+            pids[r] = strcmp(all[r].host, me.host) == 0 ? all[r].pid : 0;
+        if (pids)
+            gs_service_set_rank_pids(pids, size);
+        free(pids);
+    }
+    free(all);
     gs_engine *eng;
     if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK)
         MPI_Abort(MPI_COMM_WORLD, 1);

@@ -7,6 +7,7 @@
 #include <time.h>
 
 #include "gearsim/engine.h"
+#include "gearsim/record.h"
 #include "gearsim/sweep.h"
 #include "gearsim/util.h"
 
@@ -741,8 +742,27 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
     return GS_OK;
 }
 
-static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
+static double get_double(const char *p, size_t i)
 {
+    double v;
+    memcpy(&v, p + i * sizeof v, sizeof v);
+    return v;
+}
+
+/* A whole number in [0, max] held in a double. */
+static bool is_count(double v, double max) { return v >= 0 && v <= max && v == floor(v); }
+
+static gs_err finite_run(const char *p, size_t n, const char *what, gs_diag *d)
+{
+    for (size_t i = 0; i < n; i++)
+        if (!isfinite(get_double(p, i)))
+            return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's %s[%zu] is not a finite number", what, i);
+    return GS_OK;
+}
+
+gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, gs_diag *d)
+{
+    memset(v, 0, sizeof *v);
     size_t head = 3 * sizeof(uint32_t) + sizeof(int64_t) + SNAP_HEAD_DOUBLES * sizeof(double);
     if (len < head)
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
@@ -752,32 +772,68 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     memcpy(&nc, p + 4, sizeof nc);
     memcpy(&nm, p + 8, sizeof nm);
     p += 12;
-    if (magic != SNAP_MAGIC || nc > (1u << 20) || nm > (1u << 20) ||
-        len < head + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1) * sizeof(double) + 2)
+    if (magic != SNAP_MAGIC)
         return gs_diag_set(d, GS_EIO, "path", "not a gearsim checkpoint");
-    int64_t step;
-    double t, wi, di, e0, lv;
-    memcpy(&step, p, 8), p += 8;
-    memcpy(&t, p, 8), p += 8;
-    memcpy(&wi, p, 8), p += 8;
-    memcpy(&di, p, 8), p += 8;
-    memcpy(&e0, p, 8), p += 8;
-    memcpy(&lv, p, 8), p += 8;
-    const double *q = (const double *)(const void *)p;
-    const double *forces = q + 2 * (size_t)nc;
-    double nsd;
-    memcpy(&nsd, p + (2 * (size_t)nc + MESH_SNAP * (size_t)nm) * sizeof(double), sizeof nsd);
+    if (nc > (1u << 20) || nm > (1u << 20) ||
+        len < head + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1) * sizeof(double) + 2)
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated or declares %u coordinates and %u "
+                           "meshes", nc, nm);
+    memcpy(&v->step, p, 8), p += 8;
+    double head_d[SNAP_HEAD_DOUBLES];
+    memcpy(head_d, p, sizeof head_d), p += sizeof head_d;
+    v->time = head_d[0], v->work_in = head_d[1], v->dissipated = head_d[2], v->energy0 = head_d[3];
+    static const char *const head_names[] = {"time", "work_in", "dissipated", "energy0", "adaptive level"};
+    for (int i = 0; i < SNAP_HEAD_DOUBLES; i++)
+        if (!isfinite(head_d[i]))
+            return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's %s is not a finite number", head_names[i]);
+    if (v->step < 0 || v->step > GS_CHECKPOINT_MAX_STEP)
+        return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's step count %lld is out of range [0, 2^53]",
+                           (long long)v->step);
+    if (v->time < 0)
+        return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's time %g is negative", v->time);
+    if (!is_count(head_d[4], 30))
+        return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's adaptive level %g is not a level", head_d[4]);
+    v->level = (int)head_d[4];
+    v->n_coords = nc;
+    v->n_meshes = nm;
+    v->q = p;
+    v->meshes = p + 2 * (size_t)nc * sizeof(double);
+    GS_TRY(finite_run(v->q, 2 * (size_t)nc, "coordinates and speeds", d));
+    for (size_t i = 0; i < nm; i++) {
+        const char *m = v->meshes + MESH_SNAP * i * sizeof(double);
+        GS_TRY(finite_run(m, MESH_SNAP, "mesh counters", d));
+        if (!is_count(get_double(m, 1), 1 << 30) || !is_count(get_double(m, 2), 1 << 30) ||
+            !is_count(get_double(m, 4), (double)GS_CHECKPOINT_MAX_STEP))
+            return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's counters of mesh %zu are out of range", i);
+    }
+    double nsd = get_double(v->meshes, MESH_SNAP * (size_t)nm);
     size_t avail = (len - head) / sizeof(double) - (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1);
-    if (!(nsd >= 0) || nsd > (double)avail)
-        return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
-    size_t ns = (size_t)nsd;
-    const double *states = forces + MESH_SNAP * (size_t)nm + 1;
-    const char *scene = p + (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1 + ns) * sizeof(double);
+    if (!is_count(nsd, (double)avail))
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated (%g body state values declared)", nsd);
+    v->n_states = (size_t)nsd;
+    v->states = v->meshes + (MESH_SNAP * (size_t)nm + 1) * sizeof(double);
+    GS_TRY(finite_run(v->states, v->n_states, "body states", d));
+    const char *scene = v->states + v->n_states * sizeof(double);
     const char *end = b + len;
     const char *lj = memchr(scene, '\0', (size_t)(end - scene));
     if (!lj || lj + 1 >= end || !memchr(lj + 1, '\0', (size_t)(end - lj - 1)))
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
     lj++;
+    if (lj + strlen(lj) + 1 != end)
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint has %zu bytes after its end",
+                           (size_t)(end - (lj + strlen(lj) + 1)));
+    v->scene = scene;
+    v->loads = lj;
+    return GS_OK;
+}
+
+static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
+{
+    gs_snapshot_view sv;
+    GS_TRY(gs_engine_snapshot_check(b, len, &sv, d));
+    uint32_t nc = sv.n_coords, nm = sv.n_meshes;
+    size_t ns = sv.n_states;
+    const char *scene = sv.scene, *lj = sv.loads;
     gs_scene *sc;
     GS_TRY(gs_scene_parse(scene, strlen(scene), &sc, d));
     json_object *loads = json_tokener_parse(lj);
@@ -813,7 +869,18 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     if ((uint32_t)s->n_coords != nc || (uint32_t)s->n_meshes != nm ||
         (gs_system_has_body_state(s) ? states_size(s) : 0) != ns) {
         unload(e);
-        return gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene");
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene (%u coordinates, %u "
+                           "meshes, %zu state values for a scene of %d, %d, %zu)", nc, nm, ns, s->n_coords,
+                           s->n_meshes, gs_system_has_body_state(s) ? states_size(s) : 0);
+    }
+    /* The clock follows the step count (time = step h, or within the step
+     * when it was taken between substeps), the level the scene's range. */
+    double t_lo = (double)sv.step * s->h, tol = 1e-9 * (t_lo + s->h);
+    if (!(sv.time >= t_lo - tol && sv.time <= t_lo + s->h + tol) || sv.level > s->adapt_levels) {
+        unload(e);
+        return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's time %.17g s or adaptive level %d does not "
+                           "match step %lld of its scene (time step %g s, %d levels)", sv.time, sv.level,
+                           (long long)sv.step, s->h, s->adapt_levels);
     }
     gs_err lerr = GS_OK;
     for (int i = 0, off = 0; i < s->n_bodies; i++) {
@@ -825,7 +892,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
             lerr = GS_ENOMEM;
         } else {
             /* The payload is not aligned for doubles: copy out. */
-            memcpy(x, (const char *)states + (size_t)off * sizeof(double),
+            memcpy(x, sv.states + (size_t)off * sizeof(double),
                    b->ops->state_size(b) * sizeof(double));
             if (b->owner == e->rank) {
                 gs_err le = b->ops->load(b, x);
@@ -845,14 +912,14 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         unload(e);
         return gs_diag_set(d, lerr, "path", "the checkpoint's body states could not be restored");
     }
-    memcpy(s->q, q, nc * sizeof(double));
-    memcpy(s->w, q + nc, nc * sizeof(double));
-    s->step = step;
-    s->time = t;
-    s->work_in = wi;
-    s->dissipated = di;
-    s->energy0 = e0;
-    s->level = lv >= 0 && lv <= s->adapt_levels ? (int)lv : 0;
+    memcpy(s->q, sv.q, nc * sizeof(double));
+    memcpy(s->w, sv.q + nc * sizeof(double), nc * sizeof(double));
+    s->step = sv.step;
+    s->time = sv.time;
+    s->work_in = sv.work_in;
+    s->dissipated = sv.dissipated;
+    s->energy0 = sv.energy0;
+    s->level = sv.level;
     s->sub_ticks = 0;
     s->refined = false;
     s->h_sub = s->h / (double)((int64_t)1 << s->level);
@@ -862,7 +929,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         gs_gmesh_rt *m = &s->meshes[i];
         m->deflection = gs_gmesh_s(&v, m, s->q) - m->s_ref;
         double ct[MESH_SNAP];
-        memcpy(ct, (const char *)forces + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
+        memcpy(ct, sv.meshes + MESH_SNAP * (size_t)i * sizeof(double), sizeof ct);
         m->force = ct[0];
         m->n_active = (int)ct[1];
         m->n_rows = (int)ct[2];

@@ -651,7 +651,7 @@ static double increment(const gs_fe_body *b, gs_index i)
  * state alone (also without memory for next_r): begin_step forms -K x
  * just before the solve (gsi_fe_rhs_pass, the same bytes), so that K and
  * then the factor stream back to back, not K here with the other gears'
- * factors between (docs/PERFORMANCE.md, ninth pass). */
+ * factors between (docs/performance/index.md). */
 static void advance(gs_fe_body *b)
 {
     const gs_fe_model *m = b->m;

@@ -3,7 +3,7 @@
  * constant-strain triangle (closed forms) and the 6-node isoparametric
  * quadratic triangle (12-point Dunavant rule of degree 6: exact for the
  * consistent mass and the inertia of a curved element, whose Jacobian is
- * quadratic; docs/FE.md "Quadratic elements"). */
+ * quadratic; docs/explanation/elastic_body.md "Quadratic elements"). */
 #include <math.h>
 #include <string.h>
 

@@ -16,7 +16,7 @@ typedef struct gsi_fe_props {
 } gsi_fe_props;
 
 /* An element type: the operations the model needs. Nodes in the mesh's
- * order (corners, then mid-side nodes for quadratic elements; docs/FE.md).
+ * order (corners, then mid-side nodes for quadratic elements; docs/explanation/elastic_body.md).
  * matrices: stiffness ke (2 nn x 2 nn, row-major, dofs x1 y1 x2 y2 ...,
  *   thickness t included), consistent mass me (nn x nn per direction, rho t
  *   included) and the mass properties; GS_EGEOMETRY for an inverted or
@@ -118,7 +118,7 @@ struct cholmod_sparse_struct *gsi_fe_cholmod_matrix(const gs_fe_model *m, double
 /* cholmod_l_start with the project's settings: no printing, and CHOLMOD's
  * OpenMP regions (a fixed 4 threads in the supernodal factorisation, which
  * ignores OMP_NUM_THREADS) run on the calling thread alone: on a shared
- * machine the extra threads only spin and wait (docs/PERFORMANCE.md). */
+ * machine the extra threads only spin and wait (docs/performance/index.md). */
 void gsi_cholmod_start(struct cholmod_common_struct *c);
 /* calloc for the large arrays the step streams (CHOLMOD's, the model's K
  * and M): from 2 MiB on, aligned to and advised as transparent huge pages

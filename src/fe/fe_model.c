@@ -599,7 +599,7 @@ static inline __attribute__((always_inline)) void pass_node(const gs_fe_model *m
 /* Nodes ahead of the pass whose K (and M) entries it asks the cache for:
  * K is streamed once a step, after the two solves have pushed it out, and
  * the hardware's own prefetch leaves the pass waiting on memory. In paired
- * rounds of the pair's step (docs/PERFORMANCE.md, ninth pass) 16 nodes
+ * rounds of the pair's step (docs/performance/index.md) 16 nodes
  * ahead took 2-4 % off the step against none (4 about the same, 64 less). */
 enum { PASS_AHEAD = 16 };
 

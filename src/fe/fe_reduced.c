@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * A reduced elastic body: the FE body of fe_body.c with its modes above
- * f_max taken as massless (docs/FE.md "Reduced elastic body").
+ * f_max taken as massless (docs/explanation/elastic_body.md "Reduced elastic body").
  *
  * The FE body is linear with constant matrices: x = [u; theta], mass
  * M_f = [[M, s], [s^T, I]], stiffness K_f = [[K, 0], [0, 0]], damping

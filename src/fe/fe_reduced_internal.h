@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim fe module, library-internal: the reduced elastic body's data and
- * the helpers its files share (docs/FE.md "Reduced elastic body"): the
+ * the helpers its files share (docs/explanation/elastic_body.md "Reduced elastic body"): the
  * body's lifecycle, energies, state, fields and snapshots (fe_reduced.c),
  * its modes (fe_reduced_modes.c) and its step (fe_reduced_step.c). */
 #ifndef GEARSIM_FE_REDUCED_INTERNAL_H

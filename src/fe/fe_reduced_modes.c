@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * A reduced elastic body (fe_reduced.c, docs/FE.md "Reduced elastic body"):
+ * A reduced elastic body (fe_reduced.c, docs/explanation/elastic_body.md "Reduced elastic body"):
  * its modes up to f_max, dense LAPACK (dsygvd) up to DENSE_MAX unknowns,
  * else Lanczos with shift-invert on the factor of K, restarted deflated
  * against the modes found. */

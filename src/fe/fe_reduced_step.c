@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * A reduced elastic body (fe_reduced.c, docs/FE.md "Reduced elastic body"):
+ * A reduced elastic body (fe_reduced.c, docs/explanation/elastic_body.md "Reduced elastic body"):
  * its step (free increment, compliance among the rows, forces applied, the
  * end of the step with the massless residual's update). */
 #include <cholmod.h>

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: profile modifications (tip and root relief, measured deviation
  * tables) and tooth errors (pitch errors, run-out) of a spur gear
- * (include/gearsim/modification.h, docs/GEOMETRY.md); their application to
+ * (include/gearsim/modification.h, docs/explanation/geometry.md); their application to
  * a gear's FE mesh is src/mesh/mesh_mods.c. */
 #include <math.h>
 #include <stdio.h>

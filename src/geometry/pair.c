@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: pairs of involute gears and planetary sets: working pressure
  * angle, contact ratio, backlash, interference, mesh phase, assembly
- * (METHOD.md section 5; docs/GEOMETRY.md).
+ * (METHOD.md section 5; docs/explanation/geometry.md).
  *
  * Formulas for the tight-mesh centre distance and the backlash follow from
  * the tooth thicknesses on the base circle: along the line of action the

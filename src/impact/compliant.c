@@ -3,7 +3,7 @@
  * of uniform pressure, the normal displacements from the influence
  * coefficients of the elastic half-plane (plane strain), frictionless
  * contact as the QP of minimum complementary energy (METHOD.md section 6,
- * docs/IMPACT.md "Compliant contact"). */
+ * docs/explanation/impact.md "Compliant contact"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -134,7 +134,7 @@ out:
     return err;
 }
 
-/* Tangential strip forces on the loaded strips as an LCP (docs/IMPACT.md,
+/* Tangential strip forces on the loaded strips as an LCP (docs/explanation/impact.md,
  * "Partial slip"). Unknowns scaled by the normal load P (forces) and by
  * P / E* (displacements), z = (t+, t-, sigma, shift), size 3 m + 1:
  *   w+    = -shift + H (t+ - t-) + sigma >= 0  _|_  t+ >= 0

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * One planar frictional impact by Routh's method (METHOD.md section 6,
- * docs/IMPACT.md). The relative contact velocity is piecewise linear in the
+ * docs/explanation/impact.md). The relative contact velocity is piecewise linear in the
  * normal impulse P_n, with at most two pieces (slip, then stick or reversed
  * slip), so every event (slip stop, end of compression, end of restitution)
  * and every work integral is found in closed form on its piece. */

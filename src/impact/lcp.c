@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Lemke's complementary pivoting method for the LCP
  *     w = A z + q,  z >= 0,  w >= 0,  z^T w = 0
- * (docs/IMPACT.md, "Lemke"). Dense tableau, covering vector 1, a
+ * (docs/explanation/impact.md, "Lemke"). Dense tableau, covering vector 1, a
  * lexicographic minimum-ratio test against cycling on degenerate problems,
  * and at the end the basis system re-solved from A and q (LU with partial
  * pivoting) and the solution verified against the data. */

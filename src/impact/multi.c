@@ -3,7 +3,7 @@
  * restitution and Coulomb friction (Stewart-Trinkle; friction cone in the
  * plane as the two directions +t, -t), posed as an LCP and solved by
  * Lemke's method; frictionless, also as a QP with gs_qp for a cross-check
- * (docs/IMPACT.md, "Several contacts"). */
+ * (docs/explanation/impact.md, "Several contacts"). */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -195,7 +195,7 @@ static int col_rank(int rows, int k, double *C, double tol)
     return rank;
 }
 
-/* Whether the impulses are not unique (docs/IMPACT.md, "Several solutions").
+/* Whether the impulses are not unique (docs/explanation/impact.md, "Several solutions").
  * The loaded contacts give generalised impulse directions M^{-1/2} J^T: a
  * sticking contact both n and t, a sliding one n + (p_t / p_n) t. If these are
  * dependent, or the normal of a contact that is tight (w_n = 0) but unloaded

@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "gearsim/record.h"
@@ -41,6 +42,11 @@ static gs_err write_file(const char *path, const char *bytes, size_t len, const 
      * replaces a symlink at the target instead of following it. */
     char tmp[1200], via_fd[64];
     int fd = gs_tmp_create_beside(path, tmp, sizeof tmp);
+    if (fd >= 0 && fchmod(fd, 0644) != 0) { /* every output's mode (docs/RELIABILITY.md) */
+        close(fd);
+        remove(tmp);
+        fd = -1;
+    }
     if (fd < 0)
         return gs_diag_set(d, GS_EIO, "path", "cannot create the checkpoint '%s'", path);
     snprintf(via_fd, sizeof via_fd, "/proc/self/fd/%d", fd);
@@ -104,21 +110,31 @@ gs_err gs_autosave_read_info(const char *path, gs_autosave_info *a, gs_diag *d)
     }
     gs_err err = GS_OK;
     if (read_string_attr(g, "parent_id", a->parent_id, sizeof a->parent_id) < 0 ||
-        gsi_h5_read_attr(g, "start_step", H5T_NATIVE_INT64, &a->start_step) < 0 ||
-        gsi_h5_read_attr(g, "target_step", H5T_NATIVE_INT64, &a->target_step) < 0 ||
+        gsi_h5_read_attr(g, "start_step", H5T_NATIVE_INT64, &a->start_step, 1) < 0 ||
+        gsi_h5_read_attr(g, "target_step", H5T_NATIVE_INT64, &a->target_step, 1) < 0 ||
         read_string_attr(g, "record", a->record, sizeof a->record) < 0 ||
-        gsi_h5_read_attr(g, "record_rows", H5T_NATIVE_INT64, &a->record_rows) < 0 || a->record_rows < 0)
+        gsi_h5_read_attr(g, "record_rows", H5T_NATIVE_INT64, &a->record_rows, 1) < 0)
         err = gs_diag_set(d, GS_EIO, "path", "the /autosave group of '%s' is incomplete", path);
+    else if (a->start_step < 0 || a->target_step <= a->start_step || a->record_rows < 0 ||
+             a->target_step > GS_CHECKPOINT_MAX_STEP)
+        err = gs_diag_set(d, GS_ERANGE, "path", "the /autosave group of '%s' holds steps out of range (start %lld, "
+                          "target %lld, record rows %lld)", path, (long long)a->start_step,
+                          (long long)a->target_step, (long long)a->record_rows);
     if (err == GS_OK && H5Lexists(g, "field_frames", H5P_DEFAULT) > 0) {
         hid_t ds = H5Dopen2(g, "field_frames", H5P_DEFAULT);
-        hid_t sp = ds >= 0 ? H5Dget_space(ds) : -1;
+        hid_t sp = ds >= 0 ? H5Dget_space(ds) : -1, t = ds >= 0 ? H5Dget_type(ds) : -1;
         hsize_t n = 0;
-        if (sp < 0 || H5Sget_simple_extent_ndims(sp) != 1 || H5Sget_simple_extent_dims(sp, &n, NULL) < 0 ||
-            n > GS_AUTOSAVE_MAX_BODIES ||
+        if (sp < 0 || t < 0 || H5Tget_class(t) != H5T_INTEGER || H5Sget_simple_extent_ndims(sp) != 1 ||
+            H5Sget_simple_extent_dims(sp, &n, NULL) != 1 || n > GS_AUTOSAVE_MAX_BODIES ||
             (n > 0 && H5Dread(ds, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, a->field_frames) < 0))
             err = gs_diag_set(d, GS_EIO, "path", "bad /autosave/field_frames in '%s'", path);
         else
             a->n_field_bodies = (int)n;
+        for (int b = 0; err == GS_OK && b < a->n_field_bodies; b++)
+            if (a->field_frames[b] < 0 || a->field_frames[b] > GS_CHECKPOINT_MAX_STEP)
+                err = gs_diag_set(d, GS_ERANGE, "path", "/autosave/field_frames[%d] of '%s' is out of range", b, path);
+        if (t >= 0)
+            H5Tclose(t);
         if (sp >= 0)
             H5Sclose(sp);
         if (ds >= 0)
@@ -129,7 +145,37 @@ gs_err gs_autosave_read_info(const char *path, gs_autosave_info *a, gs_diag *d)
     return err;
 }
 
-gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *d)
+/* The snapshot dataset, checked before anything is allocated: one
+ * dimension of bytes (an integer type of size 1), stored contiguously and
+ * whole in the file (a few bytes of file cannot declare gigabytes), at most
+ * max_bytes. */
+static gs_err check_snapshot(hid_t ds, const char *path, size_t max_bytes, hsize_t *n, gs_diag *d)
+{
+    hid_t sp = H5Dget_space(ds), t = H5Dget_type(ds), pl = H5Dget_create_plist(ds);
+    int nd = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
+    hsize_t dim = 0;
+    gs_err err = GS_OK;
+    if (nd != 1 || H5Sget_simple_extent_dims(sp, &dim, NULL) != 1)
+        err = gs_diag_set(d, GS_EIO, "path", "the snapshot of '%s' is not one-dimensional", path);
+    else if (t < 0 || H5Tget_class(t) != H5T_INTEGER || H5Tget_size(t) != 1)
+        err = gs_diag_set(d, GS_EIO, "path", "the snapshot of '%s' is not a dataset of bytes", path);
+    else if (dim == 0 || dim > (hsize_t)max_bytes)
+        err = gs_diag_set(d, GS_ETOOBIG, "path", "the snapshot of '%s' declares %llu bytes (at most %zu)", path,
+                          (unsigned long long)dim, max_bytes);
+    else if (pl < 0 || H5Pget_layout(pl) != H5D_CONTIGUOUS || H5Dget_storage_size(ds) != dim)
+        err = gs_diag_set(d, GS_EIO, "path", "the snapshot of '%s' is not stored whole (%llu of %llu bytes)", path,
+                          (unsigned long long)H5Dget_storage_size(ds), (unsigned long long)dim);
+    if (pl >= 0)
+        H5Pclose(pl);
+    if (t >= 0)
+        H5Tclose(t);
+    if (sp >= 0)
+        H5Sclose(sp);
+    *n = dim;
+    return err;
+}
+
+gs_err gs_checkpoint_read(const char *path, size_t max_bytes, char **bytes, size_t *len, gs_diag *d)
 {
     *bytes = NULL;
     *len = 0;
@@ -146,17 +192,20 @@ gs_err gs_checkpoint_read(const char *path, char **bytes, size_t *len, gs_diag *
         H5Fclose(f);
         return gs_diag_set(d, GS_EIO, "path", "'%s' is not a gearsim checkpoint", path);
     }
-    hid_t sp = H5Dget_space(ds);
     hsize_t n = 0;
-    H5Sget_simple_extent_dims(sp, &n, NULL);
-    char *b = n > 0 && n < (1ull << 31) ? malloc(n) : NULL;
-    gs_err err = GS_OK;
-    if (!b || H5Dread(ds, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, b) < 0) {
+    gs_err err = check_snapshot(ds, path, max_bytes, &n, d);
+    char *b = NULL;
+    if (err == GS_OK) {
+        b = malloc((size_t)n);
+        if (!b)
+            err = gs_diag_set(d, GS_ENOMEM, "path", "no memory for the snapshot of '%s'", path);
+        else if (H5Dread(ds, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, b) < 0)
+            err = gs_diag_set(d, GS_EIO, "path", "cannot read the checkpoint '%s'", path);
+    }
+    if (err != GS_OK) {
         free(b);
         b = NULL;
-        err = gs_diag_set(d, GS_EIO, "path", "cannot read the checkpoint '%s'", path);
     }
-    H5Sclose(sp);
     H5Dclose(ds);
     H5Fclose(f);
     *bytes = b;

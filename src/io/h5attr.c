@@ -39,12 +39,22 @@ herr_t gsi_h5_array_attr(hid_t loc, const char *name, hid_t type, const void *va
     return write_attr(loc, name, type, H5Screate_simple(1, &n, NULL), value);
 }
 
-herr_t gsi_h5_read_attr(hid_t loc, const char *name, hid_t type, void *value)
+herr_t gsi_h5_read_attr(hid_t loc, const char *name, hid_t type, void *value, hsize_t n)
 {
     hid_t a = H5Aopen(loc, name, H5P_DEFAULT);
     if (a < 0)
         return -1;
-    herr_t st = H5Aread(a, type, value);
+    /* A file is input: the attribute must hold exactly n numbers (a longer
+     * one would be written past value), of a numeric class. */
+    hid_t sp = H5Aget_space(a), t = H5Aget_type(a);
+    H5T_class_t c = t >= 0 ? H5Tget_class(t) : H5T_NO_CLASS;
+    herr_t st = -1;
+    if (sp >= 0 && H5Sget_simple_extent_npoints(sp) == (hssize_t)n && (c == H5T_INTEGER || c == H5T_FLOAT))
+        st = H5Aread(a, type, value);
+    if (t >= 0)
+        H5Tclose(t);
+    if (sp >= 0)
+        H5Sclose(sp);
     H5Aclose(a);
     return st < 0 ? -1 : 0;
 }

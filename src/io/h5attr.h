@@ -18,9 +18,10 @@ herr_t gsi_h5_scalar_attr(hid_t loc, const char *name, hid_t type, const void *v
  * array of one, not a scalar). */
 herr_t gsi_h5_array_attr(hid_t loc, const char *name, hid_t type, const void *value, hsize_t n);
 
-/* Read the attribute `name` of loc as type into value (room for all of it).
- * Returns a negative value when it is missing or unreadable. */
-herr_t gsi_h5_read_attr(hid_t loc, const char *name, hid_t type, void *value);
+/* Read the attribute `name` of loc, exactly n numbers (a scalar is one), as
+ * type into value (room for n). Returns a negative value when it is
+ * missing, unreadable, not numeric or of another size. */
+herr_t gsi_h5_read_attr(hid_t loc, const char *name, hid_t type, void *value, hsize_t n);
 
 /* A fixed-length string attribute of fewer than max bytes, malloc'd (the
  * caller frees it); NULL when missing, of another type or too long. */

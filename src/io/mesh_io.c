@@ -324,7 +324,7 @@ gs_err gs_mesh_io_read(const char *h5_path, const char *name, gs_mesh **out, dou
     for (int k = 0; k < 2; k++) {
         const char *an = k ? "rotation_rad" : "centre_m";
         double v[2] = {0, 0};
-        if (gsi_h5_read_attr(g, an, H5T_NATIVE_DOUBLE, v) < 0) {
+        if (gsi_h5_read_attr(g, an, H5T_NATIVE_DOUBLE, v, k ? 1 : 2) < 0) {
             e = gs_diag_set(d, GS_EIO, "path", "no %s for %s", an, path);
             goto out;
         }

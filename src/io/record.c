@@ -724,7 +724,7 @@ static int reopen_body(gs_record *r, rec_body *rb, const char *name, int64_t kee
     if (g < 0)
         return -1;
     int st = 0;
-    if (gsi_h5_read_attr(g, "centre_m", H5T_NATIVE_DOUBLE, rb->centre) < 0)
+    if (gsi_h5_read_attr(g, "centre_m", H5T_NATIVE_DOUBLE, rb->centre, 2) < 0)
         st = -1;
     hid_t dn = H5Dopen2(g, "nodes", H5P_DEFAULT), dt = H5Dopen2(g, "triangles", H5P_DEFAULT);
     hsize_t nd[2] = {0, 0}, td[2] = {0, 0};

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim: conforming linear-triangle meshes of the elastic part of a gear
- * (docs/GEOMETRY.md, "Meshes").
+ * (docs/explanation/geometry.md, "Meshes").
  *
  * One tooth sector (from the middle of one space to the middle of the next)
  * is meshed once, in the frame of tooth 0, as four blocks, each filled row
@@ -46,7 +46,7 @@
 /* The default element order and, per order, the default counts: the only
  * place they are written (the scene takes its defaults from here). Order 2
  * chosen by measurement against the CalculiX reference within 40 000
- * unknowns for the 20/30 pair (docs/CONVERGENCE.md "Default mesh"). */
+ * unknowns for the 20/30 pair (docs/validation/calculix.md). */
 #define GS_MESH_DEFAULT_ORDER 2
 static const gs_gear_mesh_opts default_counts[2] = {
     {.flank = 8, .across = 4, .rim = 3, .refine = 0, .grading = 2.0, .order = 1},
@@ -65,7 +65,7 @@ void gs_gear_mesh_opts_defaults(gs_gear_mesh_opts *o)
     gs_gear_mesh_opts_for_order(o, GS_MESH_DEFAULT_ORDER);
 }
 
-/* Chosen by measurement against the CalculiX reference (docs/CONVERGENCE.md
+/* Chosen by measurement against the CalculiX reference (docs/validation/calculix.md
  * "Local refinement and the fine setting"). */
 void gs_gear_mesh_opts_fine(gs_gear_mesh_opts *o)
 {

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim mesh module, library-internal: the gear mesher's working types and
- * the steps its files share (docs/GEOMETRY.md "Meshes"): node and triangle
+ * the steps its files share (docs/explanation/geometry.md "Meshes"): node and triangle
  * lists, distributions and row-by-row blocks (gear_mesh_blocks.c), the tooth
  * sector template (gear_mesh_sector.c), the rings between the band and the
  * hub and the smoothing of poor elements (gear_mesh_rings.c), the assembly

@@ -5,7 +5,7 @@
  * length, fillet at equal arc length, tip/root/core circles at the middle
  * angle), through the geometry module's curve functions, so any later
  * change of a curve (profile modifications move GS_NODE_FLANK nodes) moves
- * the mid-side nodes with the corners (docs/FE.md "Quadratic elements"). */
+ * the mid-side nodes with the corners (docs/explanation/elastic_body.md "Quadratic elements"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Torsional mesh modes of an elastic pair from the FE model's own
- * generalised eigenproblem (include/gearsim/fe_modes.h, docs/MODAL.md
+ * generalised eigenproblem (include/gearsim/fe_modes.h, docs/explanation/modal.md
  * "FE mesh modes"). */
 #include <cholmod.h>
 #include <json-c/json.h>

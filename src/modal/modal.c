@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Modal analysis of the linearised rigid/lumped train (gearsim/modal.h,
- * docs/MODAL.md). */
+ * docs/explanation/modal.md). */
 #include <json-c/json.h>
 #include <lapacke.h>
 #include <math.h>

@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Mesh model `compliant`: rigid gears whose tooth pairs carry load through
  * the compliant contact patch model (METHOD.md sections 2, 6 and 7;
- * docs/IMPACT.md "The compliant mesh").
+ * docs/explanation/impact.md "The compliant mesh").
  *
  * Along the line of action the pair deflects by x = s - s_ref (s = a . q
  * and the translations of gears on bearings, as the lumped model), beyond the backlash dead zone the approach is
@@ -81,7 +81,7 @@ static double section(double arm, double h, double e, double cb, double sb, doub
 
 /* Compliance of one tooth (times 1/b: m/N) loaded along the line of action
  * at radius rc: a cantilever of the exact section from the root circle
- * (docs/IMPACT.md "The compliant mesh"). */
+ * (docs/explanation/impact.md "The compliant mesh"). */
 static double tooth_compliance(const gs_gear_geom *g, double rc, double eb, double gm)
 {
     bool ring = g->internal;

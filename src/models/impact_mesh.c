@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Mesh model `impact`: rigid gears with backlash that separate and
  * re-engage with an impact law (METHOD.md sections 6 and 7, rung 2;
- * docs/IMPACT.md, "The impact mesh (rattle)").
+ * docs/explanation/impact.md, "The impact mesh (rattle)").
  *
  * Along the line of action the pair is a 1-D contact: s = a . q, deflection
  * x = s - s_ref (s_ref: the initial state, teeth centred in the backlash),

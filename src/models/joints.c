@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Compliant supports behind the joint operations (gearsim/models.h,
- * docs/MODAL.md). The bearing: V = 1/2 sum_i k_i (q_i - q_ref_i)^2 over the
+ * docs/explanation/modal.md). The bearing: V = 1/2 sum_i k_i (q_i - q_ref_i)^2 over the
  * centre's x, y and the rotation; quadratic, so the midpoint gradient
  * k (q0 + dq/2 - q_ref) is its exact discrete gradient; the damper
  * c dq / h dissipates c dq^2 / h per step. */

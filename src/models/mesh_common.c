@@ -3,6 +3,10 @@
 #include <math.h>
 #include <stdio.h>
 
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/util.h"
 #include "mesh_common.h"
 
 gs_err gsi_mesh_needs_rigid(const gs_model_view *sys, const gs_gmesh_rt *m, const char *kind, gs_diag *d)
@@ -384,4 +388,30 @@ double gs_gmesh_s(const gs_model_view *sys, const gs_gmesh_rt *m, const double *
 double gs_gmesh_error(const gs_gmesh_rt *m, const double *q)
 {
     return gsi_mesh_error(m, q);
+}
+
+/* The scene without the tooth errors (pitch tables, run-out) of the gears of
+ * mesh `mesh`: bodies (n_bodies, to free) and mods (2) are its storage. */
+gs_err gsi_mesh_clean_scene(const gs_scene *sc, int mesh, gs_scene *clean, gs_scene_body **bodies,
+                            gs_gear_mods mods[2])
+{
+    const gs_scene_mesh *sm = &sc->meshes[mesh];
+    *clean = *sc;
+    *bodies = gs_calloc((size_t)sc->n_bodies, sizeof **bodies);
+    if (!*bodies)
+        return GS_ENOMEM;
+    memcpy(*bodies, sc->bodies, (size_t)sc->n_bodies * sizeof **bodies);
+    for (int k = 0; k < 2; k++) {
+        gs_scene_body *b = &(*bodies)[sm->gear[k]];
+        b->pitch_error_tooth = -1;
+        if (!b->mods)
+            continue;
+        mods[k] = *b->mods;
+        mods[k].n_pitch = 0;
+        mods[k].pitch_m = NULL;
+        mods[k].runout_m = 0.0;
+        b->mods = &mods[k];
+    }
+    clean->bodies = *bodies;
+    return GS_OK;
 }

@@ -7,6 +7,7 @@
 
 #include <math.h>
 
+#include "gearsim/modification.h"
 #include "gearsim/models.h"
 
 /* Refuse a mesh of model `kind` whose gears are not both rigid, naming
@@ -77,5 +78,13 @@ void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, con
  * abar . dq = s(q0 + dq) - s(q0) exactly (m->a itself when nothing
  * translates; else written into m->abar). */
 const double *gsi_mesh_grad(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq);
+
+/* The scene sc without the tooth errors (pitch tables, run-out) of mesh
+ * `mesh`'s gears, for the quasi-static analyses the lumped meshes are
+ * built from (the meshes add the errors along the line of action
+ * themselves): *clean shares sc's data but for its bodies, a copy in
+ * *bodies (to free) whose two gears point at mods[0..1]. */
+gs_err gsi_mesh_clean_scene(const gs_scene *sc, int mesh, gs_scene *clean, gs_scene_body **bodies,
+                            gs_gear_mods mods[2]);
 
 #endif

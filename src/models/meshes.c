@@ -9,7 +9,7 @@
  *             gradient of V = 1/2 k(phi) f(s)^2 split over the two arguments,
  *             so that V(q1) - V(q0) = grad_bar V . dq holds exactly and the
  *             stiffness jumps exchange energy with the motion instead of
- *             creating it. With the tangent calibration (docs/STIFFNESS.md)
+ *             creating it. With the tangent calibration (docs/explanation/stiffness.md)
  *             the spring is affine about the FE static TE,
  *             V = 1/2 k_t(phi) (|f| - delta_0(phi))_+^2, stepped with the
  *             symmetrised coordinate-increment discrete gradient, which
@@ -162,7 +162,7 @@ static double kin_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const d
     return 0.0;
 }
 
-/* Run-out modulates the mesh phase of a lumped mesh (docs/GEOMETRY.md,
+/* Run-out modulates the mesh phase of a lumped mesh (docs/explanation/geometry.md,
  * "Run-out: the TE spectrum"): a gear's centre offset moves its flanks, and
  * the contact point on the path of contact, by its displacement R(q) along
  * the line of action (the run-out part of the tooth errors), so the
@@ -224,7 +224,7 @@ static void lumped_destroy(gs_gmesh_rt *m)
  * to hub; in the vibration most of a gear's inertia (rim and teeth) sits
  * on the contact's side of the web's torsional compliance, so the spring
  * between the moving masses is stiffer (5-10 % in frequency on the
- * validation pair, docs/MODAL.md): k_t times the factor puts the lumped
+ * validation pair, docs/explanation/modal.md): k_t times the factor puts the lumped
  * model's mesh mode at the FE one. Driver 0 only (the modal analysis loads
  * gear 0 of the mesh). */
 static gs_err modal_factors(const gs_scene *sc, int mesh, int driver, double phase, const gs_stiffness_result *r,
@@ -304,26 +304,11 @@ static gs_err calibrate(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
      * table, run-out): the mesh adds those itself along the line of action
      * (gsi_mesh_error), one cycle of FE would only see a few teeth's. */
     const gs_scene *sc = sys->scene;
-    gs_scene clean = *sc;
+    gs_scene clean;
     gs_gear_mods mods[2];
     gs_scene_body *bodies = NULL;
     if (m->n_err) {
-        bodies = gs_calloc((size_t)sc->n_bodies, sizeof *bodies);
-        if (!bodies)
-            return GS_ENOMEM;
-        memcpy(bodies, sc->bodies, (size_t)sc->n_bodies * sizeof *bodies);
-        for (int k = 0; k < 2; k++) {
-            gs_scene_body *b = &bodies[sm->gear[k]];
-            if (!b->mods)
-                continue;
-            mods[k] = *b->mods;
-            mods[k].n_pitch = 0;
-            mods[k].pitch_m = NULL;
-            mods[k].runout_m = 0.0;
-            b->mods = &mods[k];
-            b->pitch_error_tooth = -1;
-        }
-        clean.bodies = bodies;
+        GS_TRY(gsi_mesh_clean_scene(sc, m->index, &clean, &bodies, mods));
         sc = &clean;
     }
     gs_err e = gs_stiffness_analyse(sc, m->index, &o, &r, &sd);
@@ -402,7 +387,7 @@ static gs_err lumped_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     }
     /* Every lumped law: the rectangular wave and the secant table (lumped_force)
      * were left unmodulated while their quotient (f1^2 - f0^2) / (2 ds) lost
-     * precision and Newton stalled (docs/GEOMETRY.md); with the same-flank
+     * precision and Newton stalled (docs/explanation/geometry.md); with the same-flank
      * quotient (f0 + f1) / 2 they carry it over 2 revolutions
      * (test_tooth_errors). */
     if (gsi_mesh_has_runout(m)) {

@@ -12,11 +12,12 @@
 
 extern const gs_body_ops gsi_body_rigid, gsi_body_elastic;
 extern const gs_gmesh_ops gsi_gmesh_kinematic, gsi_gmesh_lumped, gsi_gmesh_contact, gsi_gmesh_impact,
-    gsi_gmesh_compliant;
+    gsi_gmesh_compliant, gsi_gmesh_ltca;
 
 static const gs_body_ops *const body_models[] = {&gsi_body_rigid, &gsi_body_elastic, NULL};
 static const gs_gmesh_ops *const mesh_models[] = {&gsi_gmesh_kinematic, &gsi_gmesh_lumped, &gsi_gmesh_contact,
-                                                   &gsi_gmesh_impact, &gsi_gmesh_compliant, NULL};
+                                                   &gsi_gmesh_impact, &gsi_gmesh_compliant, &gsi_gmesh_ltca,
+                                                   NULL};
 
 extern const gs_joint_ops gsi_joint_bearing, gsi_joint_pin_bearing;
 static const gs_joint_ops *const joint_models[] = {&gsi_joint_bearing, &gsi_joint_pin_bearing, NULL};

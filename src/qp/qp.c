@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Dual active-set QP solver of Goldfarb and Idnani (1983), for the small dense
  * QP of every time step (METHOD.md section 4). See include/gearsim/qp.h for
- * the contract and docs/QP.md for the algorithm and its tolerances.
+ * the contract and docs/explanation/qp.md for the algorithm and its tolerances.
  *
  * Notation. H = U^T U (U upper, from dpotrf; L = U^T). The active set A holds
  * nact linearly independent rows n_i (equalities first, never released), and

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing and validation (docs/SCENE.md). Every value is checked and
+ * Scene parsing and validation (docs/reference/scene.md). Every value is checked and
  * defaulted here, so the layers below (geometry, models, step) can trust it. */
 #include <math.h>
 #include <stdio.h>
@@ -427,7 +427,7 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
     s->time_step = 1e-5;
     s->newton_tol = 1e-13;
     s->max_newton = 50;
-    /* Contact treatment (docs/CONTACT.md, "Contact treatments"): a scene
+    /* Contact treatment (docs/explanation/contact.md, "Contact treatments"): a scene
      * with contact meshes gets the closure with its work returned unless
      * it names another; the field acts on contact meshes only. */
     bool has_contact = false;

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing (scene.c, docs/SCENE.md): bodies (gears with their
+ * Scene parsing (scene.c, docs/reference/scene.md): bodies (gears with their
  * material, mesh density and reduction, rigid bodies, supports) and joints. */
 #include <math.h>
 #include <stdio.h>
@@ -48,7 +48,7 @@ static void mesh_density_defaults(gs_mesh_density *m, int order)
 #define REDUCE_STATIC_DEFAULT 1
 
 /* bodies[i].reduction: {"f_max_hz": F} makes an elastic gear the reduced
- * body of fe.h (docs/FE.md "Reduced elastic body"). */
+ * body of fe.h (docs/explanation/elastic_body.md "Reduced elastic body"). */
 static gs_err parse_reduction(json_object *o, const char *path, gs_scene_body *b, gs_diag *d)
 {
     static const char *const keys[] = {"f_max_hz", "residual", NULL};
@@ -144,12 +144,14 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
         char mp[256];
         gsi_path(mp, sizeof mp, path, "material");
         GS_TRY(gsi_json_only(mat, mp, material_keys, d));
-        GS_TRY(gsi_json_positive(mat, "E", mp, 1e13, false, b->material.youngs_pa,
-                                 &b->material.youngs_pa, d));
+        /* Bounds of real solids (rubber to diamond), so that no compliance
+         * or wave speed of the model overflows. */
+        GS_TRY(gsi_json_number(mat, "E", mp, 1e6, 1e13, false, b->material.youngs_pa,
+                               &b->material.youngs_pa, d));
         GS_TRY(gsi_json_number(mat, "nu", mp, 0, 0.49, false, b->material.poisson,
                                &b->material.poisson, d));
-        GS_TRY(gsi_json_positive(mat, "density", mp, 1e5, false, b->material.density,
-                                 &b->material.density, d));
+        GS_TRY(gsi_json_number(mat, "density", mp, 1, 1e5, false, b->material.density,
+                               &b->material.density, d));
         GS_TRY(gsi_json_number(mat, "damping_s", mp, 0, 1, false, b->material.damping_s,
                                &b->material.damping_s, d));
         GS_TRY(gsi_json_number(mat, "damping_m", mp, 0, 1e6, false, b->material.damping_m,
@@ -179,7 +181,7 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
         GS_TRY(gsi_json_int(md, "refine", mp, 0, 6, false, def.refine, &v, d));
         b->mesh.refine = (int)v;
         GS_TRY(gsi_json_number(md, "grading", mp, 1, 8, false, def.grading, &b->mesh.grading, d));
-        /* local refinement (quasi-static analysis only; docs/GEOMETRY.md) */
+        /* local refinement (quasi-static analysis only; docs/explanation/geometry.md) */
         GS_TRY(gsi_json_int(md, "fine_teeth", mp, 0, g->teeth, false, 0, &v, d));
         b->mesh.fine_teeth = (int)v;
         GS_TRY(gsi_json_int(md, "fine_refine", mp, 0, 4, false, b->mesh.fine_teeth ? 2 : 0, &v, d));
@@ -231,7 +233,7 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
     return GS_OK;
 }
 
-/* Compliant supports of a joint (docs/MODAL.md): `bearing` takes stiffness,
+/* Compliant supports of a joint (docs/explanation/modal.md): `bearing` takes stiffness,
  * damping (radial, N/m, N s/m; stiffness 0 = floating) and
  * torsional_stiffness, torsional_damping (N m/rad, N m s/rad; 0 = free);
  * on_carrier takes bearing_stiffness, bearing_damping (the planet's bearing

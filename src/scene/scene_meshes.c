@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing (scene.c, docs/SCENE.md): gear meshes (model, stiffness,
+ * Scene parsing (scene.c, docs/reference/scene.md): gear meshes (model, stiffness,
  * damping, contact and impact settings) and loads. */
 #include <math.h>
 #include <stdio.h>
@@ -28,7 +28,7 @@ static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_
 gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, gs_scene_mesh *m,
                                  gs_diag *d)
 {
-    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
+    static const char *const models[] = {"kinematic", "lumped", "contact", "impact", "compliant", "ltca"};
     static const char *const laws[] = {"newton", "poisson", "stronge"}; /* gs_restitution order */
     static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
@@ -57,7 +57,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     if (m->gear[0] == m->gear[1])
         return gs_diag_set(d, GS_ERANGE, p, "a gear cannot mesh with itself");
     int model;
-    GS_TRY(gsi_scene_enum_field(o, "model", path, NULL, models, 5, &model, d));
+    GS_TRY(gsi_scene_enum_field(o, "model", path, NULL, models, 6, &model, d));
     m->model = (gs_mesh_model)model;
     m->damping = -1;
     m->damping_ratio = 0.05;
@@ -125,7 +125,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     }
     if (m->model == GS_MESH_COMPLIANT) {
         /* Rigid gears, tooth pairs through the compliant patch model
-         * (docs/IMPACT.md "The compliant mesh"): no stiffness to give. */
+         * (docs/explanation/impact.md "The compliant mesh"): no stiffness to give. */
         if (json_object_object_get_ex(o, "stiffness", NULL)) {
             gsi_path(p, sizeof p, path, "stiffness");
             return gs_diag_set(d, GS_ESCHEMA, p,
@@ -149,6 +149,24 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
         m->backlash = bl * 1e-3;
         return GS_OK;
     }
+    if (m->model == GS_MESH_LTCA) {
+        /* Rigid gears, the loaded tooth contact analysis' tables
+         * (docs/explanation/ltca.md): stiffness and backlash come from the
+         * pair's geometry. Damping: given, else the gears' material damping
+         * of the mesh mode, else 5 % (damping_ratio -1: not given). */
+        static const char *const no[] = {"stiffness", "backlash_mm", NULL};
+        for (const char *const *k = no; *k; k++)
+            if (json_object_object_get_ex(o, *k, NULL)) {
+                gsi_path(p, sizeof p, path, *k);
+                return gs_diag_set(d, GS_ESCHEMA, p,
+                                   "an ltca mesh has no '%s': the pair's quasi-static analysis gives it", *k);
+            }
+        if (json_object_object_get_ex(o, "damping", NULL) && json_object_object_get_ex(o, "damping_ratio", NULL))
+            return gs_diag_set(d, GS_ESCHEMA, path, "give 'damping' or 'damping_ratio', not both");
+        GS_TRY(gsi_json_number(o, "damping", path, 0, 1e9, false, -1, &m->damping, d));
+        GS_TRY(gsi_json_number(o, "damping_ratio", path, 0, 10, false, -1, &m->damping_ratio, d));
+        return GS_OK;
+    }
     /* Default stiffness: ISO 6336 order of magnitude, 14 N/(mm um) single-tooth
      * stiffness per mm of face width, twice that in double contact. */
     double b1 = s->bodies[m->gear[0]].gear.face_width_m, b2 = s->bodies[m->gear[1]].gear.face_width_m;
@@ -168,7 +186,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
             m->stiffness_type = (gs_stiffness_type)ty;
             if (ty == GS_STIFF_CALIBRATED) {
                 /* From the quasi-static FE analysis of the pair at load
-                 * (docs/STIFFNESS.md), at the gears' scene mesh density. */
+                 * (docs/explanation/stiffness.md), at the gears' scene mesh density. */
                 int64_t np;
                 GS_TRY(gsi_json_int(st, "positions", p, 4, 720, false, 24, &np, d));
                 m->calibrate_positions = (int)np;

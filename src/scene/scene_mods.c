@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Scene fields of a gear's profile modifications and tooth errors
- * (docs/SCENE.md: `modification`, `pitch_errors_um`, `runout`), parsed into
+ * (docs/reference/scene.md: `modification`, `pitch_errors_um`, `runout`), parsed into
  * a gs_gear_mods owned by the scene body. */
 #include <math.h>
 #include <stdio.h>

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Scene parsing (scene.c, docs/SCENE.md): the `fidelity` switch and the
+ * Scene parsing (scene.c, docs/reference/scene.md): the `fidelity` switch and the
  * `train` shorthand expanded into bodies, joints and meshes. */
 #include <math.h>
 #include <stdio.h>
@@ -23,11 +23,11 @@
  * itself, or a new tree the caller frees when *copy is set). */
 gs_err gsi_scene_apply_fidelity(json_object *root, json_object **out, bool *copy, gs_diag *d)
 {
-    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact", "compliant"};
+    static const char *const levels[] = {"as_given", "kinematic", "lumped", "contact", "compliant", "ltca"};
     *out = root;
     *copy = false;
     int lv;
-    GS_TRY(gsi_scene_enum_field(root, "fidelity", "", "as_given", levels, 5, &lv, d));
+    GS_TRY(gsi_scene_enum_field(root, "fidelity", "", "as_given", levels, 6, &lv, d));
     if (lv == 0)
         return GS_OK;
     json_object *c = NULL;
@@ -91,7 +91,7 @@ static json_object *train_gear(json_object *tr, const char *key, const char *nam
 }
 
 /* `train: {type: "planetary", ...}` expands into bodies, joints and meshes
- * (docs/SCENE.md): sun, planets on a carrier at the tight-mesh centre
+ * (docs/reference/scene.md): sun, planets on a carrier at the tight-mesh centre
  * distance (or radius_mm), ring held or on its own axis. Everything it
  * writes is then validated like a scene written out in full, so assembly
  * errors name the generated field (bodies[..], joints[..], meshes[..]). */
@@ -113,11 +113,11 @@ gs_err gsi_scene_expand_train(json_object *c, gs_diag *d)
         if (json_object_object_get_ex(c, *k, NULL))
             return gs_diag_set(d, GS_ESCHEMA, *k, "give either 'train' or '%s', not both", *k);
     static const char *const models[] = {"rigid", "elastic"};
-    static const char *const mmodels[] = {"kinematic", "lumped", "contact", "compliant"};
+    static const char *const mmodels[] = {"kinematic", "lumped", "contact", "compliant", "ltca"};
     static const char *const rj[] = {"held", "fixed_axis"};
     int bm, mm, ringj;
     GS_TRY(gsi_scene_enum_field(tr, "model", "train", "rigid", models, 2, &bm, d));
-    GS_TRY(gsi_scene_enum_field(tr, "mesh_model", "train", "lumped", mmodels, 4, &mm, d));
+    GS_TRY(gsi_scene_enum_field(tr, "mesh_model", "train", "lumped", mmodels, 5, &mm, d));
     GS_TRY(gsi_scene_enum_field(tr, "ring_joint", "train", "held", rj, 2, &ringj, d));
     json_object *angles = NULL;
     GS_TRY(gsi_json_array(tr, "angles_deg", "train", false, &angles, d));

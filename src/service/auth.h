@@ -2,7 +2,7 @@
  * ZeroMQ CURVE authentication of the service's sockets: the server key, an
  * allow-list of client public keys and a ZAP handler on its own thread (so a
  * long MPI operation on the main thread never stalls new connections).
- * Key files are Z85 text written by `gearctl keys` (docs/PROTOCOL.md):
+ * Key files are Z85 text written by `gearctl keys` (docs/reference/protocol.md):
  *
  *   NAME.key (mode 0600)   public-key = <40 Z85 chars>
  *                          secret-key = <40 Z85 chars>

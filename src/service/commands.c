@@ -133,6 +133,30 @@ static gs_err check_scene_size(const gs_scene *sc, gs_diag *d)
                        (long long)gsi_opt_max_scene_mb());
 }
 
+/* The stiffness analysis meshes both gears of mesh mi at `refine` (-1: the
+ * scene's density): the same memory limit as `load`, with the same
+ * estimate, before anything is meshed. */
+static gs_err check_stiffness_size(const gs_scene *sc, int mi, int refine, gs_diag *d)
+{
+    double bytes = GS_SCENE_BASE_BYTES, unknowns = 0;
+    for (int k = 0; k < 2; k++) {
+        gs_scene_body b = sc->bodies[sc->meshes[mi].gear[k]];
+        if (refine >= 0)
+            b.mesh.refine = refine;
+        if (b.type == GS_BODY_GEAR)
+            b.model = GS_MODEL_ELASTIC;
+        unknowns += gs_scene_body_unknowns(&b);
+    }
+    bytes += GS_SCENE_BYTES_PER_UNKNOWN * unknowns;
+    double limit = (double)gsi_opt_max_scene_mb() * 1048576.0;
+    if (bytes <= limit)
+        return GS_OK;
+    return gs_diag_set(d, GS_ETOOBIG, refine >= 0 ? "args.refine" : "args.mesh",
+                       "the stiffness analysis would need about %.0f MiB (estimate: %.3g FE unknowns in both "
+                       "gears%s); this daemon's limit is %lld MiB (--max-scene-mb)", bytes / 1048576.0, unknowns,
+                       refine >= 0 ? " at this refine" : "", (long long)gsi_opt_max_scene_mb());
+}
+
 /* Validate on rank 0 (with a diagnostic naming the field), then broadcast. */
 static gs_err load_scene_text(gs_service *s, const char *text, gs_diag *d)
 {
@@ -458,25 +482,72 @@ static const char *rel_of(gs_service *s, const char *full)
     return strncmp(full, s->data_dir, dl) == 0 && full[dl] == '/' ? full + dl + 1 : full;
 }
 
-/* Open a record for writing at `full` (gsi_resolve_path'd): checked and
- * created without following links, not one of the daemon's own files nor a
- * file with another name, then handed to HDF5 through its descriptor; the
- * name is checked to still be that file (else the record is refused). */
+/* Every output is written by rename (as checkpoints and sweeps are): the
+ * target's name checked (no symlink, none of the daemon's own files), a new
+ * file created beside it under an unguessable name through the checked
+ * directory's descriptor, written, then renamed over the name. A file
+ * someone else made at that name is replaced, never written into (its
+ * owner, mode and other names keep the old content). */
+typedef struct out_file {
+    gsi_beneath b;
+    char tmp[PATH_MAX], target[PATH_MAX], via_fd[64];
+    int fd;
+} out_file;
+
+static gs_err out_begin(gs_service *s, const char *rel, const char *field, out_file *o, gs_diag *d)
+{
+    o->fd = -1;
+    GS_TRY(gsi_check_write(s, rel, field, false, &o->b, d));
+    /* A name with other names stays refused: the client meant one file. */
+    struct stat st;
+    if (fstatat(o->b.dirfd, o->b.leaf, &st, AT_SYMLINK_NOFOLLOW) == 0 && st.st_nlink > 1) {
+        gsi_beneath_close(&o->b);
+        return gs_diag_set(d, GS_ERANGE, field, "'%s' has %lu hard links; writing it is refused", rel,
+                           (unsigned long)st.st_nlink);
+    }
+    snprintf(o->target, sizeof o->target, "/proc/self/fd/%d/%s", o->b.dirfd, o->b.leaf);
+    o->fd = gs_tmp_create_beside(o->target, o->tmp, sizeof o->tmp);
+    if (o->fd < 0 || fchmod(o->fd, 0644) != 0) {
+        if (o->fd >= 0) {
+            close(o->fd);
+            unlink(o->tmp);
+        }
+        gsi_beneath_close(&o->b);
+        return gs_diag_set(d, GS_EIO, field, "cannot create a file beside '%s'", rel);
+    }
+    gsi_fd_path(o->fd, o->via_fd, sizeof o->via_fd);
+    return GS_OK;
+}
+
+/* ok: rename the new file over the target; else remove it. */
+static gs_err out_end(out_file *o, bool ok, const char *rel, const char *field, gs_diag *d)
+{
+    gs_err e = GS_OK;
+    close(o->fd);
+    if (ok && rename(o->tmp, o->target) != 0)
+        e = gs_diag_set(d, GS_EIO, field, "cannot rename the new file onto '%s'", rel);
+    if (!ok || e != GS_OK)
+        unlink(o->tmp);
+    gsi_beneath_close(&o->b);
+    return e;
+}
+
+/* Open a record for writing at `full` (gsi_resolve_path'd), by rename: HDF5
+ * creates the new file through its descriptor and keeps it open; the name
+ * is renamed onto it at once (the open file follows). */
 static gs_err open_record_safely(gs_service *s, const char *full, gs_record **r, const char *field, gs_diag *d)
 {
-    gsi_beneath b;
     const char *rel = rel_of(s, full);
-    GS_TRY(gsi_check_write(s, rel, field, true, &b, d));
-    /* HDF5 creates (truncates) the very file checked, through its
-     * descriptor: no name is resolved again. */
-    char via_fd[64];
-    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
-    gs_err e = gsi_record_open_as(s, full, via_fd, r, d);
-    if (e == GS_OK && (e = gsi_confirm_same(&b, rel, field, d)) != GS_OK)
+    out_file o;
+    GS_TRY(out_begin(s, rel, field, &o, d));
+    gs_err e = gsi_record_open_as(s, full, o.via_fd, r, d);
+    gs_err re = out_end(&o, e == GS_OK, rel, field, d);
+    if (e == GS_OK && re != GS_OK) {
         gs_record_close(r);
+        e = re;
+    }
     if (e != GS_OK)
         snprintf(d->field, sizeof d->field, "%s", field);
-    gsi_beneath_close(&b);
     return e;
 }
 
@@ -515,22 +586,18 @@ static gs_err cmd_record(gs_service *s, json_object *args, const char *id, json_
     return GS_OK;
 }
 
-/* The stiffness table file: the same checks as a record. */
+/* The stiffness table file: the same checks as a record, by rename. */
 static gs_err write_stiffness_safely(gs_service *s, const char *full, const gs_scene *sc,
                                      const gs_stiffness_result *r, gs_diag *d)
 {
-    gsi_beneath b;
     const char *rel = rel_of(s, full);
-    GS_TRY(gsi_check_write(s, rel, "args.path", true, &b, d));
-    char via_fd[64];
-    gsi_fd_path(b.fd, via_fd, sizeof via_fd);
-    gs_err e = gs_stiffness_write_h5(via_fd, sc, r, d);
+    out_file o;
+    GS_TRY(out_begin(s, rel, "args.path", &o, d));
+    gs_err e = gs_stiffness_write_h5(o.via_fd, sc, r, d);
     if (e != GS_OK)
         gs_diag_set(d, e, "args.path", "cannot write the stiffness table '%s'", rel);
-    if (e == GS_OK)
-        e = gsi_confirm_same(&b, rel, "args.path", d);
-    gsi_beneath_close(&b);
-    return e;
+    gs_err re = out_end(&o, e == GS_OK, rel, "args.path", d);
+    return e != GS_OK ? e : re;
 }
 
 static gs_err path_arg(gs_service *s, json_object *args, bool for_write, char *full, size_t cap, gs_diag *d)
@@ -579,6 +646,36 @@ static gs_err cmd_checkpoint(gs_service *s, json_object *args, const char *id, j
     return GS_OK;
 }
 
+/* A checkpoint file is input like a request: the snapshot at most the
+ * daemon's scene limit in bytes (checked before it is allocated), its
+ * content checked (gs_engine_snapshot_check) and its scene through the same
+ * size limit as `load`, all on rank 0 before anything is broadcast. */
+static gs_err read_checkpoint(const char *via_fd, char **bytes, size_t *len, gs_diag *d)
+{
+    size_t max = (size_t)gsi_opt_max_scene_mb() * 1048576u;
+    GS_TRY(gs_checkpoint_read(via_fd, max, bytes, len, d));
+    gs_snapshot_view v;
+    gs_scene *sc = NULL;
+    gs_err e = gs_engine_snapshot_check(*bytes, *len, &v, d);
+    if (e == GS_OK && (e = gs_scene_parse(v.scene, strlen(v.scene), &sc, d)) != GS_OK) {
+        char m[sizeof d->message], f[sizeof d->field];
+        snprintf(m, sizeof m, "%s", d->message);
+        snprintf(f, sizeof f, "%s", d->field);
+        /* The file is damaged (not the request): never bad_json. */
+        e = gs_diag_set(d, e == GS_EPARSE ? GS_EIO : e, "path", "the checkpoint's scene is refused (%.60s): %.240s",
+                        f, m);
+    }
+    if (e == GS_OK)
+        e = check_scene_size(sc, d);
+    gs_scene_free(&sc);
+    if (e != GS_OK) {
+        free(*bytes);
+        *bytes = NULL;
+        *len = 0;
+    }
+    return e;
+}
+
 static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
     (void)id;
@@ -591,10 +688,12 @@ static gs_err cmd_restore(gs_service *s, json_object *args, const char *id, json
     gsi_fd_path(b.fd, via_fd, sizeof via_fd);
     char *bytes;
     size_t len;
-    gs_err e = gs_checkpoint_read(via_fd, &bytes, &len, d);
+    gs_err e = read_checkpoint(via_fd, &bytes, &len, d);
     gsi_beneath_close(&b);
     if (e != GS_OK) {
-        gs_diag_set(d, e, "args.path", "'%s' is not a readable gearsim checkpoint", rel_of(s, full));
+        char m[sizeof d->message];
+        snprintf(m, sizeof m, "%s", d->message);
+        gs_diag_set(d, e, "args.path", "'%s' is not a readable gearsim checkpoint: %.300s", rel_of(s, full), m);
         return e;
     }
     gs_record_close(&s->record);
@@ -691,9 +790,15 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
     char *bytes = NULL;
     size_t len;
     gs_err ie = gs_autosave_read_info(via_fd, &a, d);
+    if (ie == GS_OK && a.target_step - a.start_step > GSI_MAX_STEPS_PER_ADVANCE)
+        ie = gs_diag_set(d, GS_ERANGE, "path", "%s holds an advance of %lld steps; at most %lld steps per advance",
+                         GSI_AUTOSAVE_NAME, (long long)(a.target_step - a.start_step),
+                         (long long)GSI_MAX_STEPS_PER_ADVANCE);
     if (ie == GS_OK)
-        ie = gs_checkpoint_read(via_fd, &bytes, &len, d);
+        ie = read_checkpoint(via_fd, &bytes, &len, d);
     gsi_beneath_close(&b);
+    if (ie == GS_ENOTFOUND) /* the file is there: "not found" would read as nothing to resume */
+        ie = GS_EIO;
     if (ie != GS_OK)
         return ie;
     gs_record_close(&s->record);
@@ -702,7 +807,7 @@ gs_err gsi_resume(gs_service *s, gs_diag *d)
     gs_system *sys = gs_engine_system(s->eng);
     s->state = sys ? SVC_LOADED : SVC_EMPTY;
     if (e != GS_OK)
-        return e;
+        return e == GS_ENOTFOUND ? GS_EIO : e;
     if (a.target_step <= sys->step || a.start_step > sys->step)
         return gs_diag_set(d, GS_EIO, "path", "%s holds no unfinished advance (step %lld, target %lld)",
                            GSI_AUTOSAVE_NAME, (long long)sys->step, (long long)a.target_step);
@@ -1085,7 +1190,7 @@ static gs_err stiffness_result(gs_service *s, gs_stiffness_result *r, const char
 }
 
 /* Quasi-static mesh stiffness and transmission error of one mesh of the
- * loaded scene (docs/STIFFNESS.md): rank 0 alone, no inertia, the run's
+ * loaded scene (docs/explanation/stiffness.md): rank 0 alone, no inertia, the run's
  * state untouched. Runs in chunks like `advance` (one roll position per
  * poll of the command socket): accepted at once, progress events, a done
  * event carrying the result, cancel ends it. With wait: true the reply
@@ -1115,6 +1220,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     o.positions = (int)v;
     GS_TRY(gsi_json_int(args, "refine", "args", -1, 3, false, -1, &v, d));
     o.refine = (int)v;
+    GS_TRY(check_stiffness_size(sys->scene, mi, o.refine, d));
     GS_TRY(gsi_json_number(args, "torque", "args", -1e7, 1e7, false, 0, &o.torque_nm, d));
     bool nearfield = true;
     GS_TRY(gsi_json_bool(args, "nearfield", "args", true, &nearfield, d));
@@ -1134,8 +1240,8 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
         bool linked = fstatat(b.dirfd, b.leaf, &st, AT_SYMLINK_NOFOLLOW) == 0 && st.st_nlink > 1;
         gsi_beneath_close(&b);
         if (linked)
-            return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' has %lu hard links; writing it would change another name",
-                               rel, (unsigned long)st.st_nlink);
+            return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' has %lu hard links; refused as for every output "
+                               "(docs/RELIABILITY.md)", rel, (unsigned long)st.st_nlink);
     }
     gs_stiffness_run *run;
     gs_err e = gs_stiffness_begin(sys->scene, mi, &o, &run, d);
@@ -1177,7 +1283,7 @@ static const char *const sweep_args[] = {"scene", "builtin", "parameters", "sett
                                          "driver_rpm", "groups", "path", "resume", NULL};
 
 /* Natural frequencies and mode shapes of the linearised rigid/lumped train
- * (docs/MODAL.md): of the scene in args.scene or the builtin args.builtin,
+ * (docs/explanation/modal.md): of the scene in args.scene or the builtin args.builtin,
  * else of the loaded scene. Rank 0 alone, milliseconds; the run's state is
  * untouched. */
 static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
@@ -1214,9 +1320,9 @@ static gs_err cmd_modal(gs_service *s, json_object *args, const char *id, json_o
         *res = gs_modal_json(m, sc);
         if (!shapes)
             json_object_object_del(*res, "modes");
-    } else if (has_s) {
+    } else if (text) {
         char f[sizeof d->field];
-        snprintf(f, sizeof f, "args.scene.%.140s", d->field);
+        snprintf(f, sizeof f, "args.%s%s%.140s", has_s ? "scene" : "builtin", d->field[0] ? "." : "", d->field);
         memcpy(d->field, f, sizeof f);
     }
     gs_modal_free(&m);

@@ -32,6 +32,14 @@ void gs_service_catch_signals(void);
  * file (service/files.h). */
 int gs_service_lock(const gs_service_config *cfg, char *err, size_t cap);
 
+/* Every rank's process id (main.c gathers them; 0 for a rank on another
+ * host): rank 0 watches those on its host (src/service/watchdog.c). */
+void gs_service_set_rank_pids(const int *pids, int n);
+void gsi_watchdog_start(const char *conn_path, const char *conn_text);
+void gsi_watchdog_stop(void);
+/* The cause when a rank died, else NULL. */
+const char *gsi_watchdog_lost(void);
+
 int64_t gsi_opt_max_clients(void);
 int64_t gsi_opt_max_scene_mb(void);
 int64_t gsi_opt_max_record_mb(void);

@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 #include <zmq.h>
 
@@ -56,6 +57,37 @@ void gs_service_catch_signals(void)
     sigaction(SIGINT, &sa, NULL);
 }
 
+/* The last guard of the JSON writer: a non-finite number is not JSON
+ * (json-c would write NaN or Infinity), so every one left in a reply or an
+ * event becomes null; returns how many were. The run itself stops at the
+ * first non-finite value (gsi_check_finite); this is for anything else. */
+int gsi_json_scrub(json_object *o)
+{
+    int n = 0;
+    if (json_object_get_type(o) == json_type_object) {
+        json_object_object_foreach(o, k, v) {
+            if (json_object_get_type(v) == json_type_double && !isfinite(json_object_get_double(v))) {
+                json_object_object_add(o, k, NULL);
+                n++;
+            } else {
+                n += gsi_json_scrub(v);
+            }
+        }
+    } else if (json_object_get_type(o) == json_type_array) {
+        size_t len = json_object_array_length(o);
+        for (size_t i = 0; i < len; i++) {
+            json_object *v = json_object_array_get_idx(o, i);
+            if (json_object_get_type(v) == json_type_double && !isfinite(json_object_get_double(v))) {
+                json_object_array_put_idx(o, i, NULL);
+                n++;
+            } else {
+                n += gsi_json_scrub(v);
+            }
+        }
+    }
+    return n;
+}
+
 void gsi_publish(gs_service *s, const char *type, json_object *o)
 {
     gs_system *sys = gs_engine_system(s->eng);
@@ -68,6 +100,7 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
     json_object_object_add(ev, "time", json_object_new_double(sys ? sys->time : 0.0));
     json_object_object_foreach(o, k, v) json_object_object_add(ev, k, json_object_get(v));
     json_object_put(o);
+    gsi_json_scrub(ev);
     const char *txt = json_object_to_json_string_ext(ev, JSON_C_TO_STRING_PLAIN);
     if (!s->pub) { /* socket-free use (tests/fuzz) */
         json_object_put(ev);
@@ -249,12 +282,54 @@ static gs_err record_fields(gs_service *s, gs_system *sys)
     return GS_OK;
 }
 
+bool gsi_state_finite(gs_service *s, bool energies, char *msg, size_t cap)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    if (!sys)
+        return true;
+    gs_energy e = {0};
+    if (energies)
+        gs_system_energy(sys, &e);
+    const char *what = NULL;
+    int idx = -1;
+    for (int i = 0; i < sys->n_coords && !what; i++)
+        if (!isfinite(sys->q[i]) || !isfinite(sys->w[i]))
+            what = isfinite(sys->q[i]) ? "a speed" : "a coordinate", idx = i;
+    if (!what) {
+        const double v[] = {sys->time, e.kinetic, e.potential, e.elastic, e.total, e.work_in, e.dissipated};
+        static const char *const nv[] = {"the time", "the kinetic energy", "the potential energy",
+                                         "the elastic energy", "the total energy", "the work in",
+                                         "the dissipated energy"};
+        for (int i = 0; i < 7 && !what; i++)
+            if (!isfinite(v[i]))
+                what = nv[i];
+    }
+    for (int i = 0; i < sys->n_meshes && !what; i++)
+        if (!isfinite(sys->meshes[i].force))
+            what = "a mesh force", idx = i;
+    if (!what)
+        return true;
+    char at[40] = "";
+    if (idx >= 0)
+        snprintf(at, sizeof at, " (#%d)", idx);
+    snprintf(msg, cap, "the run stopped: %s%s is not a finite number at step %lld; the scene's physical "
+             "parameters are out of what the model can integrate (for example a material's E, a mass or "
+             "a stiffness many orders from real ones)", what, at, (long long)sys->step);
+    return false;
+}
+
 /* Runs on rank 0 after every step of a chunk. */
 static bool step_hook(gs_engine *eng, void *user)
 {
     gs_service *s = user;
     gs_system *sys = gs_engine_system(eng);
     int64_t st = sys->step;
+    /* The first non-finite value stops the advance at the end of this
+     * chunk (every rank stops there); nothing after it is published. */
+    if (s->nonfinite[0])
+        return true;
+    if (!gsi_state_finite(s, false, s->nonfinite, sizeof s->nonfinite))
+        return true;
     if (st % sys->scene->telemetry_every == 0) {
         double t0 = gs_now();
         json_object *o = gsi_state_json(s);
@@ -665,6 +740,9 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
         else if (s->stiff.run && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
+        else if (s->validating && !gsi_validating_allows(c->name))
+            e = gs_diag_set(&d, GS_EBUSY, "cmd", "'%s' waits: a sweep request is being validated (a second or "
+                            "so; ask again)", c->name);
         else if (s->sweep && !gsi_sweep_allows(c->name))
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a sweep runs (cancel ends it)", c->name);
         else {
@@ -685,6 +763,7 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
 answer:
     if (!reply)
         reply = error_reply(idv, e, &d);
+    gsi_json_scrub(reply);
     const char *txt = json_object_to_json_string_ext(reply, JSON_C_TO_STRING_PLAIN);
     if (idv && json_object_get_type(idv) == json_type_string && e != GS_ETOOBIG) {
         char k2[GSI_CACHE_KEY];
@@ -768,6 +847,78 @@ static void receive_one(gs_service *s)
     zmq_msg_close(&ident);
 }
 
+/* A rank died (watchdog.c): the error event, the done events of the work
+ * in progress (its error names the cause), the record flushed, then the
+ * job aborted: nothing more can be computed, and a broadcast to the dead
+ * rank would block. The autosave of an unfinished advance is kept. */
+static void rank_lost(gs_service *s)
+{
+    const char *msg = gsi_watchdog_lost();
+    json_object *w = json_object_new_object();
+    json_object_object_add(w, "code", json_object_new_string(gs_errcode(GS_ERANKLOST)));
+    json_object_object_add(w, "message", json_object_new_string(msg));
+    gsi_publish(s, "error", w);
+    const char *pid[3] = {s->adv.active ? s->adv.parent_id : NULL, s->sweep ? gsi_sweep_parent(s) : NULL,
+                          s->stiff.run ? s->stiff.parent_id : NULL};
+    static const char *const kind[3] = {"advance", "sweep", "stiffness"};
+    for (int k = 0; k < 3; k++) {
+        if (!pid[k])
+            continue;
+        json_object *o = json_object_new_object();
+        json_object_object_add(o, "parent_id", json_object_new_string(pid[k]));
+        json_object_object_add(o, "cancelled", json_object_new_boolean(0));
+        json_object *e = json_object_new_object();
+        json_object_object_add(e, "code", json_object_new_string(gs_errcode(GS_ERANKLOST)));
+        json_object_object_add(e, "message", json_object_new_string(msg));
+        json_object_object_add(o, "error", e);
+        gsi_publish_done(s, k == 0 && s->adv.job >= 0 ? "job" : kind[k], o);
+    }
+    gsi_record_flush_or_stop(s, "the record could not be written");
+    gs_record_close(&s->record);
+    /* The events leave before the abort. */
+    struct timespec ts = {0, 300000000};
+    nanosleep(&ts, NULL);
+    MPI_Abort(MPI_COMM_WORLD, 3);
+}
+
+static void heartbeat(gs_service *s);
+
+bool gsi_validating_allows(const char *cmd)
+{
+    static const char *const ok[] = {"hello", "status", "state", "jobs", "fetch", "modal", NULL};
+    for (int i = 0; ok[i]; i++)
+        if (!strcmp(cmd, ok[i]))
+            return true;
+    return false;
+}
+
+/* Long validation on rank 0 (a sweep's every point) calls this every few
+ * milliseconds: requests are answered meanwhile (those that change nothing;
+ * the others are told to wait), and heartbeats go on, so the service is
+ * never silent for longer than a slice (docs/RELIABILITY.md, "Limits"). */
+void gsi_poll_during(void *user)
+{
+    gs_service *s = user;
+    double now = gs_now();
+    if (now - s->last_poll_during < 0.005)
+        return;
+    s->last_poll_during = now;
+    if (!s->router)
+        return;
+    for (int i = 0; i < 64; i++) {
+        int ev = 0;
+        size_t n = sizeof ev;
+        zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
+        if (!(ev & ZMQ_POLLIN))
+            break;
+        receive_one(s);
+    }
+    if (now - s->last_heartbeat >= 1.0) {
+        s->last_heartbeat = now;
+        heartbeat(s);
+    }
+}
+
 static void heartbeat(gs_service *s)
 {
     static const char *const names[] = {"empty", "loaded", "running", "paused"};
@@ -817,6 +968,14 @@ static void run_chunk(gs_service *s)
         s->chunk_steps = want < 1 ? 1 : (want > 1000000 ? 1000000 : want);
     }
     gsi_record_flush_or_stop(s, "the record could not be written");
+    if (e == GS_OK && !s->nonfinite[0])
+        gsi_state_finite(s, true, s->nonfinite, sizeof s->nonfinite);
+    if (s->nonfinite[0]) {
+        fprintf(stderr, "gearsimd: %s\n", s->nonfinite);
+        gsi_finish_advance(s, false, GS_ERANGE, s->nonfinite);
+        s->nonfinite[0] = '\0';
+        return;
+    }
     if (e != GS_OK) {
         /* A limit of the scene's numerics (gs_system_check) says which field to change. */
         char why[sizeof sys->diag.field + sizeof sys->diag.message + 4];
@@ -868,16 +1027,18 @@ static gs_err write_connection_file(gs_service *s)
     const char *cpub, *csec;
     if (gsi_curve_local_client(&cpub, &csec)) {
         /* The loopback client key pair: who can read this 0600 file can
-         * talk to the daemon, nobody else (docs/PROTOCOL.md). */
+         * talk to the daemon, nobody else (docs/reference/protocol.md). */
         json_object_object_add(o, "curve_client_public_key", json_object_new_string(cpub));
         json_object_object_add(o, "curve_client_secret_key", json_object_new_string(csec));
     }
     char err[PATH_MAX + 200];
     gs_err e = GS_OK;
-    if (gsi_write_connection_text(path, json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY), err,
-                                  sizeof err) != 0) {
+    const char *txt = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PRETTY);
+    if (gsi_write_connection_text(path, txt, err, sizeof err) != 0) {
         fprintf(stderr, "gearsimd: %s\n", err);
         e = GS_EIO;
+    } else {
+        gsi_watchdog_start(path, txt);
     }
     json_object_put(o);
     return e;
@@ -1057,7 +1218,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
             s->last_heartbeat = now;
             heartbeat(s);
         }
+        if (gsi_watchdog_lost())
+            rank_lost(s);
     }
+    gsi_watchdog_stop();
     if (s->adv.active) {
         s->keep_autosave = true; /* still resumable with --resume */
         gsi_finish_advance(s, true, GS_OK, "the daemon is shutting down");

@@ -114,6 +114,9 @@ typedef struct gs_service {
     svc_cache_entry cache[GSI_CACHE];
     size_t cache_bytes;      /* sum of the entries' bytes */
     bool shutdown;
+    bool validating;           /* a long validation polls the socket (gsi_poll_during) */
+    double last_poll_during;
+    char nonfinite[320];       /* the first non-finite value of the running advance, "" none */
     double timing_step, timing_telemetry, timing_record;
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
     svc_client *clients;    /* active clients (--max-clients), n_clients of them */
@@ -189,5 +192,22 @@ void gsi_autosave_if_due(gs_service *s);
 /* --resume: restore <data dir>/autosave.h5, reopen its record and continue
  * its advance. GS_ENOTFOUND when there is none. */
 gs_err gsi_resume(gs_service *s, gs_diag *d);
+
+/* Every non-finite number in o (objects and arrays, recursively) made
+ * null: the JSON writer's guard. Returns how many there were. */
+int gsi_json_scrub(json_object *o);
+
+/* Answer pending requests (those gsi_validating_allows) from within a long
+ * validation; at most every 5 ms. */
+void gsi_poll_during(void *user);
+bool gsi_validating_allows(const char *cmd);
+
+/* The running sweep's request id ("" none). */
+const char *gsi_sweep_parent(gs_service *s);
+
+/* The run's state (coordinates, speeds, time, mesh forces, and with
+ * `energies` the energies) all finite? When not, msg says which value,
+ * at which step. */
+bool gsi_state_finite(gs_service *s, bool energies, char *msg, size_t cap);
 
 #endif

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * The `sweep` service job (docs/PROTOCOL.md, docs/MODAL.md "Sweeps"): a
+ * The `sweep` service job (docs/reference/protocol.md, docs/explanation/modal.md "Sweeps"): a
  * scene and parameters to vary, points run concurrently on groups of ranks
  * (src/sweep/group.c), one progress event per finished point, the table
  * written as CSV at the start and the finished points' rows appended to it
@@ -145,22 +145,27 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     json_object *spec;
     GS_TRY(gs_sweep_spec_from_args(args, "args", &spec, d));
     gs_sweep *sw = NULL;
+    /* Every point is validated here (seconds for thousands): requests that
+     * change nothing are answered meanwhile. */
+    s->validating = true;
+    gs_sweep_set_poll(gsi_poll_during, s);
     gs_err e = gs_sweep_parse(spec, "args", NULL, &sw, d);
+    gs_sweep_set_poll(NULL, NULL);
+    s->validating = false;
     json_object_put(spec);
     if (e != GS_OK)
         return e;
-    /* Each group loads the scene: the daemon's scene size limit holds. */
-    char *pt = NULL;
-    gs_scene *sc = NULL;
-    if ((e = gs_sweep_point_scene(sw, 0, &pt, d)) == GS_OK && (e = gs_scene_parse(pt, strlen(pt), &sc, d)) == GS_OK) {
-        int big;
-        double mb = gs_scene_estimate_bytes(sc, &big) / 1048576.0;
-        if (mb > (double)gsi_opt_max_scene_mb())
-            e = gs_diag_set(d, GS_ETOOBIG, "args.scene", "a point's scene would need about %.0f MiB (estimate); this "
-                            "daemon's limit is %lld MiB (--max-scene-mb)", mb, (long long)gsi_opt_max_scene_mb());
-    }
-    free(pt);
-    gs_scene_free(&sc);
+    /* Each group loads every point's scene: the daemon's scene size limit
+     * and step cap hold at every point, not only the first. */
+    int bp, sp;
+    double mb = gs_sweep_max_scene_bytes(sw, &bp) / 1048576.0, steps = gs_sweep_max_steps(sw, &sp);
+    if (mb > (double)gsi_opt_max_scene_mb())
+        e = gs_diag_set(d, GS_ETOOBIG, "args.parameters", "point %d's scene would need about %.0f MiB (estimate); "
+                        "this daemon's limit is %lld MiB (--max-scene-mb)", bp, mb, (long long)gsi_opt_max_scene_mb());
+    else if (steps > (double)GSI_MAX_STEPS_PER_ADVANCE)
+        e = gs_diag_set(d, GS_ETOOBIG, "args.measure", "point %d takes %.3g steps (settle + measure at its time "
+                        "step); at most %lld steps per point, as per advance", sp, steps,
+                        (long long)GSI_MAX_STEPS_PER_ADVANCE);
     if (e != GS_OK) {
         gs_sweep_free(&sw);
         return e;
@@ -179,6 +184,13 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     size_t rl = strlen(rel);
     if (e == GS_OK && rl > 4 && !strcmp(rel + rl - 4, ".csv"))
         rel[rl - 4] = '\0';
+    /* The files are <path>.csv, .h5, .sweep.json: the last component must
+     * be a name ('.', '..' or a trailing '/' would make '..csv'). */
+    const char *leaf = strrchr(rel, '/');
+    leaf = leaf ? leaf + 1 : rel;
+    if (e == GS_OK && (!leaf[0] || !strcmp(leaf, ".") || !strcmp(leaf, "..")))
+        e = gs_diag_set(d, GS_ERANGE, "args.path", "'%s' does not end in a file name: the sweep writes "
+                        "<path>.csv, <path>.h5 and <path>.sweep.json", rel);
     svc_sweep *w = gs_calloc(1, sizeof *w);
     if (e == GS_OK && !w)
         e = GS_ENOMEM;
@@ -368,7 +380,10 @@ void gsi_sweep_stop(gs_service *s, bool cancelled)
     gs_sweep_run_end(w->run); /* the groups stop; points that finished meanwhile are kept */
     take_points(s);
     int k = points_done(w);
-    bool complete = k == w->n_points;
+    /* Complete when every point is in the table, or when the run went to
+     * its end and the missing points failed (listed in the done event): a
+     * resume would only fail them again, and the path stays usable. */
+    bool complete = k == w->n_points || (!cancelled && w->n_computed >= w->n_todo);
     gs_diag d;
     gs_diag_clear(&d);
     /* The table whole, in point order, and closed; then the HDF5 table and
@@ -425,6 +440,8 @@ json_object *gsi_sweep_status(gs_service *s)
     json_object_object_add(a, "fraction", json_object_new_double(w->n_todo > 0 ? (double)w->n_computed / w->n_todo : 1.0));
     return a;
 }
+
+const char *gsi_sweep_parent(gs_service *s) { return s->sweep ? s->sweep->parent_id : ""; }
 
 bool gsi_sweep_allows(const char *cmd)
 {

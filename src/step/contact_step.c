@@ -23,7 +23,7 @@
  * The rows drop g(x_n): the reaction does no work (lambda^T G x = 0 by
  * complementarity), so frictionless contact conserves energy exactly.
  *
- * numerics.contact "closure" (docs/CONTACT.md, "Contact treatments") keeps
+ * numerics.contact "closure" (docs/explanation/contact.md, "Contact treatments") keeps
  * the gap instead, G x >= -g(x_n), on every candidate the free motion (or,
  * after a solve, the solution) brings to g <= 0: penetration is closed in
  * the step, up to the linearisation. The reactions then do the work
@@ -223,7 +223,7 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
  * candidate of this step (tip corners and tip arc nodes are slaves in both
  * search modes when near the other gear). A flank node outside the other
  * gear in the outer normal cone of its tip corner, or beside its tip land
- * (gs_contact_row.fan_corner), gets no row then (docs/CONTACT.md "Tip
+ * (gs_contact_row.fan_corner), gets no row then (docs/explanation/contact.md "Tip
  * corners: no locking"): its gap's gradient there points from the corner
  * to the node, along the flank rather than across it, or radially through
  * the other gear's centre, and such a row holds the flank against the
@@ -573,7 +573,7 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
         /* Sliding velocity of the slave point over the master surface, from
          * the gears' rigid motion (with the elastic velocities included this
          * explicit friction feeds the tooth vibrations instead of damping
-         * them: see docs/CONTACT.md). */
+         * them: see docs/explanation/contact.md). */
         double vs[2], vm[2], wsum = 0;
         point_velocity(sys, cm->body[ks], cr->x[0], vs);
         point_velocity(sys, cm->body[km], cr->x[0], vm);

@@ -54,7 +54,7 @@ static void records(gs_system *sys, double *rec, bool all)
      * end-of-step passes between, while it is still in cache (two gears'
      * factors on one rank are about twice the share of L3 that one keeps;
      * in body order every step, each was evicted before its next solve;
-     * docs/PERFORMANCE.md, ninth pass). The bodies are independent here,
+     * docs/performance/index.md). The bodies are independent here,
      * so the records are the same bit for bit. */
     const bool back = sys->substeps & 1;
     gs_model_view v;
@@ -520,7 +520,7 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
 
 /* numerics.contact "closure_energy": the closure's rows close the gap, so
  * their reactions do the work W = lambda^T G x in the step (the contact
- * nodes' inelastic share at a contact onset, docs/CONTACT.md). It is given
+ * nodes' inelastic share at a contact onset, docs/explanation/contact.md). It is given
  * back, exactly, as a velocity update of the mesh's two gears (Laursen and
  * Love's velocity update, here restricted to the rigid rotations): an
  * impulse P along the reactions' moments v_k = sum_r lambda_r G_r,theta_k

@@ -78,7 +78,7 @@ static double body_weight(const gs_body_rt *br, const gs_scene_body *b)
  * index), each to the least loaded bin (ties: the lowest). Then the bins go
  * to ranks by increasing load (ties: the lower bin), so that rank 0, which
  * alone selects the contact rows and solves the QP, holds the lightest share
- * of the bodies (docs/PERFORMANCE.md, "Sixth pass"). Deterministic: the same
+ * of the bodies (docs/performance/index.md). Deterministic: the same
  * scene and rank count give the same map. */
 static void assign_owners(gs_system *s)
 {
@@ -200,7 +200,8 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
              * tight-mesh position by e, a deflection sign n . e at the start
              * (positive: pressed in, negative: a gap). */
             const gs_scene_body *pb = &sc->bodies[body[k]];
-            if ((sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT) && pb->joint == GS_JOINT_ON_CARRIER &&
+            if ((sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT || sm->model == GS_MESH_LTCA) &&
+                pb->joint == GS_JOINT_ON_CARRIER &&
                 (pb->pin_error[0] != 0 || pb->pin_error[1] != 0)) {
                 double r = pb->carrier_radius, a = pb->carrier_angle;
                 double r0 = r - pb->pin_error[0], a0 = a - pb->pin_error[1] / r;
@@ -230,7 +231,7 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         /* Tooth errors of a lumped mesh (pitch table, run-out): a known
          * displacement along the line of action, a function of each gear's
          * angle in the carrier frame (mesh_common.c, gsi_mesh_s). */
-        for (int k = 0; sm->model == GS_MESH_LUMPED && k < 2; k++) {
+        for (int k = 0; (sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_LTCA) && k < 2; k++) {
             const gs_scene_body *gb = &sc->bodies[body[k]];
             const gs_gear_mods *md = gb->mods;
             if (!md || (md->n_pitch != gb->gear.teeth && md->runout_m == 0.0))
@@ -254,7 +255,8 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         bool translates = false;
         for (int k = 0; k < 2; k++)
             translates |= s->bodies[body[k]].tcoord >= 0;
-        bool has_tr = sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT; /* s with translations */
+        bool has_tr = sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT ||
+                      sm->model == GS_MESH_LTCA; /* s with translations */
         if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : !has_tr)) {
             char f[64];
             snprintf(f, sizeof f, "meshes[%d].model", m->index);
@@ -413,7 +415,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
                 why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes "
                       "yet (the contact step has no translations)";
         if (why) {
-            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/MODAL.md)", sb->name, why);
+            gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/explanation/modal.md)", sb->name, why);
             gs_scene_free(&scene);
             free(s);
             return GS_ERANGE;
@@ -547,7 +549,7 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < s->n_meshes; i++) {
         gs_gmesh_rt *m = &s->meshes[i];
         m->index = i;
-        static const char *const names[] = {"kinematic", "lumped", "contact", "impact", "compliant"};
+        static const char *const names[] = {"kinematic", "lumped", "contact", "impact", "compliant", "ltca"};
         m->ops = gs_gmesh_ops_find(names[scene->meshes[i].model]);
         e = mesh_kinematics(s, m, d);
         if (e != GS_OK)

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Sweep points on groups of MPI ranks inside one MPI job
- * (include/gearsim/sweep.h, docs/MODAL.md "Sweeps").
+ * (include/gearsim/sweep.h, docs/explanation/modal.md "Sweeps").
  *
  * Rank 0 broadcasts GS_OP_SWEEP through the world engine; every rank then
  * duplicates the world communicator and splits it into `groups` groups of

@@ -39,6 +39,8 @@ struct gs_sweep {
     char cols[GS_SWEEP_MAX_COLUMNS][80];
     char *canonical;
     char *spec_text;
+    double max_bytes, max_steps; /* over the points: scene memory estimate, settle + measure steps */
+    int max_bytes_point, max_steps_point;
 };
 
 int gs_sweep_points(const gs_sweep *sw) { return sw->n_points; }
@@ -47,6 +49,27 @@ const char *gs_sweep_column(const gs_sweep *sw, int c) { return c >= 0 && c < sw
 const char *gs_sweep_canonical(const gs_sweep *sw) { return sw->canonical; }
 const char *gs_sweep_scene_name(const gs_sweep *sw) { return sw->scene_name; }
 const char *gs_sweep_spec_text(const gs_sweep *sw) { return sw->spec_text; }
+
+static void (*poll_fn)(void *);
+static void *poll_user;
+
+void gs_sweep_set_poll(void (*fn)(void *user), void *user)
+{
+    poll_fn = fn;
+    poll_user = user;
+}
+
+double gs_sweep_max_scene_bytes(const gs_sweep *sw, int *point)
+{
+    *point = sw->max_bytes_point;
+    return sw->max_bytes;
+}
+
+double gs_sweep_max_steps(const gs_sweep *sw, int *point)
+{
+    *point = sw->max_steps_point;
+    return sw->max_steps;
+}
 
 void gs_sweep_free(gs_sweep **psw)
 {
@@ -280,7 +303,11 @@ gs_err gs_sweep_point_scene(const gs_sweep *sw, int p, char **text, gs_diag *d)
 
 static bool path_chars_ok(const char *p)
 {
-    if (!p[0])
+    /* No empty segment: not '.x', 'x.', 'a..b' nor '.[' (the column keeps
+     * the path as written, so it must be the one path it means). */
+    size_t n = strlen(p);
+    if (!p[0] || p[0] == '.' || p[0] == '[' || p[n - 1] == '.' || strstr(p, "..") || strstr(p, ".[") ||
+        strstr(p, "[]") || strstr(p, "]]"))
         return false;
     for (; *p; p++)
         if (!((*p >= 'a' && *p <= 'z') || (*p >= 'A' && *p <= 'Z') || (*p >= '0' && *p <= '9') || *p == '_' ||
@@ -470,6 +497,8 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
     json_object *copy = NULL;
     for (int p = 0; p < sw->n_points; p++) {
         char *pt = NULL;
+        if (poll_fn)
+            poll_fn(poll_user);
         if (p == 0 || p == sw->n_points - 1) {
             e = gs_sweep_point_scene(sw, p, &pt, d);
         } else {
@@ -490,6 +519,16 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
             gs_scene *ps;
             gs_diag pd;
             e = gs_scene_parse(pt, strlen(pt), &ps, &pd);
+            if (e == GS_OK) {
+                /* What the daemon's limits bound, at every point. */
+                double b = gs_scene_estimate_bytes(ps, NULL);
+                double h = sw->time_step > 0 ? sw->time_step : ps->time_step;
+                double n = ceil(sw->settle / h - 1e-9) + ceil(sw->measure / h - 1e-9);
+                if (b > sw->max_bytes)
+                    sw->max_bytes = b, sw->max_bytes_point = p;
+                if (n > sw->max_steps)
+                    sw->max_steps = n, sw->max_steps_point = p;
+            }
             gs_scene_free(&ps);
             if (e != GS_OK)
                 gs_diag_set(d, e, "parameters", "point %d: %s: %s", p, pd.field, pd.message);

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim-impact: the impact calculator (include/gearsim/impact.h,
- * docs/IMPACT.md).
+ * docs/explanation/impact.md).
  *
  *   gearsim-impact CASE.json
  *
@@ -8,8 +8,8 @@
  * method); "hypothesis" is "newton", "poisson", "stronge" or "all" (one
  * result per hypothesis). A case with "contacts" is one velocity-level step
  * with several contacts (Lemke; frictionless also checked as a QP). Prints
- * one JSON object on stdout (keys in docs/IMPACT.md). Exit status 0 on
- * success, 1 on an error (message on stderr naming the field), 2 on bad
+ * one JSON object on stdout (keys in docs/explanation/impact.md). Exit status
+ * 0 on success, 1 on an error (message on stderr naming the field), 2 on bad
  * usage. Not an MPI program. */
 #include <math.h>
 #include <stdio.h>

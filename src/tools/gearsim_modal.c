@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * gearsim-modal: natural frequencies and mode shapes of a scene's
- * linearised rigid/lumped train (include/gearsim/modal.h, docs/MODAL.md).
+ * linearised rigid/lumped train (include/gearsim/modal.h, docs/explanation/modal.md).
  *
  *   gearsim-modal SCENE.json [--json]
  *   gearsim-modal SCENE.json --fe [--mesh NAME] [--positions N] [--modes M] [--refine R]

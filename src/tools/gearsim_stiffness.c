@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * gearsim-stiffness: quasi-static mesh stiffness and static transmission
  * error of one gear mesh of a scene over one mesh cycle
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md).
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
  *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
@@ -13,7 +13,7 @@
  * 200 N/mm line load; --refine to the scene's mesh density; --driver to
  * gear 0 of the mesh; --order to the scene's element order (mesh.order). Without --json prints a table (one row per roll
  * position) and a summary; with --json one JSON object (keys documented in
- * docs/STIFFNESS.md). --tangent-step H takes k_tan as the central difference
+ * docs/explanation/stiffness.md). --tangent-step H takes k_tan as the central difference
  * over T (1 -+ H) instead of the chord from T/2. The near-field (Hertz)
  * correction of the contact compliance is on by default when both gears
  * have quadratic elements (the default mesh; linear triangles keep the plain
@@ -84,7 +84,7 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
     for (int j = 0; j < r->positions; j++) {
         const gs_stiffness_point *p = &r->pt[j];
         printf("%6.3f %9.4f %10.4f %10.4f %9.4f %12.4f %12s %5d ", p->roll,
-               p->angle_rad * 180.0 / 3.14159265358979323846, p->te_um, p->te0_um, p->k, p->k_tan,
+               p->angle_rad * 180.0 / 3.14159265358979323846, p->te_loaded_um, p->te0_um, p->k, p->k_tan,
                p->converged ? "" : "(unconv.)", p->pairs);
         for (int k = 0; k < p->n_pair; k++)
             printf(" %d/%d:%.0f", p->pair[k].tooth[0], p->pair[k].tooth[1], p->pair[k].force_n);
@@ -92,13 +92,14 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
     }
     printf("k  min %.4f  mean %.4f  max %.4f N/(mm um)   (tangent mean %.4f)\n", r->k_min,
            r->k_mean, r->k_max, r->k_tan_mean);
-    printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um\n", r->te_min, r->te_mean,
-           r->te_max, r->te_max - r->te_min);
+    /* TE: the loaded static TE (te_loaded_um of the JSON); with modified flanks
+     * the elastic part (te_elastic_um) follows on its own line. */
+    printf("TE min %.4f  mean %.4f  max %.4f um   peak-to-peak %.4f um   (loaded static TE)\n",
+           r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max, r->te_loaded_max - r->te_loaded_min);
     if (r->modified)
-        printf("loaded TE with modifications (from the perfect gears' no-load position) min %.4f  "
-               "mean %.4f  max %.4f um   peak-to-peak %.4f um\n",
-               r->te_loaded_min, r->te_loaded_mean, r->te_loaded_max,
-               r->te_loaded_max - r->te_loaded_min);
+        printf("elastic part, without the modifications' geometric TE: min %.4f  mean %.4f  max %.4f um"
+               "   peak-to-peak %.4f um\n",
+               r->te_min, r->te_mean, r->te_max, r->te_max - r->te_min);
     printf("positions with 2+ pairs: %.3f   (%.2f s, %ld solves)\n", r->frac_multi, r->seconds,
            r->solves);
     printf("CPU %.3f s: mesh and FE models %.3f, factorisation %.3f, %ld columns %.3f, "

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim-sweep: parameter sweeps outside the daemon (docs/MODAL.md,
+ * gearsim-sweep: parameter sweeps outside the daemon (docs/explanation/modal.md,
  * "Sweeps"); the points are those of the daemon's `sweep` job
  * (src/sweep), computed here one after the other in one process.
  *

@@ -11,8 +11,7 @@
  * again with linear triangles, mesh.order 1) and planetary_contact (five
  * elastic gears, six contact meshes) at their scene step: a warm-up (the ramp, the
  * first teeth into mesh), then a timed chunk through the engine, as the
- * daemon steps it, and the rank-0 breakdown (docs/PERFORMANCE.md, "Cost
- * per step").
+ * daemon steps it, and the rank-0 breakdown (docs/performance/index.md).
  *
  *   bench_cost                    one rank
  *   mpirun -n 2 bench_cost        two ranks
@@ -22,6 +21,9 @@
  *                                 (seed, closure, closure_energy)
  *   bench_cost count SCENE [STEPS]  instruction counts under callgrind
  *                                 (count_case; one scene)
+ *   mpirun -n K bench_cost weak N   planetary_contact made a 36/24/84 train
+ *                                 with N planets (3 to 6; weak scaling:
+ *                                 K = N + 2 is one gear per rank)
  *
  * RESULT_PATH and the rounds' "critical path" read the engine's CPU
  * critical path (gs_step_timing cpu_path): at -n 2 on a loaded machine the
@@ -76,7 +78,93 @@ typedef struct bcase {
     const char *scene;
     int warm, steps;
     int order; /* element order forced on the elastic gears; 0: the scene's (default 2) */
+    int planets; /* planetary_contact with this many planets; 0: the scene's */
 } bcase;
+
+/* A copy of `tmpl` (a JSON object) with every string value equal to `from`
+ * and every string in an array equal to it replaced by `to`, and "name"
+ * strings containing it rewritten (sun-planet1 -> sun-planet4). */
+static json_object *renamed(json_object *tmpl, const char *from, const char *to)
+{
+    json_object *o = NULL;
+    json_object_deep_copy(tmpl, &o, NULL);
+    json_object_object_foreach(o, key, val) {
+        if (json_object_is_type(val, json_type_string)) {
+            const char *v = json_object_get_string(val), *at = strstr(v, from);
+            if (at) {
+                char buf[128];
+                snprintf(buf, sizeof buf, "%.*s%s%s", (int)(at - v), v, to, at + strlen(from));
+                json_object_object_add(o, key, json_object_new_string(buf));
+            }
+        } else if (json_object_is_type(val, json_type_array)) {
+            for (size_t i = 0; i < json_object_array_length(val); i++) {
+                json_object *x = json_object_array_get_idx(val, i);
+                if (json_object_is_type(x, json_type_string) && !strcmp(json_object_get_string(x), from))
+                    json_object_array_put_idx(val, i, json_object_new_string(to));
+            }
+        }
+    }
+    return o;
+}
+
+/* Set integer field `key` of the body named `name`. */
+static void set_body(json_object *root, const char *name, const char *key, double v)
+{
+    json_object *bodies, *nm;
+    json_object_object_get_ex(root, "bodies", &bodies);
+    for (size_t i = 0; i < json_object_array_length(bodies); i++) {
+        json_object *b = json_object_array_get_idx(bodies, i);
+        if (json_object_object_get_ex(b, "name", &nm) && !strcmp(json_object_get_string(nm), name))
+            json_object_object_add(b, key, v == (int)v ? json_object_new_int((int)v) : json_object_new_double(v));
+    }
+}
+
+/* planetary_contact turned into a train for 3 to 6 planets, n of them: sun
+ * 36, planets 24 (as in the scene), ring 84 teeth (36 + 84 = 120 teeth are
+ * shared out by 3, 4, 5 and 6 equally spaced planets; six planets of 24
+ * teeth clear one another on the 75 mm carrier radius), the ring's rim
+ * radius moved with its teeth (the same rim thickness). The bodies, carrier
+ * joints and meshes of planet1 are copied at 360 k / n degrees. */
+static void set_planets(json_object *root, int n)
+{
+    set_body(root, "sun", "teeth", 36);
+    set_body(root, "ring", "teeth", 84);
+    set_body(root, "ring", "hub_radius_mm", 115);
+    static const char *const keys[] = {"bodies", "joints", "meshes"};
+    for (int a = 0; a < 3; a++) {
+        json_object *arr, *out = json_object_new_array();
+        json_object_object_get_ex(root, keys[a], &arr);
+        json_object *t1 = NULL, *t2 = NULL; /* planet1's entries (two meshes per planet) */
+        bool placed = false;
+        for (size_t i = 0; i < json_object_array_length(arr); i++) {
+            json_object *x = json_object_array_get_idx(arr, i), *nm;
+            const char *name = json_object_object_get_ex(x, a == 1 ? "body" : "name", &nm) ?
+                               json_object_get_string(nm) : "";
+            if (!strstr(name, "planet")) {
+                json_object_array_add(out, json_object_get(x));
+                continue;
+            }
+            if (strstr(name, "planet1"))
+                *(t1 ? &t2 : &t1) = x;
+            if (!placed && t1 && (a < 2 || t2)) {
+                placed = true;
+                for (int k = 1; k <= n; k++) {
+                    char to[32];
+                    snprintf(to, sizeof to, "planet%d", k % 100);
+                    for (json_object *t = t1; t; t = t == t1 && a == 2 ? t2 : NULL) {
+                        json_object *c = renamed(t, "planet1", to);
+                        if (a == 1) {
+                            json_object_object_add(c, "angle_deg", json_object_new_double(360.0 * (k - 1) / n));
+                            json_object_object_add(c, "radius_mm", json_object_new_double(75.0));
+                        }
+                        json_object_array_add(out, c);
+                    }
+                }
+            }
+        }
+        json_object_object_add(root, keys[a], out);
+    }
+}
 
 /* Set mesh.order of every elastic body of a parsed scene. */
 static void force_order(json_object *root, int order)
@@ -286,6 +374,8 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     json_object_object_add(out, "telemetry_every", json_object_new_int(1000));
     json_object_object_add(root, "outputs", out);
     force_order(root, c->order);
+    if (c->planets > 0)
+        set_planets(root, c->planets);
     const char *txt = json_object_to_json_string(root);
     gs_diag d;
     if (gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL) != GS_OK) {
@@ -555,13 +645,32 @@ int main(int argc, char **argv)
     } else {
         bool quick = argc > 1 && (strcmp(argv[1], "quick") == 0 || strcmp(argv[1], "count") == 0);
         const bcase cases[] = {
-            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 0},
-            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 1}, /* linear triangles */
-            {"planetary_contact", quick ? 200 : 1000, quick ? 200 : 800, 0},
+            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 0, 0},
+            {"contact_drive", quick ? 500 : 2500, quick ? 500 : 2000, 1, 0}, /* linear triangles */
+            {"planetary_contact", quick ? 200 : 1000, quick ? 200 : 800, 0, 0},
         };
         const char *thr = getenv("OPENBLAS_NUM_THREADS");
         printf("# bench_cost: cost per step against one bare solve per gear; OPENBLAS_NUM_THREADS=%s\n",
                thr ? thr : "(unset)");
+        int planets = argc > 2 && strcmp(argv[1], "weak") == 0 ? atoi(argv[2]) : 0;
+        const bcase weak = {"planetary_contact", 50, 50, 0, planets};
+        if (planets > 0) {
+            if (planets < 1 || planets > 8) {
+                fprintf(stderr, "bench_cost weak N: N planets, 1 to 8\n");
+                rc = 1;
+            } else {
+                printf("# weak scaling: planetary_contact as a 36/24/84 train with %d planets (%d elastic gears) on %d "
+                       "ranks\n", planets,
+                       planets + 2, size);
+                rc = run_case(e, &weak, size, NULL);
+            }
+            gs_diag d;
+            gs_engine_run(e, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
+            concurrent_floor(rank, size);
+            gs_engine_free(&e);
+            MPI_Finalize();
+            return rc;
+        }
         const char *only = argc > 2 && strcmp(argv[2], "all") != 0 ? argv[2] : NULL;
         const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (closure_energy) */
         bool count = counting;

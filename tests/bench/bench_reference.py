@@ -38,8 +38,7 @@ the full mode times CalculiX at three positions and adds refine 2 (tens of
 minutes). A setting is written oOrR[nf]: element order O, refine R, nf for
 the near-field correction (the tool's default; without nf --no-nearfield
 is passed: the plain FE); or fine[nf]: gearsim-stiffness --fine (the teeth in contact
-locally refined, docs/CONVERGENCE.md "Local refinement and the fine
-setting"). The
+locally refined, docs/validation/calculix.md). The
 environment variable GEARSIM_BENCH_REFERENCE_ARGS (split on blanks) is
 prepended to the command line, so a mode can be chosen under meson test.
 """

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Benchmark: throughput of the daemon's `sweep` job (docs/MODAL.md,
+"""Benchmark: throughput of the daemon's `sweep` job (docs/explanation/modal.md,
 "Sweeps") on the lumped planetary (planetary_sweep), points per second at
 mpirun -n 1 with 1 group (the reference, timed in the same run), at -n 2
 with 1 group of 2 ranks and at -n 2 with 2 groups of 1 rank; prints the
@@ -44,9 +44,16 @@ def sweep(ranks, groups):
     return POINTS / dt, text
 
 
+def loadavg():
+    """/proc/loadavg's 1, 5 and 15 minute averages: the ratio of 2 groups
+    means something only when they are well below the core count."""
+    with open("/proc/loadavg") as f:
+        return " ".join(f.read().split()[:3])
+
+
 steps = POINTS * round((SETTLE + MEASURE) / H)
 print(f"# sweep of the lumped planetary: {POINTS} points, {steps} steps in all (h = {H:g} s); "
-      f"load average {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores")
+      f"load average (1, 5, 15 min) {loadavg()} on {os.cpu_count()} cores")
 ref, t_ref = sweep(1, 1)
 print(f"{'ranks':>5} {'groups':>6} {'points/s':>9} {'steps/s':>9} {'ratio':>6}")
 print(f"{1:>5} {1:>6} {ref:9.2f} {ref * steps / POINTS:9.0f} {1.0:6.2f}")
@@ -55,5 +62,5 @@ for ranks, groups in ((2, 1), (2, 2)):
     rate, text = sweep(ranks, groups)
     same = same and text == t_ref
     print(f"{ranks:>5} {groups:>6} {rate:9.2f} {rate * steps / POINTS:9.0f} {rate / ref:6.2f}")
-print(f"tables identical: {same}")
+print(f"tables identical: {same}; load average after: {loadavg()}")
 sys.exit(0 if same else 1)

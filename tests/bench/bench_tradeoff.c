@@ -21,8 +21,10 @@
  *             gear on a fixed axis, C the mate's carrier if any: order
  *             tracking, so speed fluctuations do not smear it), m
  *   balance   worst energy balance residual / energy scale
+ *   mean_te   (CSV) the mean of that deflection, m: the mean TE from the
+ *             initial position, backlash closing included
  * and the errors of speed, dte, force and mesh against the reference: the
- * last row of the scene, the converged setting of docs/CONVERGENCE.md
+ * last row of the scene, the converged setting of docs/validation/data.md
  * (reduced bodies at h 1e-5 s, damped, on the mesh o2s3 for the pair and
  * o2r2 for the planetary train: within 1-2 % of the mesh limits). Output: a Markdown table on stdout and a CSV file
  * (argv[1], default tradeoff.csv) that `gearctl bench tradeoff` plots.
@@ -37,7 +39,7 @@
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
  * elastic gear the reduced body (bodies[i].reduction, static residual) with
  * f_max = 0.3 / h (15, 30, 60 kHz at 2e-5, 1e-5, 5e-6 s: near 1 / (2 pi h),
- * docs/CONVERGENCE.md "The static residual rule"). Every elastic row runs
+ * docs/validation/data.md). Every elastic row runs
  * with the study's damping (ELASTIC_ZETA at ELASTIC_FHZ on the elastic
  * gears' material); the rigid-gear meshes keep their default damping. */
 #include <json-c/json.h>
@@ -58,7 +60,7 @@ typedef struct spec {
 } spec;
 
 /* The damping of every elastic row (the convergence study's): Rayleigh,
- * 2 % at 9.2 kHz on the elastic gears' material (docs/CONVERGENCE.md).
+ * 2 % at 9.2 kHz on the elastic gears' material (docs/validation/data.md).
  * Undamped, the tooth and body vibration a coarse step excites does not
  * settle and the DTE rms moves with h; the rigid-gear levels keep their
  * meshes' default damping (5 % of the mesh mode). */
@@ -79,7 +81,7 @@ static const char *scheme_of(const char *level)
 }
 
 typedef struct result {
-    double cost, speed, ratio, dte, force, balance, mesh;
+    double cost, speed, ratio, dte, force, balance, mesh, mean;
     int ok;
 } result;
 
@@ -119,7 +121,9 @@ static gs_system *build(const spec *s)
             }
             json_object_object_add(b, "mesh", m);
         }
-        if (contact) {
+        if (contact || !strcmp(lv, "ltca")) {
+            /* the elastic rows' material damping; an ltca mesh damps its
+             * mesh mode as that material does (docs/explanation/ltca.md) */
             json_object *mat;
             if (!json_object_object_get_ex(b, "material", &mat)) {
                 mat = json_object_new_object();
@@ -219,6 +223,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
     double mean = d1 / half;
     r.dte = sqrt(fmax(d2 / half - mean * mean, 0.0));
+    r.mean = mean;
     r.mesh = 2.0 / half * hypot(xc - mean * c1, xs - mean * s1);
     r.force = fmaxv;
     r.balance = worst / scale;
@@ -268,7 +273,7 @@ int main(int argc, char **argv)
         perror(csv);
         return 1;
     }
-    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh,scheme,scale,zeta\n");
+    fprintf(f, "scene,level,h,refine,cost,speed,ratio_err,dte,force,balance,mesh,err_speed,err_dte,err_force,err_mesh,scheme,scale,zeta,mean_te\n");
     const spec pair[] = {
         {"contact_drive", "kinematic", 1e-4, 0, 1},  {"contact_drive", "kinematic", 1e-5, 0, 1},
         {"contact_drive", "kinematic", 1e-6, 0, 1},  {"contact_drive", "impact", 1e-4, 0, 1},
@@ -277,7 +282,9 @@ int main(int argc, char **argv)
         {"contact_drive", "lumped", 1e-6, 0, 1},     {"contact_drive", "calibrated", 1e-4, 0, 1},
         {"contact_drive", "calibrated", 1e-5, 0, 1}, {"contact_drive", "calibrated", 1e-6, 0, 1},
         {"contact_drive", "compliant", 1e-4, 0, 1},  {"contact_drive", "compliant", 1e-5, 0, 1},
-        {"contact_drive", "compliant", 1e-6, 0, 1},  {"contact_drive", "adaptive", 2e-5, 0, 1},
+        {"contact_drive", "compliant", 1e-6, 0, 1},  {"contact_drive", "ltca", 1e-4, 0, 1},
+        {"contact_drive", "ltca", 1e-5, 0, 1},       {"contact_drive", "ltca", 1e-6, 0, 1},
+        {"contact_drive", "adaptive", 2e-5, 0, 1},
         {"contact_drive", "adaptive", 1e-5, 0, 1},   {"contact_drive", "contact_seed", 2e-5, 0, 1},
         {"contact_drive", "contact_seed", 1e-5, 0, 1}, {"contact_drive", "reduced", 2e-5, 0, 1},
         {"contact_drive", "reduced", 1e-5, 0, 1},    {"contact_drive", "reduced", 5e-6, 0, 1},
@@ -294,6 +301,8 @@ int main(int argc, char **argv)
         {"planetary_contact", "calibrated", 1e-4, 0, 1}, {"planetary_contact", "calibrated", 1e-5, 0, 1},
         {"planetary_contact", "calibrated", 1e-6, 0, 1}, {"planetary_contact", "compliant", 1e-4, 0, 1},
         {"planetary_contact", "compliant", 1e-5, 0, 1},  {"planetary_contact", "compliant", 1e-6, 0, 1},
+        {"planetary_contact", "ltca", 1e-4, 0, 1},       {"planetary_contact", "ltca", 1e-5, 0, 1},
+        {"planetary_contact", "ltca", 1e-6, 0, 1},
         {"planetary_contact", "adaptive", 2e-5, 0, 1},   {"planetary_contact", "adaptive", 1e-5, 0, 1},
         {"planetary_contact", "contact_seed", 2e-5, 0, 1}, {"planetary_contact", "contact_seed", 1e-5, 0, 1},
         {"planetary_contact", "reduced", 2e-5, 0, 1},    {"planetary_contact", "reduced", 1e-5, 0, 1},
@@ -328,9 +337,9 @@ int main(int argc, char **argv)
             last = i;
             ran++;
             fprintf(stderr, "# %s %s h %g refine %d scale %g: %s; cost %.4g speed %.6f ratio %.2e dte %.4e force %.1f "
-                    "balance %.1e mesh %.4e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
+                    "balance %.1e mesh %.4e mean %.5e\n", st->s[i].scene, st->s[i].level, st->s[i].h, st->s[i].refine,
                     st->s[i].scale, res[i].ok ? "done" : "failed", res[i].cost, res[i].speed, res[i].ratio,
-                    res[i].dte, res[i].force, res[i].balance, res[i].mesh);
+                    res[i].dte, res[i].force, res[i].balance, res[i].mesh, res[i].mean);
         }
         if (!ran)
             continue;
@@ -356,9 +365,10 @@ int main(int argc, char **argv)
             printf("| %s | %g | %d | %g | %.4g | %.5f | %.2e | %.3e | %.1f | %.1e | %.3e | %.2e | %.2e | %.2e | %.2e |\n",
                    s->level, s->h, s->refine, s->scale, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance,
                    r->mesh, es, ed, ef, em);
-            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%g,%g\n", s->scene,
+            fprintf(f, "%s,%s,%g,%d,%.6g,%.8g,%.6g,%.6g,%.6g,%.3g,%.6g,%.6g,%.6g,%.6g,%.6g,%s,%g,%g,%.7g\n", s->scene,
                     s->level, s->h, s->refine, r->cost, r->speed, r->ratio, r->dte, r->force, r->balance, r->mesh, es, ed,
-                    ef, em, scheme_of(s->level), s->scale, *scheme_of(s->level) ? ELASTIC_ZETA : 0.0);
+                    ef, em, scheme_of(s->level), s->scale,
+                    *scheme_of(s->level) || !strcmp(s->level, "ltca") ? ELASTIC_ZETA : 0.0, r->mean);
         }
     }
     fclose(f);

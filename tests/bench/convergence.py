@@ -1,14 +1,14 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Mesh convergence study of the quasi-static mesh stiffness and static TE
-(docs/CONVERGENCE.md): runs gearsim-stiffness on a scene for element orders
+(docs/validation/data.md): runs gearsim-stiffness on a scene for element orders
 1 and 2 at several uniform refinements, extrapolates each roll position to
 the Richardson limit from the two finest levels of each order, and writes a
-CSV of every run and the markdown tables of docs/CONVERGENCE.md.
+CSV of every run and the markdown tables of docs/validation/data.md.
 
     convergence.py SCENE.json --tool build/src/tools/gearsim-stiffness
                    [--positions 12] [--order1 0 1 2] [--order2 0 1]
-                   [--out-csv docs/convergence.csv] [--out-md FILE]
+                   [--out-csv docs/data/convergence.csv] [--out-md FILE]
                    [--reuse CSV] [--extra NAME=ARGS ...]
 
 Runs already in --reuse (same order, refine, positions, label) are not
@@ -65,7 +65,7 @@ def main():
     ap.add_argument("--positions", type=int, default=12)
     ap.add_argument("--order1", type=int, nargs="*", default=[0, 1, 2])
     ap.add_argument("--order2", type=int, nargs="*", default=[0, 1])
-    ap.add_argument("--out-csv", default="docs/convergence.csv")
+    ap.add_argument("--out-csv", default="docs/data/convergence.csv")
     ap.add_argument("--out-md")
     ap.add_argument("--reuse")
     a = ap.parse_args()

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Contact locking at tooth tip corners (issue 15; docs/CONTACT.md "Tip
+ * Contact locking at tooth tip corners (issue 15; docs/explanation/contact.md "Tip
  * corners"): runs a builtin scene with one `contact` mesh (default
  * contact_drive) and reports, over the window from --from on, the largest
  * mesh force against the mean, the largest strain energy against the static
@@ -16,10 +16,10 @@
  *                [--zeta 0 --fhz 9200]
  *
  * --static-se is the static strain energy at the running load (J; about
- * 1 mJ for contact_drive, docs/CONTACT.md). Not a test: 0.2 s at h = 1e-5 s
+ * 1 mJ for contact_drive, docs/explanation/contact.md). Not a test: 0.2 s at h = 1e-5 s
  * is 2e4 steps of the pair. --zeta Z --fhz F: material damping
  * (damping_ratio Z at damping_hz F) on every elastic gear; the CSV's
- * dissipated energy then holds its loss (docs/CONTACT.md "Vibration energy
+ * dissipated energy then holds its loss (docs/explanation/contact.md "Vibration energy
  * without damping"). */
 #include <json-c/json.h>
 #include <math.h>

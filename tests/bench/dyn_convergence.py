@@ -1,8 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Dynamic convergence study of the contact model in the time step h and
-the mesh (issue 15 item 3; docs/CONVERGENCE.md "Dynamic convergence
-(issue 15)").
+the mesh (issue 15 item 3; docs/validation/data.md).
 
 For one scene with `contact` meshes it runs `dyn_convergence_run` (one
 process per run, one at a time) on a grid: every step size at the finest

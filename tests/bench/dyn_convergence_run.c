@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * One run of the dynamic convergence study (docs/CONVERGENCE.md "Dynamic
- * convergence (issue 15)"; driven by tests/bench/dyn_convergence.py): a
+ * One run of the dynamic convergence study (docs/validation/data.md; driven by
+ * tests/bench/dyn_convergence.py): a
  * scene with `contact` meshes (a builtin name or a file) at one time step,
  * mesh level, contact treatment and material damping, run from rest to
  * --to; over the whole cycles of the first mesh from --from on it prints
@@ -206,7 +206,7 @@ int main(int argc, char **argv)
             json_object_object_add(m, "across", json_object_new_int(across));
             json_object_object_add(m, "rim", json_object_new_int(rim));
         }
-        if (fmax > 0) /* the reduced body (docs/FE.md "Reduced elastic body") */
+        if (fmax > 0) /* the reduced body (docs/explanation/elastic_body.md "Reduced elastic body") */
             json_object_object_add(tj_child(b, "reduction"), "f_max_hz", json_object_new_double(fmax));
         if (fmax > 0 && residual)
             json_object_object_add(tj_child(b, "reduction"), "residual", json_object_new_string(residual));

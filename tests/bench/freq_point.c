@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * One point of the frequency response (tests/bench/freq_response.py,
- * docs/MODAL.md "Frequency response") with what the sweep's row does not
+ * docs/explanation/modal.md "Frequency response") with what the sweep's row does not
  * show: how often the teeth lose contact. Builds the point exactly as
  * gearsim-sweep does (gs_sweep_point_scene: steady state at the driver
  * speed, brake at the power balance), steps it with the sweep's meter (so

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Frequency response of the contact_drive pair (docs/MODAL.md "Frequency
+"""Frequency response of the contact_drive pair (docs/explanation/modal.md "Frequency
 response of the elastic pair"): DTE rms and dynamic factor against the mesh
 frequency for the contact model and the lumped, calibrated and compliant
 meshes of the same pair, with the first torsional mesh mode of the FE model
@@ -13,18 +13,18 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
                                  [--contact closure_energy|closure|seed] [--coarse]
                                  [--settle S] [--min-measure S] [--min-cycles N]
                                  [--quick] [--no-run] [--plot docs/img/freq_response.png]
-                                 [--csv docs/freq_response.csv]
+                                 [--csv docs/data/freq_response.csv]
 
-The order-2 figures of docs/MODAL.md (default mesh): --order 2 --torque 80
+The order-2 figures of docs/explanation/modal.md (default mesh): --order 2 --torque 80
 --damping 0.12 --settle 0.002 --min-measure 0.0012 for the lumped models
 (grid 10 and dense 7, the defaults), then with --models contact --contact
 closure --grid 1 --grid-from 1.0 --dense 0
 --extra-rel 0.35,0.6,0.85,0.92,1.08,1.15,1.3,1.6,2.0 (with the default
-"closure_energy" the pair keeps rattling: docs/MODAL.md). --quick (the meson benchmark): order 1 (the linear
+"closure_energy" the pair keeps rattling: docs/explanation/modal.md). --quick (the meson benchmark): order 1 (the linear
 mesh), numerics.contact "closure", 80 N m, 12 %, 7 points from 0.7 to 1.3
 times the mode, FE mode from 4 positions, settle 2 ms (minutes of CPU).
 
-The order-1 figures of docs/MODAL.md (contact "closure"): the defaults (20 N m, 5 %) plus
+The order-1 figures of docs/explanation/modal.md (contact "closure"): the defaults (20 N m, 5 %) plus
 --extra 6000,6500,6800,7000,7150,7450,7600,7800,8250,8400,8550,9400,9700;
 --damping 0.12 --models calibrated,contact --grid 13 --grid-from 0.7
 --grid-to 1.3 --dense 0; and --torque 80 --damping 0.12 with that grid and
@@ -35,7 +35,7 @@ of two gears; a scene without loads (deploy/scenes/pair_relief.json) gets
 contact_drive's: the moment (ramp to 20 N m, --torque sets it) on the gear
 with more teeth, the brake on the other; the mesh's gears are put driver
 first (gearsim-modal --fe --torque loads the mesh's first gear). The relief
-pair at its design load (docs/MODAL.md "The relief pair at its design
+pair at its design load (docs/explanation/modal.md "The relief pair at its design
 load"): --scene deploy/scenes/pair_relief.json --thinning 0.05 --order 2
 --torque 70.5 --damping 0.05 --settle 0.002 --min-measure 0.0012 --contact
 closure --models contact --grid 1 --grid-from 1.0 --dense 0 --extra-rel ...
@@ -64,14 +64,14 @@ in fe_mode.json the report adds linear_parametric: the DTE rms of the
 single-degree-of-freedom mesh with those modes as a stiffness over the
 cycle and the same damping, a spring that also pulls (its peak is where
 the damped time-varying mesh resonates; the plot draws its curve).
-The order-2 figures with the tip-corner rule (docs/MODAL.md, work directory
+The order-2 figures with the tip-corner rule (docs/explanation/modal.md, work directory
 of their own): --order 2 --torque 80 --damping 0.12 --settle 0.002
 --min-measure 0.0012 --contact closure --models contact --grid 1 --grid-from
 1.0 --dense 0 --extra-rel 0.8,0.86,0.9,0.94,0.955,0.97,0.985,1.03,1.06,1.1,1.14,1.2;
 the same with --models modal on 0.86-1.06; the lumped models with the
 default grid and those points.
 
-The damping study (docs/MODAL.md "Damping and contact loss"): the same
+The damping study (docs/explanation/modal.md "Damping and contact loss"): the same
 with --damping 0.08 / 0.05 (and --torque 200), --grid 1 --grid-from 0.97
 --extra-rel 0.86,...,1.06, one --work directory each; then
 --compare "DIR:DAMPING:TORQUE:LABEL;..." --compare-plot
@@ -93,7 +93,7 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
-MODELS = ["contact", "lumped", "calibrated", "compliant", "modal"]
+MODELS = ["contact", "lumped", "calibrated", "compliant", "modal", "ltca"]
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel", "dte_h1_um"]
@@ -157,7 +157,9 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         elif model == "calibrated":
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated"}
-        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/STIFFNESS.md)
+        elif model == "ltca":  # the loaded tooth contact analysis' tables (docs/explanation/ltca.md)
+            m["model"] = "ltca"
+        elif model == "modal":  # k_t scaled per position to the FE eigenproblem's mode (docs/explanation/stiffness.md)
             m["model"] = "lumped"
             m["stiffness"] = {"type": "calibrated", "calibration": "modal"}
         else:
@@ -358,7 +360,8 @@ def fit_report(cache, f0):
     harmonic (dte_h1_um, when freq_point measured it)."""
     for m in MODELS:
         for col in ("dte_rms_um", "dte_h1_um"):
-            pts = sorted((r for r in cache if r["model"] == m and r.get(col) == r.get(col)), key=lambda r: r["mesh_hz"])
+            pts = sorted((r for r in cache if r["model"] == m and r.get(col) is not None and r[col] == r[col]),
+                         key=lambda r: r["mesh_hz"])
             if len(pts) < 4:
                 continue
             x = [r["mesh_hz"] for r in pts]
@@ -566,7 +569,8 @@ def main():
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
         fig, ax = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v"}
+        style = {"contact": "k-o", "lumped": "b-s", "calibrated": "g-^", "compliant": "r-d", "modal": "c-v",
+                 "ltca": "m-P"}
         for m in MODELS:
             pts = sorted((r for r in cache if r["model"] == m), key=lambda r: r["mesh_hz"])
             if not pts:

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * Dynamic TE at low speed against the quasi-static TE (docs/CONVERGENCE.md
- * "Dynamic TE at low speed"): runs a scene with one `contact` mesh from its
+ * Dynamic TE at low speed against the quasi-static TE (docs/validation/lowspeed.md):
+ * runs a scene with one `contact` mesh from its
  * start and records the kinematic TE a . q - s_ref of its first mesh every
  * step; over the whole mesh cycles (counted on the mesh phase c . q) that
  * lie in [--from, --to] seconds it prints the
@@ -9,7 +9,7 @@
  * The CSV also has per step the TE's rate a . w (m/s), the mesh force (N),
  * the loaded and all contact rows and the deepest penetration (m); the JSON
  * the share of the window's steps with no loaded row ("apart": the teeth
- * separated; docs/STIFFNESS.md "A non-rattling FE reference run").
+ * separated; docs/explanation/stiffness.md "A non-rattling FE reference run").
  * The dynamic TE includes the no-load closing of the flanks (backlash and
  * chord sag, `te0` of gearsim-stiffness): subtract its mean to compare the
  * mean with the static TE.

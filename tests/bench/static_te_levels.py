@@ -1,8 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Quasi-static TE of meshes of a scene at the mesh levels of the dynamic
-convergence study (docs/CONVERGENCE.md "planetary_contact: what moves the
-DTE rms"): for every level (o<order>r<refine> or o<order>s<scale>, as
+convergence study (docs/validation/data.md): for every level (o<order>r<refine> or o<order>s<scale>, as
 tests/bench/dyn_convergence_run names them) and mesh it writes a scene with
 that mesh density on every elastic gear (o<order>f<n>: the order's default
 mesh with the three teeth in contact refined n times, mesh.fine_teeth 3 and
@@ -18,7 +17,7 @@ with one tooth pair in contact and with two or more.
 
   static_te_levels.py --scene deploy/scenes/planetary_contact.json \
       --mesh sun-planet1:6.6667 --mesh planet1-ring:-6.6667 \
-      --levels o2r0 o2s1.5 o2r1 --positions 192 --out docs/x.csv
+      --levels o2r0 o2s1.5 o2r1 --positions 192 --out docs/data/x.csv
 
 --mesh NAME:TORQUE (N m on the mesh's driver, signed). Runs one analysis
 at a time (nice); the tool is taken from --tool (default build's)."""

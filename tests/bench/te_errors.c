@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Tooth errors in the dynamic models (docs/GEOMETRY.md "Tooth errors:
+ * Tooth errors in the dynamic models (docs/explanation/geometry.md "Tooth errors:
  * dynamic comparison"): the 20/30 pair at low speed in the `contact`,
  * rectangular `lumped` and calibrated `lumped` meshes, each run without
  * errors, with pitch errors on some pinion teeth and with run-out of the
@@ -21,9 +21,9 @@
  * --csv PREFIX writes PREFIX_<model>_<case>.csv (time s, pinion angle rad,
  * TE um) for every run. --teeth lists the faulty pinion teeth (default
  * 0,4,8,12,16: windows of 3 mesh cycles that do not overlap). --contact
- * sets numerics.contact of the contact model (docs/CONTACT.md "Contact
+ * sets numerics.contact of the contact model (docs/explanation/contact.md "Contact
  * treatments"); --damping-ratio zeta at --damping-hz f gives both elastic
- * gears material damping (docs/FE.md "Material damping"; not with
+ * gears material damping (docs/explanation/elastic_body.md "Material damping"; not with
  * --damping-s). */
 #include <stdio.h>
 #include <stdlib.h>
@@ -131,7 +131,7 @@ int main(int argc, char **argv)
                r->record_shift * 1e6, -cos(20 * GS_PI / 180) * o.pitch_um * o.nf / TE_Z,
                r->runout_1x * 1e6);
         /* run-out sidebands against the phase modulation's A_z pi e / p_b
-         * (docs/GEOMETRY.md "Run-out: the TE spectrum") */
+         * (docs/explanation/geometry.md "Run-out: the TE spectrum") */
         double pred = r->order[0][2] * GS_PI * o.runout_um / (GS_PI * 2.5e3 * cos(20 * GS_PI / 180));
         printf("%-10s run-out sidebands: orders 19 %.4f, 21 %.4f um (perfect gears %.4f, %.4f) against "
                "A_20 pi e / p_b = %.4f um\n", te_model_names[mi], r->order[2][1] * 1e6, r->order[2][3] * 1e6,

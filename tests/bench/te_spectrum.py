@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Order spectrum of the dynamic TE with run-out (docs/GEOMETRY.md "Run-out:
+"""Order spectrum of the dynamic TE with run-out (docs/explanation/geometry.md "Run-out:
 the TE spectrum"), from the CSV series that te_errors writes:
 
     build/tests/bench/te_errors --omega 40 --csv /tmp/te

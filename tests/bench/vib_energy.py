@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Vibration energy of a contact_drive run over time (issue 15, "Without
-damping, vibration energy no longer grows"; docs/CONTACT.md "Is the
+damping, vibration energy no longer grows"; docs/explanation/contact.md "Is the
 undamped growth physical?"), from the per-step CSV of tests/bench/corner_stats
 (--csv).
 

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Contact-locking statistics of a two-gear contact mesh (issue 15, "No
- * contact locking"; docs/CONTACT.md "Tip corners"), shared by
+ * contact locking"; docs/explanation/contact.md "Tip corners"), shared by
  * tests/bench/corner_stats.c and tests/validation/test_contact_corner.c.
  *
  * After every step, each contact row of the mesh (cs_init's `mesh`) that

@@ -1,8 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Figures of a dynamic run over a steady window, shared by
  * tests/bench/lowspeed_te.c and tests/bench/dyn_convergence_run.c
- * (docs/CONVERGENCE.md "Dynamic TE at low speed", "Dynamic convergence
- * (issue 15)").
+ * (docs/validation/lowspeed.md).
  *
  * Every step: dw_energy() keeps the worst energy balance residual and the
  * energy scale over the whole run; inside the window dw_sample() records,

@@ -3,7 +3,7 @@
  * the dynamic transmission error of the 20/30 pair (module 2.5, face 10 mm,
  * thinning 0.05 mm) with tooth errors on the pinion, in the `contact`
  * (elastic gears), rectangular `lumped` and calibrated `lumped` (rigid gears)
- * mesh models, run the same way (docs/GEOMETRY.md "Tooth errors: dynamic
+ * mesh models, run the same way (docs/explanation/geometry.md "Tooth errors: dynamic
  * comparison"): the pinion driven by a moment ramped up over `ramp` seconds
  * from rest, the wheel braked so that the pinion turns at omega at the full
  * moment; the kinematic TE a . q - s_ref (the tooth errors' own displacement

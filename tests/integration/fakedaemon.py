@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""A tiny stand-in for gearsimd that speaks docs/PROTOCOL.md, for testing the
+"""A tiny stand-in for gearsimd that speaks docs/reference/protocol.md, for testing the
 clients and the test helpers themselves (GEARSIM_FAKE_DAEMON=1 makes
 daemon.py start this instead of mpirun gearsimd). Its physics is a toy: free
 rigid bodies driven by their loads, meshes ignored. Never used to judge the

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """`gearctl advise`: the cheapest fidelity of the measured trade-off table
-(docs/tradeoff.csv; here a frozen copy of one) that meets relative-error targets. No daemon: gearctl
+(docs/data/tradeoff.csv; here a frozen copy of one) that meets relative-error targets. No daemon: gearctl
 reads the table and the scene. Checks two targets with different answers
 (mean speed within 1% on the pair -> kinematic; DTE within 20% on the
 planetary train -> contact), the reasons given (measured errors, cheaper
@@ -22,7 +22,7 @@ from harness import Results  # noqa: E402
 SOURCE_ROOT = os.environ.get("GEARSIM_SOURCE_ROOT") or os.path.abspath(
     os.path.join(os.path.dirname(__file__), "..", ".."))
 GEARCTL = os.path.join(SOURCE_ROOT, "clients", "python", "gearctl")
-# A frozen copy of a measured table (docs/tradeoff.csv of 2026-11-22, before
+# A frozen copy of a measured table (docs/data/tradeoff.csv of 2026-11-22, before
 # the compliant and adaptive rows): the answers asserted here must not move
 # when the benchmark is run again on a noisy machine.
 TABLE = os.path.join(SOURCE_ROOT, "tests", "integration", "tradeoff_fixture.csv")
@@ -139,8 +139,8 @@ def main():
         R.check(f"bad target {bad!r}: exit 2", r.returncode == 2 and "error" in r.stderr, r.stderr)
     r = subprocess.run(["/usr/bin/python3", GEARCTL, "advise", "contact_drive", "--target", "speed=1e-2"],
                        capture_output=True, text=True, timeout=60)
-    R.check("without --table: the measured table docs/tradeoff.csv", r.returncode == 0 and
-            os.path.join("docs", "tradeoff.csv") in r.stdout, r.stdout + r.stderr)
+    R.check("without --table: the measured table docs/data/tradeoff.csv", r.returncode == 0 and
+            os.path.join("docs", "data", "tradeoff.csv") in r.stdout, r.stdout + r.stderr)
     r = advise("contact_drive")
     R.check("no target: exit 2", r.returncode == 2 and "--target" in r.stderr, r.stderr)
     r = advise("contact_drive", "--target", "speed=1e-3", "--target", "dte=0.2")
@@ -157,14 +157,14 @@ def main():
 
 
 def measured_table():
-    """The measured table itself (docs/tradeoff.csv, regenerated against the
-    converged references of docs/CONVERGENCE.md): per scene one reference
+    """The measured table itself (docs/data/tradeoff.csv, regenerated against the
+    converged references of docs/validation/calculix.md): per scene one reference
     row, a damped closure_energy elastic row on a mesh finer than the
     default (the converged setting: reduced bodies, refine or counts scale
     above the default); every other row's errors are its figures against
     that row's; and advise, reading it by default, names that reference
     (its mesh too) and proposes the cheapest row meeting a DTE target."""
-    path = os.path.join(SOURCE_ROOT, "docs", "tradeoff.csv")
+    path = os.path.join(SOURCE_ROOT, "docs", "data", "tradeoff.csv")
     rows = list(csv.DictReader(open(path)))
     cols = {"speed": "speed", "dte": "dte", "force": "force", "mesh": "mesh"}
     for scene, alias in (("contact_drive", "contact_drive"), ("planetary_contact", "planetary")):

@@ -20,7 +20,7 @@ R = Results("test_bad_input: bad requests get error replies and change nothing")
 P = Proto()
 STEPS = 1000
 
-# Codes where docs/PROTOCOL.md leaves a choice (e.g. how a refused path is
+# Codes where docs/reference/protocol.md leaves a choice (e.g. how a refused path is
 # reported) accept a small set; everything else must be the one code.
 PATH_CODES = {"invalid_field", "out_of_range", "invalid_argument"}
 NOT_JSON = {"bad_json"}

@@ -146,7 +146,13 @@ def harris(d):
     with open(csv) as f:
         lines = f.read().strip().splitlines()
     R.check("... the CSV has a header and 4 rows", len(lines) == 5 and lines[0].startswith("relief_um,"), lines)
-    pp = {(r_["relief_um"], r_["line_load_n_per_mm"]): r_["te_pp_um"] for r_ in rows}
+    head = lines[0].split(",")
+    R.check("... the CSV names the loaded static TE te_loaded_*, the former te_pp_um .. te_max_um kept "
+            "as equal alias columns", head[3:7] == ["te_loaded_pp_um", "te_loaded_mean_um", "te_loaded_min_um",
+                                                    "te_loaded_max_um"]
+            and all(ln.split(",")[3:7] == ln.split(",")[-4:] for ln in lines[1:])
+            and head[-4:] == ["te_pp_um", "te_mean_um", "te_min_um", "te_max_um"], lines)
+    pp = {(r_["relief_um"], r_["line_load_n_per_mm"]): r_["te_loaded_pp_um"] for r_ in rows}
     R.check("... the relief changes the peak-to-peak TE", pp[(0.0, 200.0)] != pp[(9.6, 200.0)], pp)
     r = subprocess.run([GEARCTL, "stiffness", scene, "--relief", "5"], capture_output=True, text=True,
                        timeout=600, env=env)

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""Modal analysis (docs/MODAL.md) against Lin and Parker (1999), "Analytical
+"""Modal analysis (docs/explanation/modal.md) against Lin and Parker (1999), "Analytical
 characterization of the unique properties of planetary gear free
 vibration", J. Vib. Acoust. 121: 316-321.
 

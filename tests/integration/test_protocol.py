@@ -248,7 +248,7 @@ def online():
             probe.wait_event(lambda e: e.get("type") == "warning", 5.0, start=n0)
             R.check("a warning event follows the projection of initial speeds", True)
         except TimeoutError:
-            R.check("a warning event follows the projection of initial speeds (docs/SCENE.md)", False,
+            R.check("a warning event follows the projection of initial speeds (docs/reference/scene.md)", False,
                     "no warning event within 5 s")
         call(probe, "unload", what="unload kinematic pair")
 
@@ -282,7 +282,7 @@ def online():
 
         # a long advance: pause, resume, cancel, and set_load/status/state during it
         # 1e9 steps: a rigid train at -n 2 now runs at hundreds of thousands
-        # of steps per second (docs/MODAL.md), so the advance must not end
+        # of steps per second (docs/explanation/modal.md), so the advance must not end
         # during these calls.
         t_adv0 = time.monotonic()
         r, rid = call(probe, "advance", {"steps": 1000000000}, what="advance 1e9 steps")

@@ -3,6 +3,7 @@
 """The same scene gives identical telemetry at any rank count, bit for bit
 (the JSON numbers parsed as floats compare equal), and identical final
 states: the rigid pair and planetary (lumped meshes) at mpirun -n 1 and -n 2,
+the pair and planetary train at the ltca rung at -n 1, 2 and 3,
 the elastic pair and the free elastic gear (FE bodies owned by different
 ranks, energies reported by their owners) at -n 1, 2 and 3; elastic gears
 in contact (contact_impact) at -n 1 and 2, with the fixed step and with the
@@ -21,7 +22,7 @@ from harness import Results, json_diff, snap  # noqa: E402
 R = Results("test_ranks: identical telemetry at 1 and 2 ranks")
 STEPS = {"pair": 4000, "planetary": 3000, "elastic_pair": 1500, "elastic_spin": 1500, "contact_impact": 300,
          "contact_impact+adaptive": 200, "contact_impact+linear": 1000, "contact_impact+closure": 300,
-         "contact_impact+closure_energy": 300}
+         "contact_impact+closure_energy": 300, "contact_drive+ltca": 600, "planetary_contact+ltca": 600}
 
 
 def load_variant(name):
@@ -34,6 +35,9 @@ def load_variant(name):
         for b in scene["bodies"]:
             if b.get("model") == "elastic":
                 b["mesh"] = dict(b.get("mesh", {}), order=1)
+    if variant == "ltca":  # the ltca rung (its tables shipped in deploy/ltca)
+        scene["fidelity"] = "ltca"
+        scene["numerics"] = dict(scene.get("numerics", {}), time_step=1e-4)
     if variant in ("closure", "closure_energy"):
         scene["numerics"] = dict(scene.get("numerics", {}), contact=variant)
     if variant == "adaptive":
@@ -89,6 +93,9 @@ def compare(name, other=2):
 
 for scene_name in ("pair", "planetary"):
     R.guard(f"{scene_name} at 1 and 2 ranks", compare, scene_name)
+for scene_name, n in (("contact_drive+ltca", 2), ("contact_drive+ltca", 3), ("planetary_contact+ltca", 2),
+                      ("planetary_contact+ltca", 3)):
+    R.guard(f"{scene_name} at 1 and {n} ranks", compare, scene_name, n)
 for scene_name, n in (("elastic_pair", 2), ("elastic_pair", 3), ("elastic_spin", 2), ("contact_impact", 2),
                       ("contact_impact+adaptive", 2), ("contact_impact+linear", 2),
                       ("contact_impact+closure", 2), ("contact_impact+closure_energy", 2)):

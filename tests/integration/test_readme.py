@@ -17,6 +17,9 @@ Other fences (```text, ```json ...) are not run.
 
 Modes: no argument -- the engine's self-check on a small document with
 known good and bad snippets, then the real documents (this must pass);
+`--docs A.md B.md ...` -- those documents instead (the manual's tutorials,
+one shell session for all, in order); with GEARSIM_DOC_PLOTS=DIR the PNG
+files they leave in tutorial/ are copied to DIR;
 `--broken` -- the real documents in a copy with one command and one sample
 output deliberately broken: the test passes only if exactly those two
 snippets are reported failing (the test can fail)."""
@@ -375,7 +378,38 @@ def break_copy(tree):
     return want
 
 
+def toctree_docs(d):
+    """The pages of directory d (relative to the source) in the order of the
+    toctree of its index.md."""
+    with open(os.path.join(SOURCE_ROOT, d, "index.md")) as f:
+        m = re.search(r"```\{toctree\}\n(.*?)```", f.read(), re.S)
+    names = [ln.strip() for ln in (m.group(1) if m else "").splitlines()
+             if ln.strip() and not ln.strip().startswith(":")]
+    return [os.path.join(d, n + ".md") for n in names]
+
+
+def run_tutorials(docs):
+    docs = [p for d in docs for p in (toctree_docs(d) if os.path.isdir(os.path.join(SOURCE_ROOT, d)) else [d])]
+    R = Results("tutorials run as typed: " + " ".join(docs))
+    R.check("documents to run", len(docs) > 0, docs)
+    with scratch_dir("gearsim-tutorials-") as tmp:
+        tree = copy_tree(tmp)
+        missing = [d for d in docs if not os.path.isfile(os.path.join(tree, d))]
+        R.check("the documents exist", not missing, missing)
+        run_docs(R, tree, tmp, [d for d in docs if d not in missing])
+        out = os.environ.get("GEARSIM_DOC_PLOTS")
+        if out:
+            os.makedirs(out, exist_ok=True)
+            plots = os.path.join(tree, "tutorial")
+            for n in sorted(os.listdir(plots)) if os.path.isdir(plots) else []:
+                if n.endswith(".png"):
+                    shutil.copy(os.path.join(plots, n), os.path.join(out, n))
+    R.finish()
+
+
 def main():
+    if "--docs" in sys.argv[1:]:
+        return run_tutorials(sys.argv[sys.argv.index("--docs") + 1:])
     broken = "--broken" in sys.argv[1:]
     R = Results("README snippets run as typed" + (" (deliberately broken copy)" if broken else ""))
     with scratch_dir("gearsim-readme-") as tmp:

@@ -346,7 +346,7 @@ def resume_reduced():
     """contact_drive with both gears reduced (bodies[i].reduction, the static
     residual at 30 kHz, 2 % damping) on two ranks: modal and residual state,
     the residual's support order and the energy books come back bit for bit
-    in the new processes (docs/FE.md "Reduced elastic body", "Checkpoints")."""
+    in the new processes (docs/explanation/elastic_body.md "Reduced elastic body", "Checkpoints")."""
     scene = dmod.load_scene("contact_drive")
     for b in scene["bodies"]:
         b["material"] = dict(b.get("material", {}), damping_ratio=0.02, damping_hz=9200)

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The `sweep` job's files under the data directory's file rules
-(docs/RELIABILITY.md, "File rules"; docs/MODAL.md, "Sweeps"): a symlink
+(docs/RELIABILITY.md, "File rules"; docs/explanation/modal.md, "Sweeps"): a symlink
 planted at any of the sweep's output names (BASE.csv, BASE.h5,
 BASE.sweep.json) or in a directory of its path, a FIFO at one of them, and
 the record being written as one of them are refused naming args.path

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
-"""The `sweep` job (docs/MODAL.md, "Sweeps"; docs/PROTOCOL.md) on a daemon
+"""The `sweep` job (docs/explanation/modal.md, "Sweeps"; docs/reference/protocol.md) on a daemon
 of 2 ranks: a short speed sweep of the lumped planetary (planetary_sweep)
 at 1 group of 2 ranks and at 2 groups of 1 rank gives byte-identical CSV
 tables and equal HDF5 tables, one progress event per point (schemas

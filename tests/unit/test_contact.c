@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Contact geometry (src/contact): Rvachev sign functions and the contact
- * search of a gear mesh (docs/CONTACT.md).
+ * search of a gear mesh (docs/explanation/contact.md).
  *
  * Gradient checks use central differences with step 1e-6 x the length scale
  * of the configuration: the truncation error is ~(1e-6)^2 relative (g is

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Unit tests of the reduced elastic body (src/fe/fe_reduced.c, docs/FE.md
+ * Unit tests of the reduced elastic body (src/fe/fe_reduced.c, docs/explanation/elastic_body.md
  * "Reduced elastic body") on small annulus meshes:
  *
  *   all_modes_*      every mode kept (dense eigensolver): the reduced body

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Involute gear geometry (METHOD.md section 5, docs/GEOMETRY.md): radii,
+ * Involute gear geometry (METHOD.md section 5, docs/explanation/geometry.md): radii,
  * tooth thickness, the involute and the fillet, outline moments, checks with
  * errors naming the field, contact ratios against textbook formulas
  * computed here independently, planetary assembly. */
@@ -454,7 +454,7 @@ static void contact_ratio_planetary(void **state)
     (void)state;
     /* sun 24, planets 24, ring 72 (addendum 0.8, the usual shortened ring
      * tooth: at 1.0 its tips would clip the planets' fillets, see
-     * docs/GEOMETRY.md), module 2.5 mm, 3 planets */
+     * docs/explanation/geometry.md), module 2.5 mm, 3 planets */
     const double m = 0.0025, al = 20 * DEG;
     gs_gear_params sun = gear(GS_GEAR_EXTERNAL, 24, m, 0), pl = gear(GS_GEAR_EXTERNAL, 24, m, 0);
     gs_gear_params ring = gear(GS_GEAR_INTERNAL, 72, m, 0);

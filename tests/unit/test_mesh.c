@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Gear meshes (docs/GEOMETRY.md): conforming linear triangles, nodes exactly
+ * Gear meshes (docs/explanation/geometry.md): conforming linear triangles, nodes exactly
  * on the involute and on the fillet, flank tables in order, area converging
  * at second order under refinement, quality, HDF5 + XDMF round trip. */
 #include <setjmp.h>

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Local refinement of gear meshes (gs_gear_mesh_opts.fine_teeth,
- * fine_refine; docs/GEOMETRY.md "Local refinement"): conforming meshes,
+ * fine_refine; docs/explanation/geometry.md "Local refinement"): conforming meshes,
  * boundary nodes on the exact involute, the fine teeth where asked and at
  * the density of the uniform mesh of their level, element quality, the
  * area against the exact outline, the `fine` setting's size, and the bad
@@ -95,7 +95,7 @@ static void local_conforming(void **state)
             /* measured 13.9-17.0 deg, aspect 2.95-3.88 (the uniform default:
              * 17-21 deg, below 3); three levels finer (the fine setting) goes
              * down to ~9 deg, aspect ~9, in the 2:1 fans under the band
-             * circle (docs/GEOMETRY.md "Local refinement") */
+             * circle (docs/explanation/geometry.md "Local refinement") */
             assert_true(q.min_angle_deg > 12.0);
             assert_true(q.max_aspect < 5.0);
             /* flank nodes on the involute */
@@ -180,7 +180,7 @@ static void local_area(void **state)
 }
 
 /* The `fine` setting (gs_gear_mesh_opts_fine) on the 20/30 pair: its size
- * (the 144 832 unknowns of docs/CONVERGENCE.md), about the uniform refine 1
+ * (the 144 832 unknowns of docs/validation/calculix.md), about the uniform refine 1
  * of the same counts, while its fine teeth have the flanks of refine 3 (2.4
  * million unknowns uniformly). */
 static void fine_setting_size(void **state)

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * The near-field (Hertz) formulas of the quasi-static stiffness analysis
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md "Near-field correction")
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md "Near-field correction")
  * against closed forms and an independent quadrature. */
 #include <math.h>
 #include <setjmp.h>

@@ -1,8 +1,8 @@
 /* SPDX-License-Identifier: MIT
  * The owner map of bodies over ranks (src/step/system.c assign_owners):
  * rank 0 alone selects the contact rows and solves the QP, so it must hold
- * the lightest share of the elastic gears (docs/PERFORMANCE.md "Sixth
- * pass"); the map is the same on every rank and on every build of the same
+ * the lightest share of the elastic gears (docs/performance/index.md); the map is the
+ * same on every rank and on every build of the same
  * scene (the engine, checkpoints and the daemon's ranks rely on it); no
  * rank is left without a gear while another holds two.
  *

@@ -37,7 +37,7 @@ class Layout(unittest.TestCase):
             touch(os.path.join(t, "deploy", "scenes", "pair.json"))
             d = paths.layout(pkg)
             self.assertEqual(d["scenes"], os.path.join(t, "deploy", "scenes"))
-            self.assertEqual(d["table"], os.path.join(t, "docs", "tradeoff.csv"))
+            self.assertEqual(d["table"], os.path.join(t, "docs", "data", "tradeoff.csv"))
             self.assertEqual(d["tools"], os.path.join(t, "build", "src", "tools"))
             self.assertEqual(paths.scene_file("builtin:pair", d), os.path.join(t, "deploy", "scenes", "pair.json"))
             self.assertEqual(paths.scene_file("x.json", d), "x.json")

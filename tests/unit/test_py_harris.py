@@ -101,7 +101,7 @@ class Harris(unittest.TestCase):
             self.assertAlmostEqual(t, -w * b * rb_m, places=12)   # the probe's sign (negative)
         self.assertTrue(all("--no-tangent" in c and "--refine" in c for _, _, c in calls))
         self.assertEqual([r["label"] for r in out["rows"]], ["0 um", "0 um", "9 um", "9 um"])
-        self.assertAlmostEqual(out["rows"][3]["te_pp_um"], 300.0 * b * rb_m / 100.0 / 10.0, places=12)
+        self.assertAlmostEqual(out["rows"][3]["te_loaded_pp_um"], 300.0 * b * rb_m / 100.0 / 10.0, places=12)
         self.assertEqual(out["relief_length_mm"], 2.5)
         self.assertEqual(calls[3][0]["bodies"][1]["modification"]["tip_relief"]["length_mm"], 2.5)
         csv = H.harris_csv(out["rows"]).splitlines()

@@ -45,7 +45,7 @@ class Plots(unittest.TestCase):
         self.assertTrue(is_png(self.out("k.png")))
 
     def test_harris(self):
-        rows = [{"label": lab, "line_load_n_per_mm": w, "te_pp_um": w / (1 + c)} for c, lab in ((0, "0 um"), (9, "9 um"))
+        rows = [{"label": lab, "line_load_n_per_mm": w, "te_loaded_pp_um": w / (1 + c)} for c, lab in ((0, "0 um"), (9, "9 um"))
                 for w in (100.0, 200.0)]
         out = {"rows": rows, "mesh": "m", "teeth": [20, 40], "relief_shape": "linear", "relief_length_mm": 4.0,
                "positions": 6, "refine": [0, 0]}

@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 #include <cmocka.h>
+#include <math.h>
 #include <mpi.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -162,6 +163,46 @@ static void byte_bounds_with_fetch_chunks(void **state)
     unlink(path);
 }
 
+/* No reply carries a non-JSON number: a state holding NaN and Infinity
+ * (as a run that diverged would) is answered with nulls, and
+ * gsi_state_finite names the first bad value and the step. */
+static void no_nonfinite_in_replies(void **state)
+{
+    (void)state;
+    gs_service *s = new_service();
+    char *r = ask(s, "a", "{\"v\":1,\"id\":\"l\",\"cmd\":\"load\",\"args\":{\"builtin\":\"pair\"}}");
+    assert_non_null(strstr(r, "\"ok\":true"));
+    free(r);
+    gs_system *sys = gs_engine_system(eng);
+    char msg[320];
+    assert_true(gsi_state_finite(s, true, msg, sizeof msg));
+    sys->step = 12;
+    sys->w[0] = NAN;
+    sys->q[1] = INFINITY;
+    sys->work_in = -INFINITY;
+    assert_false(gsi_state_finite(s, false, msg, sizeof msg));
+    assert_non_null(strstr(msg, "a speed (#0)"));
+    assert_non_null(strstr(msg, "step 12"));
+    r = ask(s, "a", "{\"v\":1,\"id\":\"s\",\"cmd\":\"state\"}");
+    assert_non_null(strstr(r, "\"ok\":true"));
+    assert_null(strstr(r, "NaN"));
+    assert_null(strstr(r, "nan"));
+    assert_null(strstr(r, "Infinity"));
+    assert_null(strstr(r, "inf"));
+    assert_non_null(strstr(r, "null"));
+    free(r);
+    json_object *o = json_tokener_parse("{\"a\":[1.5,{\"b\":2.5}],\"c\":3.5}");
+    json_object_array_put_idx(json_object_object_get(o, "a"), 0, json_object_new_double(NAN));
+    json_object_object_add(json_object_array_get_idx(json_object_object_get(o, "a"), 1), "b",
+                           json_object_new_double(-INFINITY));
+    assert_int_equal(gsi_json_scrub(o), 2);
+    assert_string_equal(json_object_to_json_string_ext(o, JSON_C_TO_STRING_PLAIN), "{\"a\":[null,{\"b\":null}],\"c\":3.5}");
+    json_object_put(o);
+    gs_diag d;
+    gs_engine_run(eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+    free_service(s);
+}
+
 int main(int argc, char **argv)
 {
     int provided;
@@ -177,6 +218,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(entries_expire),
         cmocka_unit_test(per_client_bound),
         cmocka_unit_test(byte_bounds_with_fetch_chunks),
+        cmocka_unit_test(no_nonfinite_in_replies),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     rmdir(data_dir);

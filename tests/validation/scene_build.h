@@ -34,7 +34,7 @@ static inline json_object *vt_body_mesh(json_object *b)
  * (mesh.order 1 and the linear default counts; a train's gears through
  * train.mesh). For the long dynamic runs whose figures were measured on the
  * linear mesh and which need some elastic gear, not the default quadratic
- * one (about 12 times the cost per contact step, docs/PERFORMANCE.md); the
+ * one (about 12 times the cost per contact step, docs/performance/index.md); the
  * default mesh's dynamics are checked in test_elastic_train (free spin),
  * test_fe_dynamic, test_calibrated, test_ranks and test_resume.
  * vt_scene_linear: the builtin scene `name` so pinned. */

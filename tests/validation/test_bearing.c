@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Compliant supports in the time integration (docs/MODAL.md):
+ * Compliant supports in the time integration (docs/explanation/modal.md):
  *  - floating sun (soft bearing) and a ring on a bearing, held torsionally,
  *    in the lumped planetary under load: the balance residual stays at
  *    round-off (1e-9 of the energy scale) and the sun's centre really moves;
@@ -617,7 +617,7 @@ static void all_on_bearings(json_object *root, double kb)
 }
 
 /* The calibrated lumped mesh (its stiffness over the mesh cycle from the
- * FE analysis of the pair, docs/STIFFNESS.md) with both gears on radial
+ * FE analysis of the pair, docs/explanation/stiffness.md) with both gears on radial
  * bearings (k_b N/m, damped): the rigid contact_drive pair. */
 static json_object *calibrated_on_bearings(double kb)
 {
@@ -636,7 +636,7 @@ static json_object *calibrated_on_bearings(double kb)
 }
 
 /* The `pair` scene with a compliant mesh (the contact patch model in series
- * with the teeth, docs/IMPACT.md) and both gears on bearings. */
+ * with the teeth, docs/explanation/impact.md) and both gears on bearings. */
 static json_object *compliant_on_bearings(double kb)
 {
     json_object *root = vt_scene("pair");

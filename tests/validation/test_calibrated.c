@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * The lumped mesh model calibrated from the FE model (`stiffness:
  * {type: "calibrated"}`): its stiffness over the mesh cycle comes from the
- * quasi-static FE contact analysis of the same pair (docs/STIFFNESS.md):
+ * quasi-static FE contact analysis of the same pair (docs/explanation/stiffness.md):
  * by default the tangent stiffness dF/dTE at the load with the offset that
  * puts the spring's equilibrium under the load at the FE static TE
  * (`calibration: "tangent"`), the secant F / TE on request ("secant").
@@ -30,7 +30,7 @@
  *    stiffness) by less than 15%; the spectral peaks printed;
  *  - the secant calibration, run alongside, is printed for comparison;
  * and the wall-time ratio of the two runs is printed, not asserted: speed is
- * the benchmarks' business (bench_tradeoff, docs/PERFORMANCE.md).
+ * the benchmarks' business (bench_tradeoff, docs/performance/index.md).
  * On the default quadratic mesh; linear triangles (mesh.order 1) under
  * GEARSIM_LONG=1. */
 #include <setjmp.h>
@@ -336,7 +336,7 @@ static int whole_cycles(const run_out *r, int tail)
 static int g_order = 2;
 
 /* The FE reference run's material damping: ratio FE_ZETA at the FE pair's
- * cycle-mean mesh mode (gearsim-modal --fe, docs/MODAL.md: 9075.2 Hz on the
+ * cycle-mean mesh mode (gearsim-modal --fe, docs/explanation/modal.md: 9075.2 Hz on the
  * default mesh, 9236.3 Hz on linear triangles, 20 N m). */
 #define FE_ZETA 0.05
 #define FE_MODE_HZ_O2 9075.2
@@ -357,7 +357,7 @@ static int g_order = 2;
 static json_object *drive_scene(void)
 {
     json_object *root = g_order == 1 ? vt_scene_linear("contact_drive") : vt_scene("contact_drive");
-    /* The FE run with the energy-exact closure (docs/CONTACT.md): the seed's
+    /* The FE run with the energy-exact closure (docs/explanation/contact.md): the seed's
      * scheme drops the gap, and its micrometre penetrations and tooth
      * impacts pull the run's spectral peak below the FE pair's own mesh
      * mode (7.9 kHz against 9.3 kHz on the default mesh). */
@@ -646,7 +646,7 @@ static void calibrated_run(void)
      * mesh harmonics below it (8085 Hz; printed). The FE run's ringing is
      * excited by the contact events at tooth entry, a step-size effect:
      * its power falls 2.3-3 times per halving of h, and at h 2.5e-6 the
-     * cycle mean is no longer resolved (docs/STIFFNESS.md, "A non-rattling
+     * cycle mean is no longer resolved (docs/explanation/stiffness.md, "A non-rattling
      * FE reference run"); the bars hold at h 2e-5 to 5e-6 (FE against its
      * eigenproblem) and at the test's 1e-5 (the closed form). */
     assert_true(fabs(f_mod / f_fe - 1) < MODE_CLOSED_BAR);
@@ -656,7 +656,7 @@ static void calibrated_run(void)
     assert_true(fabs(f_mod_kick / f_fe - 1) < MODE_RUN_BAR);
     /* The tangent (static, hub-to-hub) calibration lies below: the web's
      * torsional compliance is in k_t, while in the vibration most of the
-     * inertia sits on the contact's side of it (docs/STIFFNESS.md). Measured
+     * inertia sits on the contact's side of it (docs/explanation/stiffness.md). Measured
      * -6 to -10%; the bar keeps the sign and the size. */
     assert_true(f_lum < f_fe && f_lum > 0.85 * f_fe);
 

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Validation of the `compliant` mesh model (rigid gears, tooth pairs through
- * the compliant contact patch model; docs/IMPACT.md "The compliant mesh"):
+ * the compliant contact patch model; docs/explanation/impact.md "The compliant mesh"):
  *  - the `pair` scene with a compliant mesh, ramp-driven and braked, 0.2 s:
  *    energy balance E - E0 - W_in + D at round-off (1e-11 of the energy
  *    scale), mean speed ratio z2/z1 over the second half (1e-4: the mesh
@@ -23,7 +23,7 @@
  *  - mesh stiffness for `bending` none / beam / beam_foundation: single
  *    pair at the pitch point (c'), single- and two-pair zone means and the
  *    mean over a cycle (c_gamma) per mm of face width, at the scene's load
- *    and hubs and at the FE analysis' (docs/STIFFNESS.md: default hubs,
+ *    and hubs and at the FE analysis' (docs/explanation/stiffness.md: default hubs,
  *    200 N/mm), printed with the FE and ISO 6336 figures; beam_foundation
  *    within 25 % of the FE cycle mean and zone means (seen -9 % .. -14 %),
  *    the beam alone outside it, and within a factor 3 of ISO's 14 and 20
@@ -260,7 +260,7 @@ static void static_deflection(void **state)
 
 /* The compliant pair with a `bending` option; default_hubs drops the
  * scene's hub radii (10 and 15 mm) for the default 0.6 r_f, the hubs of the
- * FE stiffness analysis (docs/STIFFNESS.md, deploy/scenes/stiffness_pair.json). */
+ * FE stiffness analysis (docs/explanation/stiffness.md, deploy/scenes/stiffness_pair.json). */
 static gs_system *stiffness_pair(const char *bending, bool default_hubs)
 {
     json_object *root = compliant_pair();
@@ -336,7 +336,7 @@ static void print_stiff(const char *what, const stiff *r)
 static void stiffness_iso(void **state)
 {
     (void)state;
-    /* FE analysis of the same pair (docs/STIFFNESS.md: both gears elastic,
+    /* FE analysis of the same pair (docs/explanation/stiffness.md: both gears elastic,
      * plane stress, default hubs, 200 N/mm), refine 0 / 1 / 2: cycle mean
      * 19.91 / 19.83 / 19.21, single-pair zone 16.59 / 15.09 / 14.26, two-pair
      * zone 21.28 / 21.41 / 20.86. ISO 6336-1 method B: c' 12.26 (c'_th
@@ -392,7 +392,7 @@ static void stiffness_iso(void **state)
     /* Against the FE analysis at its own hubs and load: within 25 % of its
      * cycle mean (refine 0..2) and of its converged (refine 2) single- and
      * two-pair zone means. Seen -9 % / -12 %, -14 % and -2 %: the single
-     * pair is the softest figure (see docs/IMPACT.md for what is left out:
+     * pair is the softest figure (see docs/explanation/impact.md for what is left out:
      * the beam's section below the form circle, the loaded contact ratio);
      * 25 % keeps that margin while the beam alone (+50 % on the mean) fails. */
     assert_true(f->cg > 0.75 * fe_mean[1] && f->cg < 1.25 * fe_mean[0]);

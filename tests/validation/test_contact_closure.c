@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * The contact treatments of numerics.contact (docs/CONTACT.md, "Contact
+ * The contact treatments of numerics.contact (docs/explanation/contact.md, "Contact
  * treatments") on the seed's two-gear experiments:
  *  - the default: the scene without the field and with "closure_energy"
  *    give bit-identical states; "seed" named books exactly zero contact
@@ -17,7 +17,7 @@
  *    the net contact work is round-off; contact_drive keeps the balance and
  *    the penetration bound.
  * A wrong treatment name is refused naming numerics.contact.
- * GEARSIM_LONG=1 runs the 200 ms figures of docs/CONTACT.md (both schemes,
+ * GEARSIM_LONG=1 runs the 200 ms figures of docs/explanation/contact.md (both schemes,
  * refine 0 and 1).
  * Elastic gears on linear triangles (vt_scene_linear, mesh.order 1): the
  * figures were measured on them and the checks need some elastic gear;
@@ -207,7 +207,7 @@ static void closure_drive(void **state)
 }
 
 /* The same on curved quadratic elements (mesh.order 2, the default mesh),
- * whose contact gaps are measured to the parabolic edges (docs/CONTACT.md
+ * whose contact gaps are measured to the parabolic edges (docs/explanation/contact.md
  * "Quadratic edges"), 18 ms: past the deepest event of the first 20 ms
  * before the closure's Newton on the nonlinear gap, a flank node of the
  * 30-tooth gear sliding over the 20-tooth gear's flank at xi = 0.07 of the

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * No contact locking at tooth tip corners (issue 15; docs/CONTACT.md "Tip
+ * No contact locking at tooth tip corners (issue 15; docs/explanation/contact.md "Tip
  * corners"). contact_drive with numerics.contact "closure_energy" on the
  * linear mesh refined once (mesh.order 1, refine 1), h = 1e-5 s, from
  * 20 ms (after the moment's ramp) to 35 ms: on main before the fix this
@@ -10,7 +10,7 @@
  *  - no loaded contact row more than OFF_DEG off the lines of action;
  *  - the largest mesh force at most FORCE_FACTOR x the mean;
  *  - the largest strain energy at most SE_FACTOR x the static one (about
- *    1 mJ at 20 N m, docs/CONTACT.md);
+ *    1 mJ at 20 N m, docs/explanation/contact.md);
  *  - the mean force still carries the moment (M0 / r_b, 2%) and the energy
  *    balance stays at round-off.
  * The same on the default mesh (order 2 refine 0), 20-30 ms, where main
@@ -41,7 +41,7 @@
 #define MEAN_TOL 0.02     /* mean mesh force against the moment's share */
 #define PLANETARY_T 0.03  /* end of the planetary window, s */
 #define PLANETARY_SE 1.0e-3 /* planetary_contact: static strain energy of the five gears at 20 N m, about
-                             * six meshes' F^2 / 2k at 236 N, k ~ 1.5e8 N/m (docs/PLANETARY.md), J */
+                             * six meshes' F^2 / 2k at 236 N, k ~ 1.5e8 N/m (docs/explanation/planetary.md), J */
 
 static gs_system *build(const char *scene, int order, int refine, double h)
 {

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * The default contact treatment on the shipped scenes (docs/CONTACT.md,
+ * The default contact treatment on the shipped scenes (docs/explanation/contact_treatments.md,
  * "Contact treatments"): every builtin scene with contact meshes, loaded as
  * shipped (no numerics.contact: the default "closure_energy", on the
  * scene's own mesh, order 2, and time step), penetrates at most 1 % of the

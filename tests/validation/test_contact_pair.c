@@ -187,10 +187,10 @@ static void penetration_rate(void **state)
  * (1 - eps_a + eps_1^2 + eps_2^2), computed here from the geometry.
  * Damping: beta = 1.7e-6 s, 5% of critical at the first torsional mesh mode
  * (w ~ 5.8e4 rad/s from the mean mesh stiffness 19.8 N/(mm um) of
- * docs/STIFFNESS.md and the gears' inertias). Undamped, the tooth vibrations
+ * docs/explanation/stiffness.md and the gears' inertias). Undamped, the tooth vibrations
  * carry sliding velocities as large as the rigid sliding itself and the
  * explicit friction force does net positive work on them, so the booked loss
- * is about half the nominal one (efficiency 99.56%, docs/CONTACT.md).
+ * is about half the nominal one (efficiency 99.56%, docs/explanation/contact.md).
  * Asserted: efficiency in the spur-gear band 98-99.5% and the loss within
  * 25% of the ISO estimate (it assumes uniform load sharing and constant mu). */
 static void friction_efficiency(void **state)

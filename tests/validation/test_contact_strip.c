@@ -66,7 +66,7 @@
  * body's balance (work_iface, residual) is checked as well, with that bound.
  *
  * Tests (tolerances and reasons at the asserts; figures in
- * docs/CONTACT_STRIP.md):
+ * docs/explanation/contact_strip.md):
  *  1. nu = 0, nx = 100 x ny = 10, 1000 steps per 2L/c: contact duration
  *     (first to last step with a reaction) within 2 % of 2L/c; rebound
  *     velocity (momentum / mass after separation) -v0 within 2 %; energy

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Material damping of elastic gears in tooth contact (docs/FE.md, "Material
+ * Material damping of elastic gears in tooth contact (docs/explanation/elastic_body.md, "Material
  * damping"; METHOD.md section 2): `contact_drive` with Rayleigh damping
  * stated in the scene.
  *
@@ -10,9 +10,9 @@
  *     1/2 I w^2 of each gear) against the undamped run.
  *  2. Damping keys at zero leave the run unchanged bit for bit.
  *  3. GEARSIM_LONG=1: 300 ms undamped and at 2% and 5% of critical at the
- *     first torsional mesh mode (9.2 kHz, docs/CONTACT.md): vibration energy
+ *     first torsional mesh mode (9.2 kHz, docs/explanation/contact.md): vibration energy
  *     in windows, DTE rms and mean TE over 150-300 ms, the loss booked to
- *     damping, the balance; printed as the table of docs/FE.md. */
+ *     damping, the balance; printed as the table of docs/explanation/elastic_body.md. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * The engine's energy schedule (gs_engine_set_energy_schedule, docs/
- * PERFORMANCE.md "Fifth pass"): elastic gears skip their kinetic and strain
+ * The engine's energy schedule (gs_engine_set_energy_schedule,
+ * docs/performance/index.md): elastic gears skip their kinetic and strain
  * energies at the end of steps whose energies nothing reads, and sum them
  * from the state when they are read. Two engines step the same scene, one
  * with the energies every step, one on the schedule, in chunks of uneven

@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Extremes suite (issue 8, item 6; docs/STABILITY.md): every rung of the
+ * Extremes suite (issue 8, item 6; docs/explanation/stability.md): every rung of the
  * fidelity ladder (rigid + kinematic, rigid + lumped, rigid + impact,
  * elastic, contact) at the edges of what a scene may ask for: time steps
  * 1e-9 to 1e-3 s, speeds 0.1 to 60000 rpm, Young's modulus 1 to 1000 GPa,
@@ -21,11 +21,11 @@
  * long mode for the benchmark machine: more steps everywhere, 1e6 rigid
  * planetary steps, 1e6 steps of the one-element elastic gear, finer meshes,
  * 1e4-step contact runs (about 4 minutes on this 2-core machine,
- * docs/STABILITY.md):
+ * docs/explanation/stability.md):
  *
  *     GEARSIM_LONG=1 meson test -C build --suite validation extremes
  *
- * Each case prints one row of the table in docs/STABILITY.md. */
+ * Each case prints one row of the table in docs/explanation/stability.md. */
 #define _POSIX_C_SOURCE 200809L
 #include <setjmp.h>
 #include <stdarg.h>

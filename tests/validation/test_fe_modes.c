@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Torsional mesh modes of the elastic pair from the FE model's generalised
- * eigenproblem (include/gearsim/fe_modes.h, docs/MODAL.md "FE mesh modes"),
+ * eigenproblem (include/gearsim/fe_modes.h, docs/explanation/modal.md "FE mesh modes"),
  * on contact_drive (30/20 teeth, module 2.5 mm, 20 N m). Checks (each can
  * fail):
  *  - against an independent dense solve of the same problem on a coarse mesh
@@ -47,7 +47,7 @@
 
 static gs_scene *scene(int coarse, double density, int order)
 {
-    /* linear triangles (mesh.order 1): the figures of docs/MODAL.md were
+    /* linear triangles (mesh.order 1): the figures of docs/explanation/modal.md were
      * measured on them and the dense comparison needs a small problem;
      * order 2: the default mesh */
     json_object *root = order == 1 ? vt_scene_linear("contact_drive") : vt_scene("contact_drive");

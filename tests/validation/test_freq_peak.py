@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Resonance of the dynamic contact model at its FE mesh mode (issue 15,
-docs/MODAL.md "FE mesh modes and the frequency response"): a coarse speed
+docs/explanation/modal.md "FE mesh modes and the frequency response"): a coarse speed
 sweep of contact_drive (tests/bench/freq_response.py --quick: 9 points
 from 0.7 to 1.3 times the mode, 80 N m, 12 % material damping at the mode)
 around the first torsional mesh mode of the same FE model's generalised
@@ -15,12 +15,12 @@ eigenproblem (gearsim-modal --fe, 4 roll positions). Checks (each can fail):
     points' starts (the closure's impact losses slow the pair by up to 8 %).
 On the linear mesh with numerics.contact "closure" (--quick): with
 "closure_energy" the impacts' energy is returned and the pair keeps
-rattling in the backlash (DTE rms 11-65 um, docs/MODAL.md).
+rattling in the backlash (DTE rms 11-65 um, docs/explanation/modal.md).
 GEARSIM_LONG=1 runs the default order-2 mesh instead (about 16 CPU minutes;
-docs/MODAL.md "The frequency response on the default order-2 mesh"): the
+docs/explanation/modal.md "The frequency response on the default order-2 mesh"): the
 contact model at 11 points from 0.8 to 1.2 times the FE mode (12 roll
 positions) and the modal-calibrated lumped mesh (the same eigenproblem's
-modes per position) at 8, 80 N m, 12 % (the condition of docs/MODAL.md
+modes per position) at 8, 80 N m, 12 % (the condition of docs/explanation/modal.md
 "Damping and contact loss": at 8 % and 5 % the flanks part near resonance
 and the peak falls 5-12 % below the mode). Checks there:
   - the contact peak within 3 % of the FE mode (the issue's bar, as above);
@@ -87,7 +87,7 @@ if R.check("the contact model's DTE rms has a peak", len(pk) >= 1, pk):
     fp = pk[0]["hz"]
     R.note("contact peak %.1f Hz, FE mode %.1f Hz: %+.2f %% (bar %.0f %%)" % (fp, f0, 100 * (fp / f0 - 1), 100 * BAR))
     # The issue's bar, against the mean undamped mode itself (in the long
-    # mode, 80 N m and 12 %, it holds with 0.07 % to spare: docs/MODAL.md
+    # mode, 80 N m and 12 %, it holds with 0.07 % to spare: docs/explanation/modal.md
     # "Damping and contact loss"; at 8 % and 5 % the flanks part and it fails).
     R.check("peak within %.0f %% of the FE mode (%+.2f %%)" % (100 * BAR, 100 * (fp / f0 - 1)),
             abs(fp / f0 - 1) <= BAR, (fp, f0))

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The frequency response's --scene option (tests/bench/freq_response.py,
-docs/MODAL.md "The relief pair at its design load"): a pair without loads
+docs/explanation/modal.md "The relief pair at its design load"): a pair without loads
 (deploy/scenes/pair_relief.json) gets contact_drive's driver and brake and
 keeps its tooth modification in every point's scene. Checks (each can fail):
   - the default (no --scene) is contact_drive unchanged (its loads, its mesh

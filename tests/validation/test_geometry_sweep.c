@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * Gear meshes over a sweep of the design space (docs/GEOMETRY.md):
+ * Gear meshes over a sweep of the design space (docs/explanation/geometry.md):
  * teeth 8..200, modules 0.5 / 2 / 20 mm, pressure angles 14.5 / 20 / 25
  * degrees, profile shifts -0.5..+0.8, external and internal. Every gear that
  * can exist meshes into a valid mesh (no inverted or degenerate element,

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Dynamic TE at low speed follows the quasi-static TE of the same mesh
- * (issue 15; docs/CONVERGENCE.md "Dynamic TE at low speed"). On
+ * (issue 15; docs/validation/lowspeed.md). On
  * `contact_drive` (mesh frequency ~141 Hz, the first torsional mesh mode
  * ~9.2 kHz: a ratio of 0.015) at h = 1e-5 s the kinematic TE a . q - s_ref
  * of the mesh, over whole mesh cycles after the start-up (from 50 ms, the

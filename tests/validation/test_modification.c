@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Profile modifications and tooth errors (include/gearsim/modification.h,
- * docs/GEOMETRY.md, docs/STIFFNESS.md "Profile modifications and the Harris
+ * docs/explanation/geometry.md, docs/explanation/stiffness.md "Profile modifications and the Harris
  * map"). Checks (each can fail):
  *  - geometry: every flank node of a gear with tip and root relief (linear
  *    and parabolic, different on the two flanks) lies on the modified
@@ -75,7 +75,7 @@
 #include "compliant_static.h"
 #include "scene_build.h"
 
-/* The 20/30 pair of docs/STIFFNESS.md; `mod0`, `mod1` are JSON members
+/* The 20/30 pair of docs/explanation/stiffness.md; `mod0`, `mod1` are JSON members
  * added to the pinion and the wheel (may be ""). Linear triangles
  * (mesh.order 1): the figures below were measured on them, and on the
  * quadratic default at refine 1 the Harris map's analysis left a position
@@ -205,7 +205,7 @@ static void flank_nodes_on_profile(void **state)
 }
 
 /* The near-field correction's default (auto) keeps the plain FE on
- * modified flanks, where it is not validated (docs/STIFFNESS.md): a relieved
+ * modified flanks, where it is not validated (docs/explanation/stiffness.md): a relieved
  * quadratic pair by default is the plain FE bit for bit, and forcing the
  * correction on changes it. */
 static void nearfield_auto_plain_on_modified(void **state)

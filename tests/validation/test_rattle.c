@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Validation of the impact mesh (rigid gears with backlash and impacts,
- * METHOD.md sections 6 and 7, rung 2; docs/IMPACT.md, "The impact mesh"):
+ * METHOD.md sections 6 and 7, rung 2; docs/explanation/impact.md, "The impact mesh"):
  *  - the builtin `rattle` scene rattles: more than 10 impacts in 0.2 s,
  *    their loss counted, the teeth never inside each other (1e-9 of the
  *    half backlash), and the energy

@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * The reduced elastic body in the contact step (docs/FE.md "Reduced elastic
- * body", docs/CONVERGENCE.md "Reduced elastic body"): contact_drive (both
+ * The reduced elastic body in the contact step (docs/explanation/elastic_body.md "Reduced elastic
+ * body", docs/validation/data.md): contact_drive (both
  * gears elastic, quadratic default mesh, closure_energy, 2 % damping at
  * 9.2 kHz) from rest over the first 4 ms of the moment ramp at h = 1e-5 s,
  * once with the full FE bodies and twice with both gears reduced to their

@@ -159,7 +159,7 @@ static void resume_case(const char *rule, double damping_m, double tip_load, int
     /* a new engine restores the file and runs M steps */
     gs_engine *b = NULL;
     assert_int_equal(gs_engine_new(MPI_COMM_WORLD, &b), GS_OK);
-    assert_int_equal(gs_checkpoint_read(path, &bytes, &len, &d), GS_OK);
+    assert_int_equal(gs_checkpoint_read(path, (size_t)1 << 30, &bytes, &len, &d), GS_OK);
     gs_err err = gs_engine_run(b, GS_OP_RESTORE, bytes, len, &d, NULL);
     if (err != GS_OK)
         print_error("restore: %s: %s\n", d.field, d.message);

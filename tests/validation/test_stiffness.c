@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Quasi-static mesh stiffness of a standard steel spur pair
- * (include/gearsim/stiffness.h, docs/STIFFNESS.md): 20/30 teeth, module
+ * (include/gearsim/stiffness.h, docs/explanation/stiffness.md): 20/30 teeth, module
  * 2.5 mm, face 10 mm, centre distance 62.5 mm, no thinning, both gears
  * elastic (plane stress, steel), the pinion driven by the nominal 200 N/mm
  * line load (T = 46.98 N m), the wheel's hub held, 24 roll positions over
@@ -151,7 +151,7 @@ static void standard_pair(void **state)
                       f->pt[j].pairs);
     /* Convergence, judged on the single-pair zone: there the mesh stiffness
      * is one tooth pair's and converges like the FE tooth compliance
-     * (docs/FE.md); the mean over the cycle also depends on where the
+     * (docs/explanation/elastic_body.md); the mean over the cycle also depends on where the
      * discretised flanks start and stop touching, and its coarse-mesh
      * errors partly cancel (printed, not asserted). */
     double dk1 = fabs(kmean[1] - kmean[0]), dk2 = fabs(kmean[2] - kmean[1]);
@@ -221,7 +221,7 @@ static void placement_independent(void **state)
     gs_scene_free(&s1);
 }
 
-/* Curved quadratic elements on the default density (docs/CONVERGENCE.md):
+/* Curved quadratic elements on the default density (docs/validation/calculix.md):
  * the no-load closing te0 of perfect involutes (zero in the limit, here the
  * sag of the flank polylines) falls by more than half, the mesh stiffness
  * in double contact scatters less from one position to the next (the
@@ -315,7 +315,7 @@ static void plain_then_nf(const gs_scene *s, gs_stiffness_opts *o, gs_stiffness_
     assert_int_equal(gs_stiffness_analyse(s, 0, o, nf, &d), GS_OK);
 }
 
-/* The near-field correction (docs/STIFFNESS.md) adds a non-negative
+/* The near-field correction (docs/explanation/stiffness.md) adds a non-negative
  * compliance in series per tooth pair: on the quadratic default density it
  * softens the pair at every position (the FE's point load is stiffer than
  * the Hertzian line load there), by less than a quarter, and converges. */
@@ -392,7 +392,7 @@ static gs_scene *relief_pair(double thin_mm, double relief_um)
 }
 
 /* The near-field default on a pair with backlash (thinned teeth at the
- * standard centre distance; docs/STIFFNESS.md "Near-field correction"):
+ * standard centre distance; docs/explanation/stiffness.md "Near-field correction"):
  * thinned involutes are conjugate at any centre distance, so every loaded
  * flank pair closes by the same half backlash and the correction acts as on
  * the tight pair. It used to miss that (a vertex fit off the master's tip
@@ -447,7 +447,7 @@ static void nearfield_backlash(void **state)
 /* The near-field correction forced on modified flanks (pair_relief.json as
  * it is: relieved, tight; not validated, so not the default): the vertex
  * fit's curvature bound and the rigid gaps against the pair's flank gap
- * (docs/STIFFNESS.md "Near-field correction") keep it a softening of the
+ * (docs/explanation/stiffness.md "Near-field correction") keep it a softening of the
  * plain FE like on unmodified flanks, NF_RELIEF_LO < TE / TE plain <
  * NF_RELIEF_HI at every position (measured 1.026-1.098). Before, a fit
  * through a neighbour beyond the mating tip put roll 0.5 8.3 um early (x1.80)
@@ -520,7 +520,7 @@ static void run_switch(size_t flag, switch_check check)
     run_switch_hook(flag, check, NULL);
 }
 
-/* The contact window (docs/STIFFNESS.md "Contact window") leaves out of
+/* The contact window (docs/explanation/stiffness.md "Contact window") leaves out of
  * the QP the rows far from the contact: the same solution as with every
  * row (to round-off: 1e-8 bar, measured <1e-10), plain and near field, at T
  * and at T/2 (the tangent), with fewer contact dofs. */
@@ -549,7 +549,7 @@ static void window_matches_all_rows(void **state)
     run_switch(offsetof(gs_stiffness_opts, all_rows), window_check);
 }
 
-/* The displacement zone (docs/STIFFNESS.md "Displacement zone"): the
+/* The displacement zone (docs/explanation/stiffness.md "Displacement zone"): the
  * displacements only at the teeth the search reads, by partial back
  * substitutions, give the solution of full back substitutions
  * (gs_stiffness_opts.all_dofs) to round-off (1e-9 bar), plain and near

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The `fine` setting of the quasi-static analysis (gearsim-stiffness --fine:
-the teeth in contact meshed three levels finer than the rest, docs/GEOMETRY.md
+the teeth in contact meshed three levels finer than the rest, docs/explanation/geometry.md
 "Local refinement") against the stored CalculiX reference of the steel 20/30
 pair (tests/reference/stiffness_30_20; the reference code is never run here),
 at all 12 reference positions, transitions included (about 10 s CPU).
@@ -19,7 +19,7 @@ Asserted (bars measured when written, in the comments; each can fail):
 * the setting is local: fewer than FRACTION_OF_R2 of the unknowns of the
   uniform refine 2 of the default counts (606 304), the cheapest uniform
   level near this accuracy (1.8 % off at the transitions,
-  docs/PERFORMANCE.md "Equal accuracy against CalculiX").
+  docs/performance/index.md).
 """
 import os
 import sys

@@ -38,7 +38,7 @@ Asserted (bars are named constants; each can fail):
 With the correction, issue 14's targets on the default mesh (k and TE within
 TARGET_POS = 2 % at every position, cycle and single-contact means within
 TARGET_MEAN = 1 %) are met and asserted (BAR_K_O2_NF, BAR_TE_O2_NF are
-TARGET_POS): docs/CONVERGENCE.md "Near-field correction, fourth revision".
+TARGET_POS): docs/validation/calculix.md.
 """
 import os
 import sys
@@ -60,8 +60,8 @@ BAR_K_O1 = 0.25            # |k / k_ref - 1| per position (20.7%)
 BAR_TE_O1 = 0.25           # |TE / TE_ref - 1| per position (17.2%)
 BAR_SINGLE_O1 = 0.25       # single-contact mean k error (> 0 asserted; +16.4%)
 # The default mesh (order 2 {8, 4, 2, 3}, 38 060 unknowns), gaps to the
-# parabolic edges (docs/CONTACT.md "Quadratic edges"), and the near-field
-# correction (--nearfield, docs/STIFFNESS.md "Near-field correction");
+# parabolic edges (docs/explanation/contact.md "Quadratic edges"), and the near-field
+# correction (--nearfield, docs/explanation/stiffness.md "Near-field correction");
 # measured on the merged main, in brackets with the chord gap:
 BAR_K_O2 = 0.115           # |k error| per position, plain FE (10.3%; 11.6%)
 BAR_TE_O2 = 0.105          # |TE error| per position, plain FE (9.4%; 10.4%)
@@ -74,7 +74,7 @@ TARGET_POS = 0.02
 TARGET_MEAN = 0.01
 # The near-field correction as revised in issue 14, fourth revision (tip
 # corners located on the line of action, the truncated-contact law there;
-# docs/CONVERGENCE.md "Near-field correction, fourth revision"), in brackets
+# docs/validation/calculix.md), in brackets
 # the third revision's figure and the previous ones':
 BAR_K_O2_NF = TARGET_POS   # |k error| per position, near-field (1.56%; 3.01%; 3.29%; 4.7%)
 BAR_TE_O2_NF = TARGET_POS  # |TE error| per position, near-field (1.54%; 2.92%; 3.18%; 4.5%)

@@ -32,7 +32,7 @@ can fail):
   BAR_CYCLE_NF (issue 14's 1 %), the single-contact mean within
   BAR_SINGLE_NF.
   BAR_K_NF / BAR_TE_NF are issue 14's 2 % per position (TARGET_POS), met
-  since the fourth revision of the correction (docs/CONVERGENCE.md).
+  since the fourth revision of the correction (docs/validation/calculix.md).
 """
 import os
 import sys
@@ -56,8 +56,7 @@ BAR_TE_O1 = 0.27          # |TE / TE_ref - 1| per position, order 1 refine 0 (22
 BAR_K_O2 = 0.13           # |k error| per position, order 2 refine 0 (default mesh, parabolic-edge gap 11.45%; chord gap 13.2%)
 BAR_CYCLE_O2 = 0.085      # |cycle-mean k error|, order 2 refine 0 (+6.9%; chord gap +7.9%)
 # The default mesh with the near-field correction as revised in issue 14,
-# fourth revision (docs/CONVERGENCE.md "Near-field correction, fourth
-# revision"; in brackets the third revision's figure and the previous ones'):
+# fourth revision (docs/validation/calculix.md; in brackets the third revision's figure and the previous ones'):
 TARGET_POS = 0.02         # issue 14: k and TE within 2 % per position
 BAR_K_NF = TARGET_POS     # |k error| per position (1.04%; 4.45%, at the corner 0.083; 3.74%; 7.1%)
 BAR_TE_NF = TARGET_POS    # |TE error| per position (1.03%; 4.65%; 3.89%; 7.6%)

@@ -22,7 +22,7 @@ from harness import Results  # noqa: E402
 R = Results("test_sweep: speed sweep resonances at the modal frequencies")
 GEARCTL = os.path.join(dmod.SOURCE_ROOT, "clients", "python", "gearctl")
 env = dict(os.environ, GEARSIM_BUILD_ROOT=dmod.BUILD_ROOT)
-# GEARSIM_SWEEP_CSV / GEARSIM_SWEEP_PLOT: also write the table and the plot (docs/MODAL.md's figures).
+# GEARSIM_SWEEP_CSV / GEARSIM_SWEEP_PLOT: also write the table and the plot (docs/explanation/modal.md's figures).
 extra = []
 if os.environ.get("GEARSIM_SWEEP_CSV"):
     extra += ["--csv", os.environ["GEARSIM_SWEEP_CSV"]]

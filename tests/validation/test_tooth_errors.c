@@ -1,7 +1,7 @@
 /* SPDX-License-Identifier: MIT
  * Tooth errors (pitch errors, run-out) in the lumped and calibrated lumped
  * meshes against the DYNAMIC FE contact model at low speed (issue 17;
- * docs/GEOMETRY.md "Tooth errors: dynamic comparison with the contact
+ * docs/explanation/geometry.md "Tooth errors: dynamic comparison with the contact
  * model" and "Run-out: the TE spectrum"). The 20/30 pair, 150 N m on the
  * pinion ramped up over 10 ms, the pinion at 40 rad/s (mesh frequency
  * 127 Hz, 0.013 of the mesh mode), h 1e-5 s, undamped gears, the contact
@@ -54,7 +54,7 @@
 #define TE_QUIET_BAR 0.2
 
 /* Tooth errors in the lumped and calibrated meshes against the dynamic
- * contact model at low speed (docs/GEOMETRY.md "Tooth errors: dynamic
+ * contact model at low speed (docs/explanation/geometry.md "Tooth errors: dynamic
  * comparison"): the 20/30 pair, 150 N m ramped up over 10 ms, the pinion at
  * 40 rad/s, undamped gears, the closure contact treatment; the statistic and
  * its scatter are printed. */
@@ -70,7 +70,7 @@ static void tooth_errors_dynamic(void **state)
         /* the lumped meshes' window shifts repeat every revolution to 2e-4 (no
          * noise to average), but they run 2 revolutions (cheap): the
          * rectangular law's Newton once failed near step 30 000 of this run
-         * (its residual floor, docs/GEOMETRY.md), now with its phase
+         * (its residual floor, docs/explanation/geometry.md), now with its phase
          * modulated by the run-out too */
         o.revs = mi != TE_CONTACT || long_mode ? 2.0 : 1.0;
         assert_int_equal(te_study(&o, &r[mi]), 0);
@@ -133,7 +133,7 @@ static void tooth_errors_dynamic(void **state)
     }
     /* the contact model's perfect pair: its vibration no longer hides the
      * run-out sidebands (the sidebands themselves stand at about twice the
-     * prediction on the default mesh: docs/GEOMETRY.md) */
+     * prediction on the default mesh: docs/explanation/geometry.md) */
     {
         double pb = GS_PI * 2.5e-3 * cos(20 * GS_PI / 180);
         double pred = c->order[0][2] * GS_PI * 20e-6 / pb;

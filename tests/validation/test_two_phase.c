@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * The two-phase step record (step.h, docs/PERFORMANCE.md "Cost per step")
+ * The two-phase step record (step.h, docs/performance/index.md)
  * against the whole record it replaces: on elastic gears in contact, each
  * substep is formed both ways from the same state — every body's whole
  * record (interface(): the full compliance block over its plan dofs), and

@@ -218,6 +218,8 @@ def advice_text(res):
              + (f", numerics.contact \"{c['scheme']}\"" if c.get("scheme") else "")
              + (f", elastic gears with \"reduction\": {{\"f_max_hz\": {0.3 / c['h']:g}}}"
                 if c["level"] == "reduced" else "")
+             + (f", meshes \"model\": \"ltca\" (rigid gears, the pair's loaded tooth contact analysis tables)"
+                if c["level"] == "ltca" else "")
              + (f", mesh counts x {c['scale']:g}" if c.get("scale") else "")
              + (f", material \"damping_ratio\": {c['zeta']:g}, \"damping_hz\": 9200" if c.get("zeta") else "")
              + f"; cost {c['cost']:.3g} {res.get('cost_unit', 'wall')} s per simulated s",

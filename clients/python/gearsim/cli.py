@@ -345,7 +345,7 @@ def cmd_fetch(args):
 
 def cmd_keys(args):
     """CURVE key pairs for gearsimd's --curve-server-key / --curve-allow and
-    the clients' --curve-key (docs/PROTOCOL.md, Authentication)."""
+    the clients' --curve-key (docs/reference/protocol.md, Authentication)."""
     from .connection import write_key_files
     os.makedirs(args.dir, exist_ok=True)
     for name in args.names:

@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: MIT
 """gearsim.Client: commands over a DEALER socket, events over a SUB socket.
 
-The protocol is docs/PROTOCOL.md (schemas in proto/v1). A request is one JSON
+The protocol is docs/reference/protocol.md (schemas in proto/v1). A request is one JSON
 frame {v, id, cmd, args}; the reply carries the same id. Retries resend the
 very same frame (same id), so the daemon answers them from its reply cache
 and never executes a command twice. Events arrive as two frames, topic then
@@ -17,7 +17,7 @@ import time as _time
 
 import zmq
 
-from .connection import apply_curve, default_connection_file, read_connection_file
+from .connection import apply_curve, daemon_stopped, default_connection_file, read_connection_file
 from .errors import GearsimError, GearsimTimeout
 
 PROTOCOL = 1
@@ -129,14 +129,26 @@ class Client:
         raise GearsimError(err.get("code", "internal"), err.get("message", "error reply without a message"),
                            err.get("field"), reply)
 
+    def check_daemon(self):
+        """Raise GearsimError("daemon_stopped") naming the cause when the
+        daemon is gone (gearsim.connection.daemon_stopped): its connection
+        file removed or marked stopped (a rank died), or its process gone.
+        Every wait of this client calls it about once a second."""
+        why = daemon_stopped(self.info)
+        if why:
+            raise GearsimError("daemon_stopped", f"the daemon stopped: {why}")
+
     def _recv_reply(self, rid, timeout):
         if rid in self._replies:
             return self._replies.pop(rid)
         deadline = _time.monotonic() + timeout
         while True:
             left = deadline - _time.monotonic()
-            if left <= 0 or not self._cmd.poll(int(left * 1000) + 1):
+            if left <= 0:
                 return None
+            if not self._cmd.poll(int(min(left, 1.0) * 1000) + 1):
+                self.check_daemon()
+                continue
             frames = self._cmd.recv_multipart()
             try:
                 reply = json.loads(frames[-1])
@@ -176,7 +188,7 @@ class Client:
         return self.request("unload")
 
     def modal(self, scene=None, builtin=None, shapes=True):
-        """Natural frequencies and mode shapes (docs/MODAL.md) of a scene (dict
+        """Natural frequencies and mode shapes (docs/explanation/modal.md) of a scene (dict
         or JSON file path), a builtin, or (neither) the loaded scene."""
         args = {"shapes": bool(shapes)}
         if scene is not None:
@@ -239,7 +251,7 @@ class Client:
 
     def sweep(self, parameters, scene=None, builtin=None, settle=None, measure=None, time_step=None, mesh=None,
               driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None):
-        """A parameter sweep run by the daemon on groups of its ranks (docs/MODAL.md,
+        """A parameter sweep run by the daemon on groups of its ranks (docs/explanation/modal.md,
         "Sweeps"): `parameters` a list of {path, values} or {path, from, to, points}
         (path "driver_rpm" or a JSON path into the scene); the scene a dict or a JSON
         file path, or a builtin name. wait=True: the `done` event (its csv and h5
@@ -448,10 +460,13 @@ class Client:
     def wait_done(self, parent_id, on_telemetry=None, on_progress=None, on_event=None, timeout=None):
         """Wait for the `done` event of advance request `parent_id`; see advance()."""
         start = _time.monotonic()
-        last_check = start
+        last_check = last_alive = start
         while True:
             ev = self.next_event(0.5)
             now = _time.monotonic()
+            if now - last_alive >= 1.0:
+                last_alive = now
+                self.check_daemon()
             if ev is not None and self._dispatch(ev, parent_id, on_telemetry, on_progress, on_event):
                 err = ev.get("error")
                 if err:

@@ -1,5 +1,5 @@
 # SPDX-License-Identifier: MIT
-"""Where the connection file lives and how it is read (docs/PROTOCOL.md)."""
+"""Where the connection file lives and how it is read (docs/reference/protocol.md)."""
 import json
 import os
 
@@ -27,6 +27,8 @@ def read_connection_file(path=None):
         raise GearsimError("bad_json", f"cannot read connection file {path}: {e}") from None
     if not isinstance(info, dict) or not isinstance(info.get("command"), str):
         raise GearsimError("bad_json", f"connection file {path} has no 'command' endpoint")
+    if isinstance(info.get("stopped"), str):
+        raise GearsimError("daemon_stopped", f"the daemon stopped: {info['stopped']}")
     if info.get("protocol", 1) != 1:
         raise GearsimError("unsupported_version",
                            f"daemon speaks protocol {info.get('protocol')}, this client speaks 1")
@@ -34,8 +36,49 @@ def read_connection_file(path=None):
     return info
 
 
+def _local_endpoint(ep):
+    return isinstance(ep, str) and (ep.startswith("ipc://") or ep.startswith("tcp://127.")
+                                    or ep.startswith("tcp://[::1]") or ep.startswith("tcp://localhost"))
+
+
+def _pid_gone(pid):
+    try:
+        with open(f"/proc/{int(pid)}/stat") as f:
+            st = f.read()
+    except (OSError, ValueError):
+        return True
+    tail = st[st.rfind(")") + 1:].split()
+    return not tail or tail[0] in ("Z", "X", "x")
+
+
+def daemon_stopped(info):
+    """Why the daemon of `info` (read_connection_file) is gone, or None while
+    it runs: its connection file removed or taken by another session, the
+    cause it wrote there when a rank died (`stopped`), or (for a daemon on
+    this host) its process gone."""
+    path = info.get("_path")
+    if path:
+        try:
+            with open(path) as f:
+                now = json.load(f)
+        except FileNotFoundError:
+            return f"its connection file {path} was removed"
+        except (OSError, ValueError):
+            now = None      # being replaced: judge by the process
+        if isinstance(now, dict):
+            if isinstance(now.get("stopped"), str):
+                return now["stopped"]
+            if now.get("session") != info.get("session"):
+                return f"{path} now belongs to another daemon (session {now.get('session')})"
+    pid = info.get("pid")
+    if isinstance(pid, int) and pid > 0 and _local_endpoint(info.get("command")) and os.path.isdir("/proc"):
+        if _pid_gone(pid):
+            return f"its process {pid} is gone (killed, or a rank died and MPI aborted the job)"
+    return None
+
+
 # ---------------------------------------------------------------- CURVE keys
-# Key files are Z85 text (docs/PROTOCOL.md, "Authentication"): NAME.key holds
+# Key files are Z85 text (docs/reference/protocol.md, "Authentication"): NAME.key holds
 # `public-key = ...` and `secret-key = ...` (mode 0600), NAME.pub only the
 # public key. `gearctl keys NAME` writes both.
 

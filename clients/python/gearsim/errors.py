@@ -5,8 +5,9 @@
 class GearsimError(Exception):
     """An error reply from gearsimd (or a client-side failure with the same shape).
 
-    code    -- stable machine-readable string (docs/PROTOCOL.md), e.g. "out_of_range";
-               client-side failures use "timeout", "not_found" and "bad_json"
+    code    -- stable machine-readable string (docs/reference/protocol.md), e.g. "out_of_range";
+               client-side failures use "timeout", "not_found", "bad_json" and
+               "daemon_stopped" (the daemon is gone: the message says why)
     message -- human sentence
     field   -- JSON path of the offending field ("" or None when no field is at fault)
     reply   -- the full reply or event that carried the error, when there was one

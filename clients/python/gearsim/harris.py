@@ -15,8 +15,10 @@ import tempfile
 
 from .stiffness import run_json, stiffness_command
 
-CSV_HEADER = ("relief_um,line_load_n_per_mm,torque_nm,te_pp_um,te_mean_um,te_min_um,te_max_um,k_mean,"
-              "fraction_multi_pair")
+# te_pp_um .. te_max_um: the former names of the te_loaded_* columns, repeated
+# at the end for one release (docs/reference/outputs.md)
+CSV_HEADER = ("relief_um,line_load_n_per_mm,torque_nm,te_loaded_pp_um,te_loaded_mean_um,te_loaded_min_um,"
+              "te_loaded_max_um,k_mean,fraction_multi_pair,te_pp_um,te_mean_um,te_min_um,te_max_um")
 
 
 def parse_list(text, what):
@@ -90,8 +92,9 @@ def harris_map(tool, scene, loads, reliefs=None, relief_length=None, relief_shap
                 res = analyse(path, sgn * w * b_mm * rb_m)
                 tl = res.get("te_loaded_um") or res["te_um"]
                 rows.append({"relief_um": c, "label": label, "line_load_n_per_mm": w,
-                             "torque_nm": res["torque_nm"], "te_pp_um": tl["peak_to_peak"],
-                             "te_mean_um": tl["mean"], "te_min_um": tl["min"], "te_max_um": tl["max"],
+                             "torque_nm": res["torque_nm"], "te_loaded_pp_um": tl["peak_to_peak"],
+                             "te_loaded_mean_um": tl["mean"], "te_loaded_min_um": tl["min"],
+                             "te_loaded_max_um": tl["max"],
                              "k_mean": res["k"]["mean"], "fraction_multi_pair": res["fraction_multi_pair"]})
     return {"mesh": probe["mesh"], "driver": probe["driver"], "driven": probe["driven"],
             "teeth": probe["teeth"], "relief_length_mm": length, "relief_shape": relief_shape,
@@ -102,9 +105,10 @@ def harris_csv(rows):
     """The map as CSV text (header line, one row per analysis)."""
     out = [CSV_HEADER]
     for r in rows:
-        out.append(f"{r['relief_um']:g},{r['line_load_n_per_mm']:g},{r['torque_nm']:.6g},{r['te_pp_um']:.6g},"
-                   f"{r['te_mean_um']:.6g},{r['te_min_um']:.6g},{r['te_max_um']:.6g},{r['k_mean']:.6g},"
-                   f"{r['fraction_multi_pair']:.4g}")
+        tl = (f"{r['te_loaded_pp_um']:.6g},{r['te_loaded_mean_um']:.6g},{r['te_loaded_min_um']:.6g},"
+              f"{r['te_loaded_max_um']:.6g}")
+        out.append(f"{r['relief_um']:g},{r['line_load_n_per_mm']:g},{r['torque_nm']:.6g},{tl},"
+                   f"{r['k_mean']:.6g},{r['fraction_multi_pair']:.4g},{tl}")
     return "\n".join(out) + "\n"
 
 
@@ -125,7 +129,7 @@ def harris_text(out, loads):
              f"{out['relief_shape']}",
              f"{'line load N/mm':>15} " + " ".join(f"{'p-p TE ' + lab:>16}" for lab in labels) + "   (um)"]
     for w in loads:
-        vals = [next(r["te_pp_um"] for r in out["rows"] if r["label"] == lab and r["line_load_n_per_mm"] == w)
+        vals = [next(r["te_loaded_pp_um"] for r in out["rows"] if r["label"] == lab and r["line_load_n_per_mm"] == w)
                 for lab in labels]
         lines.append(f"{w:15g} " + " ".join(f"{v:16.4f}" for v in vals))
     return "\n".join(lines)

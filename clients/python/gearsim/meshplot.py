@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: MIT
 """Drawings of gear meshes written by gearsim-mesh (HDF5 layout in
-include/gearsim/mesh_io.h and docs/GEOMETRY.md).
+include/gearsim/mesh_io.h and docs/explanation/geometry.md).
 
     from gearsim.meshplot import plot_mesh
     plot_mesh("mesh.h5", "mesh.png")                       # every gear, placed

@@ -2,7 +2,7 @@
 """Where gearctl finds its data and the build's tools.
 
 Three layouts: the source checkout (clients/python/gearsim beside
-deploy/scenes and docs/tradeoff.csv, the tools in build/src/tools), a
+deploy/scenes and docs/data/tradeoff.csv, the tools in build/src/tools), a
 `meson install` prefix P (the package in P/lib/python3/dist-packages, the
 data in P/share/gearsim, the tools in P/bin), and a pip install (the package
 in some site-packages: the data of the meson install whose gearsimd is on
@@ -27,7 +27,7 @@ def layout(pkg=PKG, extra_prefixes=()):
     root = _checkout_root(pkg)
     if root:
         return {"scenes": os.path.join(root, "deploy", "scenes"),
-                "table": os.path.join(root, "docs", "tradeoff.csv"),
+                "table": os.path.join(root, "docs", "data", "tradeoff.csv"),
                 "tools": os.path.join(root, "build", "src", "tools"),
                 "build": os.path.join(root, "build")}
     # P/lib/python3/dist-packages/gearsim -> P; then the prefix of the

@@ -26,8 +26,13 @@ def plot_stiffness(res, path):
     a1.set_ylabel("mesh stiffness, N/(mm um)")
     a1.legend(loc="best", fontsize=8)
     a1.grid(True, alpha=0.3)
-    a2.plot(ang, [p["te_um"] for p in pts], "o-", color="tab:red")
-    a2.set_ylabel("static TE, um")
+    a2.plot(ang, [p.get("te_loaded_um", p["te_um"]) for p in pts], "o-", color="tab:red",
+            label="loaded static TE")
+    if res.get("modified"):
+        a2.plot(ang, [p.get("te_elastic_um", p["te_um"]) for p in pts], "s--", ms=3, color="tab:gray",
+                label="elastic part (without the modifications' geometric TE)")
+        a2.legend(loc="best", fontsize=8)
+    a2.set_ylabel("loaded static TE, um")
     a2.set_xlabel(f"driver roll angle, deg (one mesh cycle = {360.0 / res['teeth'][0]:.4g} deg)")
     a2.grid(True, alpha=0.3)
     for ax in (a1, a2):
@@ -53,7 +58,7 @@ def plot_harris(out, path, relief_given=False):
     from .harris import series_labels
     for lab in series_labels(rows):
         rr = [r for r in rows if r["label"] == lab]
-        ax.plot([r["line_load_n_per_mm"] for r in rr], [r["te_pp_um"] for r in rr], "o-",
+        ax.plot([r["line_load_n_per_mm"] for r in rr], [r["te_loaded_pp_um"] for r in rr], "o-",
                 label=("relief " + lab) if relief_given else lab)
     ax.set_xlabel("line load, N/mm")
     ax.set_ylabel("peak-to-peak static TE, um")
@@ -152,7 +157,7 @@ def plot_tradeoff(csv_path, png):
         rows = list(csv.DictReader(f))
     scenes = sorted({r["scene"] for r in rows})
     fig, axes = plt.subplots(len(scenes), 2, figsize=(11, 4.2 * len(scenes)), squeeze=False)
-    known = {"kinematic": "o", "impact": "v", "lumped": "s", "calibrated": "D", "compliant": "P",
+    known = {"kinematic": "o", "impact": "v", "lumped": "s", "calibrated": "D", "ltca": "X", "compliant": "P",
              "adaptive": "*", "contact_seed": "<", "contact": "^"}
     # every level of the table, in the ladder's order, unknown ones after
     levels = [lv for lv in known if any(r["level"] == lv for r in rows)]

@@ -45,18 +45,20 @@ def stiffness_text(res):
     lines = [f"mesh {res['mesh']}: {res['driver']} (z={res['teeth'][0]}) drives {res['driven']} "
              f"(z={res['teeth'][1]}), T = {res['torque_nm']:.4g} N m, F = {res['force_n']:.1f} N, "
              f"b = {res['face_width_mm']:.3g} mm, contact ratio {res['contact_ratio']:.3f}",
-             f"{'roll':>6} {'angle deg':>10} {'k N/(mm um)':>12} {'k_tan':>8} {'TE um':>9} {'pairs':>5}  pair forces N"]
+             f"{'roll':>6} {'angle deg':>10} {'k N/(mm um)':>12} {'k_tan':>8} {'TE um':>9} {'pairs':>5}  pair forces N"
+             "   (TE: the loaded static TE)"]
     for p in res["points"]:
         kt = p["k_tan"] if p.get("k_tan") is not None else float("nan")
         forces = " ".join(f"{q['teeth'][0]}/{q['teeth'][1]}:{q['force_n']:.0f}" for q in p["pair_forces"])
-        lines.append(f"{p['roll']:6.3f} {p['angle_deg']:10.4f} {p['k']:12.4f} {kt:8.4f} {p['te_um']:9.4f} "
+        lines.append(f"{p['roll']:6.3f} {p['angle_deg']:10.4f} {p['k']:12.4f} {kt:8.4f} "
+                     f"{p.get('te_loaded_um', p['te_um']):9.4f} "
                      f"{p['pairs']:5d}  {forces}")
-    k, te = res["k"], res["te_um"]
+    k, te = res["k"], res.get("te_loaded_um") or res["te_um"]
     lines.append(f"k  min {k['min']:.4f}  mean {k['mean']:.4f}  max {k['max']:.4f} N/(mm um)")
     lines.append(f"TE min {te['min']:.4f}  mean {te['mean']:.4f}  max {te['max']:.4f} um  "
-                 f"(peak-to-peak {te['peak_to_peak']:.4f})")
+                 f"(peak-to-peak {te['peak_to_peak']:.4f}; loaded static TE)")
     if res.get("modified"):
-        tl = res["te_loaded_um"]
-        lines.append(f"loaded TE with modifications min {tl['min']:.4f}  mean {tl['mean']:.4f}  max {tl['max']:.4f} um  "
-                     f"(peak-to-peak {tl['peak_to_peak']:.4f})")
+        te = res.get("te_elastic_um") or res["te_um"]
+        lines.append(f"elastic part, without the modifications' geometric TE: min {te['min']:.4f}  mean {te['mean']:.4f}"
+                     f"  max {te['max']:.4f} um  (peak-to-peak {te['peak_to_peak']:.4f})")
     return "\n".join(lines)

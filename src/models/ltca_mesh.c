@@ -1,0 +1,131 @@
+/* SPDX-License-Identifier: MIT
+ * Mesh model `ltca`: rigid gears joined along the line of action by the
+ * mesh potential of the pair's loaded tooth contact analysis
+ * (include/gearsim/ltca.h, docs/explanation/ltca.md). The force is the
+ * exact discrete gradient of V(delta, phi) between the step's ends, in the
+ * deflection and in the mesh phase alike, so the energy balance holds to
+ * round-off; tooth errors (pitch tables, run-out) enter the deflection as
+ * for the lumped mesh (mesh_common.c). The damper acts over the share of
+ * the step either flank spends in contact. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/ltca.h"
+#include "gearsim/models.h"
+#include "gearsim/util.h"
+#include "mesh_common.h"
+
+typedef struct ltca_rt {
+    gs_ltca_table tab;
+    double phase0; /* mesh phase c . q at the scene's initial state */
+} ltca_rt;
+
+static double dot(const double *a, const double *b, int n)
+{
+    double s = 0;
+    for (int i = 0; i < n; i++)
+        s += a[i] * b[i];
+    return s;
+}
+
+static void ltca_destroy(gs_gmesh_rt *m)
+{
+    ltca_rt *L = m->contact;
+    if (L)
+        gs_ltca_table_clear(&L->tab);
+    free(L);
+    m->contact = NULL;
+}
+
+/* The damper of the mesh mode. With material damping on the gears (the
+ * elastic models' D = damping_m M + damping_s K), the damping those gears'
+ * material gives the mesh mode when its strain energy is in the teeth:
+ * c = beta k_t + alpha m_eq, beta and alpha the gears' mean coefficients,
+ * k_t the table's mean tangent stiffness at the scene's load. Otherwise (or
+ * with the mesh's own damping / damping_ratio given) the lumped rule of
+ * gsi_mesh_damping at k_t. */
+static double ltca_damping(const gs_model_view *sys, const gs_gmesh_rt *m, double kt)
+{
+    const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
+    if (sm->damping >= 0)
+        return sm->damping;
+    double inv = 0, beta = 0, alpha = 0; /* inv: 1 / m_eq */
+    for (int i = 0; i < sys->n_bodies; i++) {
+        const gs_body_rt *b = &sys->bodies[i];
+        if (b->coord >= 0 && m->a[b->coord] != 0)
+            inv += m->a[b->coord] * m->a[b->coord] / b->inertia_eff;
+    }
+    for (int k = 0; k < 2; k++) {
+        const gs_material *mt = &sys->scene->bodies[sm->gear[k]].material;
+        beta += 0.5 * mt->damping_s;
+        alpha += 0.5 * mt->damping_m;
+    }
+    if (sm->damping_ratio < 0 && (beta > 0 || alpha > 0))
+        return beta * kt + (inv > 0 ? alpha / inv : 0);
+    double zeta = sm->damping_ratio >= 0 ? sm->damping_ratio : 0.05;
+    return inv > 0 ? 2 * zeta * sqrt(kt / inv) : 0;
+}
+
+static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
+{
+    const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
+    GS_TRY(gsi_mesh_needs_rigid(sys, m, "ltca", d));
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sys->scene->bodies[sm->gear[k]];
+        if (b->pitch_error_tooth >= 0 && b->pitch_error != 0.0 && (!b->mods || b->mods->n_pitch == 0)) {
+            char field[64];
+            snprintf(field, sizeof field, "bodies[%d].pitch_error", sm->gear[k]);
+            return gs_diag_set(d, GS_ERANGE, field, "an ltca mesh takes pitch errors as the pitch_errors_um table");
+        }
+    }
+    ltca_rt *L = gs_calloc(1, sizeof *L);
+    if (!L)
+        return GS_ENOMEM;
+    m->contact = L; /* freed by ltca_destroy */
+    GS_TRY(gs_ltca_tables(sys->scene, m->index, NULL, &L->tab, d));
+    L->phase0 = dot(m->c, sys->q, sys->n_coords);
+    m->n_table = L->tab.n; /* the time-step check of a wave over the mesh cycle */
+    m->k_single = m->k_double = L->tab.k_mean;
+    m->damping = ltca_damping(sys, m, L->tab.k_mean);
+    return GS_OK;
+}
+
+static void ltca_force(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q0, const double *dq, double h,
+                       double *g, double *J, double *diss, double *force)
+{
+    const ltca_rt *L = m->contact;
+    int n = sys->n_coords;
+    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
+    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
+    double p0 = dot(m->c, q0, n) - L->phase0, dp = dot(m->c, dq, n);
+    double gs, gp, jac[4];
+    gs_ltca_grad(&L->tab, s0, ds, p0, dp, &gs, &gp, jac);
+    /* damping over the share of the step in contact on either flank */
+    double b0, f0, b1, f1, dwf, dwb;
+    gs_ltca_closing(&L->tab, p0, &b0, &f0);
+    gs_ltca_closing(&L->tab, p0 + dp, &b1, &f1);
+    double W = gsi_mesh_wet(s0 - f0, s0 + ds - f1, &dwf) + gsi_mesh_wet(b0 - s0, b1 - s0 - ds, &dwb);
+    double dW = dwf - dwb;
+    double cd = m->damping * W, fd = cd * ds / h;
+    for (int i = 0; i < n; i++)
+        g[i] += ab[i] * (gs + fd) + m->c[i] * gp;
+    double jss = jac[0] + (cd + m->damping * dW * ds) / h;
+    gsi_mesh_add_jacobian_c(m, m->c, n, J, jss, jac[1], jac[2], jac[3]);
+    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
+    *diss = fd * ds;
+    *force = gs + fd;
+}
+
+static double ltca_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
+{
+    const ltca_rt *L = m->contact;
+    double s = gsi_mesh_s(sys, m, q) - m->s_ref, p = dot(m->c, q, sys->n_coords) - L->phase0;
+    return gs_ltca_energy(&L->tab, s, p);
+}
+
+const gs_gmesh_ops gsi_gmesh_ltca = {
+    .name = "ltca", .init = ltca_init, .n_eq = 0, .force = ltca_force, .energy = ltca_energy,
+    .destroy = ltca_destroy,
+};

@@ -1,0 +1,188 @@
+/* SPDX-License-Identifier: MIT
+ * The ltca mesh model (docs/explanation/ltca.md) at low speed against the
+ * quasi-static analysis its tables came from. On contact_drive as shipped
+ * (`fidelity: "ltca"`: rigid gears, the tables of the pair's quasi-static
+ * analysis at its default settings; read from deploy/ltca or the cache),
+ * over the second half of 60 ms (steady speed, mesh frequency 141 Hz, far
+ * below the mesh mode):
+ *  - the mean dynamic TE (line-of-action deflection from the initial
+ *    position, backlash closing included) within 1 % of the mean of the
+ *    quasi-static TE over the table's positions at the run's mean mesh
+ *    force (the scene's load: a knot of the table);
+ *  - its rms about the mean (DTE rms) within 2 % of the quasi-static TE's;
+ *  - the output speed within 0.5 % of the closed form M0 (z2/z1) / c;
+ *  - the energy balance residual at round-off (1e-12 of the energy scale)
+ *    at every step;
+ *  - the same tables read twice give the same numbers bit for bit (the
+ *    cache), and their key changes with the load and the geometry.
+ * planetary_contact the same way (its six meshes' tables are shipped; a
+ * checkout without them builds them on first use, about 2 CPU minutes). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/ltca.h"
+#include "gearsim/step.h"
+#include "gearsim/util.h"
+
+static gs_system *build(const char *name, double h)
+{
+    const char *txt = gs_scene_builtin(name);
+    assert_non_null(txt);
+    /* the shipped scene at the ltca rung */
+    size_t n = strlen(txt);
+    char *s = malloc(n + 64);
+    assert_non_null(s);
+    const char *brace = strchr(txt, '{');
+    assert_non_null(brace);
+    size_t pre = (size_t)(brace - txt) + 1;
+    memcpy(s, txt, pre);
+    int k = sprintf(s + pre, "\"fidelity\": \"ltca\", ");
+    memcpy(s + pre + k, txt + pre, n - pre + 1);
+    gs_scene *sc;
+    gs_diag d;
+    gs_err e = gs_scene_parse(s, strlen(s), &sc, &d);
+    free(s);
+    if (e != GS_OK)
+        fprintf(stderr, "%s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    sc->time_step = h;
+    gs_system *sys;
+    e = gs_system_new(sc, 0, 1, &sys, &d);
+    if (e != GS_OK)
+        fprintf(stderr, "%s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    return sys;
+}
+
+/* Deflection of row j of t under force F (its monotone inverse). */
+static double row_inverse(const gs_ltca_table *t, int j, double F)
+{
+    double lo = t->d[(size_t)j * t->m], hi = t->d[(size_t)j * t->m + t->m - 1];
+    while (gs_ltca_row_force(t, j, lo, NULL) > F)
+        lo -= hi - lo;
+    while (gs_ltca_row_force(t, j, hi, NULL) < F)
+        hi += hi - lo;
+    for (int it = 0; it < 200 && hi - lo > 1e-16; it++) {
+        double mid = 0.5 * (lo + hi);
+        if (gs_ltca_row_force(t, j, mid, NULL) < F)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/* Mean and rms about it of the table's static TE at the mesh force F (the
+ * run's mean: the scene's load on a pair, its share on a planet's mesh). */
+static void static_te(const gs_scene *sc, int mesh, double F, double *mean, double *rms)
+{
+    gs_ltca_table t;
+    gs_diag d;
+    assert_int_equal(gs_ltca_tables(sc, mesh, NULL, &t, &d), GS_OK);
+    double s1 = 0, s2 = 0;
+    for (int j = 0; j < t.n; j++) {
+        double x = row_inverse(&t, j, F);
+        s1 += x;
+        s2 += x * x;
+    }
+    *mean = s1 / t.n;
+    *rms = sqrt(fmax(s2 / t.n - *mean * *mean, 0));
+    /* read again: the same bits */
+    gs_ltca_table u;
+    assert_int_equal(gs_ltca_tables(sc, mesh, NULL, &u, &d), GS_OK);
+    assert_int_equal(t.n, u.n);
+    assert_int_equal(t.m, u.m);
+    assert_memory_equal(t.d, u.d, (size_t)t.n * t.m * sizeof(double));
+    assert_memory_equal(t.f, u.f, (size_t)t.n * t.m * sizeof(double));
+    gs_ltca_table_clear(&t);
+    gs_ltca_table_clear(&u);
+}
+
+static void lowspeed(const char *name, double duration, const char *out, double speed_expect)
+{
+    double h = 1e-4;
+    gs_system *sys = build(name, h);
+    int n = (int)lround(duration / h), half = n / 2;
+    double worst = 0, scale = 0, d1 = 0, d2 = 0, th0 = 0, fsum = 0;
+    int o = gs_scene_find_body(sys->scene, out);
+    gs_energy e;
+    for (int i = 0; i < n; i++) {
+        if (i == n - half)
+            th0 = gs_system_angle(sys, o);
+        assert_int_equal(gs_step_serial(sys), GS_OK);
+        gs_system_energy(sys, &e);
+        worst = fmax(worst, fabs(e.balance_residual));
+        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
+        if (i >= n - half) {
+            double x = sys->meshes[0].deflection;
+            d1 += x;
+            d2 += x * x;
+            fsum += sys->meshes[0].force;
+        }
+    }
+    double speed = fabs(gs_system_angle(sys, o) - th0) / (half * h);
+    double mean = d1 / half, rms = sqrt(fmax(d2 / half - mean * mean, 0));
+    double smean, srms;
+    static_te(sys->scene, 0, fsum / half, &smean, &srms);
+    printf("# %s ltca: mean TE %.4f um (static %.4f, %+.3f %%), DTE rms %.4f um (static %.4f, %+.2f %%), "
+           "speed %.4f rad/s (closed form %.4f), balance %.2e of %.3g J\n",
+           name, mean * 1e6, smean * 1e6, 100 * (mean / smean - 1), rms * 1e6, srms * 1e6, 100 * (rms / srms - 1),
+           speed, speed_expect, worst / scale, scale);
+    assert_true(fabs(mean / smean - 1) < 0.01);
+    assert_true(fabs(rms / srms - 1) < 0.02);
+    assert_true(fabs(speed / speed_expect - 1) < 0.005);
+    assert_true(worst <= 1e-12 * scale);
+    gs_system_free(&sys);
+}
+
+static void test_pair(void **state)
+{
+    (void)state;
+    lowspeed("contact_drive", 0.06, "pinion", 20.0 * (20.0 / 30.0) / 0.3);
+}
+
+static void test_planetary(void **state)
+{
+    (void)state;
+    lowspeed("planetary_contact", 0.05, "carrier", 10.0);
+}
+
+static void test_key(void **state)
+{
+    (void)state;
+    gs_system *sys = build("contact_drive", 1e-4);
+    gs_scene *sc = sys->scene;
+    uint64_t k0 = gs_ltca_key(sc, 0, NULL);
+    double T = sc->loads[0].moment;
+    sc->loads[0].moment = 1.5 * T;
+    uint64_t k1 = gs_ltca_key(sc, 0, NULL);
+    sc->loads[0].moment = T;
+    double th = sc->bodies[0].gear.thinning_m;
+    sc->bodies[0].gear.thinning_m = 0.5 * th;
+    uint64_t k2 = gs_ltca_key(sc, 0, NULL);
+    sc->bodies[0].gear.thinning_m = th;
+    int r = sc->bodies[1].mesh.refine;
+    sc->bodies[1].mesh.refine = r + 1;
+    uint64_t k3 = gs_ltca_key(sc, 0, NULL);
+    sc->bodies[1].mesh.refine = r;
+    assert_true(k0 != k1 && k0 != k2 && k0 != k3);
+    assert_true(gs_ltca_key(sc, 0, NULL) == k0);
+    gs_system_free(&sys);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_key),
+        cmocka_unit_test(test_pair),
+        cmocka_unit_test(test_planetary),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
