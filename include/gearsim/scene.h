@@ -145,7 +145,8 @@ typedef struct gs_scene {
     double adapt_penetration;  /* numerics.adaptive.penetration_um, m: finer above it */
     int contact_scheme;        /* numerics.contact: GS_CONTACT_SEED (homogeneous rows) or
                                 * GS_CONTACT_CLOSURE (gap kept in the rows, work booked) or
-                                * GS_CONTACT_CLOSURE_ENERGY (closure, its work returned) */
+                                * GS_CONTACT_CLOSURE_ENERGY (closure, its work returned; the
+                                * default of a scene with contact meshes) */
     double newton_tol;
     int max_newton;
     int telemetry_every;

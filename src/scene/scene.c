@@ -427,6 +427,14 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
     s->time_step = 1e-5;
     s->newton_tol = 1e-13;
     s->max_newton = 50;
+    /* Contact treatment (docs/explanation/contact.md, "Contact treatments"): a scene
+     * with contact meshes gets the closure with its work returned unless
+     * it names another; the field acts on contact meshes only. */
+    bool has_contact = false;
+    for (int i = 0; i < s->n_meshes; i++)
+        has_contact |= s->meshes[i].model == GS_MESH_CONTACT;
+    static const char *const schemes[] = {"seed", "closure", "closure_energy"};
+    s->contact_scheme = has_contact ? GS_CONTACT_CLOSURE_ENERGY : GS_CONTACT_SEED;
     if (o) {
         int64_t v;
         CHECK(gsi_json_only(o, "numerics", numerics_keys, d));
@@ -438,10 +446,8 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
         CHECK(gsi_json_number(o, "newton_tol", "numerics", 1e-16, 1e-3, false, 1e-13, &s->newton_tol, d));
         CHECK(gsi_json_int(o, "max_newton", "numerics", 1, 1000, false, 50, &v, d));
         s->max_newton = (int)v;
-        /* Contact treatment (docs/explanation/contact.md, "Contact treatments"). */
-        static const char *const schemes[] = {"seed", "closure", "closure_energy"};
         int cs;
-        CHECK(gsi_scene_enum_field(o, "contact", "numerics", "seed", schemes, 3, &cs, d));
+        CHECK(gsi_scene_enum_field(o, "contact", "numerics", schemes[s->contact_scheme], schemes, 3, &cs, d));
         s->contact_scheme = cs;
         json_object *ad;
         CHECK(gsi_json_object(o, "adaptive", "numerics", false, &ad, d));
@@ -452,10 +458,7 @@ static gs_err scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
             s->adapt_penetration = pum * 1e-6;
             CHECK(gsi_json_int(ad, "levels", "numerics.adaptive", 1, GS_SCENE_MAX_ADAPT_LEVELS, false, 3, &v, d));
             s->adapt_levels = (int)v;
-            bool contact = false;
-            for (int i = 0; i < s->n_meshes; i++)
-                contact |= s->meshes[i].model == GS_MESH_CONTACT;
-            if (!contact) {
+            if (!has_contact) {
                 e = gs_diag_set(d, GS_ESCHEMA, "numerics.adaptive",
                                 "the adaptive step acts on the penetration of contact meshes: this scene has none "
                                 "(remove 'adaptive', or give a mesh model 'contact')");

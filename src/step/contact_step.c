@@ -48,6 +48,9 @@ typedef struct row_ref {
     gs_index cand;  /* the candidate of the mesh's last search */
     double g0;      /* closure: the row is G x >= -g0 (g0 = r.gap.g, or after
                      * a Newton update g(x_k) - G x_k at the iterate x_k) */
+    bool fan;       /* watched only: left to a tip node's row (fan_corner); it
+                     * becomes a row when the step's end finds it inside
+                     * (closure_newton), never from its linearised gap */
     gs_contact_row r;
 } row_ref;
 
@@ -172,6 +175,7 @@ static gs_err add_row(row_ref **rows, int *n, size_t *cap, int mesh, gs_index ca
     nr[*n].mesh = mesh;
     nr[*n].cand = cand;
     nr[*n].g0 = r->gap.g;
+    nr[*n].fan = false;
     nr[*n].r = *r;
     (*n)++;
     return GS_OK;
@@ -254,8 +258,19 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
         double g = r.gap.g;
         if (-g > *pen)
             *pen = -g;
-        if (r.fan_corner >= 0 && corner_is_slave(cm, cm->cand[j].master, r.fan_corner))
-            continue; /* outside the master at its tip corner or tip land: that node's own row holds it */
+        if (r.fan_corner >= 0 && corner_is_slave(cm, cm->cand[j].master, r.fan_corner)) {
+            /* Outside the master at its tip corner or tip land: that node's
+             * own row holds it. The closure still watches it: a flank node
+             * can slip past the corner into the flank beside it within a
+             * step (a corner's row does not stop the other gear's flank
+             * vertex), and the gap at the step's end, not its linearisation
+             * here (along the flank), makes it a row then (closure_newton). */
+            if (closure) {
+                GS_TRY(add_row(&s->watch, &s->n_watch, &s->cap_watch, mi, j, &r));
+                s->watch[s->n_watch - 1].fan = true;
+            }
+            continue;
+        }
         bool take = g <= 0.0;
         if (!take && (cm->predict || closure)) /* the free motion's change of g */
             take = g + gap_change(sys, s, &r, cm, rec, NULL) <= 0.0;
@@ -273,6 +288,8 @@ static double watched_penetration(const gs_system *sys, const solver *s, const d
 {
     double pen = 0.0;
     for (int j = 0; j < s->n_watch; j++) {
+        if (s->watch[j].fan)
+            continue;
         const gs_contact_row *r = &s->watch[j].r;
         double g = r->gap.g + gap_change(sys, s, r, sys->meshes[s->watch[j].mesh].contact, rec, x);
         pen = fmax(pen, -g);
@@ -455,7 +472,7 @@ static gs_err promote_watched(gs_system *sys, solver *s, int *moved)
     int kept = 0;
     for (int j = 0; j < s->n_watch; j++) {
         const row_ref *w = &s->watch[j];
-        if (closure_gap(sys, s, &w->r, sys->meshes[w->mesh].contact) < 0.0) {
+        if (!w->fan && closure_gap(sys, s, &w->r, sys->meshes[w->mesh].contact) < 0.0) {
             GS_TRY(add_row(&s->rows, &s->n_rows, &s->cap_rows, w->mesh, w->cand, &w->r));
             (*moved)++;
         } else {

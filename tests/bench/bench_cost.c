@@ -357,6 +357,13 @@ typedef struct case_rec {
 static case_rec recs[MAXCASE];
 static int n_recs;
 
+/* numerics.contact of the system's scene, by name. */
+static const char *scheme_name(const gs_system *sys)
+{
+    static const char *const names[] = {"seed", "closure", "closure_energy"};
+    return names[sys->scene->contact_scheme];
+}
+
 static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin(c->scene));
@@ -406,7 +413,7 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
      * idle (they poll with sleeps), summed per owning rank. */
     double floor_rank[64] = {0}, cfloor_rank[64] = {0}, ufloor_rank[64] = {0}, floor_all = 0;
     printf("\n## %s, %d ranks, h %g s, %d steps after %d warm-up, element order %d, contact %s\n", c->scene, size,
-           sys->h, c->steps, c->warm, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed");
+           sys->h, c->steps, c->warm, sys->scene->bodies[0].mesh.order, scheme_name(sys));
     printf("%-10s %5s %9s %12s %12s\n", "gear", "rank", "unknowns", "solve (ms)", "CPU (ms)");
     for (int i = 0; i < sys->n_bodies; i++) {
         const gs_body_rt *b = &sys->bodies[i];
@@ -464,11 +471,11 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     printf("RESULT_FLOORS scene %s order %d contact %s ranks %d: CPU ms_per_step %.4f; floor (hot loop, each gear's "
            "solve repeated) %.4f ms, ratio %.2f; floor in turn (rank 0's gears one after the other, as the step "
            "takes them) %.4f ms, ratio %.2f; energies %s\n",
-           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * cpu, 1e3 * cfl,
+           c->scene, sys->scene->bodies[0].mesh.order, scheme_name(sys), size, 1e3 * cpu, 1e3 * cfl,
            cpu / cfl, 1e3 * ifl, cpu / ifl, energy_every_step ? "every step" : "on the daemon's schedule");
     printf("RESULT scene %s order %d contact %s ranks %d wall: ms_per_step %.4f floor_ms %.4f ratio %.2f; CPU (rank 0): "
            "ms_per_step %.4f floor_ms %.4f ratio %.2f; user CPU: ratio %.2f; all gears' solves %.4f ms\n",
-           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
+           c->scene, sys->scene->bodies[0].mesh.order, scheme_name(sys), size, 1e3 * wall, 1e3 * fl, wall / fl, 1e3 * cpu, 1e3 * cfl, cpu / cfl, user / ufl,
            1e3 * floor_all);
     /* The engine's critical path (gs_step_timing): per phase the slowest
      * rank's CPU time, rank 0's in the serial phases; at -n 1 the CPU time
@@ -476,7 +483,7 @@ static int run_case(gs_engine *e, const bcase *c, int size, const char *scheme)
     double path = (t1.cpu_path - t0.cpu_path) / steps, work = (t1.cpu_work - t0.cpu_work) / steps;
     printf("RESULT_PATH scene %s order %d contact %s ranks %d: critical path CPU ms_per_step %.4f (rank 0's own "
            "work %.4f) floor_ms %.4f ratio %.2f\n",
-           c->scene, sys->scene->bodies[0].mesh.order, scheme ? scheme : "seed", size, 1e3 * path, 1e3 * work,
+           c->scene, sys->scene->bodies[0].mesh.order, scheme_name(sys), size, 1e3 * path, 1e3 * work,
            1e3 * cfl, path / cfl);
     if (n_recs < MAXCASE) {
         case_rec *r = &recs[n_recs++];
@@ -665,7 +672,7 @@ int main(int argc, char **argv)
             return rc;
         }
         const char *only = argc > 2 && strcmp(argv[2], "all") != 0 ? argv[2] : NULL;
-        const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (seed) */
+        const char *scheme = argc > 3 ? argv[3] : NULL; /* numerics.contact; default the scenes' (closure_energy) */
         bool count = counting;
         int64_t csteps = count && argc > 3 ? atoll(argv[3]) : 100;
         bool counted = false; /* count: one scene (the other ranks pause once) */

@@ -32,7 +32,7 @@ typedef struct {
     double damping_s;   /* contact: material damping beta (s) of both gears, 0 none */
     const char *errors; /* JSON members added to the pinion ("" none) */
     double angle0;      /* initial pinion angle, rad (whole pitches keep the mesh) */
-    const char *contact_scheme; /* contact: numerics.contact, "seed" or "closure" (NULL: the default) */
+    const char *contact_scheme; /* contact: numerics.contact, "seed" or "closure" (NULL: "seed") */
     double damping_ratio, damping_hz; /* contact: material damping zeta at f of both gears (0: none;
                                        * not with damping_s) */
 } te_setup;
@@ -70,8 +70,8 @@ static inline void te_scene_text(const te_setup *su, char *buf, size_t len)
     else if (contact && su->damping_ratio > 0)
         snprintf(mat, sizeof mat, ", \"material\": {\"damping_ratio\": %.17g, \"damping_hz\": %.17g}",
                  su->damping_ratio, su->damping_hz);
-    if (contact && su->contact_scheme)
-        snprintf(num, sizeof num, ", \"contact\": \"%s\"", su->contact_scheme);
+    if (contact) /* NULL: the seed's scheme, which the tooth-error bars were measured with */
+        snprintf(num, sizeof num, ", \"contact\": \"%s\"", su->contact_scheme ? su->contact_scheme : "seed");
     const char *stiff = su->model == TE_CALIBRATED ? ", \"stiffness\": {\"type\": \"calibrated\"}" : "";
     double c = 2.25 * su->torque / su->omega; /* wheel brake: 1.5 T at 2 omega / 3 */
     snprintf(buf, len,
@@ -243,7 +243,7 @@ typedef struct {
     int faulty[32], nf;
     const char *csv; /* write PREFIX_<model>_<case>.csv when set */
     int no_pitch;    /* leave out the pitch-error case */
-    const char *contact_scheme;       /* contact: numerics.contact (NULL: the default, "seed") */
+    const char *contact_scheme;       /* contact: numerics.contact (NULL: "seed") */
     double damping_ratio, damping_hz; /* contact: material damping zeta at f (0: none) */
 } te_study_opts;
 

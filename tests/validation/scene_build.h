@@ -62,6 +62,21 @@ static inline json_object *vt_scene_linear(const char *name)
     return root;
 }
 
+/* numerics.contact of a scene tree set to `scheme` (numerics added when
+ * absent): the tests whose figures were measured with the seed's scheme
+ * name "seed", the default of a scene with contact meshes being
+ * "closure_energy". */
+static inline json_object *vt_contact_scheme(json_object *root, const char *scheme)
+{
+    json_object *num;
+    if (!json_object_object_get_ex(root, "numerics", &num)) {
+        num = json_object_new_object();
+        json_object_object_add(root, "numerics", num);
+    }
+    json_object_object_add(num, "contact", json_object_new_string(scheme));
+    return root;
+}
+
 /* Parse the scene; consumes root. Fails the test with the diagnostic. */
 static inline gs_scene *vt_scene_parse(json_object *root)
 {

@@ -45,6 +45,7 @@ static gs_system *impact_system(double h, int levels)
     json_object *root = vt_scene_linear("contact_impact");
     json_object *num = json_object_new_object();
     json_object_object_add(num, "time_step", json_object_new_double(h));
+    json_object_object_add(num, "contact", json_object_new_string("seed")); /* the seed's scheme, measured */
     if (levels > 0) {
         json_object *ad = json_object_new_object();
         json_object_object_add(ad, "penetration_um", json_object_new_double(1.0));

@@ -37,6 +37,7 @@ static gs_system *build(double zeta)
 {
     json_object *root = json_tokener_parse(gs_scene_builtin("contact_drive"));
     assert_non_null(root);
+    vt_contact_scheme(root, "seed"); /* the seed's scheme, measured */
     json_object *bs = json_object_object_get(root, "bodies");
     for (size_t i = 0; zeta >= 0 && i < json_object_array_length(bs); i++) {
         json_object *mat = json_object_new_object();

@@ -132,10 +132,10 @@ static int scale(int k)
     return l && l[0] == '1' ? k : 1;
 }
 
-static void pair_seed(void **st) { (void)st; compare("contact_drive", NULL, 7 * scale(22), true); }
+static void pair_seed(void **st) { (void)st; compare("contact_drive", "seed", 7 * scale(22), true); }
 static void pair_closure_energy(void **st) { (void)st; compare("contact_drive", "closure_energy", 3 * scale(7), false); }
-static void planetary(void **st) { (void)st; compare("planetary_contact", NULL, 3 * scale(12), true); }
-static void impact(void **st) { (void)st; compare("contact_impact", NULL, 7 * scale(22), true); }
+static void planetary(void **st) { (void)st; compare("planetary_contact", "seed", 3 * scale(12), true); }
+static void impact(void **st) { (void)st; compare("contact_impact", "seed", 7 * scale(22), true); }
 
 int main(int argc, char **argv)
 {

@@ -114,7 +114,7 @@ static double inertia0(const char *scene)
 
 static json_object *scene_of(const xcase *c)
 {
-    json_object *root = vt_scene(c->scene);
+    json_object *root = vt_contact_scheme(vt_scene(c->scene), "seed"); /* the seed's scheme, measured */
     json_object *bodies = json_object_object_get(root, "bodies");
     json_object *ms = json_object_object_get(root, "meshes");
     int nb = (int)json_object_array_length(bodies);

@@ -32,7 +32,7 @@
 
 static void elastic_ring_rigid_sun_and_planets(const char *sun_model)
 {
-    json_object *root = vt_scene_linear("planetary_contact");
+    json_object *root = vt_contact_scheme(vt_scene_linear("planetary_contact"), "seed");
     json_object *bs = json_object_object_get(root, "bodies"), *ms = json_object_object_get(root, "meshes");
     for (size_t i = 0; i < json_object_array_length(bs); i++) {
         json_object *b = json_object_array_get_idx(bs, i);

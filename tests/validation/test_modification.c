@@ -416,7 +416,7 @@ static void harris_map(void **state)
  * model `model`. */
 static json_object *drive_scene(double c_um, const char *model)
 {
-    json_object *root = vt_scene_linear("contact_drive");
+    json_object *root = vt_contact_scheme(vt_scene_linear("contact_drive"), "seed");
     json_object *bodies = json_object_object_get(root, "bodies");
     for (size_t i = 0; i < json_object_array_length(bodies); i++) {
         json_object *b = json_object_array_get_idx(bodies, i);
@@ -738,7 +738,7 @@ static void example_scenes(void **state)
 static void ring_relief(void **state)
 {
     (void)state;
-    json_object *root = vt_scene_linear("planetary_contact");
+    json_object *root = vt_contact_scheme(vt_scene_linear("planetary_contact"), "seed");
     json_object *bodies = json_object_object_get(root, "bodies");
     json_object *ring = NULL;
     for (size_t i = 0; i < json_object_array_length(bodies); i++) {
@@ -795,7 +795,7 @@ static void runout_dynamic(void **state)
 {
     (void)state;
     for (int q = 0; q < 2; q++) {
-        json_object *root = vt_scene_linear("contact_drive");
+        json_object *root = vt_contact_scheme(vt_scene_linear("contact_drive"), "seed");
         json_object *bodies = json_object_object_get(root, "bodies");
         if (q)
             json_object_object_add(json_object_array_get_idx(bodies, 1), "runout",

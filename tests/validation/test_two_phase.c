@@ -110,7 +110,7 @@ static double compare(const char *builtin, const char *scheme, int warm, int ste
 static void pair_seed(void **state)
 {
     (void)state;
-    assert_true(compare("contact_drive", NULL, 300, 40) < 0.25);
+    assert_true(compare("contact_drive", "seed", 300, 40) < 0.25);
 }
 
 static void pair_closure(void **state)
@@ -122,7 +122,7 @@ static void pair_closure(void **state)
 static void planetary(void **state)
 {
     (void)state;
-    assert_true(compare("planetary_contact", NULL, 500, 15) < 0.25);
+    assert_true(compare("planetary_contact", "seed", 500, 15) < 0.25);
 }
 
 int main(void)
