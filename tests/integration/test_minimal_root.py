@@ -20,7 +20,12 @@ installed (`deploy/install-deps.sh --minimal-root`); otherwise it skips
      default suite's `readme` test, here on the clone's own build);
   4. a line per README snippet: passed, failed or skipped (and why).
 GEARSIM_MINROOT_SUITE=1 also runs the quick start's `deploy/test.sh`.
-GEARSIM_MINROOT_KEEP=1 leaves ROOT (unmounted) for inspection."""
+  5. the snippets the readme test skips (marked `readme-test: skip`, e.g.
+     the install to a prefix and pip in a virtual environment), each typed
+     verbatim in its own shell in the root (`bash -e -o pipefail`).
+GEARSIM_MINROOT_KEEP=1 leaves ROOT (unmounted) for inspection;
+GEARSIM_MINROOT_REUSE=DIR reuses such a kept DIR (no debootstrap, no clone if
+DIR/root has one: for working on the test itself)."""
 import glob
 import os
 import re
@@ -130,6 +135,27 @@ def in_root(root, script):
     return ["chroot", root, "/bin/bash", "-c", script]
 
 
+def run_skipped(R, root, log, env):
+    """The snippets the readme test skips (the quick start aside: it ran
+    above), each verbatim in its own shell in the root, in document order."""
+    from test_readme import DOCS, SKIP_SECTIONS, parse
+    n = 0
+    for doc in DOCS:
+        with open(os.path.join(root + CLONE, doc)) as f:
+            blocks = parse(doc, f.read())
+        for b in blocks:
+            if not b.skip or b.section in SKIP_SECTIONS:
+                continue
+            n += 1
+            script = f"/tmp/skipped{n:02d}.{'py' if b.lang == 'python' else 'sh'}"
+            with open(root + script, "w") as f:
+                f.write(b.text)
+            run = f"/usr/bin/python3 {script}" if b.lang == "python" else f"bash -e -o pipefail {script}"
+            rc, dt = timed(in_root(root, f"cd {CLONE} && {run}"), log, env=env)
+            R.check(f"{b.name}, skipped by the readme test, typed in the root ({dt:.0f} s)", rc == 0,
+                    f"exit {rc}; see {log}\n--- snippet ---\n{b.text}")
+
+
 def main():
     reason = why_skip()
     if reason:
@@ -138,19 +164,25 @@ def main():
     from harness import Results
     R = Results("every README line verbatim on a minimal Debian root")
     t_all = time.monotonic()
-    tmp = tempfile.mkdtemp(prefix="gearsim-minroot-", dir=os.environ.get("GEARSIM_MINROOT_TMP", "/var/tmp"))
+    reuse = os.environ.get("GEARSIM_MINROOT_REUSE")
+    tmp = reuse or tempfile.mkdtemp(prefix="gearsim-minroot-", dir=os.environ.get("GEARSIM_MINROOT_TMP", "/var/tmp"))
     root = os.path.join(tmp, "root")
     log = os.path.join(tmp, "minroot.log")
     R.note(f"root {root}, full log {log}")
     mounts = Mounts(root)
     try:
         mirror = debian_mirror()
-        rc, dt = timed(["debootstrap", "--variant=minbase", SUITE, root, mirror], log)
-        if not R.check(f"debootstrap --variant=minbase {SUITE} ROOT {mirror} ({dt:.0f} s)", rc == 0, f"see {log}"):
-            return R
-        rc, dt = timed(["git", "clone", "-q", SOURCE_ROOT, root + CLONE], log)
-        if not R.check("git clone of the source tree into ROOT" + CLONE, rc == 0, f"see {log}"):
-            return R
+        if reuse and os.path.isfile(os.path.join(root, "etc", "debian_version")):
+            R.note(f"reusing the root {root}")
+        else:
+            rc, dt = timed(["debootstrap", "--variant=minbase", SUITE, root, mirror], log)
+            if not R.check(f"debootstrap --variant=minbase {SUITE} ROOT {mirror} ({dt:.0f} s)", rc == 0,
+                           f"see {log}"):
+                return R
+        if not (reuse and os.path.isdir(root + CLONE)):
+            rc, dt = timed(["git", "clone", "-q", SOURCE_ROOT, root + CLONE], log)
+            if not R.check("git clone of the source tree into ROOT" + CLONE, rc == 0, f"see {log}"):
+                return R
         shutil.copy2("/etc/resolv.conf", os.path.join(root, "etc", "resolv.conf"))
         mounts.mount("proc", "/proc")
         mounts.mount("sysfs", "/sys")
@@ -190,10 +222,11 @@ def main():
                 R.check(name, kind == "ok", why)
         R.check("README snippets found and run", seen > 0, f"see {out}")
         R.check("test_readme.py in the root passed as a whole", rc == 0, f"exit {rc}; see {out}")
+        run_skipped(R, root, log, env)
     finally:
         left = mounts.release()
         R.check("every mount in the root released", not left, left)
-        if not left and os.environ.get("GEARSIM_MINROOT_KEEP") != "1":
+        if not left and not reuse and os.environ.get("GEARSIM_MINROOT_KEEP") != "1":
             shutil.rmtree(tmp, ignore_errors=True)   # only once nothing is mounted under it
         else:
             R.note(f"left for inspection: {tmp}")
