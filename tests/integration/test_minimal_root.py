@@ -202,10 +202,12 @@ def main():
             R.skip("quick start: deploy/test.sh", "GEARSIM_MINROOT_SUITE=1 runs it")
         # The snippets, by the clone's own engine, in the root.
         out = os.path.join(tmp, "readme.out")
+        start = os.path.getsize(log)
         rc, dt = timed(in_root(root, f"cd {CLONE} && /usr/bin/python3 tests/integration/test_readme.py"),
                        log, env=env)
         with open(log) as f:
-            text = f.read().split("test_readme.py\n", 1)[-1]
+            f.seek(start)
+            text = f.read()
         with open(out, "w") as f:
             f.write(text)
         R.note(f"README snippets ({dt / 60:.1f} min):")
