@@ -25,6 +25,11 @@ fi
 if [ "${1:-}" = "--screenshots" ]; then
   pkgs+=(chromium)
 fi
+# tests/integration/test_minimal_root.py (GEARSIM_LONG=1): a minimal Debian
+# root to run the README in, so debootstrap comes only with --minimal-root.
+if [ "${1:-}" = "--minimal-root" ]; then
+  pkgs+=(debootstrap)
+fi
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
