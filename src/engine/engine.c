@@ -868,19 +868,22 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     gs_system *s = e->sys;
     if ((uint32_t)s->n_coords != nc || (uint32_t)s->n_meshes != nm ||
         (gs_system_has_body_state(s) ? states_size(s) : 0) != ns) {
+        /* The message reads the system: write it before unloading. */
+        gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene (%u coordinates, %u "
+                    "meshes, %zu state values for a scene of %d, %d, %zu)", nc, nm, ns, s->n_coords,
+                    s->n_meshes, gs_system_has_body_state(s) ? states_size(s) : 0);
         unload(e);
-        return gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene (%u coordinates, %u "
-                           "meshes, %zu state values for a scene of %d, %d, %zu)", nc, nm, ns, s->n_coords,
-                           s->n_meshes, gs_system_has_body_state(s) ? states_size(s) : 0);
+        return GS_EIO;
     }
     /* The clock follows the step count (time = step h, or within the step
      * when it was taken between substeps), the level the scene's range. */
     double t_lo = (double)sv.step * s->h, tol = 1e-9 * (t_lo + s->h);
     if (!(sv.time >= t_lo - tol && sv.time <= t_lo + s->h + tol) || sv.level > s->adapt_levels) {
+        gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's time %.17g s or adaptive level %d does not "
+                    "match step %lld of its scene (time step %g s, %d levels)", sv.time, sv.level,
+                    (long long)sv.step, s->h, s->adapt_levels);
         unload(e);
-        return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's time %.17g s or adaptive level %d does not "
-                           "match step %lld of its scene (time step %g s, %d levels)", sv.time, sv.level,
-                           (long long)sv.step, s->h, s->adapt_levels);
+        return GS_ERANGE;
     }
     gs_err lerr = GS_OK;
     for (int i = 0, off = 0; i < s->n_bodies; i++) {

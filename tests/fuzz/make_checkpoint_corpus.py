@@ -5,7 +5,7 @@ from real checkpoints: a daemon (the build's gearsimd) loads the `pair` and
 `planetary` scenes, advances and writes a checkpoint; each snapshot becomes
 seeds with the target's 30-byte header: restore as written, --resume with
 an /autosave group, the snapshot two-dimensional, and a declared length
-of 2 GiB with nothing stored.
+of 2 GiB with nothing stored, and a step count its time does not match.
 
     tests/fuzz/make_checkpoint_corpus.py     # rewrite tests/fuzz/corpus/checkpoint/
 """
@@ -48,6 +48,9 @@ def main():
             seeds.append(header(64, 0, 0, step + 100, 5, 2) + snap)
             seeds.append(header(1, 0, 0, 0, 0, 0) + snap)
             seeds.append(header(32, 1 << 31, 0, 0, 0, 0) + snap[:64])
+            # A step count the stored time does not match: refused after
+            # the scene is built, so the refusal must not read what it frees.
+            seeds.append(header(0, 0, 0, 0, 0, 0) + snap[:12] + struct.pack("<q", step + 1000) + snap[20:])
     for s in seeds:
         with open(os.path.join(out, hashlib.sha1(s).hexdigest()[:16]), "wb") as f:
             f.write(s)
