@@ -892,6 +892,20 @@ bool gsi_validating_allows(const char *cmd)
     return false;
 }
 
+/* Answer up to max queued requests, stopping early when none is left or
+ * a shutdown was asked for. */
+static void drain_router(gs_service *s, int max)
+{
+    for (int i = 0; i < max && !s->shutdown; i++) {
+        int ev = 0;
+        size_t n = sizeof ev;
+        zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
+        if (!(ev & ZMQ_POLLIN))
+            break;
+        receive_one(s);
+    }
+}
+
 /* Long validation on rank 0 (a sweep's every point) calls this every few
  * milliseconds: requests are answered meanwhile (those that change nothing;
  * the others are told to wait), and heartbeats go on, so the service is
@@ -905,14 +919,7 @@ void gsi_poll_during(void *user)
     s->last_poll_during = now;
     if (!s->router)
         return;
-    for (int i = 0; i < 64; i++) {
-        int ev = 0;
-        size_t n = sizeof ev;
-        zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
-        if (!(ev & ZMQ_POLLIN))
-            break;
-        receive_one(s);
-    }
+    drain_router(s, 64);
     if (now - s->last_heartbeat >= 1.0) {
         s->last_heartbeat = now;
         heartbeat(s);
@@ -1195,14 +1202,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
         int rc = zmq_poll(items, 1, running ? 0 : 100);
         if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
-            for (int i = 0; i < 256 && !s->shutdown; i++) {
-                int ev = 0;
-                size_t n = sizeof ev;
-                zmq_getsockopt(s->router, ZMQ_EVENTS, &ev, &n);
-                if (!(ev & ZMQ_POLLIN))
-                    break;
-                receive_one(s);
-            }
+            drain_router(s, 256);
         if (s->shutdown)
             break;
         if (s->sweep)

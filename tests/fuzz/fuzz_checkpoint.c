@@ -34,45 +34,14 @@
 #include "gearsim/util.h"
 #include "service/options.h"
 #include "service/service_internal.h"
+#include "fuzz_common.h"
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static gs_engine *eng;
-static char data_dir[] = "/tmp/gearsim-fuzzck-XXXXXX";
-static gs_service_config cfg;
-
-static void clean_data_dir(void)
-{
-    DIR *d = opendir(data_dir);
-    if (!d)
-        return;
-    struct dirent *de;
-    char p[sizeof data_dir + 300];
-    while ((de = readdir(d)))
-        if (strcmp(de->d_name, ".") && strcmp(de->d_name, "..")) {
-            snprintf(p, sizeof p, "%s/%s", data_dir, de->d_name);
-            unlink(p);
-        }
-    closedir(d);
-}
-
-static void at_exit(void)
-{
-    clean_data_dir();
-    rmdir(data_dir);
-}
-
 int LLVMFuzzerInitialize(int *argc, char ***argv)
 {
-    int provided;
-    MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
-    if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK || !mkdtemp(data_dir)) {
-        fprintf(stderr, "fuzz_checkpoint: cannot set up the engine or the data directory\n");
-        abort();
-    }
-    atexit(at_exit);
-    cfg.data_dir = data_dir;
+    fuzz_setup(argc, argv, "fuzz_checkpoint", "fuzzck");
     gs_service_set_max_scene_mb(16);
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
     return 0;

@@ -19,48 +19,17 @@
 #include "gearsim/engine.h"
 #include "gearsim/util.h"
 #include "service/service_internal.h"
+#include "fuzz_common.h"
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
-static gs_engine *eng;
-static char data_dir[] = "/tmp/gearsim-fuzz-XXXXXX";
-static gs_service_config cfg;
 static int verbose; /* GEARSIM_FUZZ_VERBOSE=1: print the replies */
-
-static void clean_data_dir(void)
-{
-    DIR *d = opendir(data_dir);
-    if (!d)
-        return;
-    struct dirent *de;
-    char p[sizeof data_dir + 300];
-    while ((de = readdir(d)))
-        if (strcmp(de->d_name, ".") && strcmp(de->d_name, "..")) {
-            snprintf(p, sizeof p, "%s/%s", data_dir, de->d_name);
-            unlink(p);
-        }
-    closedir(d);
-}
-
-static void at_exit(void)
-{
-    clean_data_dir();
-    rmdir(data_dir);
-}
 
 int LLVMFuzzerInitialize(int *argc, char ***argv)
 {
-    int provided;
-    MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
-    if (gs_engine_new(MPI_COMM_WORLD, &eng) != GS_OK || !mkdtemp(data_dir)) {
-        fprintf(stderr, "fuzz_request: cannot set up the engine or the data directory\n");
-        abort();
-    }
-    atexit(at_exit);
-    cfg.data_dir = data_dir;
+    fuzz_setup(argc, argv, "fuzz_request", "fuzz");
     verbose = getenv("GEARSIM_FUZZ_VERBOSE") != NULL;
-    cfg.connection_file = NULL;
     return 0;
 }
 
