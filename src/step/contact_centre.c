@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
- * The contact step with moving gear centres (docs/explanation/contact.md,
- * "Gears on bearings and floating members"), rank 0.
+ * The contact step with moving gear centres (docs/explanation/planetary.md,
+ * "Contact meshes on moving members"), rank 0.
  *
  * A gear's centre c moves in one of three ways:
  *  - a planet on a rigid pin turns with its carrier: dc = J (c - c_C) dtheta_C

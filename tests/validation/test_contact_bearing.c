@@ -1,6 +1,6 @@
 /* SPDX-License-Identifier: MIT
  * Elastic tooth contact (`contact` meshes) with gear centres that
- * translate (docs/explanation/contact.md, "Gears on bearings and floating
+ * translate (docs/explanation/planetary.md, "Contact meshes on moving
  * members"), against conservation laws and closed forms:
  *  - the contact_drive pair (seed 7.2, linear triangles) with the pinion on
  *    a bearing joint: the energy balance stays at round-off, and in the
@@ -177,8 +177,8 @@ static void impact_mesh_on_bearing(void **state)
         vt_step_balance(s, &e, &worst, &scale);
         moved = fmax(moved, hypot(s->q[tc], s->q[tc + 1]));
     }
-    print_message("rattle, wheel on a bearing 2e7 N/m: %d impacts, loss %.3e J, balance %.2e of %.2e J, wheel up to "
-                  "%.3f um off centre\n", s->meshes[0].impacts, s->meshes[0].impact_loss, worst, scale,
+    print_message("rattle, wheel on a bearing 2e7 N/m: %lld impacts, loss %.3e J, balance %.2e of %.2e J, wheel up to "
+                  "%.3f um off centre\n", (long long)s->meshes[0].impacts, s->meshes[0].impact_loss, worst, scale,
                   moved * 1e6);
     assert_true(s->meshes[0].impacts > 10);
     assert_true(moved > 1e-7);

@@ -3,12 +3,12 @@
  * (deploy/scenes/planetary_contact.json, linear triangles) with moving
  * members (docs/explanation/planetary.md, "Contact meshes on moving
  * members"):
- *  - planets on pin bearings (1e8 N/m): the energy balance at round-off,
- *    and each planet's mean offset from its pin times k equals the mean
- *    resultant of its two meshes' normal forces, (F_s + F_r) cos(alpha_w)
- *    across the carrier radius and (F_s - F_r) sin(alpha_w) along it, in
- *    the carrier's frame, to 1e-3 (frictionless involute contact: the
- *    forces act along the lines of action);
+ *  - planets on pin bearings (1e8 N/m): the energy balance at round-off;
+ *    each planet's mean offset from its pin times k equals the mean
+ *    contact force on its centre (the rows' reactions) to 1e-3, and the
+ *    resultant of its two meshes' normal forces along the rigid lines of
+ *    action, (F_s + F_r) cos(alpha_w) across the carrier radius and
+ *    (F_s - F_r) sin(alpha_w) along it, to 1e-2;
  *  - a 10 um tangential pin error on planet1 with the sun on a fixed axis
  *    and floating (a bearing joint of zero stiffness): with the sun fixed
  *    planet1 is nearly unloaded, floating the three share nearly equally;
@@ -25,6 +25,7 @@
 
 #include <json-c/json.h>
 
+#include "gearsim/contact.h"
 #include "gearsim/step.h"
 #include "scene_build.h"
 
@@ -51,6 +52,24 @@ static int mesh_index(const gs_system *s, const char *name)
             return i;
     fail_msg("no mesh %s", name);
     return -1;
+}
+
+/* The contact forces on body b's centre in the last step, scene frame: the
+ * rows' reactions on its translation, sum of lambda dg/dc over the rows of
+ * its meshes (the generalised force G^T lambda the step gave it). */
+static void centre_force(const gs_system *s, int b, double F[2])
+{
+    F[0] = F[1] = 0.0;
+    for (int i = 0; i < gs_step_contact_rows(s); i++) {
+        int mi;
+        double lam;
+        const gs_contact_row *r = gs_step_contact_row(s, i, &mi, &lam);
+        for (int k = 0; k < 2; k++)
+            if (s->scene->meshes[mi].gear[k] == b) {
+                F[0] += lam * r->dg_dc[k][0];
+                F[1] += lam * r->dg_dc[k][1];
+            }
+    }
 }
 
 static void pin_bearings_carry_mesh_forces(void **state)
@@ -80,6 +99,7 @@ static void pin_bearings_carry_mesh_forces(void **state)
     }
     const double alpha = 20.0 * M_PI / 180.0; /* standard centre distances: alpha_w = alpha */
     double er[3] = {0}, et[3] = {0}, fs[3] = {0}, fr[3] = {0}, worst = 0, scale = 0, off = 0;
+    double ex[3][2] = {{0}}, fc[3][2] = {{0}};
     gs_energy e;
     for (int i = 0; i < N_STEPS; i++) {
         vt_step_balance(s, &e, &worst, &scale);
@@ -94,6 +114,10 @@ static void pin_bearings_carry_mesh_forces(void **state)
             gs_system_body_pose(s, pl[p], c, &th);
             const double *cc = s->bodies[car].centre;
             double dx = c[0] - cc[0] - sb->carrier_radius * cos(a), dy = c[1] - cc[1] - sb->carrier_radius * sin(a);
+            double F[2];
+            centre_force(s, pl[p], F);
+            ex[p][0] += dx, ex[p][1] += dy;
+            fc[p][0] += F[0], fc[p][1] += F[1];
             er[p] += dx * cos(a) + dy * sin(a);
             et[p] += -dx * sin(a) + dy * cos(a);
             off = fmax(off, hypot(dx, dy));
@@ -101,8 +125,12 @@ static void pin_bearings_carry_mesh_forces(void **state)
             fr[p] += s->meshes[mr[p]].force;
         }
     }
-    double worst_rel = 0;
+    double worst_rel = 0, worst_line = 0;
     for (int p = 0; p < 3; p++) {
+        double d = hypot(k * ex[p][0] - fc[p][0], k * ex[p][1] - fc[p][1]) / hypot(fc[p][0], fc[p][1]);
+        print_message("planet%d: k e against the contact forces on its centre (mean vectors): |k e - F| / |F| = "
+                      "%.2e, |F| = %.3f N\n", p + 1, d, hypot(fc[p][0], fc[p][1]) / TAIL);
+        worst_rel = fmax(worst_rel, d);
         double F_s = fs[p] / TAIL, F_r = fr[p] / TAIL;
         double ft = (F_s + F_r) * cos(alpha), fq = (F_s - F_r) * sin(alpha);
         double kx = k * hypot(er[p], et[p]) / TAIL, fx = hypot(ft, fq);
@@ -110,13 +138,17 @@ static void pin_bearings_carry_mesh_forces(void **state)
                       "k |e| %.3f N, mesh resultant %.3f N (sun %.3f, ring %.3f); rel. %.2e\n",
                       p + 1, k, kx / k * 1e6, er[p] / TAIL * 1e6, et[p] / TAIL * 1e6, kx, fx, F_s, F_r,
                       kx / fx - 1);
-        worst_rel = fmax(worst_rel, fabs(kx / fx - 1));
+        worst_line = fmax(worst_line, fabs(kx / fx - 1));
     }
     print_message("planets on pin bearings: balance %.2e of %.2e J; largest offset %.3f um\n", worst, scale,
                   off * 1e6);
     assert_true(worst < 1e-9 * scale);
     assert_true(off > 1e-6);
+    /* the bearing carries the mean mesh force */
     assert_true(worst_rel < 1e-3);
+    /* which acts along the lines of action (the elastic flanks' contact
+     * strays a little off the rigid involute's) */
+    assert_true(worst_line < 1e-2);
     gs_system_free(&s);
 }
 
