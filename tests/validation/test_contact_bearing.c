@@ -20,6 +20,7 @@
 #include <cmocka.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <json-c/json.h>
@@ -188,6 +189,8 @@ static void impact_mesh_on_bearing(void **state)
 
 int main(void)
 {
+    if (getenv("GEARSIM_TEST_FILTER"))
+        cmocka_set_test_filter(getenv("GEARSIM_TEST_FILTER"));
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(pinion_bearing_carries_tooth_force),
         cmocka_unit_test(both_on_bearings_balance),
