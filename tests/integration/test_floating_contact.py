@@ -16,7 +16,7 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import daemon as dmod  # noqa: E402
-from harness import Results, snap  # noqa: E402
+from harness import Results, check_same_at_ranks, ranks_run  # noqa: E402
 
 R = Results("test_floating_contact: floating sun with contact meshes at 1, 2 and 3 ranks")
 
@@ -37,20 +37,12 @@ def scene():
 
 
 def run(ranks, steps=600):
-    with dmod.Daemon(ranks=ranks) as d:
-        with d.client() as c:
-            c.load(scene=scene())
-            tel = []
-            done = c.advance(steps=steps, on_telemetry=tel.append, timeout=900)
-            R.check(f"-n {ranks}: run completed", not done.get("cancelled") and not done.get("lost"), done)
-            st = snap(c)
-    return {ev["step"]: json.dumps({k: ev.get(k) for k in ("time", "energy", "bodies", "meshes", "planets")},
-                                   sort_keys=True) for ev in tel}, json.dumps(st, sort_keys=True)
+    return ranks_run(R, dmod, "floating sun, contact meshes", ranks, scene(), steps, timeout=900)
 
 
 runs = {n: R.guard(f"floating sun with contact meshes at -n {n}", run, n) for n in (1, 2, 3)}
 if runs.get(1):
-    t1, f1 = runs[1]
+    t1 = runs[1][0]
     R.check("telemetry arrived", len(t1) > 5, len(t1))
     last = json.loads(t1[max(t1)])
     bal = last["energy"]["balance_residual"]
@@ -60,12 +52,6 @@ if runs.get(1):
             abs(bal) < 1e-9 * max(last["energy"]["work_in"], 1e-30), last["energy"])
     moved = [b["name"] for b in last["bodies"] if "offset" in b and math.hypot(*b["offset"]) > 1e-8]
     R.check("the sun's centre moves (telemetry offsets)", "sun" in moved, last["bodies"])
-    for n in (2, 3):
-        if runs.get(n):
-            tn, fn = runs[n]
-            same = sorted(t1) == sorted(tn) and all(t1[k] == tn[k] for k in t1)
-            R.check(f"telemetry identical bit for bit at -n 1 and -n {n}", same,
-                    [k for k in sorted(t1) if t1.get(k) != tn.get(k)][:5])
-            R.check(f"final state identical at -n 1 and -n {n}", f1 == fn)
+    check_same_at_ranks(R, "floating sun, contact meshes", runs)
 
 sys.exit(R.finish() if hasattr(R, "finish") else (1 if R.failed else 0))

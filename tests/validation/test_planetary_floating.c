@@ -164,6 +164,45 @@ static void pin_bearings_carry_mesh_forces(void **state)
     gs_system_free(&s);
 }
 
+/* Run the train `root` (consumed) n steps with the pin error; the shares
+ * of the planets (from their mean normalised shares over the last `tail`
+ * steps) into sh, the sun's mean offset into *sun_off; returns the LSF
+ * (largest share over the mean). Prints them under `what`; the balance at
+ * round-off. */
+static double share_run(json_object *root, int n, int tail, const char *what, bool floating, double sh[3],
+                        double *sun_off)
+{
+    gs_system *s = vt_system(root);
+    int sun = gs_scene_find_body(s->scene, "sun");
+    double acc[3] = {0, 0, 0}, worst = 0, scale = 0, off = 0;
+    gs_energy e;
+    for (int i = 0; i < n; i++) {
+        vt_step_balance(s, &e, &worst, &scale);
+        if (i < n - tail)
+            continue;
+        int pl[8];
+        double share[8];
+        assert_int_equal(gs_system_planet_shares(s, pl, share, 8), 3);
+        for (int p = 0; p < 3; p++)
+            acc[p] += share[p];
+        int tc = s->bodies[sun].tcoord;
+        if (tc >= 0)
+            off += hypot(s->q[tc], s->q[tc + 1]);
+    }
+    double mx = 0, sum = acc[0] + acc[1] + acc[2];
+    for (int p = 0; p < 3; p++) {
+        sh[p] = 3.0 * acc[p] / sum;
+        mx = fmax(mx, sh[p]);
+    }
+    *sun_off = off / tail;
+    print_message("%s, pin error 10 um on planet1, sun %s: LSF %.4f (shares %.4f %.4f %.4f), sun off centre %.2f um; "
+                  "balance %.2e of %.2e J\n", what, floating ? "floating" : "fixed", mx, sh[0], sh[1], sh[2],
+                  *sun_off * 1e6, worst, scale);
+    assert_true(worst < 1e-9 * scale);
+    gs_system_free(&s);
+    return mx;
+}
+
 /* LSF (largest planet share / mean) with a 10 um tangential pin error on
  * planet1, the sun floating or fixed; shares into sh. */
 static double sharing(bool floating, double sh[3], double *sun_off)
@@ -180,36 +219,7 @@ static double sharing(bool floating, double sh[3], double *sun_off)
         json_object_object_add(j, "stiffness", json_object_new_double(0.0));
         json_object_object_add(j, "damping", json_object_new_double(50.0));
     }
-    gs_system *s = vt_system(root);
-    int sun = gs_scene_find_body(s->scene, "sun");
-    double acc[3] = {0, 0, 0}, worst = 0, scale = 0, off = 0;
-    gs_energy e;
-    for (int i = 0; i < N_STEPS; i++) {
-        vt_step_balance(s, &e, &worst, &scale);
-        if (i < N_STEPS - TAIL)
-            continue;
-        int pl[8];
-        double share[8];
-        assert_int_equal(gs_system_planet_shares(s, pl, share, 8), 3);
-        for (int p = 0; p < 3; p++)
-            acc[p] += share[p];
-        int tc = s->bodies[sun].tcoord;
-        if (tc >= 0)
-            off += hypot(s->q[tc], s->q[tc + 1]);
-    }
-    /* shares from the mean forces */
-    double mx = 0, sum = acc[0] + acc[1] + acc[2];
-    for (int p = 0; p < 3; p++) {
-        sh[p] = 3.0 * acc[p] / sum;
-        mx = fmax(mx, sh[p]);
-    }
-    *sun_off = off / TAIL;
-    print_message("contact meshes, pin error 10 um on planet1, sun %s: LSF %.4f (shares %.4f %.4f %.4f), sun off "
-                  "centre %.2f um; balance %.2e of %.2e J\n", floating ? "floating" : "fixed", mx, sh[0], sh[1],
-                  sh[2], *sun_off * 1e6, worst, scale);
-    assert_true(worst < 1e-9 * scale);
-    gs_system_free(&s);
-    return mx;
+    return share_run(root, N_STEPS, TAIL, "contact meshes", floating, sh, sun_off);
 }
 
 static void floating_sun_shares_load(void **state)
@@ -241,35 +251,7 @@ static double sharing_calibrated(bool floating, double sh[3], double *sun_off)
         json_object_object_del(j, "damping");
         json_object_object_add(j, "type", json_object_new_string("fixed_axis"));
     }
-    gs_system *s = vt_system(root);
-    int sun = gs_scene_find_body(s->scene, "sun");
-    double acc[3] = {0, 0, 0}, worst = 0, scale = 0, off = 0;
-    gs_energy e;
-    for (int i = 0; i < 25000; i++) {
-        vt_step_balance(s, &e, &worst, &scale);
-        if (i < 20000)
-            continue;
-        int pl[8];
-        double share[8];
-        assert_int_equal(gs_system_planet_shares(s, pl, share, 8), 3);
-        for (int p = 0; p < 3; p++)
-            acc[p] += share[p];
-        int tc = s->bodies[sun].tcoord;
-        if (tc >= 0)
-            off += hypot(s->q[tc], s->q[tc + 1]);
-    }
-    double mx = 0, sum = acc[0] + acc[1] + acc[2];
-    for (int p = 0; p < 3; p++) {
-        sh[p] = 3.0 * acc[p] / sum;
-        mx = fmax(mx, sh[p]);
-    }
-    *sun_off = off / 5000;
-    print_message("calibrated lumped meshes, pin error 10 um on planet1, sun %s: LSF %.4f (shares %.4f %.4f %.4f), "
-                  "sun off centre %.2f um; balance %.2e of %.2e J\n", floating ? "floating" : "fixed", mx, sh[0],
-                  sh[1], sh[2], *sun_off * 1e6, worst, scale);
-    assert_true(worst < 1e-9 * scale);
-    gs_system_free(&s);
-    return mx;
+    return share_run(root, 25000, 5000, "calibrated lumped meshes", floating, sh, sun_off);
 }
 
 static void calibrated_meshes_share_load(void **state)
