@@ -495,10 +495,18 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
     /* Every point's values must make a valid scene: each parsed here, the
      * first and last built through to their steady state. */
     json_object *copy = NULL;
+    int speed_stride = 1;
+    for (int k = sw->n_params - 1; k > sw->speed_param && sw->speed_param >= 0; k--)
+        speed_stride *= sw->params[k].n;
     for (int p = 0; p < sw->n_points; p++) {
         char *pt = NULL;
         if (poll_fn)
             poll_fn(poll_user);
+        /* Points differing only in the driver's speed have the same scene
+         * here: the first of them stands for the others (the first and the
+         * last point are built through to their steady state). */
+        if (sw->speed_param >= 0 && p != sw->n_points - 1 && (p / speed_stride) % sw->params[sw->speed_param].n != 0)
+            continue;
         if (p == 0 || p == sw->n_points - 1) {
             e = gs_sweep_point_scene(sw, p, &pt, d);
         } else {
@@ -547,7 +555,7 @@ static gs_err parse(json_object *spec, const char *const *extra, gs_sweep *sw, g
 
 gs_err gs_sweep_spec_from_args(json_object *args, const char *prefix, json_object **out, gs_diag *d)
 {
-    static const char *const own[] = {"groups", "path", "resume", "builtin", NULL};
+    static const char *const own[] = {"groups", "path", "resume", "builtin", "dispatcher", NULL};
     *out = NULL;
     char f[64];
     if (json_object_get_type(args) != json_type_object)

@@ -250,13 +250,15 @@ class Client:
         return self.wait_done(rid, on_progress=on_progress, timeout=timeout).get("result")
 
     def sweep(self, parameters, scene=None, builtin=None, settle=None, measure=None, time_step=None, mesh=None,
-              driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None):
+              driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None,
+              dispatcher=None):
         """A parameter sweep run by the daemon on groups of its ranks (docs/explanation/modal.md,
         "Sweeps"): `parameters` a list of {path, values} or {path, from, to, points}
         (path "driver_rpm" or a JSON path into the scene); the scene a dict or a JSON
         file path, or a builtin name. wait=True: the `done` event (its csv and h5
         name the table in the data directory; fetch() them); wait=False: the
-        accepted reply with "id" added. on_progress gets one event per point."""
+        accepted reply with "id" added. on_progress gets one event per point.
+        dispatcher: "shared" (default) or "dedicated" (rank 0 only hands out points)."""
         args = {"parameters": list(parameters)}
         if (scene is None) == (builtin is None):
             raise ValueError("sweep() needs exactly one of scene= and builtin=")
@@ -268,7 +270,8 @@ class Client:
         else:
             args["builtin"] = builtin
         for k, v in (("settle", settle), ("measure", measure), ("time_step", time_step), ("mesh", mesh),
-                     ("driver_rpm", driver_rpm), ("groups", groups), ("path", path), ("resume", resume)):
+                     ("driver_rpm", driver_rpm), ("groups", groups), ("path", path), ("resume", resume),
+                     ("dispatcher", dispatcher)):
             if v is not None:
                 args[k] = str(v) if k == "path" else v
         if wait and self._sub is None:
