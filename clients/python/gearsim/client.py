@@ -13,6 +13,7 @@ import itertools
 import json
 import os
 import secrets
+import tempfile
 import time as _time
 
 import zmq
@@ -23,6 +24,13 @@ from .errors import GearsimError, GearsimTimeout
 PROTOCOL = 1
 EVENT_TYPES = ("telemetry", "progress", "done", "heartbeat", "warning", "error")
 FETCH_CHUNK = 1 << 20   # the protocol's maximum fetch length
+
+
+def _umask():
+    """The process's umask (read by setting it and back)."""
+    m = os.umask(0)
+    os.umask(m)
+    return m
 
 
 class Client:
@@ -333,7 +341,16 @@ class Client:
         out_path is None. remove=True: once the whole file is here, the
         daemon deletes its copy (a last request at its end with `remove`)."""
         chunks, offset = [], 0
-        out = open(out_path, "wb") if out_path is not None else None
+        # Written beside out_path under another name and renamed when whole:
+        # an interrupted or failed download leaves no partial file.
+        tmp = None
+        if out_path is not None:
+            fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(out_path) + ".",
+                                       dir=os.path.dirname(os.path.abspath(out_path)))
+            out = os.fdopen(fd, "wb")
+        else:
+            out = None
+        whole = False
         try:
             while True:
                 r = self.request("fetch", {"path": str(path), "offset": offset, "length": int(chunk)})
@@ -351,9 +368,15 @@ class Client:
             size = r.get("size", offset)
             if offset != size:
                 raise GearsimError("io_error", f"fetch {path}: got {offset} bytes of {size}")
-        finally:
             if out:
                 out.close()
+                os.chmod(tmp, 0o666 & ~_umask())
+                os.replace(tmp, out_path)
+            whole = True
+        finally:
+            if out and not whole:
+                out.close()
+                os.unlink(tmp)
         if remove:
             r = self.request("fetch", {"path": str(path), "offset": offset, "length": 1, "remove": True})
             if not r.get("removed"):
