@@ -5,9 +5,14 @@ the daemon before `sweep` (not with --offline); a download interrupted part
 way (Ctrl-C, a failed chunk) leaves no partial file at the destination and
 no temporary file beside it, while a whole one arrives with the usual mode;
 `gearctl run --record` interrupted during the run removes the daemon's copy
-and writes no local file."""
+and writes no local file. The elastic part of the static TE is named
+te_elastic_um in the C API (gs_stiffness_point) and read under that name by
+the bench scripts and the client; te_um, its former output name, is read
+only as a fallback (older daemons)."""
 import base64
+import glob
 import os
+import re
 import stat
 import tempfile
 import types
@@ -130,6 +135,34 @@ class RunRecordInterrupted(unittest.TestCase):
         remote = [e[1] for e in log if e[0] == "record" and e[1] != "stop"][0]
         self.assertIn(("record", "stop"), log)
         self.assertIn(("fetch", remote, None, True), log, log)
+
+
+ROOT = os.environ.get("GEARSIM_SOURCE_ROOT") or os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+
+
+class TeElasticName(unittest.TestCase):
+    def test_c_struct_field(self):
+        with open(os.path.join(ROOT, "include", "gearsim", "stiffness.h")) as f:
+            h = f.read()
+        self.assertRegex(h, r"double\s+te_elastic_um\s*;")
+        self.assertNotRegex(h, r"double\s+te_um\s*;")
+
+    def test_readers_use_the_new_names(self):
+        files = glob.glob(os.path.join(ROOT, "tests", "bench", "*.py")) + \
+            glob.glob(os.path.join(ROOT, "clients", "python", "gearsim", "*.py"))
+        alias = re.compile(r"""\[\s*['"]te_um['"]\s*\]""")
+        readers, bad = [], []
+        for f in files:
+            with open(f) as fh:
+                text = fh.read()
+            # the scripts that read the stiffness analysis' output (other
+            # te_um, e.g. a reference table's column, are not the alias)
+            if re.search(r"te_raw_um|te0_um|te_loaded_um|te_elastic_um", text):
+                readers.append(f)
+                if alias.search(text):
+                    bad.append(os.path.relpath(f, ROOT))
+        self.assertTrue(len(readers) >= 4, readers)
+        self.assertEqual(bad, [], "scripts index the deprecated alias te_um")
 
 
 if __name__ == "__main__":
