@@ -40,6 +40,10 @@ typedef struct gs_sweep gs_sweep;
  * before anything runs. */
 gs_err gs_sweep_parse(json_object *spec, const char *prefix, const char *const *extra, gs_sweep **out,
                       gs_diag *d);
+/* The same for a specification gs_sweep_parse has accepted elsewhere (the
+ * other ranks of a sweep, from rank 0's text): the points' scenes are not
+ * built again (gs_sweep_max_scene_bytes and gs_sweep_max_steps are 0). */
+gs_err gs_sweep_parse_trusted(json_object *spec, gs_sweep **out, gs_diag *d);
 void gs_sweep_free(gs_sweep **sw);
 int gs_sweep_points(const gs_sweep *sw);
 /* The largest memory estimate of a point's scene (gs_scene_estimate_bytes)
