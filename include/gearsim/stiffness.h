@@ -93,7 +93,7 @@ typedef struct gs_stiffness_point {
     double angle_rad;     /* driver's kinematic rotation from the first position, rad
                            * (in the torque direction) */
     double delta_rad;     /* driver's loaded rotation beyond its kinematic angle (signed) */
-    double te_um;         /* te_raw - te0 (header): the elastic part of the TE, output as
+    double te_elastic_um; /* te_raw - te0 (header): the elastic part of the TE, output as
                            * te_elastic_um (and, for one release, te_um) */
     double te_raw_um;
     double te0_um;
@@ -137,7 +137,7 @@ typedef struct gs_stiffness_result {
     double contact_ratio; /* of the involute flanks (gs_pair_contact_ratio) */
     double k_min, k_mean, k_max;     /* of k over the positions */
     double k_tan_mean;               /* NaN without the tangent option */
-    double te_min, te_mean, te_max;  /* of te_um */
+    double te_min, te_mean, te_max;  /* of te_elastic_um */
     double te_loaded_min, te_loaded_mean, te_loaded_max; /* of te_loaded_um */
     int modified;         /* 1 when a gear carries modifications or tooth errors */
     double frac_multi;    /* fraction of positions with 2 or more pairs in contact */

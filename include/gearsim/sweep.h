@@ -40,6 +40,10 @@ typedef struct gs_sweep gs_sweep;
  * before anything runs. */
 gs_err gs_sweep_parse(json_object *spec, const char *prefix, const char *const *extra, gs_sweep **out,
                       gs_diag *d);
+/* The same for a specification gs_sweep_parse has accepted elsewhere (the
+ * other ranks of a sweep, from rank 0's text): the points' scenes are not
+ * built again (gs_sweep_max_scene_bytes and gs_sweep_max_steps are 0). */
+gs_err gs_sweep_parse_trusted(json_object *spec, gs_sweep **out, gs_diag *d);
 void gs_sweep_free(gs_sweep **sw);
 int gs_sweep_points(const gs_sweep *sw);
 /* The largest memory estimate of a point's scene (gs_scene_estimate_bytes)
@@ -117,11 +121,12 @@ gs_err gs_sweep_spec_from_args(json_object *args, const char *prefix, json_objec
  * Points on groups of ranks inside one MPI job. Rank 0 of `world` calls
  * gs_sweep_run_begin, which broadcasts GS_OP_SWEEP through the world
  * engine (every other rank enters gs_sweep_serve from gs_engine_serve),
- * splits the world into `groups` groups of consecutive ranks (rank 0 leads
- * group 0) and hands out the points of todo[] one at a time to whichever
- * group is free. Rank 0 computes group 0's points in slices of about
- * `slice_s` seconds inside gs_sweep_run_poll, so its caller stays
- * responsive. */
+ * splits the world into `groups` groups of consecutive ranks and hands out
+ * the points of todo[] in batches, keeping every group a few points ahead.
+ * Unless `dedicated`, rank 0 leads group 0 and computes its points in
+ * slices of about `slice_s` seconds inside gs_sweep_run_poll, so its
+ * caller stays responsive; `dedicated`, the groups are made of ranks 1 to
+ * n-1 (groups <= n-1) and rank 0 only hands out points and collects rows. */
 typedef struct gs_sweep_run gs_sweep_run;
 typedef struct gs_sweep_result {
     int point;
@@ -131,13 +136,17 @@ typedef struct gs_sweep_result {
 } gs_sweep_result;
 
 gs_err gs_sweep_run_begin(gs_engine *world, const gs_sweep *sw, const unsigned char *todo, int groups,
-                          gs_sweep_run **out, gs_diag *d);
+                          bool dedicated, gs_sweep_run **out, gs_diag *d);
 /* Receive what the groups finished, hand out points, compute a slice of
  * group 0's point. Finished points are returned through gs_sweep_run_take. */
 void gs_sweep_run_poll(gs_sweep_run *r, double slice_s);
 /* The next finished point (true) since the last call. */
 bool gs_sweep_run_take(gs_sweep_run *r, gs_sweep_result *out);
 bool gs_sweep_run_finished(const gs_sweep_run *r);
+/* True when rank 0 has no point of its own to compute now (dedicated, or
+ * none left): the caller may wait for requests with a timeout instead of
+ * polling again at once; the groups' rows wait in MPI meanwhile. */
+bool gs_sweep_run_idle(const gs_sweep_run *r);
 int gs_sweep_run_groups(const gs_sweep_run *r);
 /* Points computed in this run per second of wall time so far. */
 double gs_sweep_run_rate(const gs_sweep_run *r);

@@ -449,10 +449,10 @@ static gs_err solve_position(gs_stiffness_run *r, gs_diag *d)
         pt->delta_rad = delta;
         pt->te_raw_um = w.rb * w.sgn * delta * 1e6;
         pt->te0_um = w.rb * w.sgn * delta0 * 1e6;
-        pt->te_um = pt->te_raw_um - pt->te0_um;
+        pt->te_elastic_um = pt->te_raw_um - pt->te0_um;
         pt->te_ref_um = w.rb * w.sgn * delta_ref * 1e6;
         pt->te_loaded_um = pt->te_raw_um - pt->te_ref_um;
-        pt->k = F / pt->te_um / bmm;
+        pt->k = F / pt->te_elastic_um / bmm;
         pt->rows = nr;
         pt->active = 0;
         for (int i = 0; i < nr; i++)
@@ -539,13 +539,13 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
         const gs_stiffness_point *pt = &out->pt[j];
         out->k_min = fmin(out->k_min, pt->k);
         out->k_max = fmax(out->k_max, pt->k);
-        out->te_min = fmin(out->te_min, pt->te_um);
-        out->te_max = fmax(out->te_max, pt->te_um);
+        out->te_min = fmin(out->te_min, pt->te_elastic_um);
+        out->te_max = fmax(out->te_max, pt->te_elastic_um);
         out->te_loaded_min = fmin(out->te_loaded_min, pt->te_loaded_um);
         out->te_loaded_max = fmax(out->te_loaded_max, pt->te_loaded_um);
         tl += pt->te_loaded_um;
         ks += pt->k;
-        ts += pt->te_um;
+        ts += pt->te_elastic_um;
         kt += pt->k_tan;
         multi += pt->pairs >= 2;
     }

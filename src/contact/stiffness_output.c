@@ -56,7 +56,7 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
     }
     for (int j = 0; j < n; j++) {
         const gs_stiffness_point *p = &r->pt[j];
-        double v[10] = {p->roll, p->angle_rad * 180.0 / GS_PI, p->te_um, p->te_raw_um, p->te0_um,
+        double v[10] = {p->roll, p->angle_rad * 180.0 / GS_PI, p->te_elastic_um, p->te_raw_um, p->te0_um,
                         p->k, p->te_half_um, p->k_tan, p->te_ref_um, p->te_loaded_um};
         for (int c = 0; c < 10; c++)
             col[(size_t)c * nn + (size_t)j] = v[c];
@@ -174,8 +174,8 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
         /* te_loaded_um: the loaded static TE (the main output); te_elastic_um its
          * elastic part (they differ on modified flanks); te_um: the former name of
          * te_elastic_um, kept for one release (docs/reference/outputs.md). */
-        json_object_object_add(q, "te_elastic_um", json_num(p->te_um));
-        json_object_object_add(q, "te_um", json_num(p->te_um));
+        json_object_object_add(q, "te_elastic_um", json_num(p->te_elastic_um));
+        json_object_object_add(q, "te_um", json_num(p->te_elastic_um));
         json_object_object_add(q, "te_raw_um", json_num(p->te_raw_um));
         json_object_object_add(q, "te0_um", json_num(p->te0_um));
         json_object_object_add(q, "te_ref_um", json_num(p->te_ref_um));

@@ -369,7 +369,7 @@ static gs_err calibrate(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     double sum = 0;
     for (int j = 0; j < r.positions; j++) {
         /* N/(mm um) per mm of face width -> N/m */
-        double ks = r.pt[j].k * r.face_width_mm * 1e6, te = r.pt[j].te_um * 1e-6;
+        double ks = r.pt[j].k * r.face_width_mm * 1e6, te = r.pt[j].te_elastic_um * 1e-6;
         if (r.modified) {
             /* Profile modifications: the static TE from the perfect gears'
              * no-load position, their geometric TE included (te_loaded =

@@ -1293,7 +1293,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
 
 static const char *const modal_args[] = {"scene", "builtin", "shapes", NULL};
 static const char *const sweep_args[] = {"scene", "builtin", "parameters", "settle", "measure", "time_step", "mesh",
-                                         "driver_rpm", "groups", "path", "resume", NULL};
+                                         "driver_rpm", "groups", "path", "resume", "dispatcher", NULL};
 
 /* Natural frequencies and mode shapes of the linearised rigid/lumped train
  * (docs/explanation/modal.md): of the scene in args.scene or the builtin args.builtin,

@@ -1200,7 +1200,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     while (e == GS_OK && !s->shutdown && !stop_signal) {
         bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run || s->sweep;
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
-        int rc = zmq_poll(items, 1, running ? 0 : 100);
+        /* A sweep whose points all run on other ranks waits up to 5 ms at a
+         * time (their rows wait in MPI; every group has more than that
+         * queued): rank 0 leaves the core to the groups. */
+        int rc = zmq_poll(items, 1, !running ? 100 : s->sweep && gsi_sweep_idle(s) ? 5 : 0);
         if (rc > 0 && (items[0].revents & ZMQ_POLLIN))
             drain_router(s, 256);
         if (s->shutdown)

@@ -178,6 +178,8 @@ void gsi_stiffness_stop(gs_service *s, bool cancelled);
  * whether a command may run while it holds the other ranks. */
 gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_object **result, gs_diag *d);
 void gsi_sweep_chunk(gs_service *s);
+/* The sweep has nothing for rank 0 to compute now: wait for requests with a timeout. */
+bool gsi_sweep_idle(gs_service *s);
 void gsi_sweep_stop(gs_service *s, bool cancelled);
 json_object *gsi_sweep_status(gs_service *s);
 bool gsi_sweep_allows(const char *cmd);

@@ -179,6 +179,19 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
                         (long long)groups, gs_engine_size(s->eng));
     if (e == GS_OK)
         e = gsi_json_bool(args, "resume", "args", false, &resume, d);
+    char disp[16] = "shared";
+    if (e == GS_OK)
+        e = gsi_json_string(args, "dispatcher", "args", false, "shared", disp, sizeof disp, d);
+    if (e == GS_OK && strcmp(disp, "shared") && strcmp(disp, "dedicated"))
+        e = gs_diag_set(d, GS_ESCHEMA, "args.dispatcher", "'%s': the dispatcher is 'shared' (rank 0 also computes "
+                        "points) or 'dedicated' (rank 0 only hands them out)", disp);
+    bool dedicated = e == GS_OK && !strcmp(disp, "dedicated");
+    if (dedicated && !json_object_object_get_ex(args, "groups", NULL))
+        groups = gs_engine_size(s->eng) - 1; /* one per rank but rank 0 */
+    if (e == GS_OK && dedicated && groups > gs_engine_size(s->eng) - 1)
+        e = gs_diag_set(d, GS_ERANGE, "args.groups", "%lld group(s) of ranks asked besides a dedicated dispatcher; "
+                        "this daemon has %d rank(s), so at most %d", (long long)groups, gs_engine_size(s->eng),
+                        gs_engine_size(s->eng) - 1);
     if (e == GS_OK)
         e = gsi_json_string(args, "path", "args", false, "sweep", rel, sizeof rel - 16, d);
     size_t rl = strlen(rel);
@@ -280,7 +293,7 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
         w->n_todo += todo[p];
         w->n_before += w->done[p];
     }
-    e = gs_sweep_run_begin(s->eng, sw, todo, (int)groups, &w->run, d);
+    e = gs_sweep_run_begin(s->eng, sw, todo, (int)groups, dedicated, &w->run, d);
     free(todo);
     if (e != GS_OK) {
         if (!strcmp(d->field, "groups"))
@@ -296,6 +309,7 @@ gs_err gsi_cmd_sweep(gs_service *s, json_object *args, const char *id, json_obje
     json_object_object_add(*res, "points", json_object_new_int(w->n_points));
     json_object_object_add(*res, "todo", json_object_new_int(w->n_todo));
     json_object_object_add(*res, "groups", json_object_new_int((int)groups));
+    json_object_object_add(*res, "dispatcher", json_object_new_string(disp));
     json_object *cols = json_object_new_array();
     for (int c = 0; c < gs_sweep_columns(sw); c++)
         json_object_array_add(cols, json_object_new_string(gs_sweep_column(sw, c)));
@@ -440,6 +454,8 @@ json_object *gsi_sweep_status(gs_service *s)
     json_object_object_add(a, "fraction", json_object_new_double(w->n_todo > 0 ? (double)w->n_computed / w->n_todo : 1.0));
     return a;
 }
+
+bool gsi_sweep_idle(gs_service *s) { return s->sweep && gs_sweep_run_idle(s->sweep->run); }
 
 const char *gsi_sweep_parent(gs_service *s) { return s->sweep ? s->sweep->parent_id : ""; }
 

@@ -27,7 +27,7 @@ import subprocess
 import sys
 import time
 
-FIELDS = ["label", "order", "refine", "unknowns", "positions", "roll", "k", "te_um", "te0_um",
+FIELDS = ["label", "order", "refine", "unknowns", "positions", "roll", "k", "te_elastic_um", "te0_um",
           "pairs", "seconds"]
 
 
@@ -85,7 +85,7 @@ def main():
             for p in d["points"]:
                 rows.append({"label": "uniform", "order": order, "refine": rf,
                              "unknowns": unknowns, "positions": a.positions,
-                             "roll": p["roll"], "k": p["k"], "te_um": p["te_um"],
+                             "roll": p["roll"], "k": p["k"], "te_elastic_um": p["te_elastic_um"],
                              "te0_um": p["te0_um"], "pairs": p["pairs"],
                              "seconds": d["seconds"] / a.positions})
             print(f"order {order} refine {rf}: {unknowns} unknowns, "
@@ -104,7 +104,7 @@ def main():
 
     out = []
     lims = {}
-    for qty in ("k", "te_um"):
+    for qty in ("k", "te_elastic_um"):
         for order in (1, 2):
             lv = series(order)
             if not lv:
@@ -122,7 +122,7 @@ def main():
             lims[(qty, order)] = {rl: richardson(v) for rl, v in per.items()}
     # reference limit: the quadratic extrapolation when present
     ref_order = 2 if any(k[1] == 2 for k in lims) else 1
-    for qty, unit in (("k", "N/(mm um)"), ("te_um", "um")):
+    for qty, unit in (("k", "N/(mm um)"), ("te_elastic_um", "um")):
         lim = lims.get((qty, ref_order), {})
         out.append(f"\n### {'mesh stiffness k' if qty == 'k' else 'static TE'} ({unit}), "
                    f"per roll position\n")

@@ -105,10 +105,10 @@ def main():
                 d = json.loads(r.stdout)
                 pts = d["points"]
                 raw = stats([p["te_raw_um"] for p in pts])
-                el = stats([p["te_um"] for p in pts])
+                el = stats([p["te_elastic_um"] for p in pts])
                 t0 = stats([p["te0_um"] for p in pts])
-                one = [p["te_um"] for p in pts if p["pairs"] == 1]
-                two = [p["te_um"] for p in pts if p["pairs"] >= 2]
+                one = [p["te_elastic_um"] for p in pts if p["pairs"] == 1]
+                two = [p["te_elastic_um"] for p in pts if p["pairs"] >= 2]
                 bad = sum(1 for p in pts if not p.get("converged", True))
                 cpu = d.get("cpu", {}).get("cpu_s") if isinstance(d.get("cpu"), dict) else None
                 row = [os.path.splitext(os.path.basename(a.scene))[0], level, name, torque, len(pts), "+".join(str(x) for x in d["nodes"]),

@@ -9,7 +9,10 @@ it runs; cancel keeps the finished points and a resumed sweep computes only
 the missing ones, ending with the same table; the Slurm array script run
 task by task without Slurm (deploy/sweep_array.slurm) and its collect step
 give the same values; `gearctl sweep` drives the job; bad input is refused
-naming the field."""
+naming the field. Points handed out in batches: 200 cheap points on 2
+groups, cancelled and resumed, give the 1-group table; with a dedicated
+dispatcher (rank 0 only hands out points) the table is the same, requests
+are answered meanwhile and rank 0 sleeps while the group computes."""
 import csv
 import io
 import json
@@ -24,6 +27,8 @@ import h5py  # noqa: E402
 import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "bench"))
+from bench_dispatch import cpu_of, ranks_of  # noqa: E402
 from harness import Results  # noqa: E402
 from protoschema import Proto  # noqa: E402
 
@@ -63,6 +68,61 @@ def table(path):
         return f.read()
 
 
+CHEAP = {"builtin": "pair", "parameters": [{"path": "driver_rpm", "from": 500, "to": 3000, "points": 200}],
+         "settle": 0.0, "measure": 1e-5, "time_step": 1e-5}
+
+
+def dedicated_and_batches(d, c, t2):
+    """Batches of cheap points, cancel and resume on 2 groups; the dedicated
+    dispatcher's table, its answers and its sleep."""
+    _, done_a, ev_a = run_sweep(c, "c1", 1, **CHEAP)
+    ref = table(d.path("c1.csv"))
+    R.check("200 cheap points on 1 group: all done, one event each",
+            done_a.get("points_done") == 200 and sorted(e["point"] for e in ev_a) == list(range(200)), done_a)
+    # 2 groups, cancelled after the first point, resumed: the 1-group table.
+    rid = c.send("sweep", dict(CHEAP, groups=2, path="c2"))
+    c.wait_reply(rid)
+    while True:
+        ev = c.next_event(10.0)
+        if ev is None or (ev.get("type") == "progress" and ev.get("parent_id") == rid):
+            break
+    c.cancel()
+    done_b = c.wait_done(rid, timeout=120)
+    k = done_b.get("points_done", -1)
+    R.check("batched sweep cancelled: the finished points kept",
+            0 <= k <= 200 and len(table(d.path("c2.csv")).splitlines()) == k + 1, done_b)
+    if k < 200:
+        before = {int(r.split(",")[0]) for r in table(d.path("c2.csv")).splitlines()[1:]}
+        _, done_c, ev_c = run_sweep(c, "c2", 2, resume=True, **CHEAP)
+        R.check("resumed on 2 groups: the missing points, once each",
+                done_c.get("computed") == 200 - k and sorted(e["point"] for e in ev_c) ==
+                sorted(set(range(200)) - before), done_c)
+    R.check("cheap points on 2 groups, cancelled and resumed: the 1-group table", table(d.path("c2.csv")) == ref)
+    # A dedicated dispatcher: groups default to the ranks but rank 0.
+    rid = c.send("sweep", dict(SPEC, dispatcher="dedicated", path="dd"))
+    reply = c.wait_reply(rid, timeout=120)
+    schema_ok("dedicated sweep reply validates", PROTO.errors("results/sweep.json", reply))
+    st = c.status()
+    done = c.wait_done(rid, timeout=600)
+    R.check("dedicated dispatcher: 1 group on 2 ranks, status answered meanwhile",
+            reply.get("dispatcher") == "dedicated" and reply.get("groups") == 1 and
+            (st.get("sweep") or {}).get("parent_id") in (rid, None), (reply, st.get("sweep")))
+    R.check("dedicated dispatcher: the same table", done.get("points_done") == POINTS and table(d.path("dd.csv")) == t2,
+            done)
+    # Rank 0 sleeps while the group computes: on a busy machine a spinning
+    # rank 0 would get as much CPU as the computing rank 1.
+    pids = ranks_of(d)
+    cpu0 = [cpu_of(p) for p in pids]
+    long = dict(SPEC, settle=0.01, measure=0.01, dispatcher="dedicated", path="dl",
+                parameters=[{"path": "driver_rpm", "from": 17000, "to": 25000, "points": 12}])
+    rid = c.send("sweep", long)
+    c.wait_reply(rid, timeout=120)
+    done = c.wait_done(rid, timeout=900)
+    cpu = [cpu_of(p) - c0 for p, c0 in zip(pids, cpu0)]
+    R.check(f"dedicated rank 0 sleeps while the group computes (CPU s rank 0 {cpu[0]:.2f}, rank 1 {cpu[1]:.2f})",
+            done.get("points_done") == 12 and len(cpu) == 2 and cpu[0] < 0.35 * cpu[1], (cpu, done))
+
+
 def run():
     with dmod.Daemon(ranks=2) as d, d.client(timeout=60) as c:
         c.subscribe()
@@ -76,7 +136,9 @@ def run():
                 (dict(SPEC, settle=-1), "args.settle"),
                 (dict(SPEC, path="../x"), "args.path"),
                 (dict(SPEC, parameters=[{"path": "bodies[0].inertia", "values": [1e-4, -1.0]}]), "args.parameters"),
-                (dict(SPEC, resume=True, path="none"), "args.resume")):
+                (dict(SPEC, resume=True, path="none"), "args.resume"),
+                (dict(SPEC, dispatcher="rank0"), "args.dispatcher"),
+                (dict(SPEC, dispatcher="dedicated", groups=2), "args.groups")):
             e = error_of(c, args)
             R.check(f"refused naming {field}", e is not None and e.field == field,
                     f"{e.code}: {e.field}: {e}" if e else "accepted")
@@ -141,6 +203,7 @@ def run():
         else:
             R.note("the sweep finished before the cancel arrived; resume not exercised")
         R.check("the resumed table is the uninterrupted one", table(d.path("g3.csv")) == t2)
+        dedicated_and_batches(d, c, t2)
         # The Slurm array, task by task without Slurm, and its collect step.
         with tempfile.TemporaryDirectory() as td:
             spec = os.path.join(td, "spec.json")

@@ -227,11 +227,11 @@ static void nearfield_auto_plain_on_modified(void **state)
         assert_int_equal(r[v].modified, 1);
     }
     for (int j = 0; j < o.positions; j++) {
-        assert_memory_equal(&r[0].pt[j].te_um, &r[1].pt[j].te_um, sizeof(double));
-        assert_true(r[2].pt[j].te_um != r[1].pt[j].te_um);
+        assert_memory_equal(&r[0].pt[j].te_elastic_um, &r[1].pt[j].te_elastic_um, sizeof(double));
+        assert_true(r[2].pt[j].te_elastic_um != r[1].pt[j].te_elastic_um);
     }
     print_message("relieved order-2 pair: auto = plain bit for bit (TE %.4f um), forced on %.4f um\n",
-                  r[0].pt[0].te_um, r[2].pt[0].te_um);
+                  r[0].pt[0].te_elastic_um, r[2].pt[0].te_elastic_um);
     for (int v = 0; v < 3; v++)
         gs_stiffness_result_clear(&r[v]);
     gs_scene_free(&sc);
@@ -267,7 +267,7 @@ static void unmodified_bit_identical(void **state)
     for (int j = 0; j < o.positions; j++) {
         assert_int_equal(memcmp(&r0.pt[j].te_raw_um, &r1.pt[j].te_raw_um, sizeof(double)), 0);
         assert_int_equal(memcmp(&r0.pt[j].te0_um, &r1.pt[j].te0_um, sizeof(double)), 0);
-        assert_true(r0.pt[j].te_loaded_um == r0.pt[j].te_um);
+        assert_true(r0.pt[j].te_loaded_um == r0.pt[j].te_elastic_um);
     }
     print_message("unmodified: meshes and a 6-position stiffness run byte-identical (TE p-p %.4f um)\n",
                   r0.te_max - r0.te_min);

@@ -141,13 +141,13 @@ static void standard_pair(void **state)
                       r[l].te_max - r[l].te_min, r[l].frac_multi, r[l].seconds);
         for (int j = 0; j < POSITIONS; j++) {
             assert_true(r[l].pt[j].converged);
-            assert_true(r[l].pt[j].penetration_um <= 0.01 * r[l].pt[j].te_um);
+            assert_true(r[l].pt[j].penetration_um <= 0.01 * r[l].pt[j].te_elastic_um);
         }
     }
     const gs_stiffness_result *f = &r[2];
     print_message("# finest mesh, per position (roll, TE um, k N/(mm um), pairs):\n");
     for (int j = 0; j < POSITIONS; j++)
-        print_message("#   %.3f %8.4f %8.4f %d\n", f->pt[j].roll, f->pt[j].te_um, f->pt[j].k,
+        print_message("#   %.3f %8.4f %8.4f %d\n", f->pt[j].roll, f->pt[j].te_elastic_um, f->pt[j].k,
                       f->pt[j].pairs);
     /* Convergence, judged on the single-pair zone: there the mesh stiffness
      * is one tooth pair's and converges like the FE tooth compliance
@@ -200,9 +200,9 @@ static void placement_independent(void **state)
     run(s1, 1, 0.0, 0.0, &c);  /* moved and turned */
     double worst_b = 0, worst_c = 0;
     for (int j = 0; j < POSITIONS; j++) {
-        worst_b = fmax(worst_b, fabs(b.pt[j].te_um - a.pt[j].te_um) / a.pt[j].te_um);
+        worst_b = fmax(worst_b, fabs(b.pt[j].te_elastic_um - a.pt[j].te_elastic_um) / a.pt[j].te_elastic_um);
         worst_b = fmax(worst_b, fabs(b.pt[j].k - a.pt[j].k) / a.pt[j].k);
-        worst_c = fmax(worst_c, fabs(c.pt[j].te_um - a.pt[j].te_um) / a.pt[j].te_um);
+        worst_c = fmax(worst_c, fabs(c.pt[j].te_elastic_um - a.pt[j].te_elastic_um) / a.pt[j].te_elastic_um);
         worst_c = fmax(worst_c, fabs(c.pt[j].k - a.pt[j].k) / a.pt[j].k);
         assert_int_equal(b.pt[j].pairs, a.pt[j].pairs);
         assert_int_equal(c.pt[j].pairs, a.pt[j].pairs);
@@ -334,9 +334,9 @@ static void nearfield_softens(void **state)
     gs_diag_clear(&d);
     plain_then_nf(s, &o, &plain, &nf);
     for (int j = 0; j < o.positions; j++) {
-        double ratio = nf.pt[j].te_um / plain.pt[j].te_um;
+        double ratio = nf.pt[j].te_elastic_um / plain.pt[j].te_elastic_um;
         printf("# roll %.3f: TE %.4f um plain, %.4f um near-field (x%.4f)\n", nf.pt[j].roll,
-               plain.pt[j].te_um, nf.pt[j].te_um, ratio);
+               plain.pt[j].te_elastic_um, nf.pt[j].te_elastic_um, ratio);
         assert_true(nf.pt[j].converged);
         assert_true(ratio > 1.005 && ratio < 1.25);
     }
@@ -346,7 +346,7 @@ static void nearfield_softens(void **state)
     o.nearfield = 2;
     assert_int_equal(gs_stiffness_analyse(s, 0, &o, &au, &d), GS_OK);
     for (int j = 0; j < o.positions; j++)
-        assert_memory_equal(&au.pt[j].te_um, &nf.pt[j].te_um, sizeof(double));
+        assert_memory_equal(&au.pt[j].te_elastic_um, &nf.pt[j].te_elastic_um, sizeof(double));
     o.order = 1;
     o.positions = 2;
     for (int v = 0; v < 2; v++) {
@@ -354,7 +354,7 @@ static void nearfield_softens(void **state)
         assert_int_equal(gs_stiffness_analyse(s, 0, &o, &lin[v], &d), GS_OK);
     }
     for (int j = 0; j < o.positions; j++)
-        assert_memory_equal(&lin[0].pt[j].te_um, &lin[1].pt[j].te_um, sizeof(double));
+        assert_memory_equal(&lin[0].pt[j].te_elastic_um, &lin[1].pt[j].te_elastic_um, sizeof(double));
     gs_stiffness_result_clear(&au);
     gs_stiffness_result_clear(&lin[0]);
     gs_stiffness_result_clear(&lin[1]);
@@ -429,13 +429,13 @@ static void nearfield_backlash(void **state)
     double half = 0.5 * info.backlash_normal * 1e6;
     printf("# half the normal backlash %.4f um\n", half);
     for (int j = 0; j < o.positions; j++) {
-        double q = rt.pt[j].te_um / rn.pt[j].te_um - 1.0;
+        double q = rt.pt[j].te_elastic_um / rn.pt[j].te_elastic_um - 1.0;
         printf("# roll %.3f: te0 %.4f um; TE near-field %.4f um thinned, %.4f um tight (%+.2f %%)\n",
-               rt.pt[j].roll, rt.pt[j].te0_um, rt.pt[j].te_um, rn.pt[j].te_um, 100.0 * q);
+               rt.pt[j].roll, rt.pt[j].te0_um, rt.pt[j].te_elastic_um, rn.pt[j].te_elastic_um, 100.0 * q);
         assert_true(rt.pt[j].converged && rn.pt[j].converged);
         assert_true(fabs(rt.pt[j].te0_um - half) < TE0_TOL);
         assert_true(fabs(q) < THIN_TOL);
-        assert_memory_equal(&ra.pt[j].te_um, &rt.pt[j].te_um, sizeof(double));
+        assert_memory_equal(&ra.pt[j].te_elastic_um, &rt.pt[j].te_elastic_um, sizeof(double));
     }
     gs_stiffness_result_clear(&rt);
     gs_stiffness_result_clear(&rn);
@@ -567,7 +567,7 @@ static void zone_check(int nf, int positions, const gs_stiffness_result *zone,
                a->k_tan, b->k_tan);
         assert_true(a->converged);
         assert_true(fabs(a->k / b->k - 1.0) < 1e-9);
-        assert_true(fabs(a->te_um / b->te_um - 1.0) < 1e-9);
+        assert_true(fabs(a->te_elastic_um / b->te_elastic_um - 1.0) < 1e-9);
         assert_true(fabs(a->k_tan / b->k_tan - 1.0) < 1e-9);
         assert_int_equal(a->pairs, b->pairs);
     }

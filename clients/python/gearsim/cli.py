@@ -100,6 +100,17 @@ def fetch_xdmf(c, remote, local):
         f.write(text.replace(os.path.basename(remote) + ":", os.path.basename(local) + ":"))
 
 
+def drop_remote(c, remote):
+    """Remove the daemon's copy of a record (and its XDMF file) that is not
+    downloaded: fetched to nowhere with remove."""
+    for path in (remote, os.path.splitext(remote)[0] + ".xmf"):
+        try:
+            c.fetch(path, remove=True)
+        except GearsimError as e:
+            if e.code != "not_found":
+                raise
+
+
 def cmd_run(args):
     from .live import LiveDisplay
     tel = open(args.telemetry, "w") if args.telemetry else None
@@ -133,7 +144,13 @@ def cmd_run(args):
                                  on_progress=live.on_progress if live else None)
             except KeyboardInterrupt:
                 c.cancel()
-                print("\ngearctl: interrupted; run cancelled", file=sys.stderr)
+                if args.record:
+                    # The daemon's copy goes (nothing is left behind); the
+                    # local file is not written (no partial copy).
+                    c.record(stop=True)
+                    drop_remote(c, remote)
+                print("\ngearctl: interrupted; run cancelled" + ("; nothing recorded" if args.record else ""),
+                      file=sys.stderr)
                 return 130
             if live:
                 live.close(done)
@@ -487,7 +504,8 @@ def main(argv=None):
                "bench": cmd_bench, "advise": cmd_advise, "modal": cmd_modal,
                "sweep": cmd_sweep}.get(args.command, cmd_simple)
     try:
-        if args.wait > 0 and args.command not in LOCAL:
+        # `sweep` is local only with --offline; otherwise it talks to the daemon.
+        if args.wait > 0 and (args.command not in LOCAL or (args.command == "sweep" and not args.offline)):
             wait_for_daemon(args)
         return handler(args)
     except GearsimError as e:

@@ -13,6 +13,7 @@ import itertools
 import json
 import os
 import secrets
+import tempfile
 import time as _time
 
 import zmq
@@ -23,6 +24,13 @@ from .errors import GearsimError, GearsimTimeout
 PROTOCOL = 1
 EVENT_TYPES = ("telemetry", "progress", "done", "heartbeat", "warning", "error")
 FETCH_CHUNK = 1 << 20   # the protocol's maximum fetch length
+
+
+def _umask():
+    """The process's umask (read by setting it and back)."""
+    m = os.umask(0)
+    os.umask(m)
+    return m
 
 
 class Client:
@@ -250,13 +258,15 @@ class Client:
         return self.wait_done(rid, on_progress=on_progress, timeout=timeout).get("result")
 
     def sweep(self, parameters, scene=None, builtin=None, settle=None, measure=None, time_step=None, mesh=None,
-              driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None):
+              driver_rpm=None, groups=None, path=None, resume=None, wait=True, on_progress=None, timeout=None,
+              dispatcher=None):
         """A parameter sweep run by the daemon on groups of its ranks (docs/explanation/modal.md,
         "Sweeps"): `parameters` a list of {path, values} or {path, from, to, points}
         (path "driver_rpm" or a JSON path into the scene); the scene a dict or a JSON
         file path, or a builtin name. wait=True: the `done` event (its csv and h5
         name the table in the data directory; fetch() them); wait=False: the
-        accepted reply with "id" added. on_progress gets one event per point."""
+        accepted reply with "id" added. on_progress gets one event per point.
+        dispatcher: "shared" (default) or "dedicated" (rank 0 only hands out points)."""
         args = {"parameters": list(parameters)}
         if (scene is None) == (builtin is None):
             raise ValueError("sweep() needs exactly one of scene= and builtin=")
@@ -268,7 +278,8 @@ class Client:
         else:
             args["builtin"] = builtin
         for k, v in (("settle", settle), ("measure", measure), ("time_step", time_step), ("mesh", mesh),
-                     ("driver_rpm", driver_rpm), ("groups", groups), ("path", path), ("resume", resume)):
+                     ("driver_rpm", driver_rpm), ("groups", groups), ("path", path), ("resume", resume),
+                     ("dispatcher", dispatcher)):
             if v is not None:
                 args[k] = str(v) if k == "path" else v
         if wait and self._sub is None:
@@ -330,7 +341,16 @@ class Client:
         out_path is None. remove=True: once the whole file is here, the
         daemon deletes its copy (a last request at its end with `remove`)."""
         chunks, offset = [], 0
-        out = open(out_path, "wb") if out_path is not None else None
+        # Written beside out_path under another name and renamed when whole:
+        # an interrupted or failed download leaves no partial file.
+        tmp = None
+        if out_path is not None:
+            fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(out_path) + ".",
+                                       dir=os.path.dirname(os.path.abspath(out_path)))
+            out = os.fdopen(fd, "wb")
+        else:
+            out = None
+        whole = False
         try:
             while True:
                 r = self.request("fetch", {"path": str(path), "offset": offset, "length": int(chunk)})
@@ -348,9 +368,15 @@ class Client:
             size = r.get("size", offset)
             if offset != size:
                 raise GearsimError("io_error", f"fetch {path}: got {offset} bytes of {size}")
-        finally:
             if out:
                 out.close()
+                os.chmod(tmp, 0o666 & ~_umask())
+                os.replace(tmp, out_path)
+            whole = True
+        finally:
+            if out and not whole:
+                out.close()
+                os.unlink(tmp)
         if remove:
             r = self.request("fetch", {"path": str(path), "offset": offset, "length": 1, "remove": True})
             if not r.get("removed"):

@@ -90,7 +90,7 @@ def harris_map(tool, scene, loads, reliefs=None, relief_length=None, relief_shap
         for label, c, path in series:
             for w in loads:
                 res = analyse(path, sgn * w * b_mm * rb_m)
-                tl = res.get("te_loaded_um") or res["te_um"]
+                tl = res.get("te_loaded_um", res.get("te_um"))
                 rows.append({"relief_um": c, "label": label, "line_load_n_per_mm": w,
                              "torque_nm": res["torque_nm"], "te_loaded_pp_um": tl["peak_to_peak"],
                              "te_loaded_mean_um": tl["mean"], "te_loaded_min_um": tl["min"],

@@ -26,10 +26,10 @@ def plot_stiffness(res, path):
     a1.set_ylabel("mesh stiffness, N/(mm um)")
     a1.legend(loc="best", fontsize=8)
     a1.grid(True, alpha=0.3)
-    a2.plot(ang, [p.get("te_loaded_um", p["te_um"]) for p in pts], "o-", color="tab:red",
+    a2.plot(ang, [p.get("te_loaded_um", p.get("te_um")) for p in pts], "o-", color="tab:red",
             label="loaded static TE")
     if res.get("modified"):
-        a2.plot(ang, [p.get("te_elastic_um", p["te_um"]) for p in pts], "s--", ms=3, color="tab:gray",
+        a2.plot(ang, [p.get("te_elastic_um", p.get("te_um")) for p in pts], "s--", ms=3, color="tab:gray",
                 label="elastic part (without the modifications' geometric TE)")
         a2.legend(loc="best", fontsize=8)
     a2.set_ylabel("loaded static TE, um")

@@ -51,14 +51,14 @@ def stiffness_text(res):
         kt = p["k_tan"] if p.get("k_tan") is not None else float("nan")
         forces = " ".join(f"{q['teeth'][0]}/{q['teeth'][1]}:{q['force_n']:.0f}" for q in p["pair_forces"])
         lines.append(f"{p['roll']:6.3f} {p['angle_deg']:10.4f} {p['k']:12.4f} {kt:8.4f} "
-                     f"{p.get('te_loaded_um', p['te_um']):9.4f} "
+                     f"{p.get('te_loaded_um', p.get('te_um')):9.4f} "
                      f"{p['pairs']:5d}  {forces}")
-    k, te = res["k"], res.get("te_loaded_um") or res["te_um"]
+    k, te = res["k"], res.get("te_loaded_um", res.get("te_um"))
     lines.append(f"k  min {k['min']:.4f}  mean {k['mean']:.4f}  max {k['max']:.4f} N/(mm um)")
     lines.append(f"TE min {te['min']:.4f}  mean {te['mean']:.4f}  max {te['max']:.4f} um  "
                  f"(peak-to-peak {te['peak_to_peak']:.4f}; loaded static TE)")
     if res.get("modified"):
-        te = res.get("te_elastic_um") or res["te_um"]
+        te = res.get("te_elastic_um", res.get("te_um"))
         lines.append(f"elastic part, without the modifications' geometric TE: min {te['min']:.4f}  mean {te['mean']:.4f}"
                      f"  max {te['max']:.4f} um  (peak-to-peak {te['peak_to_peak']:.4f})")
     return "\n".join(lines)
