@@ -224,5 +224,32 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(tm, "solves_s", json_num(r->cpu_solves));
     json_object_object_add(tm, "contact_s", json_num(r->cpu_contact));
     json_object_object_add(o, "cpu", tm);
+    if (r->slices > 0) {
+        /* the slice analysis (docs/explanation/helical.md) */
+        json_object *sl = json_object_new_object(), *sec = json_object_new_object();
+        json_object_object_add(sl, "slices", json_object_new_int(r->slices));
+        json_object_object_add(sl, "coupling_mm", json_num(r->coupling_mm));
+        json_object_object_add(sl, "local_compliance_um_mm_per_n", json_num(r->local_compliance));
+        json_object_object_add(sl, "overlap_ratio", json_num(r->overlap_ratio));
+        json_object_object_add(sl, "k_hbeta", json_num(r->k_hbeta));
+        json_object_object_add(sec, "k_min", json_num(r->section_k_min));
+        json_object_object_add(sec, "k_max", json_num(r->section_k_max));
+        json_object_object_add(sec, "te_loaded_peak_to_peak_um", json_num(r->section_te_pp));
+        json_object_object_add(sl, "transverse_section", sec);
+        json_object *zz = json_object_new_array(), *fl = json_object_new_array(), *pk = json_object_new_array();
+        for (int i = 0; i < r->slices; i++)
+            json_object_array_add(zz, json_num(r->face_z_mm[i]));
+        for (int j = 0; j < r->positions; j++) {
+            json_object *row = json_object_new_array();
+            for (int i = 0; i < r->slices; i++)
+                json_object_array_add(row, json_num(r->face_load[(size_t)j * r->slices + i]));
+            json_object_array_add(fl, row);
+            json_object_array_add(pk, json_num(r->pt[j].peak_load_n_mm));
+        }
+        json_object_object_add(sl, "face_z_mm", zz);
+        json_object_object_add(sl, "face_load_n_per_mm", fl);
+        json_object_object_add(sl, "peak_load_n_per_mm", pk);
+        json_object_object_add(o, "slice_analysis", sl);
+    }
     return o;
 }
