@@ -107,6 +107,24 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
                        {"te_max", r->te_max}};
         for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
             st |= gsi_h5_scalar_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
+        if (r->slices > 0) {
+            /* the slice analysis: load along the face per position */
+            hsize_t dz[1] = {(hsize_t)r->slices}, dl[2] = {(hsize_t)r->positions, (hsize_t)r->slices};
+            double *pk = malloc((size_t)r->positions * sizeof *pk);
+            if (!pk)
+                st = -1;
+            for (int j = 0; pk && j < r->positions; j++)
+                pk[j] = r->pt[j].peak_load_n_mm;
+            st |= put_ds(g, "face_z_mm", H5T_NATIVE_DOUBLE, 1, dz, r->face_z_mm);
+            st |= put_ds(g, "face_load_n_per_mm", H5T_NATIVE_DOUBLE, 2, dl, r->face_load);
+            if (pk)
+                st |= put_ds(g, "peak_load_n_per_mm", H5T_NATIVE_DOUBLE, 1, d1, pk);
+            free(pk);
+            st |= gsi_h5_scalar_attr(g, "slices", H5T_NATIVE_INT, &r->slices);
+            st |= gsi_h5_scalar_attr(g, "k_hbeta", H5T_NATIVE_DOUBLE, &r->k_hbeta);
+            st |= gsi_h5_scalar_attr(g, "coupling_mm", H5T_NATIVE_DOUBLE, &r->coupling_mm);
+            st |= gsi_h5_scalar_attr(g, "overlap_ratio", H5T_NATIVE_DOUBLE, &r->overlap_ratio);
+        }
         if (st >= 0)
             err = GS_OK;
         H5Gclose(g);
