@@ -82,8 +82,8 @@ typedef struct gs_stiffness_opts {
     int slices;        /* slice analysis (helical gears, lead modifications or a misalignment:
                         * docs/explanation/helical.md): slices of the face, 0 (default): 320 */
     double coupling_mm; /* slice analysis: coupling length lambda along the face (the decay
-                        * length of a point load's deflection), mm; 0 (default): the tooth
-                        * depth (h_a* + h_f*) m_t of the driver */
+                        * length of a point load's deflection), mm; 0 (default): 1.1 m_n
+                        * (fitted to a 3D tooth: tests/reference/helical_coupling) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);

@@ -225,8 +225,9 @@ gs_err gsi_stiff_slices(const gs_scene *sc, const gs_scene_mesh *sm, const gs_st
     double mn = beta > 0 ? gA->normal_module_m : gA->module_m;
     double eb = bmm * 1e-3 * sin(beta) / (GS_PI * mn);
     double sigma = (gA->hand < 0 ? -1.0 : 1.0) * (out->torque_nm > 0 ? 1.0 : -1.0);
-    double lam = o->coupling_mm > 0 ? o->coupling_mm
-                                    : (gA->addendum_coef + gA->dedendum_coef) * gA->module_m * 1e3;
+    /* default coupling length: 1.1 m_n, the decay length of a strip load's
+     * deflection along the face of a 3D tooth (tests/reference/helical_coupling) */
+    double lam = o->coupling_mm > 0 ? o->coupling_mm : 1.1 * mn * 1e3;
     /* pair stiffness grid from the planar positions */
     int sg = out->torque_nm > 0 ? 1 : -1, z1 = out->teeth[0];
     int tref = out->pt[0].n_pair > 0 ? out->pt[0].pair[0].tooth[0] : 0;

@@ -17,6 +17,11 @@ Asserted (each can fail):
 * crowning sized for the misalignment (C = 0.5 f_ma, ISO 6336-1) lowers
   K_Hbeta against the uncrowned misaligned pair; both are printed beside
   ISO 6336-1 method C (computed here, see iso_method_c);
+* the coupling length: the stored 3D CalculiX runs of one tooth under a
+  strip load (tests/reference/helical_coupling/runs.csv, never run here)
+  have a decay length converged in the mesh (two finest within 2 %), and the
+  analysis's default coupling length (JSON coupling_mm) is within 3 % of the
+  finest run's, scaled by the normal module (the runs: m 2.5 mm);
 * bad input named: fewer than 8 positions, slices out of range.
 """
 import json
@@ -116,6 +121,18 @@ def main():
     print("  K_Hbeta crowned 0.5 f_ma: slices %.4f, ISO 6336-1 method C %.4f" % (kc, ic))
     check(kc < ku, "crowning lowers K_Hbeta (%.3f < %.3f)" % (kc, ku))
     check(ku > 1.2 and iu > 1.2, "misalignment raises K_Hbeta in both")
+
+    runs = [ln.strip().split(",") for ln in open(os.path.join(SRC, "tests", "reference", "helical_coupling",
+                                                               "runs.csv")).readlines()[1:]]
+    runs.sort(key=lambda v: -float(v[0]))
+    lam3d = [float(v[4]) for v in runs]
+    print("  3D decay length by mesh size: " + ", ".join("h %s mm: %.3f mm" % (v[0], float(v[4])) for v in runs))
+    check(len(runs) >= 2 and abs(lam3d[-1] - lam3d[-2]) / lam3d[-1] < 0.02,
+          "3D decay length converged in the mesh (two finest within 2 %)")
+    m_n = base["bodies"][0]["module_mm"]
+    lam = c["slice_analysis"]["coupling_mm"]
+    check(abs(lam / m_n - lam3d[-1] / 2.5) / (lam3d[-1] / 2.5) < 0.03,
+          "default coupling length %.3f mm = %.3f m_n, 3D %.3f m_n (within 3 %%)" % (lam, lam / m_n, lam3d[-1] / 2.5))
 
     for args, field in ((["--positions", "4"], "positions"),):
         out = subprocess.run([TOOL, SCENE] + args, capture_output=True, text=True)
