@@ -52,7 +52,6 @@ def write_geo(path, g, h):
     cwi = [pt(p, lc_t) for p in cw]
     ccwi = [pt(p, lc_t) for p in ccw]
     rf, rh = g.rf, g.hub
-    a_cw = math.atan2(cw[0][1], cw[0][0])
     r1 = pt((rf * math.cos(-half), rf * math.sin(-half)), lc_r)
     r2 = pt((rf * math.cos(half), rf * math.sin(half)), lc_r)
     h1 = pt((rh * math.cos(-half), rh * math.sin(-half)), lc_r)
@@ -72,7 +71,6 @@ def write_geo(path, g, h):
     cur("Spline", list(reversed(cwi)))    # cw flank tip -> root
     cur("Circle", [cwi[0], o, r1])        # root arc
     cur("Line", [r1, h1])                 # radial cut, cw side
-    del a_cw
     lines.append("Curve Loop(1) = {%s};" % ", ".join(map(str, c)))
     lines.append("Plane Surface(1) = {1};")
     lines.append("out[] = Extrude {0, 0, %g} { Surface{1}; };" % B)
