@@ -79,6 +79,11 @@ typedef struct gs_stiffness_opts {
     int all_dofs;      /* 0 (default): the displacements for the contact search only at the
                         * teeth it reads, by partial back substitutions (docs/explanation/stiffness.md
                         * "Displacement zone"); 1: at every boundary dof (the reference) */
+    int slices;        /* slice analysis (helical gears, lead modifications or a misalignment:
+                        * docs/explanation/helical.md): slices of the face, 0 (default): 320 */
+    double coupling_mm; /* slice analysis: coupling length lambda along the face (the decay
+                        * length of a point load's deflection), mm; 0 (default): 1.1 m_n
+                        * (fitted to a 3D tooth: tests/reference/helical_coupling) */
 } gs_stiffness_opts;
 
 void gs_stiffness_opts_defaults(gs_stiffness_opts *o);
@@ -118,6 +123,8 @@ typedef struct gs_stiffness_point {
     int converged;        /* 1 when delta settled (two changes below 1e-7 of the
                            * elastic rotation) at T (and T/2) */
     double penetration_um; /* deepest gap < 0 re-evaluated at the final deformed position */
+    double peak_load_n_mm; /* slice analysis: the largest load per unit face width on one
+                           * contact line (N/mm; 0 in the planar analysis) */
 } gs_stiffness_point;
 
 typedef struct gs_stiffness_result {
@@ -157,6 +164,21 @@ typedef struct gs_stiffness_result {
     double zone_fraction; /* displacement zone: the mean fraction of L's entries a
                            * back substitution for the displacements visited (1: all) */
     long zone_restarts;   /* positions solved again because a zone grew mid-position */
+    /* Slice analysis (0 / NULL in the planar analysis; docs/explanation/helical.md): the
+     * points above are the helical pair's; the section_* figures the planar analysis
+     * of its transverse section (the spur pair of the same transverse geometry and
+     * face width) at the same positions. */
+    int slices;           /* slices of the face (0: planar analysis) */
+    double coupling_mm;   /* coupling length lambda used */
+    double local_compliance; /* the pair compliance's local part (no spread along the
+                           * face), um mm / N */
+    double overlap_ratio; /* eps_beta */
+    double k_hbeta;       /* face load factor: the largest cycle-mean load per unit face
+                           * width over F / b */
+    double section_k_min, section_k_max, section_te_pp; /* te_pp: loaded static TE, um */
+    double *face_z_mm;    /* slices: slice centres from the face centre, mm */
+    double *face_load;    /* positions x slices: load per unit face width summed over the
+                           * contact lines, N/mm */
 } gs_stiffness_result;
 
 /* Analyse mesh mesh_index of scene sc (o may be NULL: defaults). out is

@@ -52,6 +52,8 @@ void gs_stiffness_opts_defaults(gs_stiffness_opts *o)
     o->fine = 0;
     o->all_rows = 0;
     o->all_dofs = 0;
+    o->slices = 0;
+    o->coupling_mm = 0.0;
 }
 
 void gs_stiffness_result_clear(gs_stiffness_result *r)
@@ -59,6 +61,8 @@ void gs_stiffness_result_clear(gs_stiffness_result *r)
     if (!r)
         return;
     free(r->pt);
+    free(r->face_z_mm);
+    free(r->face_load);
     memset(r, 0, sizeof *r);
 }
 
@@ -93,6 +97,7 @@ struct gs_stiffness_run {
     double *uT[2];          /* displacements at T (central tangent) */
     double T, F, bmm, pitch, thB_first, ratio, t_start, cpu_start;
     int next;               /* next roll position */
+    int slice;              /* the slice analysis follows the planar one */
     gs_stiffness_result out;
 };
 
@@ -145,25 +150,29 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     if (mesh_index < 0 || mesh_index >= sc->n_meshes)
         return gs_diag_set(d, GS_ERANGE, "meshes", "mesh index %d: the scene has %d meshes",
                            mesh_index, sc->n_meshes);
+    /* Helical gears, lead modifications or a misalignment: the slice analysis
+     * (stiffness_slices.c) on top of the planar analysis of the transverse
+     * section (docs/explanation/helical.md). */
+    int slice = 0;
     {
-        /* planar spur analysis: helical gears and lead data need the slice
-         * analysis (docs/explanation/helical.md) */
         const gs_scene_mesh *sm = &sc->meshes[mesh_index];
-        char f[64];
         for (int k = 0; k < 2; k++) {
             const gs_scene_body *b = &sc->bodies[sm->gear[k]];
             const gs_lead_mods *l = &b->lead;
-            if (b->gear.helix_angle > 0 || l->crowning != 0 || l->end_relief != 0 || l->slope != 0) {
-                snprintf(f, sizeof f, "bodies[%d].%s", sm->gear[k], b->gear.helix_angle > 0 ? "helix_angle_deg" : "lead");
-                return gs_diag_set(d, GS_ERANGE, f, "the quasi-static analysis is planar (spur teeth): '%s' is %s",
-                                   b->name, b->gear.helix_angle > 0 ? "helical" : "lead-modified");
-            }
+            slice |= b->gear.helix_angle > 0 || l->crowning != 0 || l->end_relief != 0 || l->slope != 0;
         }
-        if (sm->misalign_in != 0 || sm->misalign_out != 0) {
-            snprintf(f, sizeof f, "meshes[%d].misalignment", mesh_index);
-            return gs_diag_set(d, GS_ERANGE, f, "the quasi-static analysis is planar: it cannot take a misalignment");
-        }
+        slice |= sm->misalign_in != 0 || sm->misalign_out != 0;
     }
+    if (slice && o.positions < 8)
+        return gs_diag_set(d, GS_ERANGE, "positions",
+                           "the slice analysis samples the tooth pair stiffness at the roll positions: "
+                           "at least 8, not %d", o.positions);
+    if (slice && o.cycles != 1)
+        return gs_diag_set(d, GS_ERANGE, "cycles", "the slice analysis spans one mesh cycle (cycles 1)");
+    if (slice && (o.slices < 0 || o.slices == 1 || o.slices > 2000))
+        return gs_diag_set(d, GS_ERANGE, "slices", "slices must be 0 (default 320) or 2..2000, not %d", o.slices);
+    if (!(o.coupling_mm >= 0.0 && o.coupling_mm <= 1000.0))
+        return gs_diag_set(d, GS_ERANGE, "coupling_mm", "the coupling length must be in [0, 1000] mm");
     if (o.positions < 1 || o.positions > 100000)
         return gs_diag_set(d, GS_ERANGE, "positions", "positions must be 1..100000, not %d",
                            o.positions);
@@ -202,6 +211,7 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
     r->cpu_start = gs_cpu_now();
     r->sc = sc;
     r->o = o;
+    r->slice = slice;
     const gs_scene_mesh *sm = r->sm = &sc->meshes[mesh_index];
     work *wp = &r->w;
 #define w (*wp)
@@ -520,22 +530,15 @@ gs_err gs_stiffness_next(gs_stiffness_run *r, gs_diag *d)
     return e;
 }
 
-gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_diag *d)
+/* The summary of the points: ranges and means of k and TE. */
+static void summarise(gs_stiffness_result *out, int tangent)
 {
-    gs_stiffness_run *r = run ? *run : NULL;
-    if (!r || !out || r->next < r->o.positions)
-        return gs_diag_set(d, GS_EINVAL, "", "the analysis has roll positions left");
-    work *wp = &r->w;
-#define w (*wp)
-    const gs_stiffness_opts o = r->o;
-    *out = r->out;
-    memset(&r->out, 0, sizeof r->out);
-    /* Summary. */
+    const int np = out->positions;
     out->k_min = out->te_min = out->te_loaded_min = INFINITY;
     out->k_max = out->te_max = out->te_loaded_max = -INFINITY;
     double ks = 0, ts = 0, kt = 0, tl = 0;
     int multi = 0;
-    for (int j = 0; j < o.positions; j++) {
+    for (int j = 0; j < np; j++) {
         const gs_stiffness_point *pt = &out->pt[j];
         out->k_min = fmin(out->k_min, pt->k);
         out->k_max = fmax(out->k_max, pt->k);
@@ -549,12 +552,25 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
         kt += pt->k_tan;
         multi += pt->pairs >= 2;
     }
-    out->k_mean = ks / o.positions;
-    out->te_mean = ts / o.positions;
-    out->te_loaded_mean = tl / o.positions;
+    out->k_mean = ks / np;
+    out->te_mean = ts / np;
+    out->te_loaded_mean = tl / np;
+    out->k_tan_mean = tangent ? kt / np : NAN;
+    out->frac_multi = (double)multi / np;
+}
+
+gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_diag *d)
+{
+    gs_stiffness_run *r = run ? *run : NULL;
+    if (!r || !out || r->next < r->o.positions)
+        return gs_diag_set(d, GS_EINVAL, "", "the analysis has roll positions left");
+    work *wp = &r->w;
+#define w (*wp)
+    const gs_stiffness_opts o = r->o;
+    *out = r->out;
+    memset(&r->out, 0, sizeof r->out);
+    summarise(out, o.tangent);
     out->modified = w.b[0].xy_ref || w.b[1].xy_ref;
-    out->k_tan_mean = o.tangent ? kt / o.positions : NAN;
-    out->frac_multi = (double)multi / o.positions;
     out->solves = gs_fe_static_solves(w.b[0].fs) + gs_fe_static_solves(w.b[1].fs);
     out->seconds = gs_now() - r->t_start;
     out->cpu_seconds = gs_cpu_now() - r->cpu_start;
@@ -580,6 +596,19 @@ gs_err gs_stiffness_end(gs_stiffness_run **run, gs_stiffness_result *out, gs_dia
     }
     out->cpu_contact = out->cpu_seconds - out->cpu_mesh - out->cpu_factor - out->cpu_columns -
                        out->cpu_solves;
+    if (r->slice) {
+        gs_err e = gsi_stiff_slices(r->sc, r->sm, &o, out, d);
+        if (e != GS_OK) {
+            gs_stiffness_result_clear(out);
+            gs_stiffness_run_free(run);
+            return e;
+        }
+        summarise(out, o.tangent);
+        out->cpu_seconds = gs_cpu_now() - r->cpu_start;
+        out->seconds = gs_now() - r->t_start;
+        out->cpu_contact = out->cpu_seconds - out->cpu_mesh - out->cpu_factor - out->cpu_columns -
+                           out->cpu_solves;
+    }
 #undef w
     gs_stiffness_run_free(run);
     return GS_OK;

@@ -193,6 +193,8 @@ int gsi_stiff_node_tooth(const gs_mesh *m, int z, gs_index node);
 int gsi_stiff_zone_add(sbody *b, int t);
 void gsi_stiff_fine_centres(const gs_scene *sc, const int bidx[2], const gs_stiffness_opts *o,
                             int centre[2]);
+gs_err gsi_stiff_slices(const gs_scene *sc, const gs_scene_mesh *sm, const gs_stiffness_opts *o,
+                        gs_stiffness_result *out, gs_diag *d);
 void gsi_stiff_pairs_of(const work *w, int nr, double F, gs_stiffness_point *pt);
 void gsi_stiff_sbody_free(sbody *b);
 void gsi_stiff_sbody_gram(sbody *b, int n, const int *sl);

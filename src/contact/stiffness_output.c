@@ -107,6 +107,24 @@ gs_err gs_stiffness_write_h5(const char *path, const gs_scene *sc, const gs_stif
                        {"te_max", r->te_max}};
         for (size_t c = 0; c < sizeof sc_attr / sizeof sc_attr[0]; c++)
             st |= gsi_h5_scalar_attr(g, sc_attr[c].name, H5T_NATIVE_DOUBLE, &sc_attr[c].v);
+        if (r->slices > 0) {
+            /* the slice analysis: load along the face per position */
+            hsize_t dz[1] = {(hsize_t)r->slices}, dl[2] = {(hsize_t)r->positions, (hsize_t)r->slices};
+            double *pk = malloc((size_t)r->positions * sizeof *pk);
+            if (!pk)
+                st = -1;
+            for (int j = 0; pk && j < r->positions; j++)
+                pk[j] = r->pt[j].peak_load_n_mm;
+            st |= put_ds(g, "face_z_mm", H5T_NATIVE_DOUBLE, 1, dz, r->face_z_mm);
+            st |= put_ds(g, "face_load_n_per_mm", H5T_NATIVE_DOUBLE, 2, dl, r->face_load);
+            if (pk)
+                st |= put_ds(g, "peak_load_n_per_mm", H5T_NATIVE_DOUBLE, 1, d1, pk);
+            free(pk);
+            st |= gsi_h5_scalar_attr(g, "slices", H5T_NATIVE_INT, &r->slices);
+            st |= gsi_h5_scalar_attr(g, "k_hbeta", H5T_NATIVE_DOUBLE, &r->k_hbeta);
+            st |= gsi_h5_scalar_attr(g, "coupling_mm", H5T_NATIVE_DOUBLE, &r->coupling_mm);
+            st |= gsi_h5_scalar_attr(g, "overlap_ratio", H5T_NATIVE_DOUBLE, &r->overlap_ratio);
+        }
         if (st >= 0)
             err = GS_OK;
         H5Gclose(g);
@@ -224,5 +242,32 @@ json_object *gs_stiffness_json(const gs_stiffness_result *r, const gs_scene *s)
     json_object_object_add(tm, "solves_s", json_num(r->cpu_solves));
     json_object_object_add(tm, "contact_s", json_num(r->cpu_contact));
     json_object_object_add(o, "cpu", tm);
+    if (r->slices > 0) {
+        /* the slice analysis (docs/explanation/helical.md) */
+        json_object *sl = json_object_new_object(), *sec = json_object_new_object();
+        json_object_object_add(sl, "slices", json_object_new_int(r->slices));
+        json_object_object_add(sl, "coupling_mm", json_num(r->coupling_mm));
+        json_object_object_add(sl, "local_compliance_um_mm_per_n", json_num(r->local_compliance));
+        json_object_object_add(sl, "overlap_ratio", json_num(r->overlap_ratio));
+        json_object_object_add(sl, "k_hbeta", json_num(r->k_hbeta));
+        json_object_object_add(sec, "k_min", json_num(r->section_k_min));
+        json_object_object_add(sec, "k_max", json_num(r->section_k_max));
+        json_object_object_add(sec, "te_loaded_peak_to_peak_um", json_num(r->section_te_pp));
+        json_object_object_add(sl, "transverse_section", sec);
+        json_object *zz = json_object_new_array(), *fl = json_object_new_array(), *pk = json_object_new_array();
+        for (int i = 0; i < r->slices; i++)
+            json_object_array_add(zz, json_num(r->face_z_mm[i]));
+        for (int j = 0; j < r->positions; j++) {
+            json_object *row = json_object_new_array();
+            for (int i = 0; i < r->slices; i++)
+                json_object_array_add(row, json_num(r->face_load[(size_t)j * r->slices + i]));
+            json_object_array_add(fl, row);
+            json_object_array_add(pk, json_num(r->pt[j].peak_load_n_mm));
+        }
+        json_object_object_add(sl, "face_z_mm", zz);
+        json_object_object_add(sl, "face_load_n_per_mm", fl);
+        json_object_object_add(sl, "peak_load_n_per_mm", pk);
+        json_object_object_add(o, "slice_analysis", sl);
+    }
     return o;
 }

@@ -4,7 +4,7 @@
  * (include/gearsim/stiffness.h, docs/explanation/stiffness.md).
  *
  *   gearsim-stiffness SCENE.json --mesh NAME --positions N [--torque T]
- *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]
+ *                     [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--slices N] [--coupling-mm L] [--no-tangent] [--tangent-step H]
  *                     [--no-nearfield|--plain] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]
  *                     [--json] [--out FILE.h5]
  *
@@ -38,7 +38,7 @@
 static void usage(FILE *f)
 {
     fprintf(f, "usage: gearsim-stiffness SCENE.json [--mesh NAME] [--positions N] [--torque T]\n"
-               "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--no-tangent] [--tangent-step H]\n"
+               "                         [--refine R] [--order 1|2] [--driver 0|1] [--phase P] [--cycles C] [--slices N] [--coupling-mm L] [--no-tangent] [--tangent-step H]\n"
                "                         [--no-nearfield|--plain] [--nearfield-depth MM] [--fine] [--all-rows] [--all-dofs]\n"
                "                         [--json] [--out FILE.h5]\n");
 }
@@ -107,6 +107,17 @@ static void print_table(const gs_stiffness_result *r, const gs_scene *s)
            r->cpu_seconds, r->cpu_mesh, r->cpu_factor, r->columns, r->cpu_columns, r->solves,
            r->cpu_solves, r->cpu_contact,
            r->positions > 0 ? r->cpu_seconds / r->positions : 0.0);
+    if (r->slices > 0) {
+        printf("slice analysis: %d slices, coupling length %.3f mm, overlap ratio %.4f, K_Hbeta %.4f\n",
+               r->slices, r->coupling_mm, r->overlap_ratio, r->k_hbeta);
+        printf("transverse section (spur pair, same transverse geometry): k min %.4f max %.4f, "
+               "TE peak-to-peak %.4f um\n",
+               r->section_k_min, r->section_k_max, r->section_te_pp);
+        printf("peak load per unit face width on one contact line (N/mm):");
+        for (int j = 0; j < r->positions; j++)
+            printf(" %.2f", r->pt[j].peak_load_n_mm);
+        printf("\n");
+    }
 }
 
 int main(int argc, char **argv)
@@ -157,6 +168,17 @@ int main(int argc, char **argv)
         } else if (!strcmp(a, "--torque") && has) {
             if (!parse_double(argv[++i], &o.torque_nm) || o.torque_nm == 0.0) {
                 fprintf(stderr, "gearsim-stiffness: --torque must be a non-zero number (N m)\n");
+                return TOOL_USAGE;
+            }
+        } else if (!strcmp(a, "--slices") && has) {
+            if (!parse_long(argv[++i], 2, 2000, &v)) {
+                fprintf(stderr, "gearsim-stiffness: --slices must be 2..2000\n");
+                return TOOL_USAGE;
+            }
+            o.slices = (int)v;
+        } else if (!strcmp(a, "--coupling-mm") && has) {
+            if (!parse_double(argv[++i], &o.coupling_mm) || !(o.coupling_mm > 0.0 && o.coupling_mm <= 1000.0)) {
+                fprintf(stderr, "gearsim-stiffness: --coupling-mm must be in (0, 1000] mm\n");
                 return TOOL_USAGE;
             }
         } else if (!strcmp(a, "--phase") && has) {

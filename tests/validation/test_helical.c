@@ -4,9 +4,11 @@
  *    braked: energy balance E - E0 - W_in + D at round-off, the speed ratio
  *    and the steady speed of the closed form;
  *  - the helical planetary scene: energy balance and the sun/carrier ratio;
- *  - the contact and ltca meshes and the planar quasi-static analysis refuse a helical
- *    pair naming bodies[i].helix_angle_deg; lead modifications and
- *    misalignment are refused by the planar models naming the field. */
+ *  - the contact and ltca meshes refuse a helical pair naming
+ *    bodies[i].helix_angle_deg; lead modifications and misalignment are
+ *    refused by the planar models naming the field; the quasi-static
+ *    analysis takes the pair through its slice analysis (its figures:
+ *    tests/validation/test_helical_slices.py). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -160,12 +162,24 @@ static void refusals(void **state)
     json_object_object_add(mesh0(root), "stiffness", st);
     expect_refused(root, "meshes[0].stiffness.type", &d);
 
-    /* the planar quasi-static analysis (stiffness command) */
+    /* the quasi-static analysis (stiffness command): by slices, and it
+     * names its own limits */
     gs_scene *sc = vt_scene_parse(vt_scene("helical_pair"));
     gs_stiffness_result r;
-    assert_int_not_equal(gs_stiffness_analyse(sc, 0, NULL, &r, &d), GS_OK);
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 4;
+    assert_int_not_equal(gs_stiffness_analyse(sc, 0, &o, &r, &d), GS_OK);
     print_message("# refused: %s: %s\n", d.field, d.message);
-    assert_string_equal(d.field, "bodies[0].helix_angle_deg");
+    assert_string_equal(d.field, "positions");
+    o.positions = 8;
+    o.tangent = 0;
+    o.slices = 20;
+    assert_int_equal(gs_stiffness_analyse(sc, 0, &o, &r, &d), GS_OK);
+    assert_int_equal(r.slices, 20);
+    assert_true(fabs(r.overlap_ratio - 0.988616) < 1e-5);
+    assert_true(r.k_min > 0.0 && r.k_max / r.k_min < 1.05);
+    gs_stiffness_result_clear(&r);
     gs_scene_free(&sc);
 }
 

@@ -61,4 +61,13 @@ def stiffness_text(res):
         te = res.get("te_elastic_um", res.get("te_um"))
         lines.append(f"elastic part, without the modifications' geometric TE: min {te['min']:.4f}  mean {te['mean']:.4f}"
                      f"  max {te['max']:.4f} um  (peak-to-peak {te['peak_to_peak']:.4f})")
+    sl = res.get("slice_analysis")
+    if sl:
+        sec = sl["transverse_section"]
+        lines.append(f"slice analysis: {sl['slices']} slices, coupling length {sl['coupling_mm']:.3f} mm, "
+                     f"overlap ratio {sl['overlap_ratio']:.4f}, K_Hbeta {sl['k_hbeta']:.4f}")
+        lines.append(f"transverse section (the spur pair): k min {sec['k_min']:.4f} max {sec['k_max']:.4f}, "
+                     f"TE peak-to-peak {sec['te_loaded_peak_to_peak_um']:.4f} um")
+        lines.append("peak load per unit face width on one contact line, N/mm: " +
+                     " ".join(f"{x:.1f}" for x in sl["peak_load_n_per_mm"]))
     return "\n".join(lines)
