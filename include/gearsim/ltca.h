@@ -112,8 +112,10 @@ void gs_ltca_opts_defaults(gs_ltca_opts *o);
 /* The hash of everything the tables of mesh `mesh` of sc depend on: both
  * gears' parameters, materials, mesh densities and profile modifications,
  * their placement and scene angles, the scene's load on the driver, the
- * positions, the load set and GS_LTCA_VERSION (pitch errors and run-out
- * are not in it: the tables are of the gears without them). */
+ * positions, the load set, GS_LTCA_VERSION and $GEARSIM_LTCA_NEARFIELD
+ * when set (0: the analysis with the plain FE contact, as the elastic
+ * gears' dynamic contact; 1, 2: gs_stiffness_opts.nearfield) (pitch errors
+ * and run-out are not in it: the tables are of the gears without them). */
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o);
 
 /* The tables of mesh `mesh` of sc: read from the cache when a file of its

@@ -439,6 +439,18 @@ static int driver_of(const gs_scene *sc, int mesh)
     return sc->bodies[sc->meshes[mesh].gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
 }
 
+/* The analysis's near-field setting: $GEARSIM_LTCA_NEARFIELD (0 the plain
+ * FE contact, what the elastic gears' dynamic contact has; 1 the
+ * correction on any mesh; 2 auto), else -1: the analysis's default. */
+static int nearfield_setting(void)
+{
+    const char *e = getenv("GEARSIM_LTCA_NEARFIELD");
+    if (!e || !e[0])
+        return -1;
+    int v = atoi(e);
+    return v >= 0 && v <= 2 ? v : -1;
+}
+
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
 {
     uint64_t h = 14695981039346656037ull;
@@ -453,6 +465,8 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     }
     h = fnv_d(h, driver_moment(sc, sm->gear[driver_of(sc, mesh)]));
     h = fnv_i(h, o ? o->positions : 48);
+    if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
+        h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
     for (int i = 0; i < N_BACK; i++)
@@ -475,6 +489,8 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     o.driver = driver_of(sc, mesh);
     o.tangent = 0;
     o.phase = 0.5 / n;
+    if (nearfield_setting() >= 0)
+        o.nearfield = nearfield_setting();
     gs_stiffness_result r;
     GS_TRY(gs_stiffness_analyse(sc, mesh, &o, &r, dg));
     double sg = r.torque_nm < 0 ? -1.0 : 1.0;
