@@ -35,7 +35,7 @@
 
 /* Bump when the analysis or the table's construction changes: part of the
  * cache key. */
-#define GS_LTCA_VERSION "ltca-table-1"
+#define GS_LTCA_VERSION "ltca-table-2"
 
 typedef struct gs_ltca_table {
     int n;            /* roll positions over one mesh cycle */
@@ -49,6 +49,10 @@ typedef struct gs_ltca_table {
     int knot_scene;   /* its knot index */
     double base_radius_m; /* of the driver */
     double k_mean;    /* mean over the positions of the tangent stiffness at force_scene, N/m */
+    double body_compliance; /* m/N along the line of action: the share of the static compliance
+                             * in the gears' bodies (web, hub; linear, the same at every position),
+                             * from the FE pair's own torsional mesh modes (0 where that analysis
+                             * does not apply: an internal gear in the mesh) */
     double build_cpu_s; /* CPU seconds the analyses took (0 when read from a cache) */
     int from_cache;   /* 1 when read from a cache file */
     uint64_t key;
@@ -64,6 +68,16 @@ void gs_ltca_table_clear(gs_ltca_table *t);
  * deflection the smaller), and integrates V. GS_ERANGE when a row is not
  * monotone (d names "ltca"). */
 gs_err gs_ltca_table_set(gs_ltca_table *t, int n, int m, const double *d, const double *f, gs_diag *dg);
+
+/* The dynamic tables (docs/explanation/ltca.md "Body compliance"): in the
+ * vibration of the mesh the gears' inertia sits mostly on the teeth's side
+ * of the bodies' compliance, which carries the mean load; so the mesh force
+ * acts through the teeth's compliance alone and the bodies' stays at the
+ * mean force F_mean: every knot's deflection moves by
+ *   d -> d - body_compliance (f - F_mean),
+ * the same static TE at F_mean, the tangent stiffer. Re-integrates V and
+ * updates k_mean; GS_ERANGE when a row would not stay monotone. */
+gs_err gs_ltca_table_dynamic(gs_ltca_table *t, double f_mean, gs_diag *dg);
 
 /* Force F_j(x) of position j, its slope dF/dx, and the potential V_j(x). */
 double gs_ltca_row_force(const gs_ltca_table *t, int j, double x, double *slope);
@@ -98,8 +112,10 @@ void gs_ltca_opts_defaults(gs_ltca_opts *o);
 /* The hash of everything the tables of mesh `mesh` of sc depend on: both
  * gears' parameters, materials, mesh densities and profile modifications,
  * their placement and scene angles, the scene's load on the driver, the
- * positions, the load set and GS_LTCA_VERSION (pitch errors and run-out
- * are not in it: the tables are of the gears without them). */
+ * positions, the load set, GS_LTCA_VERSION and $GEARSIM_LTCA_NEARFIELD
+ * when set (0: the analysis with the plain FE contact, as the elastic
+ * gears' dynamic contact; 1, 2: gs_stiffness_opts.nearfield) (pitch errors
+ * and run-out are not in it: the tables are of the gears without them). */
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o);
 
 /* The tables of mesh `mesh` of sc: read from the cache when a file of its

@@ -8,6 +8,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "gearsim/fe_modes.h"
 #include "gearsim/ltca.h"
 #include "gearsim/modification.h"
 #include "gearsim/stiffness.h"
@@ -107,6 +108,21 @@ static double row_mean(const gs_ltca_table *t, int j, double x0, double x1, doub
     return q;
 }
 
+/* V of every row: the integral of F from the dead zone (0 there). */
+static void integrate(gs_ltca_table *t)
+{
+    int m = t->m, z = t->zero_back;
+    for (int j = 0; j < t->n; j++) {
+        const double *dd = t->d + (size_t)j * m, *ff = t->f + (size_t)j * m;
+        double *vv = t->v + (size_t)j * m;
+        vv[z] = vv[z + 1] = 0.0;
+        for (int a = z + 1; a + 1 < m; a++)
+            vv[a + 1] = vv[a] + 0.5 * (ff[a] + ff[a + 1]) * (dd[a + 1] - dd[a]);
+        for (int a = z; a > 0; a--)
+            vv[a - 1] = vv[a] - 0.5 * (ff[a - 1] + ff[a]) * (dd[a] - dd[a - 1]);
+    }
+}
+
 gs_err gs_ltca_table_set(gs_ltca_table *t, int n, int m, const double *d, const double *f, gs_diag *dg)
 {
     memset(t, 0, sizeof *t);
@@ -151,14 +167,44 @@ gs_err gs_ltca_table_set(gs_ltca_table *t, int n, int m, const double *d, const 
                                    "position %d: the static TE does not grow with the load (knots %d, %d: %g, %g m)",
                                    j, a, a + 1, dd[a], dd[a + 1]);
             }
-        double *vv = t->v + (size_t)j * m;
-        vv[z] = vv[z + 1] = 0.0;
-        for (int a = z + 1; a + 1 < m; a++)
-            vv[a + 1] = vv[a] + 0.5 * (ff[a] + ff[a + 1]) * (dd[a + 1] - dd[a]);
-        for (int a = z; a > 0; a--)
-            vv[a - 1] = vv[a] - 0.5 * (ff[a - 1] + ff[a]) * (dd[a] - dd[a - 1]);
     }
     t->zero_back = zb;
+    integrate(t);
+    return GS_OK;
+}
+
+/* The mean over the positions of the tangent at the scene load's knot (the
+ * mean of its two segments' slopes). */
+static double tangent_mean(const gs_ltca_table *t)
+{
+    double ks = 0;
+    int k = t->knot_scene, m = t->m;
+    for (int j = 0; j < t->n; j++) {
+        const double *d = t->d + (size_t)j * m, *f = t->f + (size_t)j * m;
+        ks += 0.5 * (seg_slope(d, f, k > 0 ? k - 1 : 0) + seg_slope(d, f, k < m - 1 ? k : m - 2));
+    }
+    return ks / t->n;
+}
+
+gs_err gs_ltca_table_dynamic(gs_ltca_table *t, double f_mean, gs_diag *dg)
+{
+    double c = t->body_compliance;
+    if (c == 0.0)
+        return GS_OK;
+    int n = t->n, m = t->m;
+    for (int j = 0; j < n; j++) {
+        double *d = t->d + (size_t)j * m;
+        const double *f = t->f + (size_t)j * m;
+        for (int a = 0; a < m; a++)
+            d[a] -= c * (f[a] - f_mean);
+        for (int a = 0; a + 1 < m; a++)
+            if (!(d[a + 1] > d[a]))
+                return gs_diag_set(dg, GS_ERANGE, "ltca",
+                                   "position %d: the body compliance %g m/N exceeds the table's between knots %d "
+                                   "and %d", j, c, a, a + 1);
+    }
+    integrate(t);
+    t->k_mean = tangent_mean(t);
     return GS_OK;
 }
 
@@ -393,6 +439,18 @@ static int driver_of(const gs_scene *sc, int mesh)
     return sc->bodies[sc->meshes[mesh].gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
 }
 
+/* The analysis's near-field setting: $GEARSIM_LTCA_NEARFIELD (0 the plain
+ * FE contact, what the elastic gears' dynamic contact has; 1 the
+ * correction on any mesh; 2 auto), else -1: the analysis's default. */
+static int nearfield_setting(void)
+{
+    const char *e = getenv("GEARSIM_LTCA_NEARFIELD");
+    if (!e || !e[0])
+        return -1;
+    int v = atoi(e);
+    return v >= 0 && v <= 2 ? v : -1;
+}
+
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
 {
     uint64_t h = 14695981039346656037ull;
@@ -407,6 +465,8 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     }
     h = fnv_d(h, driver_moment(sc, sm->gear[driver_of(sc, mesh)]));
     h = fnv_i(h, o ? o->positions : 48);
+    if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
+        h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
     for (int i = 0; i < N_BACK; i++)
@@ -429,6 +489,8 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     o.driver = driver_of(sc, mesh);
     o.tangent = 0;
     o.phase = 0.5 / n;
+    if (nearfield_setting() >= 0)
+        o.nearfield = nearfield_setting();
     gs_stiffness_result r;
     GS_TRY(gs_stiffness_analyse(sc, mesh, &o, &r, dg));
     double sg = r.torque_nm < 0 ? -1.0 : 1.0;
@@ -447,6 +509,66 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     *cpu += r.cpu_seconds;
     gs_stiffness_result_clear(&r);
     return GS_OK;
+}
+
+/* The body compliance is measured on a pair of external gears turning
+ * about fixed axes (the FE modal analysis's pair); a train's meshes (an
+ * internal gear, a planet on its carrier) keep 0. */
+static int body_measurable(const gs_scene *sc, const gs_scene_mesh *sm)
+{
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+        if (b->gear.kind == GS_GEAR_INTERNAL || b->joint == GS_JOINT_ON_CARRIER)
+            return 0;
+    }
+    return 1;
+}
+
+/* Positions of the modal analysis that measures the body compliance. */
+#define BODY_POSITIONS 12
+
+/* The share of the static mesh compliance in the gears' bodies, m/N along
+ * the line of action, from the FE pair's own eigenproblem at the load T
+ * (include/gearsim/fe_modes.h): at each position the first torsional mesh
+ * mode f_FE (the first whose kinetic energy is mostly in the rotations)
+ * and the two-inertia closed form f_2 with the same analysis's tangent
+ * stiffness k_t. A compliance c in series with the teeth that carries the
+ * mean load while the inertias vibrate on the teeth's side of it gives
+ * 1 / k_dyn = 1 / k_t - c with k_dyn = k_t (f_FE / f_2)^2, so
+ *   c_j = (1 - (f_2 / f_FE)^2) / k_t.
+ * That c_j comes out the same at every position (single and double
+ * contact alike, within a few per cent: docs/explanation/ltca.md) is what
+ * identifies it as the bodies'; the mean over the positions is returned.
+ * The plain FE's k_t is the one of the eigenproblem's own model: the
+ * near-field correction of the tables is in the contact, not the bodies. */
+static gs_err body_compliance(const gs_scene *sc, int mesh, double T, double *c, double *cpu, gs_diag *dg)
+{
+    gs_fe_modes_opts mo;
+    gs_fe_modes_opts_defaults(&mo);
+    mo.positions = BODY_POSITIONS;
+    mo.modes = 4;
+    mo.torque_nm = T;
+    mo.phase = 0.5 / BODY_POSITIONS;
+    gs_fe_modes_result fm;
+    double c0 = gs_cpu_now();
+    GS_TRY(gs_fe_modes_analyse(sc, mesh, &mo, &fm, dg));
+    double sum = 0;
+    gs_err e = GS_OK;
+    for (int j = 0; j < fm.positions && e == GS_OK; j++) {
+        const gs_fe_modes_point *p = &fm.pt[j];
+        double hz = 0;
+        for (int i = 0; i < fm.modes && hz == 0; i++)
+            if (p->rotation[i] > 0.5)
+                hz = p->hz[i];
+        if (!(hz > 0) || !(p->lumped_hz > 0) || !(p->k_tan > 0))
+            e = gs_diag_set(dg, GS_ERANGE, "ltca", "no torsional mesh mode at roll %.3f", p->roll);
+        else
+            sum += (1.0 - (p->lumped_hz / hz) * (p->lumped_hz / hz)) / p->k_tan;
+    }
+    *c = e == GS_OK ? fmax(sum / fm.positions, 0.0) : 0.0;
+    gs_fe_modes_result_clear(&fm);
+    *cpu += gs_cpu_now() - c0;
+    return e;
 }
 
 static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_diag *dg)
@@ -485,20 +607,16 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
         t->base_radius_m = rb;
         t->build_cpu_s = cpu;
         /* the scene load's knot, and the mean tangent there */
-        double ks = 0;
-        for (int j = 0; j < n; j++) {
-            const double *ff = t->f + (size_t)j * m;
-            int k = 0;
-            while (k < m && fabs(ff[k] - sg * F0) > 1e-9 * F0)
-                k++;
-            t->knot_scene = k;
-            double s;
-            gs_ltca_row_force(t, j, t->d[(size_t)j * m + k] - sg * 1e-12, &s); /* below, toward the closing */
-            double s2;
-            gs_ltca_row_force(t, j, t->d[(size_t)j * m + k] + sg * 1e-12, &s2);
-            ks += 0.5 * (s + s2);
-        }
-        t->k_mean = ks / n;
+        int k = 0;
+        while (k < m && fabs(t->f[k] - sg * F0) > 1e-9 * F0)
+            k++;
+        t->knot_scene = k < m ? k : m - 1;
+        t->k_mean = tangent_mean(t);
+        t->body_compliance = 0.0;
+        if (body_measurable(&sc, sm))
+            e = body_compliance(&sc, mesh, T0, &t->body_compliance, &t->build_cpu_s, dg);
+        if (e != GS_OK)
+            gs_ltca_table_clear(t);
     }
     free(d);
     free(f);
@@ -533,9 +651,11 @@ static int cache_read(const char *path, uint64_t key, gs_ltca_table *t)
     char magic[64];
     unsigned long long k;
     int n, m, ks;
-    double F0, rb, km, cpu;
-    int ok = fscanf(fp, "%63s %llx %d %d %d %lg %lg %lg %lg", magic, &k, &n, &m, &ks, &F0, &rb, &km, &cpu) == 9 &&
-             !strcmp(magic, GS_LTCA_VERSION) && k == key && n >= 2 && n <= 100000 && m >= 3 && m <= 1000;
+    double F0, rb, km, cpu, cb;
+    int ok = fscanf(fp, "%63s %llx %d %d %d %lg %lg %lg %lg %lg", magic, &k, &n, &m, &ks, &F0, &rb, &km, &cpu,
+                    &cb) == 10 &&
+             !strcmp(magic, GS_LTCA_VERSION) && k == key && n >= 2 && n <= 100000 && m >= 3 &&
+             m <= 1000 && ks >= 0 && ks < m;
     double *d = NULL, *f = NULL;
     if (ok) {
         d = gs_calloc((size_t)n * m, sizeof(double));
@@ -556,6 +676,7 @@ static int cache_read(const char *path, uint64_t key, gs_ltca_table *t)
     t->knot_scene = ks;
     t->base_radius_m = rb;
     t->k_mean = km;
+    t->body_compliance = cb;
     t->build_cpu_s = 0;
     t->from_cache = 1;
     (void)cpu;
@@ -572,8 +693,9 @@ static void cache_write(const char *dir, const char *path, uint64_t key, const g
     FILE *fp = fopen(tmp, "w");
     if (!fp)
         return;
-    fprintf(fp, "%s %016llx %d %d %d %.17g %.17g %.17g %.6g\n", GS_LTCA_VERSION, (unsigned long long)key, t->n,
-            t->m, t->knot_scene, t->force_scene, t->base_radius_m, t->k_mean, t->build_cpu_s);
+    fprintf(fp, "%s %016llx %d %d %d %.17g %.17g %.17g %.6g %.17g\n", GS_LTCA_VERSION, (unsigned long long)key,
+            t->n, t->m, t->knot_scene, t->force_scene, t->base_radius_m, t->k_mean, t->build_cpu_s,
+            t->body_compliance);
     for (size_t i = 0; i < (size_t)t->n * t->m; i++)
         fprintf(fp, "%.17g %.17g\n", t->d[i], t->f[i]);
     if (fclose(fp) != 0 || rename(tmp, path) != 0)

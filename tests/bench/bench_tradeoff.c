@@ -33,7 +33,8 @@
  * `LEVEL:sS`: at the default counts times S, the study's o2sS), the errors then
  * against the last row run (a partial table: e.g. "calibrated,contact" after
  * a change of the default mesh; "" for every row). argv[3] (optional): one
- * scene (contact_drive or planetary_contact). Every row is also printed to
+ * scene (contact_drive, planetary_contact, or a variant: contact_drive_relief,
+ * contact_drive_errors, run only when named). Every row is also printed to
  * stderr as it completes. The elastic levels: `contact` steps with
  * numerics.contact "closure_energy", `contact_seed` and `adaptive` with the
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
@@ -86,12 +87,49 @@ typedef struct result {
     int ok;
 } result;
 
+/* The variants of contact_drive (run only when named as argv[3]):
+ * contact_drive_relief, both gears with pair_relief's linear tip relief
+ * (10.3 um over 4.466 mm); contact_drive_errors, pitch-error tables on both
+ * gears (a long-wave cumulative deviation plus a tooth-to-tooth one, about
+ * 5 um peak to peak) and run-out (wheel 5 um at 30 deg, pinion 3 um at
+ * 120 deg). */
+static void variant(json_object *root, const char *scene)
+{
+    json_object *bs = json_object_object_get(root, "bodies");
+    for (size_t i = 0; i < json_object_array_length(bs); i++) {
+        json_object *b = json_object_array_get_idx(bs, i), *t;
+        if (!json_object_object_get_ex(b, "teeth", &t))
+            continue;
+        int z = json_object_get_int(t), wheel = z == 30;
+        if (!strcmp(scene, "contact_drive_relief")) {
+            json_object *tr = json_object_new_object(), *mod = json_object_new_object();
+            json_object_object_add(tr, "amount_um", json_object_new_double(10.3));
+            json_object_object_add(tr, "length_mm", json_object_new_double(4.466));
+            json_object_object_add(tr, "shape", json_object_new_string("linear"));
+            json_object_object_add(mod, "tip_relief", tr);
+            json_object_object_add(b, "modification", mod);
+        } else if (!strcmp(scene, "contact_drive_errors")) {
+            json_object *pe = json_object_new_array(), *ro = json_object_new_object();
+            for (int k = 0; k < z; k++)
+                json_object_array_add(pe, json_object_new_double(2.0 * sin(2 * GS_PI * k / z + (wheel ? 0.3 : 1.1)) +
+                                                                 (k % 2 ? 0.5 : -0.5)));
+            json_object_object_add(b, "pitch_errors_um", pe);
+            json_object_object_add(ro, "eccentricity_um", json_object_new_double(wheel ? 5.0 : 3.0));
+            json_object_object_add(ro, "phase_deg", json_object_new_double(wheel ? 30.0 : 120.0));
+            json_object_object_add(b, "runout", ro);
+        }
+    }
+}
+
 /* The scene at a fidelity level. */
 static gs_system *build(const spec *s)
 {
-    json_object *root = json_tokener_parse(gs_scene_builtin(s->scene));
+    int var = !strncmp(s->scene, "contact_drive_", 14);
+    json_object *root = json_tokener_parse(gs_scene_builtin(var ? "contact_drive" : s->scene));
     if (!root)
         return NULL;
+    if (var)
+        variant(root, s->scene);
     const char *lv = s->level;
     /* adaptive: elastic gears in contact with numerics.adaptive (1 um, two
      * halvings of the row's h) */
@@ -251,10 +289,12 @@ static int row_listed(const char *list, const spec *s)
     return 0;
 }
 
-/* Is the row skipped: not in the level list, or of another scene? */
+/* Is the row skipped: not in the level list, or of another scene? (The
+ * variants of contact_drive run only when named.) */
 static int skipped(const char *only, const char *scene, const spec *s)
 {
-    return (only && *only && !row_listed(only, s)) || (scene && strcmp(scene, s->scene));
+    return (only && *only && !row_listed(only, s)) || (scene && strcmp(scene, s->scene)) ||
+           (!scene && !strncmp(s->scene, "contact_drive_", 14));
 }
 
 int main(int argc, char **argv)
@@ -304,6 +344,14 @@ int main(int argc, char **argv)
         {"planetary_contact", "reduced", 1e-5, 0, 3}, /* o2s3 */
         {"planetary_contact", "reduced", 1e-5, 2, 1},    /* the reference: o2r2 */
     };
+    const spec relief[] = {
+        {"contact_drive_relief", "ltca", 1e-4, 0, 1}, {"contact_drive_relief", "ltca", 1e-5, 0, 1},
+        {"contact_drive_relief", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
+    };
+    const spec errs[] = {
+        {"contact_drive_errors", "ltca", 1e-4, 0, 1}, {"contact_drive_errors", "ltca", 1e-5, 0, 1},
+        {"contact_drive_errors", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
+    };
     struct set {
         const char *title;
         const spec *s;
@@ -316,6 +364,10 @@ int main(int argc, char **argv)
          "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3},
         {"planetary 24/24/72 (planetary_contact), 50 ms", plan, (int)(sizeof plan / sizeof plan[0]), 0.05,
          "carrier", "sun", 4.0, 10.0},
+        {"30/20 pair with tip relief (contact_drive_relief), 60 ms", relief, (int)(sizeof relief / sizeof relief[0]),
+         0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3},
+        {"30/20 pair with pitch errors and run-out (contact_drive_errors), 60 ms", errs,
+         (int)(sizeof errs / sizeof errs[0]), 0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3},
     };
     printf("# bench_tradeoff: the fidelity ladder, speed against accuracy (one process)\n");
     for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {

@@ -93,6 +93,8 @@ import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
+from gearsim.sweep import parabola_vertex  # noqa: E402  (the client's peak fit)
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal", "ltca"]
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
@@ -301,15 +303,11 @@ def load_cache(path):
 
 
 def parabola(x, y, i):
-    """Vertex of the parabola through points i-1, i, i+1 (x[i] at the ends)."""
+    """Vertex of the parabola through points i-1, i, i+1 (gearsim.sweep's),
+    kept only within half an interval of x[i]; x[i] at the ends."""
     if 0 < i < len(y) - 1:
-        x0, x1, x2 = x[i - 1], x[i], x[i + 1]
-        y0, y1, y2 = y[i - 1], y[i], y[i + 1]
-        den = (x0 - x1) * (x0 - x2) * (x1 - x2)
-        a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
-        b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
-        v = -b / (2 * a) if a < 0 else x1
-        if 0.5 * (x0 + x1) < v < 0.5 * (x1 + x2):
+        v = parabola_vertex(x, y, i)
+        if 0.5 * (x[i - 1] + x[i]) < v < 0.5 * (x[i] + x[i + 1]):
             return v
     return x[i]
 

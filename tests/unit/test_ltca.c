@@ -174,6 +174,47 @@ static void test_bad_tables(void **state)
     assert_int_equal(gs_ltca_table_set(&t, 1, 3, d2, f2, &dg), GS_ERANGE);
 }
 
+/* The dynamic tables with a body compliance c in series (frozen at the
+ * mean force): the deflection at the mean force's knot stays, every
+ * segment's compliance loses c, the closings move by c F_mean, the
+ * potential is re-integrated (its derivative the force) and k_mean is the
+ * new tangent; a compliance larger than a segment's is refused. */
+static void test_body_compliance(void **state)
+{
+    (void)state;
+    gs_ltca_table t, u;
+    synth(&t);
+    synth(&u);
+    const int ks = 7; /* the 1000 N knot */
+    assert_true(fabs(t.f[ks] - 1000.0) < 1e-12);
+    t.knot_scene = u.knot_scene = ks;
+    t.body_compliance = 1e-9;
+    gs_diag dg;
+    assert_int_equal(gs_ltca_table_dynamic(&t, 1000.0, &dg), GS_OK);
+    double kmean = 0;
+    for (int j = 0; j < NP; j++) {
+        const double *d0 = u.d + j * NK, *f0 = u.f + j * NK, *d1 = t.d + j * NK, *f1 = t.f + j * NK;
+        assert_true(fabs(d1[ks] - d0[ks]) < 1e-18);
+        assert_true(fabs(d1[2] - (d0[2] + 1e-9 * 1000.0)) < 1e-18); /* the back closing */
+        for (int a = 0; a + 1 < NK; a++) {
+            assert_true(f1[a] == f0[a]);
+            if (f0[a + 1] == f0[a])
+                continue;
+            double c0 = (d0[a + 1] - d0[a]) / (f0[a + 1] - f0[a]), c1 = (d1[a + 1] - d1[a]) / (f1[a + 1] - f1[a]);
+            assert_true(fabs(c1 - (c0 - 1e-9)) < 1e-12 * c0);
+        }
+        kmean += 0.5 * ((f1[ks] - f1[ks - 1]) / (d1[ks] - d1[ks - 1]) + (f1[ks + 1] - f1[ks]) / (d1[ks + 1] - d1[ks]));
+        double x = 0.3 * d1[5] + 0.7 * d1[6], hx = 1e-10;
+        double dv = (gs_ltca_row_energy(&t, j, x + hx) - gs_ltca_row_energy(&t, j, x - hx)) / (2 * hx);
+        assert_true(fabs(dv - gs_ltca_row_force(&t, j, x, NULL)) < 1e-6 * 1000.0);
+    }
+    assert_true(fabs(t.k_mean - kmean / NP) < 1e-9 * t.k_mean);
+    u.body_compliance = 1e-8; /* stiffer than the 2e8 N/m segments' 5e-9 m/N */
+    assert_int_equal(gs_ltca_table_dynamic(&u, 1000.0, &dg), GS_ERANGE);
+    gs_ltca_table_clear(&t);
+    gs_ltca_table_clear(&u);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -181,6 +222,7 @@ int main(void)
         cmocka_unit_test(test_discrete_gradient_exact),
         cmocka_unit_test(test_jacobian),
         cmocka_unit_test(test_bad_tables),
+        cmocka_unit_test(test_body_compliance),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

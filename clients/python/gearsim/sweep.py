@@ -16,6 +16,18 @@ from .errors import GearsimError
 from .paths import find_tool, tool_missing
 
 
+def parabola_vertex(xs, ys, i):
+    """Abscissa of the vertex of the parabola through points i-1, i, i+1 of
+    (xs, ys) (0 < i < len - 1); xs[i] when that parabola does not open
+    downwards."""
+    x0, x1, x2 = xs[i - 1], xs[i], xs[i + 1]
+    y0, y1, y2 = ys[i - 1], ys[i], ys[i + 1]
+    den = (x0 - x1) * (x0 - x2) * (x1 - x2)
+    a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
+    b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
+    return -b / (2 * a) if a < 0 else x1
+
+
 def sweep_peaks(rows, key="dte_rms_um"):
     """Local maxima of the response against mesh frequency, each refined by a
     parabola through it and its neighbours: [(mesh_hz, value)]."""
@@ -24,13 +36,7 @@ def sweep_peaks(rows, key="dte_rms_um"):
     peaks = []
     for i in range(1, len(ys) - 1):
         if ys[i] > ys[i - 1] and ys[i] >= ys[i + 1]:
-            x0, x1, x2 = xs[i - 1], xs[i], xs[i + 1]
-            y0, y1, y2 = ys[i - 1], ys[i], ys[i + 1]
-            den = (x0 - x1) * (x0 - x2) * (x1 - x2)
-            a = (x2 * (y1 - y0) + x1 * (y0 - y2) + x0 * (y2 - y1)) / den
-            b = (x2 * x2 * (y0 - y1) + x1 * x1 * (y2 - y0) + x0 * x0 * (y1 - y2)) / den
-            xp = -b / (2 * a) if a < 0 else x1
-            peaks.append((xp, y1))
+            peaks.append((parabola_vertex(xs, ys, i), ys[i]))
     return peaks
 
 
