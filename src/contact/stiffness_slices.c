@@ -280,7 +280,7 @@ gs_err gsi_stiff_slices(const gs_scene *sc, const gs_scene_mesh *sm, const gs_st
             int k = ((sg * (pt->pair[q].tooth[0] - tref)) % z1 + z1) % z1;
             if (k > z1 / 2)
                 k -= z1;
-            double s = pt->pair[q].force_n / (pt->te_um * bmm);
+            double s = pt->pair[q].force_n / (pt->te_elastic_um * bmm);
             g.s[(size_t)(k - g.k0) * N + j] = s;
             g.t2[k - g.k0] = pt->pair[q].tooth[1];
         }
@@ -369,8 +369,8 @@ gs_err gsi_stiff_slices(const gs_scene *sc, const gs_scene_mesh *sm, const gs_st
         pt->te0_um = te0p + emin;
         pt->te_raw_um = te0p + delta;
         pt->te_loaded_um = delta;
-        pt->te_um = delta - emin;
-        pt->k = F / pt->te_um / bmm;
+        pt->te_elastic_um = delta - emin;
+        pt->k = F / pt->te_elastic_um / bmm;
         pt->te_half_um = o->tangent ? te0p + dh : NAN;
         pt->k_tan = o->tangent ? 0.5 * F / (delta - dh) / bmm : NAN;
         pt->delta_rad = pt->te_raw_um * 1e-6 / out->base_radius_m * (out->torque_nm > 0 ? 1.0 : -1.0);
