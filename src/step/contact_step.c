@@ -17,7 +17,8 @@
  *     condensation of every other unknown of the body);
  *  3. the QP  min 1/2 (x - d0)^T H (x - d0)  subject to the kinematic rows
  *     E x = 0 and the linearised, homogeneous contact rows G x >= 0 is solved
- *     by Goldfarb-Idnani (src/qp);
+ *     by Goldfarb-Idnani (src/qp); with implicit flank friction on some row,
+ *     Coulomb's law joins it as the frictional LCP of src/step/contact_friction.c;
  *  4. the interface forces f = E^T mu + G^T lambda go back to the bodies
  *     (exactly zero for a body no row touches), the rigid increments are x.
  * The rows drop g(x_n): the reaction does no work (lambda^T G x = 0 by
