@@ -87,6 +87,30 @@ static double dot(int n, const double *a, const double *b)
     return s;
 }
 
+/* A random QP: H = M M^T + I/2 (n x n), c, ne equalities E x = e, ni
+ * rows G x >= g with g mostly positive (the free motion crosses them). */
+static void random_qp(int n, int ne, int ni, double *H, double *c, double *E, double *e, double *G, double *g)
+{
+    double *M = malloc((size_t)n * n * sizeof *M);
+    assert_non_null(M);
+    for (int i = 0; i < n * n; i++)
+        M[i] = urand() - 0.5;
+    for (int i = 0; i < n; i++)
+        for (int j = 0; j < n; j++)
+            H[i * n + j] = dot(n, M + i * n, M + j * n) + (i == j ? 0.5 : 0.0);
+    free(M);
+    for (int i = 0; i < n; i++)
+        c[i] = urand() - 0.5;
+    for (int i = 0; i < ne * n; i++)
+        E[i] = urand() - 0.5;
+    for (int i = 0; i < ne; i++)
+        e[i] = 0.1 * (urand() - 0.5);
+    for (int i = 0; i < ni * n; i++)
+        G[i] = urand() - 0.5;
+    for (int i = 0; i < ni; i++)
+        g[i] = 0.3 * (urand() - 0.2);
+}
+
 static void random_problems(void **state)
 {
     (void)state;
@@ -94,23 +118,9 @@ static void random_problems(void **state)
     int stick = 0, slip = 0, open = 0;
     double worst = 0;
     for (int trial = 0; trial < 300; trial++) {
-        /* H = M M^T + I (scaled), rows of unit size, free motion pushing the rows in */
-        double M[N * N], H[N * N], c[N], E[NE * N], e[NE], G[NI * N], g[NI], T[NF * N], mu[NF];
+        double H[N * N], c[N], E[NE * N], e[NE], G[NI * N], g[NI], T[NF * N], mu[NF];
         int row[NF] = {0, 1, 3};
-        for (int i = 0; i < N * N; i++)
-            M[i] = urand() - 0.5;
-        for (int i = 0; i < N; i++)
-            for (int j = 0; j < N; j++)
-                H[i * N + j] = dot(N, M + i * N, M + j * N) + (i == j ? 0.5 : 0.0);
-        for (int i = 0; i < N; i++)
-            c[i] = urand() - 0.5;
-        for (int i = 0; i < NE * N; i++)
-            E[i] = urand() - 0.5;
-        e[0] = 0.1 * (urand() - 0.5);
-        for (int i = 0; i < NI * N; i++)
-            G[i] = urand() - 0.5;
-        for (int i = 0; i < NI; i++)
-            g[i] = 0.3 * (urand() - 0.2);
+        random_qp(N, NE, NI, H, c, E, e, G, g);
         for (int i = 0; i < NF * N; i++)
             T[i] = urand() - 0.5;
         for (int i = 0; i < NF; i++)
@@ -174,22 +184,8 @@ static void frictionless_matches_qp(void **state)
     gs_qp *qp = NULL;
     assert_int_equal(gs_qp_new(N, NE, NI, &qp), GS_OK);
     for (int trial = 0; trial < 200; trial++) {
-        double M[N * N], H[N * N], c[N], E[NE * N], e[NE], G[NI * N], g[NI];
-        for (int i = 0; i < N * N; i++)
-            M[i] = urand() - 0.5;
-        for (int i = 0; i < N; i++)
-            for (int j = 0; j < N; j++)
-                H[i * N + j] = dot(N, M + i * N, M + j * N) + (i == j ? 0.5 : 0.0);
-        for (int i = 0; i < N; i++)
-            c[i] = urand() - 0.5;
-        for (int i = 0; i < NE * N; i++)
-            E[i] = urand() - 0.5;
-        for (int i = 0; i < NE; i++)
-            e[i] = 0.1 * (urand() - 0.5);
-        for (int i = 0; i < NI * N; i++)
-            G[i] = urand() - 0.5;
-        for (int i = 0; i < NI; i++)
-            g[i] = 0.3 * (urand() - 0.2);
+        double H[N * N], c[N], E[NE * N], e[NE], G[NI * N], g[NI];
+        random_qp(N, NE, NI, H, c, E, e, G, g);
         gs_qp_problem p = {.n = N, .H = H, .c = c, .n_eq = NE, .E = E, .e = e, .n_in = NI, .G = G, .g = g};
         double x[N], le[NE], li[NI], xq[N], leq[NE], liq[NI];
         gs_qp_result r = {.x = x, .lambda_eq = le, .lambda_in = li};
