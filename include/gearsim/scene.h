@@ -112,6 +112,10 @@ typedef struct gs_scene_mesh {
     int one_pass;              /* flank slaves on one gear only (default: both gears) */
     int predict;               /* also constrain nodes predicted to touch within the step */
     double friction;           /* Coulomb coefficient on the tooth flanks (contact meshes), 0: none */
+    int friction_explicit;     /* friction_scheme: 0 "implicit" (default: Coulomb's law as
+                                * complementarity with the normal contact in the step), 1
+                                * "explicit" (the force from the frictionless solve's
+                                * normal forces and the rigid sliding velocity) */
     /* compliant (also damping, damping_ratio, backlash, transition): */
     int patches;               /* strips of the patch model across a contact */
     int bending;               /* 0: beam (tooth bending in series), 1: none,

@@ -242,6 +242,11 @@ double gs_step_contact_return(gs_system *sys, const double *sol);
 struct gs_contact_row;
 int gs_step_contact_rows(const gs_system *sys);
 const struct gs_contact_row *gs_step_contact_row(const gs_system *sys, int i, int *mesh, double *lambda);
+/* The flank friction force on the slave of row i of the last step's final
+ * solve, along t = (-n_y, n_x), n the direction of the slave's gap gradient
+ * (gap.grad[0..1]); the master carries the reaction. 0 without friction or
+ * for i out of range. Serial or rank 0, valid until the next step. */
+double gs_step_contact_friction(const gs_system *sys, int i);
 /* True when some body keeps state of its own (elastic): then energies and
  * snapshots need the owners. */
 bool gs_system_has_body_state(const gs_system *sys);

@@ -16,6 +16,8 @@ typedef struct gsi_contact_mesh {
     bool elastic[2];                   /* nodes of this gear are unknowns */
     bool predict;                      /* constrain nodes predicted to touch too */
     double friction;                   /* Coulomb coefficient on the flanks */
+    bool friction_explicit;            /* friction_scheme "explicit" (src/step/contact_step.c),
+                                        * else implicit (src/step/contact_friction.c) */
     gs_contact_search *search;
     const gs_contact_candidate *cand;  /* the last search (owned by `search`) */
     gs_index n_cand;

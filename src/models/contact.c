@@ -38,6 +38,7 @@ static gs_err contact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
     m->contact = cm;
     cm->predict = sm->predict != 0;
     cm->friction = sm->friction;
+    cm->friction_explicit = sm->friction_explicit != 0;
     for (int k = 0; k < 2; k++) {
         int b = sm->gear[k];
         const gs_scene_body *sb = &sc->bodies[b];

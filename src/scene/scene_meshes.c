@@ -18,7 +18,7 @@
 
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
-                                         "restitution", "law", "patches", "bending", "transition",
+                                         "friction_scheme", "restitution", "law", "patches", "bending", "transition",
                                          "max_line_load_n_per_mm", "misalignment", NULL};
 static const char *const stiff_keys[] = {"type",      "value",     "single",      "double",
                                          "transition", "positions", "calibration", NULL};
@@ -55,6 +55,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
     static const char *const stypes[] = {"constant", "rectangular", "calibrated"};
     static const char *const passes[] = {"two", "one"};
     static const char *const constrain[] = {"touching", "predicted"};
+    static const char *const fschemes[] = {"implicit", "explicit"};
     if (json_object_get_type(o) != json_type_object)
         return gs_diag_set(d, GS_ESCHEMA, path, "a mesh must be an object");
     GS_TRY(gsi_json_only(o, path, gmesh_keys, d));
@@ -96,7 +97,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
             }
     }
     if (m->model != GS_MESH_CONTACT) {
-        static const char *const no[] = {"passes", "constrain", "friction", NULL};
+        static const char *const no[] = {"passes", "constrain", "friction", "friction_scheme", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
@@ -126,6 +127,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
         GS_TRY(gsi_scene_enum_field(o, "constrain", path, "touching", constrain, 2, &v, d));
         m->predict = v;
         GS_TRY(gsi_json_number(o, "friction", path, 0, 2, false, 0, &m->friction, d));
+        GS_TRY(gsi_scene_enum_field(o, "friction_scheme", path, "implicit", fschemes, 2, &m->friction_explicit, d));
         return GS_OK;
     }
     if (m->model == GS_MESH_KINEMATIC)

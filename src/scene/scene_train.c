@@ -51,7 +51,8 @@ gs_err gsi_scene_apply_fidelity(json_object *root, json_object **out, bool *copy
             if (json_object_get_type(m) != json_type_object)
                 continue;
             static const char *const drop[] = {"stiffness", "damping", "damping_ratio", "backlash_mm",
-                                               "passes", "constrain", "friction", "restitution", "law",
+                                               "passes", "constrain", "friction", "friction_scheme",
+                                               "restitution", "law",
                                                "patches", "bending", "transition", "max_line_load_n_per_mm",
                                                NULL};
             for (const char *const *k = drop; *k; k++)

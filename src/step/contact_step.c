@@ -17,7 +17,8 @@
  *     condensation of every other unknown of the body);
  *  3. the QP  min 1/2 (x - d0)^T H (x - d0)  subject to the kinematic rows
  *     E x = 0 and the linearised, homogeneous contact rows G x >= 0 is solved
- *     by Goldfarb-Idnani (src/qp);
+ *     by Goldfarb-Idnani (src/qp); with implicit flank friction on some row,
+ *     Coulomb's law joins it as the frictional LCP of src/step/contact_friction.c;
  *  4. the interface forces f = E^T mu + G^T lambda go back to the bodies
  *     (exactly zero for a body no row touches), the rigid increments are x.
  * The rows drop g(x_n): the reaction does no work (lambda^T G x = 0 by
@@ -39,6 +40,7 @@
 #include <string.h>
 
 #include "contact/contact_mesh.h"
+#include "contact_friction.h"
 #include "gearsim/qp.h"
 #include "gearsim/util.h"
 #include "step_internal.h"
@@ -81,6 +83,7 @@ typedef struct solver {
     size_t cap_sel;
     double *ff, *ffm;    /* friction: generalised forces, total and per mesh */
     size_t cap_ff, cap_ffm;
+    gsi_friction *fr;    /* friction: tangent rows, implicit solve (src/step/contact_friction.c) */
     double *mg, *mJ, *H0, *c0, *xp, *mf; /* force meshes: g, J, saved H block and c, last x, forces */
     size_t cap_m[6];
     double *H, *c, *E, *e, *G, *g, *x, *lam_eq, *lam_in, *S, *f;
@@ -115,6 +118,7 @@ void gsi_contact_free(gs_system *sys)
     free(s->sel);
     free(s->ff);
     free(s->ffm);
+    gsi_friction_free(&s->fr);
     free(s->mg), free(s->mJ), free(s->H0), free(s->c0), free(s->xp), free(s->mf);
     free(s->H), free(s->c), free(s->E), free(s->e), free(s->G), free(s->g);
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
@@ -513,9 +517,9 @@ static void point_velocity(const gs_system *sys, int b, const double x[2], doubl
  * gear body b, at mesh node `node` (-1: none) of gear k of contact mesh cm:
  * the moment on its rotation and on its carrier's, and R^T F on the node's
  * displacement unknowns when the node is one. */
-static void point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k, gs_index node,
-                        const double x[2], const double F[2], const int *unk, const size_t *base,
-                        double *fm)
+void gsi_contact_point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k, gs_index node,
+                             const double x[2], const double F[2], const int *unk, const size_t *base,
+                             double *fm)
 {
     int b = cm->body[k];
     double c[2], th;
@@ -546,7 +550,8 @@ static void point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k,
 
 /* Coulomb friction on the flanks, explicit in the normal forces of the
  * frictionless solve of the same step: on every row with a positive normal
- * force F_n = lambda |dg/dx_s| of a mesh with mu > 0, the force mu F_n along
+ * force F_n = lambda |dg/dx_s| of a mesh with mu > 0 and friction_scheme
+ * "explicit", the force mu F_n along
  * the tangent, opposing the sliding velocity of the slave point relative to
  * the master (from the gears' rigid motion at the step's start), on the
  * slave node, and its reaction on the master nodes in the proportions of the
@@ -558,7 +563,7 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
     *any = false;
     for (int mi = 0; mi < nm; mi++) {
         const gsi_contact_mesh *cm = sys->meshes[mi].contact;
-        *any |= sys->meshes[mi].ops->contact && cm->friction > 0;
+        *any |= sys->meshes[mi].ops->contact && cm->friction > 0 && cm->friction_explicit;
     }
     if (!*any)
         return GS_OK;
@@ -570,7 +575,7 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
         int mi = s->rows[r].mesh;
         const gsi_contact_mesh *cm = sys->meshes[mi].contact;
         double lam = s->lam_in[r];
-        if (cm->friction <= 0 || !(lam > 0))
+        if (cm->friction <= 0 || !cm->friction_explicit || !(lam > 0))
             continue;
         const gs_contact_row *cr = &s->rows[r].r;
         double gn = hypot(cr->gap.grad[0], cr->gap.grad[1]);
@@ -592,17 +597,31 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
             continue;
         double mag = cm->friction * lam * gn * (vt > 0 ? -1.0 : 1.0);
         double F[2] = {mag * tx, mag * ty};
+        if (s->fr)
+            s->fr->beta[r] = mag;
         double *fm = s->ffm + (size_t)mi * N;
-        point_force(sys, cm, ks, cr->node[0], cr->x[0], F, s->unk, base, fm);
+        gsi_contact_point_force(sys, cm, ks, cr->node[0], cr->x[0], F, s->unk, base, fm);
         for (int t = 1; t < cr->n_nodes && wsum > 0; t++) {
             double wt = hypot(cr->gap.grad[2 * t], cr->gap.grad[2 * t + 1]) / wsum;
             double Fm[2] = {-wt * F[0], -wt * F[1]};
-            point_force(sys, cm, cr->body[t], cr->node[t], cr->x[t], Fm, s->unk, base, fm);
+            gsi_contact_point_force(sys, cm, cr->body[t], cr->node[t], cr->x[t], Fm, s->unk, base, fm);
         }
     }
     for (int mi = 0; mi < nm; mi++)
         for (int j = 0; j < N; j++)
             s->ff[j] += s->ffm[(size_t)mi * N + j];
+    return GS_OK;
+}
+
+/* One solve of the step's problem: the QP, or with implicit friction on
+ * some row the frictional LCP (src/step/contact_friction.c). */
+static gs_err qp_or_lcp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_result *res)
+{
+    if (s->fr && s->fr->n_fric > 0)
+        GS_TRY(gsi_friction_solve(s->fr, pr, res));
+    else
+        GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
+    sys->last_iterations += res->iterations;
     return GS_OK;
 }
 
@@ -630,11 +649,8 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
                             double *diss)
 {
     *diss = 0.0;
-    if (!has_force_meshes(sys)) {
-        GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
-        sys->last_iterations += res->iterations;
-        return GS_OK;
-    }
+    if (!has_force_meshes(sys))
+        return qp_or_lcp(sys, s, pr, res);
     int n = sys->n_coords, N = pr->n, nm = sys->n_meshes;
     size_t nn = (size_t)n * (size_t)n;
     if (!grow(&s->mg, &s->cap_m[0], (size_t)n) || !grow(&s->mJ, &s->cap_m[1], nn) ||
@@ -645,8 +661,7 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
         memcpy(s->H0 + (size_t)i * n, s->H + (size_t)i * N, (size_t)n * sizeof(double));
     memcpy(s->c0, s->c, (size_t)N * sizeof(double));
     /* Start: the step without the meshes' forces. */
-    GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
-    sys->last_iterations += res->iterations;
+    GS_TRY(qp_or_lcp(sys, s, pr, res));
     gs_err status = GS_ENOCONV;
     for (int it = 0; it < sys->max_newton; it++) {
         memcpy(s->xp, s->x, (size_t)N * sizeof(double));
@@ -660,8 +675,7 @@ static gs_err solve_step_qp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_
             }
             s->c[i] = s->c0[i] - s->mg[i] + cj;
         }
-        GS_TRY(gs_qp_solve(s->qp, pr, NULL, 0, res));
-        sys->last_iterations += res->iterations;
+        GS_TRY(qp_or_lcp(sys, s, pr, res));
         double dx = 0.0, sc = 1e-300;
         for (int j = 0; j < N; j++) {
             dx = fmax(dx, fabs(s->x[j] - s->xp[j]));
@@ -860,6 +874,12 @@ again:;
                 G[unk[base[b] + (size_t)node_dof(sys, b, pk, comp)]] += cr->dg_du[t][comp];
         }
     }
+    /* 4b. Flank friction: per row its force (and, implicit, its tangent row). */
+    if (s->fr || gsi_friction_any(sys, false)) {
+        GS_TRY(gsi_friction_begin(&s->fr, N, ni));
+        for (int r = 0; r < ni; r++)
+            GS_TRY(gsi_friction_add(s->fr, sys, r, s->rows[r].mesh, &s->rows[r].r, unk, base));
+    }
     /* 5. The QP. */
     if (!s->qp || N > s->qp_n || ne > s->qp_eq || ni > s->qp_in) {
         gs_qp_free(&s->qp);
@@ -920,6 +940,16 @@ again:;
         for (int j = 0; j < n; j++)
             s->f[j] -= s->mg[j];
     }
+    if (s->fr && s->fr->n_fric > 0) {
+        /* Implicit friction: the forces of the solution, with any explicit ones. */
+        if (!fric) {
+            if (!grow(&s->ffm, &s->cap_ffm, (size_t)sys->n_meshes * (size_t)N))
+                return GS_ENOMEM;
+            memset(s->ffm, 0, (size_t)sys->n_meshes * (size_t)N * sizeof(double));
+        }
+        gsi_friction_forces(s->fr, s->ffm);
+        fric = true;
+    }
     if (fric) {
         /* The friction forces' work over the step is what they dissipate:
          * booked exactly, so the balance holds whatever the force. */
@@ -976,6 +1006,14 @@ again:;
             sol[p->sol_off[i] + a] = u >= 0 ? s->f[u] : 0.0;
         }
     return GS_OK;
+}
+
+double gs_step_contact_friction(const gs_system *sys, int i)
+{
+    const solver *s = sys ? sys->solver : NULL;
+    if (!s || !s->fr || i < 0 || i >= s->n_rows || i >= s->fr->n_rows)
+        return 0.0;
+    return s->fr->beta[i];
 }
 
 gs_err gsi_contact_solve(gs_system *sys, const double *rec, double *sol)

@@ -26,6 +26,7 @@
 
 #include <json-c/json.h>
 
+#include "../common/iso14179.h"
 #include "gearsim/step.h"
 #include "scene_build.h"
 
@@ -179,18 +180,16 @@ static void penetration_rate(void **state)
     assert_true(rate > 0.7 && rate < 1.3);
 }
 
-/* Flank friction mu = 0.05 on the driven pair with material damping: the
- * balance holds with the friction loss and the damping booked as
- * dissipation, and the mesh efficiency over the steady window,
- * 1 - friction loss / work in at the driver, is reported and compared with
- * the ISO/TR 14179 estimate 1 - mu H_v, H_v = pi (u + 1) / (z1 u)
- * (1 - eps_a + eps_1^2 + eps_2^2), computed here from the geometry.
- * Damping: beta = 1.7e-6 s, 5% of critical at the first torsional mesh mode
- * (w ~ 5.8e4 rad/s from the mean mesh stiffness 19.8 N/(mm um) of
- * docs/explanation/stiffness.md and the gears' inertias). Undamped, the tooth vibrations
- * carry sliding velocities as large as the rigid sliding itself and the
- * explicit friction force does net positive work on them, so the booked loss
- * is about half the nominal one (efficiency 99.56%, docs/explanation/contact.md).
+/* Flank friction mu = 0.05 (the default implicit scheme) on the driven
+ * pair with material damping: the balance holds with the friction loss and
+ * the damping booked as dissipation, and the mesh efficiency over the
+ * steady window, 1 - friction loss / work in at the driver, is reported and
+ * compared with the ISO/TR 14179 estimate 1 - mu H_v computed from the
+ * geometry (tests/common/iso14179.h). Damping: beta = 1.7e-6 s, 5% of
+ * critical at the first torsional mesh mode (w ~ 5.8e4 rad/s from the mean
+ * mesh stiffness 19.8 N/(mm um) of docs/explanation/stiffness.md and the
+ * gears' inertias). The undamped pair, both schemes and the convergence in
+ * h: tests/validation/test_contact_friction.c.
  * Asserted: efficiency in the spur-gear band 98-99.5% and the loss within
  * 25% of the ISO estimate (it assumes uniform load sharing and constant mu). */
 static void friction_efficiency(void **state)
@@ -221,14 +220,7 @@ static void friction_efficiency(void **state)
     double eff = 1.0 - loss / win;
     /* ISO/TR 14179-2 tooth loss factor of the 20/30 pair, m 2.5, 20 deg,
      * standard centre distance (tip radii r + m). */
-    const double z1 = 20, z2 = 30, mod = 2.5e-3, alpha = 20 * GS_PI / 180, u = z2 / z1;
-    double e1 = 0, e2 = 0;
-    for (int k = 0; k < 2; k++) {
-        double z = k ? z2 : z1, r = 0.5 * z * mod, rb = r * cos(alpha), ra = r + mod;
-        double ek = z / (2 * GS_PI) * (sqrt(ra * ra - rb * rb) / rb - tan(alpha));
-        *(k ? &e2 : &e1) = ek;
-    }
-    double hv = GS_PI * (u + 1) / (z1 * u) * (1 - (e1 + e2) + e1 * e1 + e2 * e2), eff_iso = 1 - 0.05 * hv;
+    double hv = iso14179_hv(20, 30, 2.5e-3, 20 * GS_PI / 180), eff_iso = 1 - 0.05 * hv;
     print_message("friction 0.05, damping 1.7e-6 s: balance %.2e of %.2e J; over 30-60 ms friction loss %.4f J "
                   "of %.4f J in: mesh efficiency %.3f%% (ISO/TR 14179: H_v %.4f, %.3f%%); total friction loss "
                   "%.4f J\n",
