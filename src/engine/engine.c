@@ -284,15 +284,50 @@ static gs_err refresh_energy(gs_engine *e, gs_err err)
     return sync_energy(e, err, 0.0);
 }
 
+/* A system built for gs_run_polled. */
+typedef struct build_job {
+    gs_scene *sc;
+    int rank, size;
+    gs_system **sys;
+    gs_diag *d;
+} build_job;
+
+static int build_system(void *arg)
+{
+    build_job *j = arg;
+    return gs_system_new(j->sc, j->rank, j->size, j->sys, j->d);
+}
+
+/* Wait for a collective: rank 0 calls the poll hook meanwhile (its service
+ * answers while the other ranks work), the others block. */
+static void wait_collective(gs_engine *e, MPI_Request *rq)
+{
+    if (e->rank != 0) {
+        MPI_Wait(rq, MPI_STATUS_IGNORE);
+        return;
+    }
+    int flag = 0;
+    for (;;) {
+        MPI_Test(rq, &flag, MPI_STATUS_IGNORE);
+        if (flag)
+            return;
+        gs_poll();
+    }
+}
+
 static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
 {
     gs_system *sys = NULL;
-    gs_err err0 = gs_system_new(sc, e->rank, e->size, &sys, d);
+    /* Meshing, models and factorisations: seconds for fine meshes. */
+    build_job bj = {sc, e->rank, e->size, &sys, d};
+    gs_err err0 = (gs_err)gs_run_polled(build_system, &bj);
     if (e->size > 1) {
         /* Owners build more than the others (factorisations): all ranks
          * agree on success, or none adopts the scene. */
         int bad = err0 != GS_OK;
-        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        MPI_Request rq;
+        MPI_Iallreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm, &rq);
+        wait_collective(e, &rq);
         if (bad && err0 == GS_OK) {
             gs_system_free(&sys);
             return gs_diag_set(d, GS_EINTERNAL, "scene", "another rank could not build the scene");
@@ -373,10 +408,12 @@ static gs_err reserve(gs_engine *e)
 /* Sum the packed buffer (n doubles) over the ranks into rank 0's. */
 static void reduce_pk(gs_engine *e, size_t n)
 {
+    MPI_Request rq;
     if (e->rank == 0)
-        MPI_Reduce(MPI_IN_PLACE, e->pk, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+        MPI_Ireduce(MPI_IN_PLACE, e->pk, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
     else
-        MPI_Reduce(e->pk, NULL, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+        MPI_Ireduce(e->pk, NULL, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
+    wait_collective(e, &rq);
 }
 
 /* The two-phase record (step.h) after phase one's records: their free
@@ -624,6 +661,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
          * stop a step half-way: chunks end at the step count rank 0 chose. */
         if (e->rank == 0 && e->hook)
             e->hook(e, e->hook_user);
+        if (e->rank == 0)
+            gs_poll(); /* between steps: a service answers within a chunk */
     }
     if (e->solo)
         sync_solo(e);

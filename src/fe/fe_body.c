@@ -254,6 +254,39 @@ static gs_err update_sigma(gs_fe_body *b)
     return b->sigma > 0 && isfinite(b->sigma) ? GS_OK : GS_ESINGULAR;
 }
 
+/* The factor of slot sl of body b (its symbolic analysis once per body,
+ * copied to the other slots), for gs_run_polled. */
+typedef struct factor_job {
+    gs_fe_body *b;
+    factor_slot *sl;
+} factor_job;
+
+static int factor_in_slot(void *arg)
+{
+    factor_job *j = arg;
+    gs_fe_body *b = j->b;
+    factor_slot *sl = j->sl;
+    if (!sl->L) {
+        int src = -1;
+        for (int k = 0; k < FACTOR_SLOTS; k++)
+            if (b->slot[k].L && src < 0)
+                src = k;
+        if (src >= 0) {
+            sl->L = cholmod_l_copy_factor(b->slot[src].L, &b->cc);
+        } else { /* ordering and symbolic analysis: once per body */
+            sl->L = cholmod_l_analyze(b->A, &b->cc);
+            b->st.factor_nnz = b->cc.lnz;
+        }
+        if (!sl->L)
+            return GS_ENOMEM;
+    }
+    if (!cholmod_l_factorize(b->A, sl->L, &b->cc))
+        return GS_ENOMEM;
+    if (b->cc.status == CHOLMOD_NOT_POSDEF)
+        return GS_ESINGULAR;
+    return GS_OK;
+}
+
 /* Factorise A_ee for h into slot k (its factor keeps the ordering of the
  * first analysis: a copy of another slot's, or the analysis itself). */
 static gs_err factorise(gs_fe_body *b, int k, double h)
@@ -283,24 +316,12 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
         for (gs_index p = 0; p < m->nnz; p++)
             Ax[p] = alpha_m * m->mx[p] + kappa * m->kx[p];
     }
-    if (!sl->L) {
-        int src = -1;
-        for (int j = 0; j < FACTOR_SLOTS; j++)
-            if (b->slot[j].L && src < 0)
-                src = j;
-        if (src >= 0) {
-            sl->L = cholmod_l_copy_factor(b->slot[src].L, &b->cc);
-        } else { /* ordering and symbolic analysis: once per body */
-            sl->L = cholmod_l_analyze(b->A, &b->cc);
-            b->st.factor_nnz = b->cc.lnz;
-        }
-        if (!sl->L)
-            return GS_ENOMEM;
-    }
-    if (!cholmod_l_factorize(b->A, sl->L, &b->cc))
-        return GS_ENOMEM;
-    if (b->cc.status == CHOLMOD_NOT_POSDEF)
-        return GS_ESINGULAR;
+    /* One piece of work that cannot be divided: a service answers
+     * meanwhile (gs_run_polled). */
+    factor_job fj = {b, sl};
+    gs_err fe = (gs_err)gs_run_polled(factor_in_slot, &fj);
+    if (fe != GS_OK)
+        return fe;
     b->st.factorizations++;
     b->L = sl->L;
     double *r = b->rb->x;
