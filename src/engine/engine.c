@@ -118,6 +118,8 @@ static double max_slot(const gs_engine *e, const double *slots)
 
 /* Owners report the energies of bodies with their own state; every rank
  * adopts the sum (one value is non-zero per body: the sum is exact). */
+static void wait_collective(gs_engine *e, MPI_Request *rq);
+
 static gs_err sync_energy(gs_engine *e, gs_err err, double cpu_apply)
 {
     gs_system *s = e->sys;
@@ -130,7 +132,9 @@ static gs_err sync_energy(gs_engine *e, gs_err err, double cpu_apply)
     gs_system_energy_report(s, e->ebuf);
     e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
     put_slot(e, e->ebuf + n + 1, cpu_apply);
-    MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1 + e->size, MPI_DOUBLE, MPI_SUM, e->comm);
+    MPI_Request rq;
+    MPI_Iallreduce(MPI_IN_PLACE, e->ebuf, n + 1 + e->size, MPI_DOUBLE, MPI_SUM, e->comm, &rq);
+    wait_collective(e, &rq); /* the owners' apply phases run meanwhile */
     e->cpu_ph[2] = max_slot(e, e->ebuf + n + 1);
     gs_system_energy_adopt(s, e->ebuf);
     if (err == GS_OK && e->ebuf[n] != 0.0)
@@ -499,7 +503,9 @@ static gs_err dist_substep(gs_engine *e)
     e->cpu_ph[0] = cpu_lap(e);
     if (e->size > 1) {
         int bad = err != GS_OK;
-        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        MPI_Request rq;
+        MPI_Iallreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm, &rq);
+        wait_collective(e, &rq);
         if (bad)
             return err != GS_OK ? err : GS_ENOMEM;
     } else if (err != GS_OK) {
@@ -517,10 +523,12 @@ static gs_err dist_substep(gs_engine *e)
      * to rank 0 whole. */
     bool two = gs_step_two_phase(s);
     if (e->size > 1 && !two) {
+        MPI_Request rq;
         if (e->rank == 0)
-            MPI_Reduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Ireduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
         else
-            MPI_Reduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Ireduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
+        wait_collective(e, &rq);
     }
     t1 = gs_now();
     tm->reduce += t1 - t0;

@@ -230,6 +230,7 @@ static gs_err solve_one(gs_fe_body *b)
     if (!cholmod_l_solve2(CHOLMOD_A, b->L, b->rb, NULL, &b->rx, NULL, &b->ry, &b->re, &b->cc))
         return GS_ENOMEM;
     b->st.solves++;
+    gs_poll(); /* a fine mesh's step is many solves: a service answers between them */
     return GS_OK;
 }
 
@@ -880,6 +881,7 @@ static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *node
         return GS_ENOMEM;
     b->st.solves += (uint64_t)(2 * gn);
     b->st.group_solves++;
+    gs_poll();
     const double *X = b->bx->x;
     const gs_index *pos = b->m->col_pos;
     for (int k = 0; k < n; k++)

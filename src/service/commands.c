@@ -1223,7 +1223,8 @@ static gs_err stiff_next_polled(gs_stiffness_run *run, gs_diag *d)
  * state untouched. Runs in chunks like `advance` (one roll position per
  * poll of the command socket): accepted at once, progress events, a done
  * event carrying the result, cancel ends it. With wait: true the reply
- * carries the result and the service blocks for the analysis (seconds).
+ * carries the result; meanwhile requests that read are answered and the
+ * others wait (gs_run_polled).
  * Refused while an advance runs. */
 static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
