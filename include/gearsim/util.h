@@ -36,7 +36,7 @@ int gs_tmp_create_beside(const char *target, char *tmp, size_t cap);
 void gs_poll_set(void (*fn)(void *user), void *user);
 void gs_poll(void);
 /* Run fn(arg) and return its result. With a poll hook set and called from
- * the thread that set it, fn runs on a helper thread while this one calls
+ * the thread that set it, fn runs on a worker thread while this one calls
  * the hook every millisecond or so: for one piece of work that cannot be
  * divided (a sparse factorisation, building a body) but touches nothing the
  * hook reads. Otherwise fn runs here. */
