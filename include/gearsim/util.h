@@ -27,5 +27,19 @@ char *gs_read_file(const char *path, size_t max_bytes, size_t *len);
  * planted symlink or file of that name is never followed or reused. Returns
  * the descriptor (the name in tmp), or -1 with errno. */
 int gs_tmp_create_beside(const char *target, char *tmp, size_t cap);
+/* The poll hook: long computations (meshing, assembly, set-up of
+ * factorisations, compliance columns, rank 0's waits on the other ranks)
+ * call gs_poll() between pieces of work of a few milliseconds, and gs_poll
+ * calls fn(user), so a service answers its clients meanwhile. fn must not
+ * start other computation; a call from within fn returns at once. NULL: no
+ * hook (the default). */
+void gs_poll_set(void (*fn)(void *user), void *user);
+void gs_poll(void);
+/* Run fn(arg) and return its result. With a poll hook set and called from
+ * the thread that set it, fn runs on a worker thread while this one calls
+ * the hook every millisecond or so: for one piece of work that cannot be
+ * divided (a sparse factorisation, building a body) but touches nothing the
+ * hook reads. Otherwise fn runs here. */
+int gs_run_polled(int (*fn)(void *arg), void *arg);
 
 #endif

@@ -1,6 +1,9 @@
 /* SPDX-License-Identifier: MIT
  * Clocks, checked allocation and file reading. */
 #include <errno.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdbool.h>
 #include <fcntl.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -17,6 +20,68 @@ double gs_now(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void (*poll_fn)(void *);
+static void *poll_user;
+static int poll_depth;
+static pthread_t poll_thread;
+
+void gs_poll_set(void (*fn)(void *user), void *user)
+{
+    poll_fn = fn;
+    poll_user = user;
+    poll_thread = pthread_self();
+}
+
+/* The hook is called only from the thread that set it, never from within
+ * itself. */
+static bool poll_here(void) { return poll_fn && !poll_depth && pthread_equal(pthread_self(), poll_thread); }
+
+void gs_poll(void)
+{
+    if (!poll_here())
+        return;
+    poll_depth = 1;
+    poll_fn(poll_user);
+    poll_depth = 0;
+}
+
+typedef struct polled_job {
+    int (*fn)(void *);
+    void *arg;
+    int result;
+    atomic_int done;
+} polled_job;
+
+static void *polled_main(void *p)
+{
+    polled_job *j = p;
+    j->result = j->fn(j->arg);
+    atomic_store(&j->done, 1);
+    return NULL;
+}
+
+int gs_run_polled(int (*fn)(void *arg), void *arg)
+{
+    if (!poll_here())
+        return fn(arg);
+    polled_job j = {fn, arg, 0, 0};
+    pthread_attr_t at;
+    pthread_t th;
+    pthread_attr_init(&at);
+    pthread_attr_setstacksize(&at, (size_t)16 << 20); /* orderings and factorisations recurse */
+    int rc = pthread_create(&th, &at, polled_main, &j);
+    pthread_attr_destroy(&at);
+    if (rc != 0)
+        return fn(arg); /* no thread: here, unpolled */
+    while (!atomic_load(&j.done)) {
+        gs_poll();
+        struct timespec ts = {0, 1000000};
+        nanosleep(&ts, NULL);
+    }
+    pthread_join(th, NULL);
+    return j.result;
 }
 
 double gs_cpu_now(void)

@@ -118,6 +118,8 @@ static double max_slot(const gs_engine *e, const double *slots)
 
 /* Owners report the energies of bodies with their own state; every rank
  * adopts the sum (one value is non-zero per body: the sum is exact). */
+static void wait_collective(gs_engine *e, MPI_Request *rq);
+
 static gs_err sync_energy(gs_engine *e, gs_err err, double cpu_apply)
 {
     gs_system *s = e->sys;
@@ -130,7 +132,9 @@ static gs_err sync_energy(gs_engine *e, gs_err err, double cpu_apply)
     gs_system_energy_report(s, e->ebuf);
     e->ebuf[n] = err != GS_OK ? 1.0 : 0.0;
     put_slot(e, e->ebuf + n + 1, cpu_apply);
-    MPI_Allreduce(MPI_IN_PLACE, e->ebuf, n + 1 + e->size, MPI_DOUBLE, MPI_SUM, e->comm);
+    MPI_Request rq;
+    MPI_Iallreduce(MPI_IN_PLACE, e->ebuf, n + 1 + e->size, MPI_DOUBLE, MPI_SUM, e->comm, &rq);
+    wait_collective(e, &rq); /* the owners' apply phases run meanwhile */
     e->cpu_ph[2] = max_slot(e, e->ebuf + n + 1);
     gs_system_energy_adopt(s, e->ebuf);
     if (err == GS_OK && e->ebuf[n] != 0.0)
@@ -284,15 +288,50 @@ static gs_err refresh_energy(gs_engine *e, gs_err err)
     return sync_energy(e, err, 0.0);
 }
 
+/* A system built for gs_run_polled. */
+typedef struct build_job {
+    gs_scene *sc;
+    int rank, size;
+    gs_system **sys;
+    gs_diag *d;
+} build_job;
+
+static int build_system(void *arg)
+{
+    build_job *j = arg;
+    return gs_system_new(j->sc, j->rank, j->size, j->sys, j->d);
+}
+
+/* Wait for a collective: rank 0 calls the poll hook meanwhile (its service
+ * answers while the other ranks work), the others block. */
+static void wait_collective(gs_engine *e, MPI_Request *rq)
+{
+    if (e->rank != 0) {
+        MPI_Wait(rq, MPI_STATUS_IGNORE);
+        return;
+    }
+    int flag = 0;
+    for (;;) {
+        MPI_Test(rq, &flag, MPI_STATUS_IGNORE);
+        if (flag)
+            return;
+        gs_poll();
+    }
+}
+
 static gs_err adopt(gs_engine *e, gs_scene *sc, gs_diag *d)
 {
     gs_system *sys = NULL;
-    gs_err err0 = gs_system_new(sc, e->rank, e->size, &sys, d);
+    /* Meshing, models and factorisations: seconds for fine meshes. */
+    build_job bj = {sc, e->rank, e->size, &sys, d};
+    gs_err err0 = (gs_err)gs_run_polled(build_system, &bj);
     if (e->size > 1) {
         /* Owners build more than the others (factorisations): all ranks
          * agree on success, or none adopts the scene. */
         int bad = err0 != GS_OK;
-        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        MPI_Request rq;
+        MPI_Iallreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm, &rq);
+        wait_collective(e, &rq);
         if (bad && err0 == GS_OK) {
             gs_system_free(&sys);
             return gs_diag_set(d, GS_EINTERNAL, "scene", "another rank could not build the scene");
@@ -373,10 +412,12 @@ static gs_err reserve(gs_engine *e)
 /* Sum the packed buffer (n doubles) over the ranks into rank 0's. */
 static void reduce_pk(gs_engine *e, size_t n)
 {
+    MPI_Request rq;
     if (e->rank == 0)
-        MPI_Reduce(MPI_IN_PLACE, e->pk, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+        MPI_Ireduce(MPI_IN_PLACE, e->pk, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
     else
-        MPI_Reduce(e->pk, NULL, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+        MPI_Ireduce(e->pk, NULL, (int)n, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
+    wait_collective(e, &rq);
 }
 
 /* The two-phase record (step.h) after phase one's records: their free
@@ -462,7 +503,9 @@ static gs_err dist_substep(gs_engine *e)
     e->cpu_ph[0] = cpu_lap(e);
     if (e->size > 1) {
         int bad = err != GS_OK;
-        MPI_Allreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm);
+        MPI_Request rq;
+        MPI_Iallreduce(MPI_IN_PLACE, &bad, 1, MPI_INT, MPI_MAX, e->comm, &rq);
+        wait_collective(e, &rq);
         if (bad)
             return err != GS_OK ? err : GS_ENOMEM;
     } else if (err != GS_OK) {
@@ -480,10 +523,12 @@ static gs_err dist_substep(gs_engine *e)
      * to rank 0 whole. */
     bool two = gs_step_two_phase(s);
     if (e->size > 1 && !two) {
+        MPI_Request rq;
         if (e->rank == 0)
-            MPI_Reduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Ireduce(MPI_IN_PLACE, e->rec, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
         else
-            MPI_Reduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm);
+            MPI_Ireduce(e->rec, NULL, rn, MPI_DOUBLE, MPI_SUM, 0, e->comm, &rq);
+        wait_collective(e, &rq);
     }
     t1 = gs_now();
     tm->reduce += t1 - t0;
@@ -624,6 +669,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
          * stop a step half-way: chunks end at the step count rank 0 chose. */
         if (e->rank == 0 && e->hook)
             e->hook(e, e->hook_user);
+        if (e->rank == 0)
+            gs_poll(); /* between steps: a service answers within a chunk */
     }
     if (e->solo)
         sync_solo(e);

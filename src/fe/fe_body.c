@@ -230,6 +230,7 @@ static gs_err solve_one(gs_fe_body *b)
     if (!cholmod_l_solve2(CHOLMOD_A, b->L, b->rb, NULL, &b->rx, NULL, &b->ry, &b->re, &b->cc))
         return GS_ENOMEM;
     b->st.solves++;
+    gs_poll(); /* a fine mesh's step is many solves: a service answers between them */
     return GS_OK;
 }
 
@@ -252,6 +253,39 @@ static gs_err update_sigma(gs_fe_body *b)
         ay += m->s[i] * b->y[i];
     b->sigma = a * m->inertia_total + b->c / b->h - a * ay;
     return b->sigma > 0 && isfinite(b->sigma) ? GS_OK : GS_ESINGULAR;
+}
+
+/* The factor of slot sl of body b (its symbolic analysis once per body,
+ * copied to the other slots), for gs_run_polled. */
+typedef struct factor_job {
+    gs_fe_body *b;
+    factor_slot *sl;
+} factor_job;
+
+static int factor_in_slot(void *arg)
+{
+    factor_job *j = arg;
+    gs_fe_body *b = j->b;
+    factor_slot *sl = j->sl;
+    if (!sl->L) {
+        int src = -1;
+        for (int k = 0; k < FACTOR_SLOTS; k++)
+            if (b->slot[k].L && src < 0)
+                src = k;
+        if (src >= 0) {
+            sl->L = cholmod_l_copy_factor(b->slot[src].L, &b->cc);
+        } else { /* ordering and symbolic analysis: once per body */
+            sl->L = cholmod_l_analyze(b->A, &b->cc);
+            b->st.factor_nnz = b->cc.lnz;
+        }
+        if (!sl->L)
+            return GS_ENOMEM;
+    }
+    if (!cholmod_l_factorize(b->A, sl->L, &b->cc))
+        return GS_ENOMEM;
+    if (b->cc.status == CHOLMOD_NOT_POSDEF)
+        return GS_ESINGULAR;
+    return GS_OK;
 }
 
 /* Factorise A_ee for h into slot k (its factor keeps the ordering of the
@@ -283,24 +317,12 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
         for (gs_index p = 0; p < m->nnz; p++)
             Ax[p] = alpha_m * m->mx[p] + kappa * m->kx[p];
     }
-    if (!sl->L) {
-        int src = -1;
-        for (int j = 0; j < FACTOR_SLOTS; j++)
-            if (b->slot[j].L && src < 0)
-                src = j;
-        if (src >= 0) {
-            sl->L = cholmod_l_copy_factor(b->slot[src].L, &b->cc);
-        } else { /* ordering and symbolic analysis: once per body */
-            sl->L = cholmod_l_analyze(b->A, &b->cc);
-            b->st.factor_nnz = b->cc.lnz;
-        }
-        if (!sl->L)
-            return GS_ENOMEM;
-    }
-    if (!cholmod_l_factorize(b->A, sl->L, &b->cc))
-        return GS_ENOMEM;
-    if (b->cc.status == CHOLMOD_NOT_POSDEF)
-        return GS_ESINGULAR;
+    /* One piece of work that cannot be divided: a service answers
+     * meanwhile (gs_run_polled). */
+    factor_job fj = {b, sl};
+    gs_err fe = (gs_err)gs_run_polled(factor_in_slot, &fj);
+    if (fe != GS_OK)
+        return fe;
     b->st.factorizations++;
     b->L = sl->L;
     double *r = b->rb->x;
@@ -859,6 +881,7 @@ static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *node
         return GS_ENOMEM;
     b->st.solves += (uint64_t)(2 * gn);
     b->st.group_solves++;
+    gs_poll();
     const double *X = b->bx->x;
     const gs_index *pos = b->m->col_pos;
     for (int k = 0; k < n; k++)

@@ -1202,12 +1202,42 @@ static gs_err stiffness_result(gs_service *s, gs_stiffness_result *r, const char
     return GS_OK;
 }
 
+/* The analysis' set-up and its roll positions as single pieces of work
+ * for gs_run_polled: the service answers while they run (they read the
+ * scene and write their own run only). */
+typedef struct stiff_job {
+    const gs_scene *sc;
+    int mesh;
+    const gs_stiffness_opts *o;
+    gs_stiffness_run **run;
+    gs_diag *d;
+} stiff_job;
+
+static int stiff_begin(void *arg)
+{
+    stiff_job *j = arg;
+    return gs_stiffness_begin(j->sc, j->mesh, j->o, j->run, j->d);
+}
+
+static int stiff_next(void *arg)
+{
+    stiff_job *j = arg;
+    return gs_stiffness_next(*j->run, j->d);
+}
+
+static gs_err stiff_next_polled(gs_stiffness_run *run, gs_diag *d)
+{
+    stiff_job j = {.run = &run, .d = d};
+    return (gs_err)gs_run_polled(stiff_next, &j);
+}
+
 /* Quasi-static mesh stiffness and transmission error of one mesh of the
  * loaded scene (docs/explanation/stiffness.md): rank 0 alone, no inertia, the run's
  * state untouched. Runs in chunks like `advance` (one roll position per
  * poll of the command socket): accepted at once, progress events, a done
  * event carrying the result, cancel ends it. With wait: true the reply
- * carries the result and the service blocks for the analysis (seconds).
+ * carries the result; meanwhile requests that read are answered and the
+ * others wait (gs_run_polled).
  * Refused while an advance runs. */
 static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, json_object **res, gs_diag *d)
 {
@@ -1256,8 +1286,9 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
             return gs_diag_set(d, GS_ERANGE, "args.path", "'%s' has %lu hard links; refused as for every output "
                                "(docs/RELIABILITY.md)", rel, (unsigned long)st.st_nlink);
     }
-    gs_stiffness_run *run;
-    gs_err e = gs_stiffness_begin(sys->scene, mi, &o, &run, d);
+    gs_stiffness_run *run = NULL;
+    stiff_job sj = {.sc = sys->scene, .mesh = mi, .o = &o, .run = &run, .d = d};
+    gs_err e = (gs_err)gs_run_polled(stiff_begin, &sj); /* meshing and factorisations */
     if (e != GS_OK) {
         if (!strchr(d->field, '.'))
             snprintf(d->field, sizeof d->field, "args.mesh");
@@ -1265,7 +1296,7 @@ static gs_err cmd_stiffness(gs_service *s, json_object *args, const char *id, js
     }
     if (wait) {
         while (e == GS_OK && gs_stiffness_run_done(run) < gs_stiffness_run_positions(run))
-            e = gs_stiffness_next(run, d);
+            e = stiff_next_polled(run, d);
         gs_stiffness_result r;
         if (e == GS_OK)
             e = gs_stiffness_end(&run, &r, d);
@@ -1394,7 +1425,7 @@ void gsi_stiffness_chunk(gs_service *s)
     int n = gs_stiffness_run_positions(st->run);
     /* At least one roll position, more while under about 20 ms. */
     do
-        e = gs_stiffness_next(st->run, &d);
+        e = stiff_next_polled(st->run, &d);
     while (e == GS_OK && gs_stiffness_run_done(st->run) < n && gs_now() - t0 < 0.02);
     int k = gs_stiffness_run_done(st->run);
     double now = gs_now();

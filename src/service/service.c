@@ -786,6 +786,73 @@ static void handle_request(gs_service *s, zmq_msg_t *ident, bool delim, const ch
 }
 
 /* Receive one whole multipart message from the ROUTER and answer it. */
+/* A request received while polled from within work (s->inside): one that
+ * would change something (load, advance, cancel, ...) cannot run in the
+ * middle of it, so it waits in order and is answered as soon as the work
+ * has returned to the service loop (answer_deferred). Takes the identity
+ * and the text (*data set to NULL) when it defers. */
+typedef struct svc_deferred {
+    zmq_msg_t ident;
+    bool delim;
+    char *data;
+    size_t len;
+} svc_deferred;
+
+static bool defer_request(gs_service *s, zmq_msg_t *ident, bool delim, char **data, size_t len)
+{
+    if (!s->inside || s->validating)
+        return false;
+    json_object *req = json_tokener_parse(*data), *cmd;
+    bool later = req && json_object_object_get_ex(req, "cmd", &cmd) &&
+                 json_object_get_type(cmd) == json_type_string && !gsi_validating_allows(json_object_get_string(cmd));
+    json_object_put(req);
+    if (!later)
+        return false;
+    if (!s->deferred)
+        s->deferred = calloc(GSI_DEFER_MAX, sizeof *s->deferred);
+    if (!s->deferred || s->n_deferred >= GSI_DEFER_MAX) {
+        gs_diag d;
+        gs_diag_set(&d, GS_EBUSY, "cmd", "%d requests already wait for the work under way; ask again",
+                    GSI_DEFER_MAX);
+        json_object *r = error_reply(NULL, GS_EBUSY, &d);
+        send_reply(s, ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
+        json_object_put(r);
+        return true;
+    }
+    svc_deferred *q = &s->deferred[s->n_deferred++];
+    zmq_msg_init(&q->ident);
+    zmq_msg_move(&q->ident, ident);
+    q->delim = delim;
+    q->data = *data;
+    q->len = len;
+    *data = NULL;
+    return true;
+}
+
+/* The deferred requests, oldest first (from the service loop). */
+static void answer_deferred(gs_service *s)
+{
+    while (s->n_deferred > 0 && !s->shutdown) {
+        svc_deferred q = s->deferred[0];
+        s->n_deferred--;
+        memmove(s->deferred, s->deferred + 1, (size_t)s->n_deferred * sizeof *s->deferred);
+        handle_request(s, &q.ident, q.delim, q.data, q.len, false);
+        free(q.data);
+        zmq_msg_close(&q.ident);
+    }
+}
+
+static void free_deferred(gs_service *s)
+{
+    for (int i = 0; i < s->n_deferred; i++) {
+        free(s->deferred[i].data);
+        zmq_msg_close(&s->deferred[i].ident);
+    }
+    free(s->deferred);
+    s->deferred = NULL;
+    s->n_deferred = 0;
+}
+
 static void receive_one(gs_service *s)
 {
     zmq_msg_t ident, part;
@@ -834,6 +901,8 @@ static void receive_one(gs_service *s)
         json_object *r = error_reply(NULL, GS_ESCHEMA, &d);
         send_reply(s, &ident, delim, json_object_to_json_string_ext(r, JSON_C_TO_STRING_PLAIN));
         json_object_put(r);
+    } else if (nparts == 1 && data && !too_big && defer_request(s, &ident, delim, &data, len)) {
+        /* answered after the work under way */
     } else if (nparts == 1) {
         handle_request(s, &ident, delim, data ? data : "", len, too_big || !data);
     } else {
@@ -924,6 +993,24 @@ void gsi_poll_during(void *user)
         s->last_heartbeat = now;
         heartbeat(s);
     }
+}
+
+/* The gs_poll hook (include/gearsim/util.h) while the service runs: called
+ * from within a request's or a chunk's computation (meshing, assembly,
+ * stiffness columns, rank 0's waits on the other ranks), it answers the
+ * requests that read (the others wait: defer_request) and keeps the
+ * heartbeat, so a long piece of work leaves no silence longer than the
+ * pieces it is divided into (docs/RELIABILITY.md, "Limits"). */
+static void poll_within(void *user)
+{
+    gs_service *s = user;
+    if (s->inside || s->shutdown)
+        return;
+    s->inside = true;
+    gsi_poll_during(s);
+    s->inside = false;
+    if (gsi_watchdog_lost())
+        rank_lost(s);
 }
 
 static void heartbeat(gs_service *s)
@@ -1197,7 +1284,11 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         fprintf(stderr, "gearsimd: %d rank(s), commands on %s, telemetry on %s\n",
                 gs_engine_size(eng), s->cmd_endpoint, s->tel_endpoint);
     }
+    if (e == GS_OK)
+        gs_poll_set(poll_within, s);
     while (e == GS_OK && !s->shutdown && !stop_signal) {
+        if (s->n_deferred)
+            answer_deferred(s);
         bool running = (s->adv.active && s->state == SVC_RUNNING) || s->stiff.run || s->sweep;
         zmq_pollitem_t items[1] = {{s->router, 0, ZMQ_POLLIN, 0}};
         /* A sweep whose points all run on other ranks waits up to 5 ms at a
@@ -1224,6 +1315,8 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
         if (gsi_watchdog_lost())
             rank_lost(s);
     }
+    gs_poll_set(NULL, NULL);
+    free_deferred(s);
     gsi_watchdog_stop();
     if (s->adv.active) {
         s->keep_autosave = true; /* still resumable with --resume */

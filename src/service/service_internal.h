@@ -115,6 +115,10 @@ typedef struct gs_service {
     size_t cache_bytes;      /* sum of the entries' bytes */
     bool shutdown;
     bool validating;           /* a long validation polls the socket (gsi_poll_during) */
+    bool inside;               /* polled from within a request or a chunk (gs_poll): the
+                                * requests that would change something wait (deferred) */
+    struct svc_deferred *deferred; /* those requests, answered in order after it */
+    int n_deferred;
     double last_poll_during;
     char nonfinite[320];       /* the first non-finite value of the running advance, "" none */
     double timing_step, timing_telemetry, timing_record;
@@ -138,6 +142,10 @@ const char *gsi_data_relative(const gs_service *s, const char *full);
  * '..' components and symlinks that lead outside. */
 gs_err gsi_resolve_path(gs_service *s, const char *rel, char *out, size_t cap, bool for_write,
                         gs_diag *d);
+
+/* Requests deferred while polled from within work (at most this many;
+ * more are told to ask again). */
+#define GSI_DEFER_MAX 256
 
 /* Socket-free core of the service (tests/fuzz drive it directly):
  * gsi_service_init fills a zeroed gs_service (data directory, session,

@@ -204,6 +204,24 @@ class Daemon:
                 pids.append(int(name))
         return pids
 
+    def gearsimd_pids(self):
+        """The gearsimd processes of the session (its ranks), rank 0 (the
+        pid of the connection file) first when it is among them."""
+        out = []
+        for p in self.session_pids():
+            try:
+                with open(f"/proc/{p}/comm") as f:
+                    if f.read().strip() == "gearsimd":
+                        out.append(p)
+            except OSError:
+                pass
+        try:
+            with open(self.conn_file) as f:
+                r0 = json.load(f).get("pid")
+        except (OSError, ValueError):
+            r0 = None
+        return sorted(out, key=lambda p: p != r0)
+
     def kill(self):
         """SIGKILL every process of the daemon (mpirun and all ranks) at once,
         as a crash of the machine would; keep the data directory. Returns the

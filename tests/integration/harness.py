@@ -64,11 +64,28 @@ class Results:
             self.check(name, False, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=4)}")
             return None
 
+    def seeded_rng(self, env):
+        """A random.Random from $env, else from a fresh seed, which is
+        printed so that setting $env replays the run."""
+        import random
+        seed = int(os.environ.get(env) or random.SystemRandom().randrange(1 << 30))
+        self.note(f"seed {seed} ({env}={seed} replays it)")
+        return random.Random(seed)
+
     def finish(self):
         if self.failures:
             print("# failed: " + ", ".join(self.failures))
         print(f"{self.passed} passed, {self.failed} failed", flush=True)
         sys.exit(1 if self.failed else 0)
+
+
+def strict_json(obj):
+    """True when obj serialises as JSON without NaN or Infinity."""
+    try:
+        json.dumps(obj, allow_nan=False)
+        return True
+    except ValueError:
+        return False
 
 
 def stalled_sub(ctx, info):

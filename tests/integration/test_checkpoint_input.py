@@ -18,7 +18,6 @@ starts, reports why it does not resume, and answers. The seed of the flips
 is printed; GEARSIM_CKPT_SEED replays it."""
 import json
 import os
-import random
 import shutil
 import struct
 import sys
@@ -31,23 +30,13 @@ import numpy as np  # noqa: E402
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, strict_json  # noqa: E402
 
 R = Results("test_checkpoint_input: crafted checkpoints through restore and --resume")
-SEED = int(os.environ.get("GEARSIM_CKPT_SEED") or random.SystemRandom().randrange(1 << 30))
-R.note(f"seed {SEED} (GEARSIM_CKPT_SEED={SEED} replays it)")
-RNG = random.Random(SEED)
+RNG = R.seeded_rng("GEARSIM_CKPT_SEED")
 MAX_SCENE_MB = 64
 N_FLIPS = int(os.environ.get("GEARSIM_CKPT_FLIPS", "40"))
 
-
-def strict(obj):
-    """True when obj serialises as JSON without NaN or Infinity."""
-    try:
-        json.dumps(obj, allow_nan=False)
-        return True
-    except ValueError:
-        return False
 
 
 class Snap:
@@ -202,12 +191,12 @@ def restore_case(c, d, name, path, expect_error=True):
                 f"ok={ok} alive={alive} err={err!r}")
     else:
         R.check(f"restore answers: {name}", alive, f"alive={alive}")
-    if r is not None and not strict(r):
+    if r is not None and not strict_json(r):
         R.check(f"restore reply is strict JSON: {name}", False, str(r)[:300])
     if ok and alive:
         st = c.request("state", timeout=30.0, retries=0)
         stat = c.request("status", timeout=30.0, retries=0)
-        R.check(f"state and status strict JSON after: {name}", strict(st) and strict(stat), str(st)[:300])
+        R.check(f"state and status strict JSON after: {name}", strict_json(st) and strict_json(stat), str(st)[:300])
     return alive
 
 
@@ -290,7 +279,7 @@ def main():
                 st = c.request("status", timeout=30.0)
                 log = d2.log_tail()
                 R.check(f"--resume refuses: {name}", st["state"] != "running" and "--resume failed:" in log
-                        and strict(st), f"state={st['state']} log={log[-400:]}")
+                        and strict_json(st), f"state={st['state']} log={log[-400:]}")
         except Exception as e:  # noqa: BLE001
             R.check(f"--resume refuses: {name}", False, f"{type(e).__name__}: {e}")
         finally:

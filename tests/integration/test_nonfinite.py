@@ -12,7 +12,6 @@
 (The run-time stop at the first non-finite value and the JSON writer's
 guard are checked in tests/unit/test_service.c.)"""
 import copy
-import json
 import os
 import sys
 
@@ -20,17 +19,10 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import daemon as dmod  # noqa: E402
 import gearsim  # noqa: E402
-from harness import Results  # noqa: E402
+from harness import Results, strict_json  # noqa: E402
 
 R = Results("test_nonfinite: non-finite physics refused with the field named")
 
-
-def strict(o):
-    try:
-        json.dumps(o, allow_nan=False)
-        return True
-    except ValueError:
-        return False
 
 
 def refused(name, fn, field, code="out_of_range"):
@@ -69,7 +61,7 @@ def main():
         c.advance(steps=40, wait=True, timeout=300, on_telemetry=events.append, on_event=events.append)
         st, stat = c.request("state"), c.request("status")
         R.check("state, status and events of an elastic run are strict JSON",
-                strict(st) and strict(stat) and all(strict(e) for e in events) and len(events) > 0,
+                strict_json(st) and strict_json(stat) and all(strict_json(e) for e in events) and len(events) > 0,
                 f"{len(events)} events")
     R.finish()
 

@@ -31,21 +31,9 @@ LIMIT_S = 10.0
 
 
 def rank_pids(d):
-    """The gearsimd processes of the daemon, rank 0 first (its pid is in the
-    connection file)."""
-    r0 = d.hello.get("pid") if d.hello else None
-    import json
-    with open(d.conn_file) as f:
-        r0 = json.load(f)["pid"]
-    out = []
-    for p in d.session_pids():
-        try:
-            with open(f"/proc/{p}/comm") as f:
-                if f.read().strip() == "gearsimd":
-                    out.append(p)
-        except OSError:
-            pass
-    return r0, [p for p in out if p != r0]
+    """The pid of rank 0 and those of the other ranks."""
+    pids = d.gearsimd_pids()
+    return (pids[0], pids[1:]) if pids else (None, [])
 
 
 def waiter(c, start, box):

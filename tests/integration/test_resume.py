@@ -20,7 +20,6 @@ size limits (docs/RELIABILITY.md).
   the field, at once; --max-scene-mb refuses a scene above it naming the
   largest elastic body's mesh, and is reported in hello.limits."""
 import os
-import random
 import shutil
 import signal
 import sys
@@ -38,9 +37,7 @@ import gearsim  # noqa: E402
 from harness import Results, json_diff, snap  # noqa: E402
 
 R = Results("test_resume: autosave, kill and --resume, disk full, size limits")
-SEED = int(os.environ.get("GEARSIM_RESUME_SEED") or random.SystemRandom().randrange(1 << 30))
-R.note(f"seed {SEED} (GEARSIM_RESUME_SEED={SEED} replays it)")
-RNG = random.Random(SEED)
+RNG = R.seeded_rng("GEARSIM_RESUME_SEED")
 
 
 def read_record(path):

@@ -22,22 +22,10 @@ from harness import Results  # noqa: E402
 R = Results("test_sigterm: SIGTERM to mpirun stops every rank cleanly")
 
 
-def gearsimd_pids(d):
-    out = []
-    for p in d.session_pids():
-        try:
-            with open(f"/proc/{p}/comm") as f:
-                if f.read().strip() == "gearsimd":
-                    out.append(p)
-        except OSError:
-            pass
-    return out
-
-
 def case():
     d = dmod.Daemon(ranks=2, keep=True).start()
     try:
-        ranks = gearsimd_pids(d)
+        ranks = d.gearsimd_pids()
         R.check("two gearsimd ranks run", len(ranks) == 2, ranks)
         with d.client(timeout=10.0) as c:
             c.load(builtin="pair")
