@@ -35,7 +35,7 @@ class Gear:
     the flank on the counter-clockwise side)."""
 
     def __init__(self, z, m, alpha_deg=20.0, ha=1.0, hf=1.25, rho=0.38, x=0.0,
-                 hub=0.0):
+                 hub=0.0, thinning=0.0):
         self.z, self.m = z, m
         self.alpha = math.radians(alpha_deg)
         self.r = 0.5 * z * m
@@ -43,7 +43,9 @@ class Gear:
         self.ra = self.r + (ha + x) * m
         self.rf = self.r - (hf - x) * m
         self.hub = hub if hub > 0 else 0.6 * self.rf
-        self.s = 0.5 * math.pi * m + 2.0 * x * m * math.tan(self.alpha)
+        # thinning (mm of arc on the pitch circle, for backlash): a thicker
+        # cutter tooth, so the fillet follows the thinned flank
+        self.s = 0.5 * math.pi * m + 2.0 * x * m * math.tan(self.alpha) - thinning
         self.rho = rho * m
         e = math.pi * m - self.s                 # cutter tooth on the rolling line
         a = self.alpha
