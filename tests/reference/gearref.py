@@ -13,6 +13,7 @@ envelope of the rack cutter's tip round, tip and root circles.  Pure Python
 
 Units inside: mm, N, MPa (ccx), rad.
 """
+import csv
 import math
 import os
 import re
@@ -403,6 +404,45 @@ def jacobian_check(nodes, elems, floor=0.05):
     return bad
 
 
+def hub_ties(o, nodes, ids, rotn, centre):
+    """*EQUATION lines tying nodes ids to a small rotation theta (dof 1 of
+    node rotn) about centre: u_x = -(y - y_c) theta, u_y = (x - x_c) theta."""
+    for n in sorted(ids):
+        x, y = nodes[n][0] - centre[0], nodes[n][1] - centre[1]
+        o.append("2")
+        o.append("%d, 1, 1., %d, 1, %.12f" % (n, rotn, y))
+        o.append("2")
+        o.append("%d, 2, 1., %d, 1, %.12f" % (n, rotn, -x))
+
+
+def contact_cards(o, penalty):
+    """The contact pair S1 (slave) on S0, frictionless, linear penalty."""
+    o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
+    o.append("S1, S0")
+    o.append("*SURFACE INTERACTION, NAME=SI")
+    o.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
+    o.append("%.10g" % penalty)
+
+
+def done_runs(path):
+    """(h, roll to six digits, penalty) of the runs already in the CSV file path."""
+    done = set()
+    if os.path.exists(path):
+        for r in csv.DictReader(open(path)):
+            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["penalty"])))
+    return done
+
+
+def append_row(path, fields, row):
+    """Append one row to the CSV file path (header first when new)."""
+    new = not os.path.exists(path)
+    with open(path, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        if new:
+            w.writeheader()
+        w.writerow(row)
+
+
 def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     tri_t = 9 if order == 2 else 2
     line_t = 8 if order == 2 else 1
@@ -475,17 +515,8 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     # TE 4.76 instead of 12.62 um; the hub force exposed it, 734 N instead
     # of 2000).
     o.append("*EQUATION")
-    for n in sorted(hubn[21]):
-        x, y = nodes[n]
-        o.append("2")
-        o.append("%d, 1, 1., %d, 1, %.12f" % (n, rotn, y))
-        o.append("2")
-        o.append("%d, 2, 1., %d, 1, %.12f" % (n, rotn, -x))
-    o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
-    o.append("S1, S0")
-    o.append("*SURFACE INTERACTION, NAME=SI")
-    o.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
-    o.append("%.10g" % penalty)
+    hub_ties(o, nodes, hubn[21], rotn, (0.0, 0.0))
+    contact_cards(o, penalty)
     o.append("*BOUNDARY")
     o.append("HUB1, 1, 2, 0")
     o.append("NREF, 1, 3, 0")

@@ -7,6 +7,7 @@ above the rigid rolling (0 Hz) is the pair's first mesh mode.
 
     modal_pair.py DIR --h 0.2 0.1 0.05 [--positions 4] [--rolls 0 2] [--keep]
     modal_pair.py DIR --summarise
+    modal_pair.py DIR --record WORKDIR H J [--positions 4]
 
 DIR/pair.json describes the pair (modal_30_20/pair.json).  Rows are
 appended to DIR/runs.csv (a run already there is skipped); --summarise
@@ -48,18 +49,15 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import gearref  # noqa: E402
+from run_pair import make_gear  # noqa: E402
 
-FIELDS = ["roll", "h_mm", "penalty", "nodes", "dofs", "theta_driver_rad", "f1_hz", "f2_hz", "f3_hz",
-          "theta_ratio_1", "mesh_s", "ccx_s", "ccx_cpu_s"]
+FIELDS = ["roll", "h_mm", "penalty", "nodes", "dofs", "theta_driver_rad", "rolling_hz", "f1_hz", "f2_hz", "f3_hz",
+          "theta_ratio_1", "mesh_s", "ccx_s", "ccx_time_s"]
 MODES = 4
+# the rigid rolling comes out within +-60 Hz of 0 (the penalty contact's
+# tangents), the first mesh mode near 8-10 kHz: the modes below this are the rolling
+ROLLING_HZ = 1000.0
 RMASS = 5.0        # mm: radius of the point masses that carry the cores' inertia
-
-
-def make_gear(d):
-    return gearref.Gear(d["teeth"], d["module_mm"], d.get("pressure_angle_deg", 20.0),
-                        d.get("addendum", 1.0), d.get("dedendum", 1.25), d.get("fillet", 0.38),
-                        d.get("profile_shift", 0.0), d.get("hub_radius_mm", 0.0),
-                        d.get("thinning_mm", 0.0))
 
 
 def modal_deck(workdir, cfg, g1, g2, centre2, theta0, penalty):
@@ -123,17 +121,8 @@ def modal_deck(workdir, cfg, g1, g2, centre2, theta0, penalty):
               "2", "%d, 2, 1., %d, 1, %.12f" % (pm[k], rn, -a),
               "2", "%d, 3, 1., %d, 3, -1." % (pm[k], rot0 - 1)]
     for hub, rn, c in (("HUB0", rot0, (0.0, 0.0)), ("HUB1", rot1, centre2)):
-        for n in sorted(set(sets[hub])):
-            x, y = nodes[n][0] - c[0], nodes[n][1] - c[1]
-            o.append("2")
-            o.append("%d, 1, 1., %d, 1, %.12f" % (n, rn, y))
-            o.append("2")
-            o.append("%d, 2, 1., %d, 1, %.12f" % (n, rn, -x))
-    o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
-    o.append("S1, S0")
-    o.append("*SURFACE INTERACTION, NAME=SI")
-    o.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
-    o.append("%.10g" % penalty)
+        gearref.hub_ties(o, nodes, set(sets[hub]), rn, c)
+    gearref.contact_cards(o, penalty)
     fixed = ["NREF, 1, 3, 0", "NROT, 2, 3, 0", "NROT1, 2, 3, 0"]
     o.append("*BOUNDARY")
     o += fixed
@@ -156,7 +145,7 @@ def parse_dat(workdir, rot0, rot1):
     theta = None
     for ln in blocks[1].strip().splitlines()[1:]:
         a = ln.split()
-        if len(a) == 4 and int(a[0]) == rot0:
+        if len(a) == 4 and a[0] == str(rot0):
             theta = float(a[1])
     i = dat.index("E I G E N V A L U E   O U T P U T")
     freqs = []
@@ -182,15 +171,40 @@ def parse_dat(workdir, rot0, rot1):
     return theta, freqs, ratios
 
 
+def record(a, g1, wd, h, roll, nodes, mesh_s, dt, rot0, rot1):
+    """Parse the finished ccx run in wd and append its row to DIR/runs.csv."""
+    theta, freqs, ratios = parse_dat(wd, rot0, rot1)
+    log = open(os.path.join(wd, "ccx.log")).read()
+    m = re.search(r"Total CalculiX Time: *([0-9.eE+-]+)", log)
+    nz = [f for f in freqs if f > ROLLING_HZ]  # above the rigid rolling
+    row = dict(roll="%.6f" % roll, h_mm=h, penalty="%g" % a.penalty, nodes=nodes,
+               dofs=2 * nodes, theta_driver_rad="%.10e" % theta,
+               rolling_hz="%.4f" % freqs[0], f1_hz="%.4f" % nz[0], f2_hz="%.4f" % nz[1],
+               f3_hz="%.4f" % nz[2],
+               theta_ratio_1="%.6f" % ratios[len(freqs) - len(nz)],
+               mesh_s="%.2f" % mesh_s, ccx_s="%.2f" % dt, ccx_time_s=m.group(1) if m else "nan")
+    gearref.append_row(os.path.join(a.dir, "runs.csv"), FIELDS, row)
+    print("h %.4g roll %.4f nodes %d TE %.4f um f1 %.2f Hz (f2 %.1f, f3 %.1f) 0 Hz modes %d "
+          "ccx %.1f s" % (h, roll, nodes, theta * g1.rb * 1e3, nz[0], nz[1], nz[2],
+                          len(freqs) - len(nz), dt), flush=True)
+
+
+def recover(a, cfg):
+    """--record WORKDIR H J: the row of a run kept in WORKDIR (--keep, or one
+    whose parse failed), roll J / positions, level H."""
+    wd, h, j = a.record[0], float(a.record[1]), int(a.record[2])
+    g1 = make_gear(cfg["driver"])
+    nodes, _ = gearref.read_msh(os.path.join(wd, "pair.msh"))
+    rot0 = max(nodes) + 2                     # gearref's NREF, NROT follow the mesh nodes
+    record(a, g1, wd, h, j / a.positions, len(nodes), float("nan"), float("nan"), rot0, rot0 + 1)
+
+
 def run(a, cfg):
     g1, g2 = make_gear(cfg["driver"]), make_gear(cfg["driven"])
     centre = (cfg["centre_mm"], 0.0)
     th2_0 = cfg.get("driven_angle0_rad", 0.0)
     out = os.path.join(a.dir, "runs.csv")
-    done = set()
-    if os.path.exists(out):
-        for r in csv.DictReader(open(out)):
-            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["penalty"])))
+    done = gearref.done_runs(out)
     # the loaded flanks' gap at the centred phase: half the normal backlash
     jn = (cfg["driver"].get("thinning_mm", 0.0) + cfg["driven"].get("thinning_mm", 0.0)) \
         * math.cos(g1.alpha)
@@ -217,26 +231,7 @@ def run(a, cfg):
                 # run_ccx's own parse of the static rotation looks for gearref's deck
                 if not os.path.exists(os.path.join(wd, "pair.dat")):
                     raise
-            theta, freqs, ratios = parse_dat(wd, rot0, rot1)
-            cpu = float(re.search(r"Total CalculiX Time: *([0-9.eE+-]+)",
-                                  open(os.path.join(wd, "ccx.log")).read()).group(1)) \
-                if "Total CalculiX Time" in open(os.path.join(wd, "ccx.log")).read() else float("nan")
-            dt = time.time() - t0
-            nz = [f for f in freqs if f > 1.0]        # above the rigid rolling
-            row = dict(roll="%.6f" % roll, h_mm=h, penalty="%g" % a.penalty, nodes=info["nodes"],
-                       dofs=2 * info["nodes"], theta_driver_rad="%.10e" % theta,
-                       f1_hz="%.4f" % nz[0], f2_hz="%.4f" % nz[1], f3_hz="%.4f" % nz[2],
-                       theta_ratio_1="%.6f" % ratios[len(freqs) - len(nz)],
-                       mesh_s="%.2f" % info["mesh_s"], ccx_s="%.2f" % dt, ccx_cpu_s="%.2f" % cpu)
-            new = not os.path.exists(out)
-            with open(out, "a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=FIELDS)
-                if new:
-                    w.writeheader()
-                w.writerow(row)
-            print("h %.4g roll %.4f nodes %d TE %.4f um f1 %.2f Hz (f2 %.1f, f3 %.1f) 0 Hz modes %d "
-                  "ccx %.1f s" % (h, roll, info["nodes"], theta * g1.rb * 1e3, nz[0], nz[1], nz[2],
-                                  len(freqs) - len(nz), dt), flush=True)
+            record(a, g1, wd, h, roll, info["nodes"], info["mesh_s"], time.time() - t0, rot0, rot1)
             if a.keep:
                 print("  kept", wd)
             else:
@@ -278,9 +273,13 @@ def main():
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--keep", action="store_true")
     ap.add_argument("--summarise", action="store_true")
+    ap.add_argument("--record", nargs=3, metavar=("WORKDIR", "H", "J"))
     a = ap.parse_args()
     if a.summarise:
         summarise(a)
+        return
+    if a.record:
+        recover(a, json.load(open(os.path.join(a.dir, "pair.json"))))
         return
     run(a, json.load(open(os.path.join(a.dir, "pair.json"))))
 
