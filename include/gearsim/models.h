@@ -64,6 +64,10 @@ typedef struct gs_model_view {
     /* The loads (the system's current set; gs_model_body_load). */
     const gs_scene_load *loads;
     int n_loads;
+    /* The supports of translating centres (bearing joints, pin bearings): an
+     * impact's position projection reads their potential. */
+    int n_joints;
+    const struct gs_joint_rt *joints;
 } gs_model_view;
 
 /* Sum of the non-brake moments on body `body` at time t, and the brake

@@ -154,6 +154,8 @@ typedef struct gs_scene {
     int fields_every;          /* steps between field snapshots of elastic bodies (0: none) */
     int checkpoint_every;      /* steps between automatic checkpoints of an advance (0: none) */
     char *json;                /* the scene as given, canonical JSON text (owned) */
+    char *fidelity_choice;     /* "fidelity": {"targets"}: the rung chosen from the trade-off
+                                * table and why, JSON text (owned); NULL otherwise */
 } gs_scene;
 
 /* Parse and validate. On failure returns the code, fills d, *out = NULL. */

@@ -104,6 +104,8 @@ gs_err gs_record_open_as(const char *path, const char *create_as, const gs_syste
         return gs_diag_set(d, GS_EIO, "path", "cannot create the record file '%s'", path);
     }
     gsi_h5_string_attr(r->file, "scene", sys->scene->json);
+    if (sys->scene->fidelity_choice) /* `fidelity: {targets}`: the rung chosen and why */
+        gsi_h5_string_attr(r->file, "fidelity_choice", sys->scene->fidelity_choice);
     gsi_h5_string_attr(r->file, "gearsim_version", "0.1.0");
     gsi_h5_scalar_attr(r->file, "time_step", H5T_NATIVE_DOUBLE, &sys->h);
     hid_t g = H5Gcreate2(r->file, "telemetry", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT);

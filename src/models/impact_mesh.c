@@ -62,9 +62,13 @@ static void impact_destroy(gs_gmesh_rt *m)
 
 static double minv(const gs_model_view *sys, int coord)
 {
-    for (int i = 0; i < sys->n_bodies; i++)
+    for (int i = 0; i < sys->n_bodies; i++) {
         if (sys->bodies[i].coord == coord)
             return 1.0 / sys->bodies[i].inertia_eff;
+        int tc = sys->bodies[i].tcoord; /* a translating centre: its mass */
+        if (tc >= 0 && (coord == tc || coord == tc + 1))
+            return 1.0 / sys->bodies[i].mass;
+    }
     return 0.0;
 }
 
@@ -110,7 +114,7 @@ static gs_err impact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 
 /* u = M^-1 a - M^-1 G^T (G M^-1 G^T)^-1 G M^-1 a: the velocity change of
  * a unit impulse along a that keeps the kinematic rows G w = 0. */
-static void restrict_to_rows(const gs_model_view *sys, const gs_gmesh_rt *m, impact_mesh *im)
+static void restrict_to_rows(const gs_model_view *sys, const double *a, impact_mesh *im)
 {
     int n = sys->n_coords, k = sys->n_eq;
     im->ready = true;
@@ -123,7 +127,7 @@ static void restrict_to_rows(const gs_model_view *sys, const gs_gmesh_rt *m, imp
         const double *gp = sys->eq_rows + (size_t)p * n;
         r[p] = 0.0;
         for (int i = 0; i < n; i++)
-            r[p] += gp[i] * mi[i] * m->a[i];
+            r[p] += gp[i] * mi[i] * a[i];
         for (int q = 0; q < k; q++) {
             const double *gq = sys->eq_rows + (size_t)q * n;
             double v = 0.0;
@@ -141,8 +145,8 @@ static void restrict_to_rows(const gs_model_view *sys, const gs_gmesh_rt *m, imp
         double v = 0.0;
         for (int p = 0; p < k; p++)
             v += sys->eq_rows[(size_t)p * n + i] * r[p];
-        im->u[i] = mi[i] * (m->a[i] - v);
-        im->W += m->a[i] * im->u[i];
+        im->u[i] = mi[i] * (a[i] - v);
+        im->W += a[i] * im->u[i];
     }
 }
 
@@ -170,14 +174,39 @@ static double dot(const double *x, const double *y, int n)
 }
 
 /* Potential energy of the other meshes (lumped springs on the same
- * coordinates): what a position projection could change. */
+ * coordinates) and of the supports of translating centres: what a
+ * position projection could change. */
 static double other_potential(const gs_model_view *sys, const gs_gmesh_rt *m)
 {
     double v = 0.0;
     for (int i = 0; i < sys->n_meshes; i++)
         if (&sys->meshes[i] != m)
             v += sys->meshes[i].ops->energy(sys, &sys->meshes[i], sys->q);
+    for (int i = 0; i < sys->n_joints; i++)
+        v += sys->joints[i].ops->energy(sys, &sys->joints[i], sys->q);
     return v;
+}
+
+/* A planet on a pin bearing of a turning carrier in the mesh (m->n_tr):
+ * its line of action turns with the carrier, so s is not linear in q. The
+ * impulse's direction is then s's gradient at the current q, and u, W are
+ * formed from it at every use. Returns the gradient (m->a otherwise). */
+static const double *line_gradient(const gs_model_view *sys, const gs_gmesh_rt *m, impact_mesh *im)
+{
+    if (!m->n_tr)
+        return m->a;
+    int n = sys->n_coords;
+    double *zero = im->scratch + im->n_eq * im->n_eq + im->n_eq; /* n doubles, kept zero */
+    for (int i = 0; i < n; i++)
+        zero[i] = 0.0;
+    const double *a = gsi_mesh_grad(sys, m, sys->q, zero);
+    im->W = 0.0;
+    for (int i = 0; i < n; i++) {
+        im->u[i] = minv(sys, i) * a[i];
+        im->W += a[i] * im->u[i];
+    }
+    im->ready = false;
+    return a;
 }
 
 static double impact_after_step(const gs_model_view *sys, gs_gmesh_rt *m)
@@ -185,15 +214,16 @@ static double impact_after_step(const gs_model_view *sys, gs_gmesh_rt *m)
     impact_mesh *im = m->contact;
     int n = sys->n_coords;
     double hb = m->half_backlash;
-    double x = dot(m->a, sys->q, n) - m->s_ref;
+    double x = (m->n_tr ? gsi_mesh_s(sys, m, sys->q) : dot(m->a, sys->q, n)) - m->s_ref;
     if (fabs(x) < hb)
         return 0.0; /* free flight inside the backlash */
+    const double *a = line_gradient(sys, m, im);
     if (!im->ready)
-        restrict_to_rows(sys, m, im);
+        restrict_to_rows(sys, a, im);
     if (!(im->W > 0.0))
         return 0.0; /* the line of action cannot move */
     double sigma = x > 0.0 ? 1.0 : -1.0;
-    double vn = -sigma * dot(m->a, sys->w, n);
+    double vn = -sigma * dot(a, sys->w, n);
     double loss = 0.0;
     if (vn < 0.0) {
         /* Speed the loads give the line of action over a step (at the end
@@ -209,7 +239,7 @@ static double impact_after_step(const gs_model_view *sys, gs_gmesh_rt *m)
         }
         double scale = 0.0;
         for (int i = 0; i < n; i++)
-            scale += fabs(m->a[i] * sys->w[i]);
+            scale += fabs(a[i] * sys->w[i]);
         double vtol = fmax(2.0 * h * fabs(alpha), 1e-12 * scale);
         bool sustained = -vn < vtol;
         double e = im->e == 0.0 || im->e * -vn < vtol ? 0.0 : im->e;

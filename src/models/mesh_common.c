@@ -143,18 +143,6 @@ void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, d
     gsi_mesh_add_jacobian_c(m, m->c, n, J, jss, jsp, jps, jpp);
 }
 
-void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, double *J, double jss, double jsp,
-                             double jps, double jpp)
-{
-    const double *a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */
-    for (int i = 0; i < n; i++) {
-        if (a[i] == 0.0 && c[i] == 0.0)
-            continue;
-        for (int j = 0; j < n; j++)
-            J[i * n + j] += a[i] * (jss * a[j] + jsp * c[j]) + c[i] * (jps * a[j] + jpp * c[j]);
-    }
-}
-
 /* Direction of the line of action of translating gear k with the carrier
  * at angle t. */
 static void tr_dir_at(const gs_gmesh_rt *m, int k, double t, double n[2])
@@ -367,7 +355,7 @@ void gsi_mesh_runout_jacobian(const gs_gmesh_rt *m, int n, const double *q0, con
 
 double gsi_mesh_s(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
-    double s = gsi_mesh_error(m, q);
+    double s = m->n_err ? gsi_mesh_error(m, q) : 0.0;
     for (int i = 0; i < sys->n_coords; i++)
         s += m->a[i] * q[i];
     for (int k = 0; k < m->n_tr; k++) {

@@ -60,9 +60,20 @@ static inline double gsi_half_sinc(double t)
  * action coordinate s = a.q and the phase p = c.q: the derivatives of the
  * s-force (jss by s, jsp by p) and of the p-force (jps, jpp). */
 void gsi_mesh_add_jacobian(const gs_gmesh_rt *m, int n, double *J, double jss, double jsp, double jps, double jpp);
-/* The same with the step's discrete gradient c of the phase in place of m->c. */
-void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *c, int n, double *J, double jss, double jsp,
-                             double jps, double jpp);
+/* The same with the step's discrete gradient c of the phase in place of m->c
+ * (inline: a tenth of the lumped planetary's step as a call,
+ * tests/bench/bench_lumped.c). */
+static inline void gsi_mesh_add_jacobian_c(const gs_gmesh_rt *m, const double *restrict c, int n,
+                                           double *restrict J, double jss, double jsp, double jps, double jpp)
+{
+    const double *restrict a = m->n_tr || m->n_err ? m->abar : m->a; /* the step's discrete gradient of s */
+    for (int i = 0; i < n; i++) {
+        if (a[i] == 0.0 && c[i] == 0.0)
+            continue;
+        for (int j = 0; j < n; j++)
+            J[i * n + j] += a[i] * (jss * a[j] + jsp * c[j]) + c[i] * (jps * a[j] + jpp * c[j]);
+    }
+}
 
 /* Line-of-action displacement s(q) = a . q plus the translations (step.h,
  * gs_gmesh_rt.n_tr) and the tooth errors (gs_gmesh_rt.n_err). */

@@ -119,17 +119,11 @@ static double lines_in_contact(double a, double w, double phi, double *dn)
     return sum / w;
 }
 
-static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
+/* The spur rectangular wave alone: small enough to inline into the step
+ * (lumped_force), where the call was a tenth of the lumped planetary's step
+ * (tests/bench/bench_lumped.c). */
+static inline double rect_wave_d(const gs_gmesh_rt *m, double phi, double *dk)
 {
-    if (m->k_table)
-        return table_d(m, m->k_table, phi, dk);
-    if (m->overlap_ratio > 0.0) {
-        /* k_single per tooth pair in contact over the whole face, k_double
-         * for two: linear in the contact-line length */
-        double dn, n = lines_in_contact(m->contact_ratio, m->transition, phi, &dn);
-        *dk = (m->k_double - m->k_single) * dn;
-        return m->k_single + (m->k_double - m->k_single) * (n - 1.0);
-    }
     double e1 = m->contact_ratio - 1.0, dlt = m->transition;
     *dk = 0.0;
     if (m->k_double == m->k_single || e1 <= 0.0)
@@ -154,6 +148,20 @@ static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
     double dkk = m->k_double - m->k_single;
     *dk = dkk * dw;
     return m->k_single + dkk * w;
+}
+
+static double stiffness_d(const gs_gmesh_rt *m, double phi, double *dk)
+{
+    if (m->k_table)
+        return table_d(m, m->k_table, phi, dk);
+    if (m->overlap_ratio > 0.0) {
+        /* k_single per tooth pair in contact over the whole face, k_double
+         * for two: linear in the contact-line length */
+        double dn, n = lines_in_contact(m->contact_ratio, m->transition, phi, &dn);
+        *dk = (m->k_double - m->k_single) * dn;
+        return m->k_single + (m->k_double - m->k_single) * (n - 1.0);
+    }
+    return rect_wave_d(m, phi, dk);
 }
 
 static double stiffness(const gs_gmesh_rt *m, double phi)
@@ -581,15 +589,39 @@ static void lumped_force(const gs_model_view *sys, const gs_gmesh_rt *m, const d
         return;
     }
     int n = sys->n_coords;
-    const double *ab = gsi_mesh_grad(sys, m, q0, dq);
-    double s0 = gsi_mesh_s(sys, m, q0) - m->s_ref, ds = dot(ab, dq, n);
-    const double *cb = lumped_phase_grad(sys, m, q0, dq);
-    double p0 = lumped_phase(sys, m, q0), dp = dot(cb, dq, n);
+    /* Gears on fixed axes without tooth errors: s and the phase are linear,
+     * their four sums formed in one pass (each in the order of the general
+     * path's, so the same numbers). */
+    bool plain = !m->n_tr && !m->n_err && !m->contact;
+    const double *ab = m->a, *cb = m->c;
+    double s0, ds, p0, dp;
+    if (plain) {
+        double sq = 0.0, sd = 0.0, pq = 0.0, pd = 0.0;
+        for (int i = 0; i < n; i++) {
+            sq += ab[i] * q0[i];
+            sd += ab[i] * dq[i];
+            pq += cb[i] * q0[i];
+            pd += cb[i] * dq[i];
+        }
+        s0 = sq - m->s_ref;
+        ds = sd;
+        p0 = pq;
+        dp = pd;
+    } else {
+        ab = gsi_mesh_grad(sys, m, q0, dq);
+        s0 = gsi_mesh_s(sys, m, q0) - m->s_ref;
+        ds = dot(ab, dq, n);
+        cb = lumped_phase_grad(sys, m, q0, dq);
+        p0 = lumped_phase(sys, m, q0);
+        dp = dot(cb, dq, n);
+    }
     double s1 = s0 + ds;
     double hb = m->half_backlash;
     double f0 = dead(s0, hb), f1 = dead(s1, hb);
     double dk0, dk1;
-    double k0 = stiffness_d(m, p0, &dk0), k1 = stiffness_d(m, p0 + dp, &dk1);
+    bool rect = !m->k_table && !(m->overlap_ratio > 0.0);
+    double k0 = rect ? rect_wave_d(m, p0, &dk0) : stiffness_d(m, p0, &dk0);
+    double k1 = rect ? rect_wave_d(m, p0 + dp, &dk1) : stiffness_d(m, p0 + dp, &dk1);
     double kbar = 0.5 * (k0 + k1);
     double dfs; /* (f1^2 - f0^2) / (2 ds), exact for the piecewise-linear f */
     bool same_flank = (s0 > hb && s1 > hb) || (s0 < -hb && s1 < -hb);
@@ -630,8 +662,10 @@ static void lumped_force(const gs_model_view *sys, const gs_gmesh_rt *m, const d
     double jsp = 0.5 * dk1 * dfs;
     double jps = dp != 0.0 ? 0.5 * f1 * (f1 != 0.0 ? 1.0 : 0.0) * (k1 - k0) / dp : 0.5 * f1 * dk0;
     gsi_mesh_add_jacobian_c(m, cb, n, J, jss, jsp, jps, jpp);
-    gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
-    lumped_phase_jacobian(m, n, q0, dq, gp, J);
+    if (!plain) {
+        gsi_mesh_error_jacobian(m, n, q0, dq, gs + fd, J);
+        lumped_phase_jacobian(m, n, q0, dq, gp, J);
+    }
     *diss = fd * ds;
     *force = gs + fd;
 }

@@ -70,6 +70,7 @@ void gs_scene_free(gs_scene **ps)
     free(s->meshes);
     free(s->loads);
     free(s->json);
+    free(s->fidelity_choice);
     free(s);
     *ps = NULL;
 }
@@ -306,9 +307,16 @@ gs_err gs_scene_from_json(json_object *root, gs_scene **out, gs_diag *d)
             return e;
         }
     }
-    gs_err e = gsi_scene_apply_fidelity(expanded, &tree, &copy, d);
+    char *choice = NULL;
+    gs_err e = gsi_scene_fidelity_targets(expanded, &tree, &copy, &choice, d);
+    if (e == GS_OK && !choice)
+        e = gsi_scene_apply_fidelity(expanded, &tree, &copy, d);
     if (e == GS_OK)
         e = scene_from_json(tree, out, d);
+    if (e == GS_OK)
+        (*out)->fidelity_choice = choice;
+    else
+        free(choice);
     if (copy)
         json_object_put(tree);
     if (expanded != root)

@@ -20,6 +20,12 @@
 #define DEG (GS_PI / 180.0)
 
 gs_err gsi_scene_apply_fidelity(json_object *root, json_object **out, bool *copy, gs_diag *d);
+/* `fidelity: {targets}` (scene_targets.c): the rung chosen from the
+ * trade-off table set on a copy of root (*out, *copy as for
+ * gsi_scene_apply_fidelity), the choice and its reasons as JSON text in
+ * *choice (owned by the caller); *choice NULL and root untouched when
+ * `fidelity` is not an object. */
+gs_err gsi_scene_fidelity_targets(json_object *root, json_object **out, bool *copy, char **choice, gs_diag *d);
 gs_err gsi_scene_enum_field(json_object *o, const char *key, const char *path, const char *def,
                             const char *const *names, int n, int *out, gs_diag *d);
 gs_err gsi_scene_expand_train(json_object *c, gs_diag *d);

@@ -72,6 +72,13 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     return GS_OK;
 }
 
+/* The rung chosen for `fidelity: {targets}` and why (the scene's
+ * fidelity_choice), or JSON null. */
+static json_object *fidelity_choice(const gs_system *sys)
+{
+    return sys && sys->scene->fidelity_choice ? json_tokener_parse(sys->scene->fidelity_choice) : NULL;
+}
+
 static json_object *scene_summary(gs_system *sys)
 {
     static const char *const jt[] = {"fixed_axis", "on_carrier", "held", "bearing"};
@@ -110,6 +117,8 @@ static json_object *scene_summary(gs_system *sys)
     json_object_object_add(o, "time_step", json_object_new_double(sys->h));
     if (sys->warning[0])
         json_object_object_add(o, "warning", json_object_new_string(sys->warning));
+    if (sys->scene->fidelity_choice)
+        json_object_object_add(o, "fidelity_choice", fidelity_choice(sys));
     return o;
 }
 
@@ -392,6 +401,8 @@ static gs_err cmd_status(gs_service *s, json_object *args, const char *id, json_
     json_object_object_add(o, "step", json_object_new_int64(sys ? sys->step : 0));
     json_object_object_add(o, "scene", sys ? json_object_new_string(sys->scene->name) : NULL);
     json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
+    if (sys && sys->scene->fidelity_choice)
+        json_object_object_add(o, "fidelity_choice", fidelity_choice(sys));
     if (s->adv.active && sys) {
         json_object *a = json_object_new_object();
         double total = (double)(s->adv.target_step - s->adv.start_step);
@@ -471,6 +482,8 @@ static gs_err cmd_state(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "seq", json_object_new_int64((int64_t)s->seq));
     json_object_object_add(o, "step", json_object_new_int64(sys->step));
     json_object_object_add(o, "time", json_object_new_double(sys->time));
+    if (sys->scene->fidelity_choice)
+        json_object_object_add(o, "fidelity_choice", fidelity_choice(sys));
     *res = o;
     return GS_OK;
 }

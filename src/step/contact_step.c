@@ -197,6 +197,7 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
     double dg = 0.0;
     for (int k = 0; k < 2; k++) {
         int b = cm->body[k], c = sys->bodies[b].coord;
+        dg += gsi_centre_translation_dot(sys, b, r->dg_dc[k], x);
         if (c < 0)
             continue;
         int nd = p->n_dof[b];
@@ -349,7 +350,8 @@ static double inc_dot(const gs_system *sys, const solver *s, const gs_contact_ro
         if (sys->bodies[b].coord >= 0)
             g += r->dg_dtheta[k] * s->inc[s->base[b]];
         const gs_body_rt *br = &sys->bodies[b];
-        if (carrier && br->carrier >= 0) {
+        g += gsi_centre_translation_dot(sys, b, r->dg_dc[k], s->x);
+        if (carrier && br->carrier >= 0 && br->tcoord < 0) {
             int cc = sys->bodies[br->carrier].coord;
             if (cc >= 0) {
                 double pc[2], th;
@@ -495,7 +497,10 @@ static void point_velocity(const gs_system *sys, int b, const double x[2], doubl
     v[0] += -w * (x[1] - c[1]);
     v[1] += w * (x[0] - c[0]);
     const gs_body_rt *br = &sys->bodies[b];
-    if (br->carrier >= 0) {
+    if (br->tcoord >= 0) { /* a translating centre (contact_centre.c) */
+        v[0] += sys->w[br->tcoord];
+        v[1] += sys->w[br->tcoord + 1];
+    } else if (br->carrier >= 0) {
         int kc = sys->bodies[br->carrier].coord;
         double wc = kc >= 0 ? sys->w[kc] : 0.0;
         const double *cc = sys->bodies[br->carrier].centre;
@@ -519,7 +524,10 @@ static void point_force(const gs_system *sys, const gsi_contact_mesh *cm, int k,
     if (kc >= 0)
         fm[kc] += -(x[1] - c[1]) * F[0] + (x[0] - c[0]) * F[1];
     const gs_body_rt *br = &sys->bodies[b];
-    if (br->carrier >= 0) {
+    if (br->tcoord >= 0) { /* a translating centre (contact_centre.c) */
+        fm[br->tcoord] += F[0];
+        fm[br->tcoord + 1] += F[1];
+    } else if (br->carrier >= 0) {
         int cc = sys->bodies[br->carrier].coord;
         const double *cC = sys->bodies[br->carrier].centre;
         if (cc >= 0)
@@ -602,6 +610,8 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
  * contact meshes. */
 static bool has_force_meshes(const gs_system *sys)
 {
+    if (sys->n_joints > 0) /* the supports of translating centres (contact_centre.c) */
+        return true;
     for (int i = 0; i < sys->n_meshes; i++)
         if (sys->meshes[i].ops->n_eq == 0 && !sys->meshes[i].ops->contact)
             return true;
@@ -819,6 +829,7 @@ again:;
     }
     if (err != GS_OK)
         return err;
+    gsi_centre_mass(sys, s->H, s->c, N); /* translating centres: free masses */
     /* 4. Rows: kinematic equalities and linearised contacts. */
     memset(s->E, 0, (size_t)(ne ? ne : 1) * N * sizeof(double));
     for (int a = 0; a < ne; a++) {
@@ -836,17 +847,9 @@ again:;
             int b = cm->body[k], c = sys->bodies[b].coord;
             if (c >= 0)
                 G[c] += cr->dg_dtheta[k];
-            /* A planet's centre turns with its carrier: dc = J (c - c_C) dtheta_C. */
-            const gs_body_rt *br = &sys->bodies[b];
-            if (br->carrier >= 0) {
-                int cc = sys->bodies[br->carrier].coord;
-                if (cc >= 0) {
-                    double pc[2], th;
-                    gs_system_body_pose(sys, b, pc, &th);
-                    const double *cC = sys->bodies[br->carrier].centre;
-                    G[cc] += cr->dg_dc[k][0] * -(pc[1] - cC[1]) + cr->dg_dc[k][1] * (pc[0] - cC[0]);
-                }
-            }
+            /* A planet's centre turns with its carrier, dc = J (c - c_C) dtheta_C,
+             * or a centre translates (contact_centre.c). */
+            gsi_centre_row(sys, b, cr->dg_dc[k], G);
         }
         for (int t = 0; t < cr->n_nodes; t++) {
             int gk = cr->body[t], b = cm->body[gk];

@@ -24,6 +24,14 @@ void gsi_contact_free(gs_system *sys);
 void gsi_plan_free(gs_step_plan *p, int n_bodies);
 /* Allocate the plan for the system's bodies. */
 gs_err gsi_plan_new(gs_system *sys);
+/* Moving gear centres in the contact step (src/step/contact_centre.c):
+ * body b's centre terms of a row with dg/dc = dgdc added to G (columns:
+ * coordinates; its translation, or its carrier's turn); the translation's
+ * part of dg/dc . dc from x (NULL: the free increment h w); the
+ * translations' free-mass blocks 2 m / h^2 into H (N columns) and c. */
+void gsi_centre_row(const gs_system *sys, int b, const double dgdc[2], double *G);
+double gsi_centre_translation_dot(const gs_system *sys, int b, const double dgdc[2], const double *x);
+void gsi_centre_mass(const gs_system *sys, double *H, double *c, int N);
 /* Position of mesh node `node` in body i's plan list, -1 if absent. */
 int gsi_plan_find(const gs_step_plan *p, int body, gs_index node);
 

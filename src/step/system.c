@@ -262,17 +262,15 @@ static gs_err mesh_kinematics(gs_system *s, gs_gmesh_rt *m, gs_diag *d)
         for (int k = 0; k < 2; k++)
             translates |= s->bodies[body[k]].tcoord >= 0;
         bool has_tr = sm->model == GS_MESH_LUMPED || sm->model == GS_MESH_COMPLIANT ||
-                      sm->model == GS_MESH_LTCA; /* s with translations */
+                      sm->model == GS_MESH_LTCA || sm->model == GS_MESH_CONTACT ||
+                      sm->model == GS_MESH_IMPACT; /* s with translations */
         if (translates && (sm->model == GS_MESH_KINEMATIC ? m->n_tr > 0 : !has_tr)) {
             char f[64];
             snprintf(f, sizeof f, "meshes[%d].model", m->index);
             return gs_diag_set(d, GS_ERANGE, f,
-                               "mesh '%s': a gear on a bearing (joint or planet pin) meshes through lumped "
-                               "(constant, rectangular or calibrated) or compliant meshes, or kinematic ones on a "
-                               "fixed line (not with a planet on a turning carrier)%s", sm->name,
-                               sm->model == GS_MESH_KINEMATIC ? ""
-                               : sm->model == GS_MESH_IMPACT  ? "; impact meshes have no translations yet"
-                                                              : "; contact meshes have no translations yet");
+                               "mesh '%s': a gear on a bearing (joint or planet pin) meshes through kinematic "
+                               "meshes on a fixed line only (not with a planet on a turning carrier); use a "
+                               "lumped, compliant, ltca, contact or impact mesh", sm->name);
         }
         if (m->n_tr || m->n_err) {
             if (m->n_tr)
@@ -406,20 +404,12 @@ gs_err gs_system_new(gs_scene *scene, int rank, int nranks, gs_system **out, gs_
     for (int i = 0; i < scene->n_bodies; i++) {
         const gs_scene_body *sb = &scene->bodies[i];
         const char *why = NULL;
-        bool translates = sb->joint == GS_JOINT_BEARING || (sb->joint == GS_JOINT_ON_CARRIER && sb->pin_bearing);
-        if (translates && sb->model == GS_MODEL_ELASTIC)
-            why = sb->pin_bearing ? "a planet on a pin bearing (bearing_stiffness) must be rigid"
-                                  : "a bearing joint takes rigid bodies only";
         for (int j = 0; !why && sb->joint == GS_JOINT_BEARING && j < scene->n_bodies; j++)
             if (scene->bodies[j].joint == GS_JOINT_ON_CARRIER && scene->bodies[j].carrier == i &&
                 !scene->bodies[j].pin_bearing)
                 why = "a carrier on a bearing joint needs its planets on pin bearings (bearing_stiffness "
                       "on each planet's on_carrier joint; rigid pins would carry the carrier's translation: "
                       "modal analysis only)";
-        for (int m = 0; !why && translates && m < scene->n_meshes; m++)
-            if (scene->meshes[m].model == GS_MESH_CONTACT)
-                why = "a scene with bearings (bearing joints, planet pin bearings) cannot have contact meshes "
-                      "yet (the contact step has no translations)";
         if (why) {
             gs_diag_set(d, GS_ERANGE, "joints", "body '%s': %s (docs/explanation/modal.md)", sb->name, why);
             gs_scene_free(&scene);
@@ -800,6 +790,8 @@ void gs_system_view(const gs_system *s, gs_model_view *v)
     v->nodes = s->plan.nodes;
     v->loads = s->scene->loads;
     v->n_loads = s->scene->n_loads;
+    v->n_joints = s->n_joints;
+    v->joints = s->joints;
 }
 
 void gs_system_energy(const gs_system *sys, gs_energy *e)

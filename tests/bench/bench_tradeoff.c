@@ -51,6 +51,7 @@
 #include "gearsim/mesh.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "../common/steady_half.h"
 
 typedef struct spec {
     const char *scene, *level;
@@ -178,8 +179,9 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     if (!sys)
         return r;
     int o = gs_scene_find_body(sys->scene, out_body), in = gs_scene_find_body(sys->scene, in_body);
-    int n = (int)lround(duration / s->h), half = n / 2;
-    double th_o = 0, th_i = 0, d1 = 0, d2 = 0, worst = 0, scale = 0, fmaxv = 0;
+    steady_half w = sh_start((int)lround(duration / s->h), o);
+    int n = w.n, half = w.half;
+    double th_i = 0;
     /* The mesh phase of the first mesh: its gear on a fixed axis (A), the
      * mate's carrier (C) when the mate is a planet. */
     const gs_scene_mesh *m0 = &sys->scene->meshes[0];
@@ -191,42 +193,33 @@ static result run(const spec *s, double duration, const char *out_body, const ch
     }
     int gc = sys->scene->bodies[gb].joint == GS_JOINT_ON_CARRIER ? sys->scene->bodies[gb].carrier : -1;
     double za = sys->scene->bodies[ga].gear.teeth, xc = 0, xs = 0, c1 = 0, s1 = 0;
-    gs_energy e;
     double t0 = gs_cpu_now();
     for (int i = 0; i < n; i++) {
-        if (i == n - half) {
-            th_o = gs_system_angle(sys, o);
+        if (i == n - half)
             th_i = gs_system_angle(sys, in);
-        }
-        if (gs_step_serial(sys) != GS_OK) {
+        if (!sh_step(&w, sys, i)) {
             gs_system_free(&sys);
             return r;
         }
-        gs_system_energy(sys, &e);
-        worst = fmax(worst, fabs(e.balance_residual));
-        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
-        if (i >= n - half) {
+        if (sh_in_half(&w, i)) {
             double x = sys->meshes[0].deflection;
-            d1 += x;
-            d2 += x * x;
             double ph = za * (gs_system_angle(sys, ga) - (gc >= 0 ? gs_system_angle(sys, gc) : 0.0));
             xc += x * cos(ph);
             xs += x * sin(ph);
             c1 += cos(ph);
             s1 += sin(ph);
-            fmaxv = fmax(fmaxv, fabs(sys->meshes[0].force));
         }
     }
     double cpu = gs_cpu_now() - t0, T = half * s->h;
     r.cost = cpu / duration;
-    r.speed = fabs(gs_system_angle(sys, o) - th_o) / T;
-    r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - th_o)) / ratio_expect - 1;
-    double mean = d1 / half;
-    r.dte = sqrt(fmax(d2 / half - mean * mean, 0.0));
+    r.speed = fabs(gs_system_angle(sys, o) - w.th0) / T;
+    r.ratio = fabs((gs_system_angle(sys, in) - th_i) / (gs_system_angle(sys, o) - w.th0)) / ratio_expect - 1;
+    double mean = sh_mean(&w);
+    r.dte = sh_rms(&w);
     r.mean = mean;
     r.mesh = 2.0 / half * hypot(xc - mean * c1, xs - mean * s1);
-    r.force = fmaxv;
-    r.balance = worst / scale;
+    r.force = w.fpeak;
+    r.balance = w.worst / w.scale;
     r.ok = 1;
     gs_system_free(&sys);
     return r;

@@ -341,6 +341,35 @@ def snap(client):
     return {k: s[k] for k in ("step", "time", "energy", "bodies", "meshes") if k in s}
 
 
+def ranks_run(R, dmod, label, ranks, scene, steps, timeout=600):
+    """Run `scene` `steps` steps on a daemon of `ranks` ranks: the telemetry
+    by step (time, energy, bodies, meshes, planets) and the final state, as
+    JSON strings, for check_same_at_ranks."""
+    with dmod.Daemon(ranks=ranks) as d:
+        with d.client() as c:
+            c.load(scene=scene)
+            tel = []
+            done = c.advance(steps=steps, on_telemetry=tel.append, timeout=timeout)
+            R.check(f"{label} -n {ranks}: run completed", not done.get("cancelled") and not done.get("lost"), done)
+            st = snap(c)
+    return {ev["step"]: json.dumps({k: ev.get(k) for k in ("time", "energy", "bodies", "meshes", "planets")},
+                                   sort_keys=True) for ev in tel}, json.dumps(st, sort_keys=True)
+
+
+def check_same_at_ranks(R, label, runs, ranks=(2, 3)):
+    """runs: {ranks: (telemetry by step, final state)}, as JSON strings; check
+    that each of `ranks` gives the -n 1 run's telemetry and final state bit
+    for bit."""
+    t1, f1 = runs[1]
+    for n in ranks:
+        if runs.get(n):
+            tn, fn = runs[n]
+            same = sorted(t1) == sorted(tn) and all(t1[k] == tn[k] for k in t1)
+            R.check(f"{label}: telemetry identical bit for bit at -n 1 and -n {n}", same,
+                    [k for k in sorted(t1) if t1.get(k) != tn.get(k)][:5])
+            R.check(f"{label}: final state identical at -n 1 and -n {n}", f1 == fn)
+
+
 def replay_after_restore(client, path, before, after, timeout=600):
     """Advance `before` steps, checkpoint to `path`, advance `after` steps and
     take snap(); restore `path`, advance the same `after` steps and take

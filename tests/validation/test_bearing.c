@@ -9,7 +9,8 @@
  *    below 1e-8 of that inside), and
  *    its frequency measured from the modal coordinate is the midpoint rule's
  *    own, 2/h atan(w h / 2), to 1e-7 (the exact w differs by (w h)^2 / 12);
- *  - refused combinations name the field. */
+ *  - refused combinations name the field; impact meshes and elastic
+ *    planets on pin bearings are built. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -753,10 +754,12 @@ static void refusals(void **state)
     assert_int_equal(gs_system_new(sc, 0, 1, &s, &d), GS_ERANGE);
     assert_string_equal(d.field, "meshes[0].model"); /* kinematic with a planet on a turning carrier */
     json_object_put(root);
-    /* planets on pin bearings: an impact mesh of one names the mesh, a
-     * contact mesh in the scene names the joints, an elastic planet the joints */
-    const char *model[3] = {"impact", "contact", "lumped"}, *field[3] = {"meshes[0].model", "joints", "joints"};
-    for (int c = 0; c < 3; c++) {
+    /* planets on pin bearings: an impact mesh of one and an elastic planet
+     * (lumped meshes) are built (docs/explanation/planetary.md, "Contact
+     * meshes on moving members"); they were refused before the contact
+     * step and the impact law had translations */
+    const char *model[2] = {"impact", "lumped"};
+    for (int c = 0; c < 2; c++) {
         root = lin_parker(4, false, 0.0);
         m0 = json_object_array_get_idx(json_object_object_get(root, "meshes"), 0);
         json_object_object_del(m0, "stiffness");
@@ -764,18 +767,19 @@ static void refusals(void **state)
         json_object_object_add(m0, "model", json_object_new_string(model[c]));
         if (c == 0)
             json_object_object_add(m0, "backlash_mm", json_object_new_double(0.05));
-        if (c == 2) {
+        if (c == 1) {
             json_object *b = json_object_array_get_idx(json_object_object_get(root, "bodies"), 1);
             assert_string_equal(json_object_get_string(json_object_object_get(b, "name")), "planet1");
             json_object_object_add(b, "model", json_object_new_string("elastic"));
+            json_object_object_add(vt_body_mesh(b), "order", json_object_new_int(1));
         }
         txt = json_object_to_json_string(root);
-        if (gs_scene_parse(txt, strlen(txt), &sc, &d) != GS_OK)
-            print_message("parse: %s: %s\n", d.field, d.message);
         assert_int_equal(gs_scene_parse(txt, strlen(txt), &sc, &d), GS_OK);
-        assert_int_equal(gs_system_new(sc, 0, 1, &s, &d), GS_ERANGE);
-        print_message("refused (%s): %s: %s\n", model[c], d.field, d.message);
-        assert_string_equal(d.field, field[c]);
+        gs_err e = gs_system_new(sc, 0, 1, &s, &d);
+        if (e != GS_OK)
+            print_message("refused (%s): %s: %s\n", model[c], d.field, d.message);
+        assert_int_equal(e, GS_OK);
+        gs_system_free(&s);
         json_object_put(root);
     }
 }

@@ -30,6 +30,7 @@
 #include "gearsim/ltca.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
+#include "../common/steady_half.h"
 
 static gs_system *build(const char *name, double h)
 {
@@ -109,36 +110,21 @@ static void lowspeed(const char *name, double duration, const char *out, double 
 {
     double h = 1e-4;
     gs_system *sys = build(name, h);
-    int n = (int)lround(duration / h), half = n / 2;
-    double worst = 0, scale = 0, d1 = 0, d2 = 0, th0 = 0, fsum = 0;
-    int o = gs_scene_find_body(sys->scene, out);
-    gs_energy e;
-    for (int i = 0; i < n; i++) {
-        if (i == n - half)
-            th0 = gs_system_angle(sys, o);
-        assert_int_equal(gs_step_serial(sys), GS_OK);
-        gs_system_energy(sys, &e);
-        worst = fmax(worst, fabs(e.balance_residual));
-        scale = fmax(scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
-        if (i >= n - half) {
-            double x = sys->meshes[0].deflection;
-            d1 += x;
-            d2 += x * x;
-            fsum += sys->meshes[0].force;
-        }
-    }
-    double speed = fabs(gs_system_angle(sys, o) - th0) / (half * h);
-    double mean = d1 / half, rms = sqrt(fmax(d2 / half - mean * mean, 0));
+    steady_half r = sh_start((int)lround(duration / h), gs_scene_find_body(sys->scene, out));
+    for (int i = 0; i < r.n; i++)
+        assert_true(sh_step(&r, sys, i));
+    double speed = fabs(gs_system_angle(sys, r.body) - r.th0) / (r.half * h);
+    double mean = sh_mean(&r), rms = sh_rms(&r);
     double smean, srms;
-    static_te(sys->scene, 0, fsum / half, &smean, &srms);
+    static_te(sys->scene, 0, r.fsum / r.half, &smean, &srms);
     printf("# %s ltca: mean TE %.4f um (static %.4f, %+.3f %%), DTE rms %.4f um (static %.4f, %+.2f %%), "
            "speed %.4f rad/s (closed form %.4f), balance %.2e of %.3g J\n",
            name, mean * 1e6, smean * 1e6, 100 * (mean / smean - 1), rms * 1e6, srms * 1e6, 100 * (rms / srms - 1),
-           speed, speed_expect, worst / scale, scale);
+           speed, speed_expect, r.worst / r.scale, r.scale);
     assert_true(fabs(mean / smean - 1) < 0.01);
     assert_true(fabs(rms / srms - 1) < 0.02);
     assert_true(fabs(speed / speed_expect - 1) < 0.005);
-    assert_true(worst <= 1e-12 * scale);
+    assert_true(r.worst <= 1e-12 * r.scale);
     gs_system_free(&sys);
 }
 
