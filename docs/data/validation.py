@@ -44,13 +44,17 @@ COMMANDS = {
     "impact": ["build/tests/validation/vtest_impact_sweep"],
     "seed": ["build/tests/validation/vtest_contact_pair"],
     "lowspeed": ["build/tests/validation/vtest_lowspeed_te"],
-    "modes": ["build/src/tools/gearsim-modal deploy/scenes/contact_drive.json --fe --json"],
+    "modes": ["build/src/tools/gearsim-modal deploy/scenes/contact_drive.json --fe --no-nearfield --json"],
+    "calculix_modal": ["build/src/tools/gearsim-modal tests/reference/modal_30_20/scene.json --fe --positions 4 "
+                       "--modes 1 --torque 20 --json",
+                       "build/src/tools/gearsim-modal tests/reference/modal_30_20/scene.json --fe --positions 4 "
+                       "--modes 1 --torque 20 --no-nearfield --json"],
 }
 # Relative and absolute tolerance of a number when a rerun is checked.
 TOLERANCE = {"calculix": (1e-3, 0.02), "iso6336": (1e-3, 0.0), "hertz": (1e-4, 0.002),
              "lin_parker": (1e-6, 1e-12), "impact": (0.0, 0.0), "seed": (1e-3, 1e-11),
-             "lowspeed": (1e-3, 0.02), "modes": (1e-3, 0.0)}
-CHEAP = ["calculix", "iso6336", "hertz", "lin_parker", "impact", "seed", "lowspeed", "modes"]
+             "lowspeed": (1e-3, 0.02), "modes": (1e-3, 0.0), "calculix_modal": (1e-3, 0.02)}
+CHEAP = ["calculix", "iso6336", "hertz", "lin_parker", "impact", "seed", "lowspeed", "modes", "calculix_modal"]
 
 
 def run(cmd, check=True):
@@ -242,8 +246,29 @@ def fig_modes():
     return head, rows
 
 
+def fig_calculix_modal():
+    """The first mesh mode against the CalculiX perturbation reference
+    (tests/reference/modal_30_20/reference.csv)."""
+    ref = list(csv.DictReader(open(os.path.join(ROOT, "tests", "reference", "modal_30_20", "reference.csv"))))
+    nf, plain = (json.loads(run(c)) for c in COMMANDS["calculix_modal"])
+    head = ["roll", "CalculiX f1 (Hz)", "CalculiX change h -> h/2 %", "near-field (Hz)", "near-field %",
+            "plain FE (Hz)", "plain FE %"]
+    rows, e0, e1 = [], [], []
+    for r in ref:
+        j = int(round(float(r["roll"]) * nf["positions"]))
+        f0, f1, fr = nf["points"][j]["hz"][0], plain["points"][j]["hz"][0], float(r["f1_hz"])
+        e0.append(f0 / fr - 1)
+        e1.append(f1 / fr - 1)
+        rows.append(["%.3f" % float(r["roll"]), "%.1f" % fr, "%+.3f" % float(r["change_pct"]), "%.1f" % f0,
+                     pct(e0[-1]), "%.1f" % f1, pct(e1[-1])])
+    rows.append(["max abs error", "", "", "", "%.2f" % (100 * max(map(abs, e0))), "",
+                 "%.2f" % (100 * max(map(abs, e1)))])
+    return head, rows
+
+
 FIGURES = {"calculix": fig_calculix, "iso6336": fig_iso6336, "hertz": fig_hertz, "lin_parker": fig_lin_parker,
-           "impact": fig_impact, "seed": fig_seed, "lowspeed": fig_lowspeed, "modes": fig_modes}
+           "impact": fig_impact, "seed": fig_seed, "lowspeed": fig_lowspeed, "modes": fig_modes,
+           "calculix_modal": fig_calculix_modal}
 
 
 # ---- plots ------------------------------------------------------------------------------------------------

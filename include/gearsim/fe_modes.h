@@ -44,6 +44,11 @@ typedef struct gs_fe_modes_opts {
     int lanczos;      /* Lanczos steps (default 60) */
     double phase;     /* start of the roll in driver pitches beyond the scene angle, as
                        * gs_stiffness_opts (default 0) */
+    int nearfield;    /* the static contact's near-field (Hertz) correction, as
+                       * gs_stiffness_opts.nearfield: 2 (default, auto), 1 on, 0 off (the
+                       * plain FE). On, each corrected tooth pair's rows are held with its
+                       * tangent series compliance (gs_stiffness_run_nearfield):
+                       * G q + C lambda = 0 instead of G q = 0 */
 } gs_fe_modes_opts;
 
 void gs_fe_modes_opts_defaults(gs_fe_modes_opts *o);

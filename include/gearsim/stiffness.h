@@ -215,6 +215,15 @@ void gs_stiffness_run_free(gs_stiffness_run **run);
 struct gs_contact_row;
 int gs_stiffness_run_rows(const gs_stiffness_run *run, const struct gs_contact_row **rows,
                           const double **force);
+/* The near-field correction at the last position (gs_stiffness_opts.nearfield
+ * on): per row of gs_stiffness_run_rows its tooth pair's index into c_tan
+ * (-1: a row without correction), and per such pair the tangent series
+ * compliance c_t = d(delta_H)/dP - L (m/N) at its load, which adds c_t
+ * (sum of the pair's row forces) to every row of the pair: the small-motion
+ * compliance about the loaded contact. pair holds the rows' number,
+ * c_tan GS_STIFF_MAX_PAIRS. Returns the number of pairs (0: none, or the
+ * correction off). */
+int gs_stiffness_run_nearfield(const gs_stiffness_run *run, int *pair, double *c_tan);
 /* The FE mesh of the driver (k = 0) or the driven gear (k = 1). */
 const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k);
 

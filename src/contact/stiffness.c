@@ -131,6 +131,28 @@ int gs_stiffness_run_rows(const gs_stiffness_run *run, const gs_contact_row **ro
     return run->out.pt[run->next - 1].rows;
 }
 
+int gs_stiffness_run_nearfield(const gs_stiffness_run *run, int *pair, double *c_tan)
+{
+    if (!run || run->next == 0)
+        return 0;
+    const work *w = &run->w;
+    int nr = run->out.pt[run->next - 1].rows, np = 0;
+    for (int i = 0; i < nr; i++)
+        pair[i] = -1;
+    if (!w->nf)
+        return 0;
+    for (int p = 0; p < w->n_pc; p++) {
+        double c = gsi_stiff_nf_tangent(w, nr, p);
+        if (!(c > 0.0))
+            continue;
+        for (int i = 0; i < nr; i++)
+            if (w->teeth[i][0] == w->pc[p].tooth[0] && w->teeth[i][1] == w->pc[p].tooth[1])
+                pair[i] = np;
+        c_tan[np++] = c;
+    }
+    return np;
+}
+
 const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k)
 {
     return run && (k == 0 || k == 1) ? run->w.b[k].mesh : NULL;

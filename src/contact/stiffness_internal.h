@@ -181,6 +181,7 @@ typedef struct work {
 double gsi_stiff_default_torque(const gs_scene *sc, int body, double rb, double b_m);
 gs_err gsi_stiff_collect(work *w, double delta, double win, int *nr, double *gmin);
 gs_err gsi_stiff_nf_offsets(work *w);
+double gsi_stiff_nf_tangent(const work *w, int nr, int p);
 gs_err gsi_stiff_sbody_displace(sbody *b);
 gs_err gsi_stiff_sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine,
                             int fine_centre, sbody *b, gs_diag *d);

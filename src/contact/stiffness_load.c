@@ -335,6 +335,27 @@ static void nearfield_refresh(work *w, int nr)
     }
 }
 
+/* Tangent near-field compliance of pair p at the loads of the current
+ * solution (nr rows): d(delta_H)/dP less the FE's surface-to-Q part L, by a
+ * central difference of 0.1 % in the load; 0 where the secant correction is
+ * none (gs_stiffness_run_nearfield). The tangent, not delta_H / P: a small
+ * motion about the loaded contact keeps the contact zone (the incremental
+ * stiffness of a Hertzian contact is that of a flat punch of its width). */
+double gsi_stiff_nf_tangent(const work *w, int nr, int p)
+{
+    if (p < 0 || p >= w->n_pc || w->pc[p].skip || !(w->pc[p].c > 0.0))
+        return 0.0;
+    double lam = 0.0;
+    for (int i = 0; i < nr; i++)
+        if (w->x[i] > 0.0 && w->teeth[i][0] == w->pc[p].tooth[0] && w->teeth[i][1] == w->pc[p].tooth[1])
+            lam += w->x[i];
+    if (!(lam > 1e-6 * w->ftot))
+        return 0.0;
+    double e = 1e-3, hi = (1.0 + e) * lam, lo = (1.0 - e) * lam;
+    double dd = (hi * nf_hertz(w, p, hi) - lo * nf_hertz(w, p, lo)) / (hi - lo);
+    return fmax(dd - w->pc[p].L, 0.0);
+}
+
 /* Relative curvature 1/R_1 + 1/R_2 (*curv, 1/m) of the flanks at the
  * contact point X (scene frame): involute radii sqrt(r^2 - r_b^2), concave
  * for an internal gear; each body's signed curvature in kb (may be NULL).

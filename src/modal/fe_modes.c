@@ -23,6 +23,7 @@ void gs_fe_modes_opts_defaults(gs_fe_modes_opts *o)
     o->modes = 4;
     o->refine = -1;
     o->lanczos = 60;
+    o->nearfield = 2;
 }
 
 void gs_fe_modes_result_clear(gs_fe_modes_result *r)
@@ -203,13 +204,14 @@ double gs_fe_modes_conjugate_row(double a[2], const double rb[2])
 /* The constraint rows G (nr x n, row-major) of the active contact rows, each
  * conjugate to the rolling; *dep the largest departure corrected. */
 static int build_G(const ctx *x, const gs_contact_row *rows, const double *force, int nr, double fmin, double *G,
-                   double *dep)
+                   int *which, double *dep)
 {
     int m = 0;
     *dep = 0.0;
     for (int i = 0; i < nr; i++) {
         if (!(force[i] > fmin))
             continue;
+        which[m] = i;
         double *g = G + (size_t)m * (size_t)x->n;
         memset(g, 0, (size_t)x->n * sizeof *g);
         const gs_contact_row *r = &rows[i];
@@ -260,7 +262,8 @@ static gs_err pinv_sym(int m, double *S)
 /* Lanczos on T = P A^{-1} M (P: onto G q = 0 along A^{-1} G'), self-adjoint
  * in the M inner product; eigenvalues mu = 1 / (w^2 + c). Fills the lowest
  * `want` modes above 0 Hz of one position. */
-static gs_err position_modes(ctx *x, const double *G, int m, int steps, int want, gs_fe_modes_point *pt)
+static gs_err position_modes(ctx *x, const double *G, int m, const double *Cm, int steps, int want,
+                             gs_fe_modes_point *pt)
 {
     gs_index n = x->n;
     size_t nz = (size_t)n;
@@ -285,6 +288,11 @@ static gs_err position_modes(ctx *x, const double *G, int m, int steps, int want
     for (int i = 0; i < m; i++) /* symmetric to round-off: take the mean */
         for (int j = 0; j < i; j++)
             S[i + j * m] = S[j + i * m] = 0.5 * (S[i + j * m] + S[j + i * m]);
+    /* Compliant rows, G q + C lambda = 0: the Schur complement G A^-1 G' + C
+     * (Woodbury: the inverse of A + G' C^-1 G on the rows' span). */
+    if (Cm)
+        for (size_t i = 0; i < (size_t)m * (size_t)m; i++)
+            S[i] += Cm[i];
     if (m > 0 && (e = pinv_sym(m, S)) != GS_OK)
         goto out;
 /* w = T v from Mv = M v */
@@ -426,7 +434,7 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
     double t0 = gs_now();
     gs_stiffness_opts so;
     gs_stiffness_opts_defaults(&so);
-    so.nearfield = 0; /* the modes are those of the FE model, which has no near-field correction */
+    so.nearfield = o.nearfield;
     so.positions = o.positions;
     so.refine = o.refine;
     so.order = o.order;
@@ -497,8 +505,33 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
         G = g2;
         gs_fe_modes_point *pt = &out->pt[j];
         pt->roll = tan.pt[j].roll;
-        pt->rows = build_G(&x, rows, force, nr, 1e-9 * tan.force_n, G, &pt->lever_departure);
-        e = position_modes(&x, G, pt->rows, o.lanczos, o.modes, pt);
+        int *which = NULL, *pair = NULL;
+        double *Cm = NULL, ct[GS_STIFF_MAX_PAIRS];
+        which = malloc((size_t)(nr ? nr : 1) * sizeof *which);
+        pair = malloc((size_t)(nr ? nr : 1) * sizeof *pair);
+        if (!which || !pair) {
+            free(which), free(pair);
+            e = GS_ENOMEM;
+            goto done;
+        }
+        pt->rows = build_G(&x, rows, force, nr, 1e-9 * tan.force_n, G, which, &pt->lever_departure);
+        int m = pt->rows;
+        if (gs_stiffness_run_nearfield(run, pair, ct) > 0 && m > 0) {
+            Cm = calloc((size_t)m * (size_t)m, sizeof *Cm);
+            if (!Cm) {
+                free(which), free(pair);
+                e = GS_ENOMEM;
+                goto done;
+            }
+            for (int a = 0; a < m; a++)
+                for (int b = 0; b < m; b++) {
+                    int pa = pair[which[a]], pb = pair[which[b]];
+                    if (pa >= 0 && pa == pb)
+                        Cm[a + b * m] = ct[pa];
+                }
+        }
+        e = position_modes(&x, G, m, Cm, o.lanczos, o.modes, pt);
+        free(which), free(pair), free(Cm);
         if (e != GS_OK) {
             gs_diag_set(d, e, "meshes", "eigenproblem at roll %.3f failed", pt->roll);
             goto done;

@@ -271,6 +271,7 @@ static gs_err modal_factors(const gs_scene *sc, int mesh, int driver, double pha
                            "the modal calibration needs the external gear first in the mesh's 'gears'");
     gs_fe_modes_opts mo;
     gs_fe_modes_opts_defaults(&mo);
+    mo.nearfield = 0; /* as the calibration's static analysis (calibrate) */
     mo.positions = r->positions;
     mo.modes = 4;
     mo.torque_nm = r->torque_nm;

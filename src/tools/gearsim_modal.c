@@ -4,7 +4,7 @@
  *
  *   gearsim-modal SCENE.json [--json]
  *   gearsim-modal SCENE.json --fe [--mesh NAME] [--positions N] [--modes M] [--refine R]
- *                 [--order 1|2] [--torque T] [--json]
+ *                 [--order 1|2] [--torque T] [--no-nearfield|--plain] [--json]
  *
  * Without --json prints one line per group of equal frequencies (frequency,
  * kind, multiplicity); with --json the result object of the `modal` command
@@ -27,7 +27,7 @@
 #define USAGE                                                                                   \
     "usage: gearsim-modal SCENE.json [--json]\n"                                                   \
     "       gearsim-modal SCENE.json --fe [--mesh NAME] [--positions N] [--modes M] [--refine R]\n" \
-    "                     [--order 1|2] [--torque T] [--json]\n"
+    "                     [--order 1|2] [--torque T] [--no-nearfield|--plain] [--json]\n"
 
 static int fe_modes(const char *path, gs_scene *s, const char *mesh, const gs_fe_modes_opts *o, int json)
 {
@@ -99,6 +99,8 @@ int main(int argc, char **argv)
             o.order = atoi(argv[++i]);
         else if (!strcmp(a, "--torque") && v)
             o.torque_nm = atof(argv[++i]);
+        else if (!strcmp(a, "--no-nearfield") || !strcmp(a, "--plain"))
+            o.nearfield = 0;
         else if (a[0] != '-' && !path)
             path = a;
         else {

@@ -13,6 +13,7 @@ envelope of the rack cutter's tip round, tip and root circles.  Pure Python
 
 Units inside: mm, N, MPa (ccx), rad.
 """
+import csv
 import math
 import os
 import re
@@ -35,7 +36,7 @@ class Gear:
     the flank on the counter-clockwise side)."""
 
     def __init__(self, z, m, alpha_deg=20.0, ha=1.0, hf=1.25, rho=0.38, x=0.0,
-                 hub=0.0):
+                 hub=0.0, thinning=0.0):
         self.z, self.m = z, m
         self.alpha = math.radians(alpha_deg)
         self.r = 0.5 * z * m
@@ -43,7 +44,9 @@ class Gear:
         self.ra = self.r + (ha + x) * m
         self.rf = self.r - (hf - x) * m
         self.hub = hub if hub > 0 else 0.6 * self.rf
-        self.s = 0.5 * math.pi * m + 2.0 * x * m * math.tan(self.alpha)
+        # thinning (mm of arc on the pitch circle, for backlash): a thicker
+        # cutter tooth, so the fillet follows the thinned flank
+        self.s = 0.5 * math.pi * m + 2.0 * x * m * math.tan(self.alpha) - thinning
         self.rho = rho * m
         e = math.pi * m - self.s                 # cutter tooth on the rolling line
         a = self.alpha
@@ -401,6 +404,45 @@ def jacobian_check(nodes, elems, floor=0.05):
     return bad
 
 
+def hub_ties(o, nodes, ids, rotn, centre):
+    """*EQUATION lines tying nodes ids to a small rotation theta (dof 1 of
+    node rotn) about centre: u_x = -(y - y_c) theta, u_y = (x - x_c) theta."""
+    for n in sorted(ids):
+        x, y = nodes[n][0] - centre[0], nodes[n][1] - centre[1]
+        o.append("2")
+        o.append("%d, 1, 1., %d, 1, %.12f" % (n, rotn, y))
+        o.append("2")
+        o.append("%d, 2, 1., %d, 1, %.12f" % (n, rotn, -x))
+
+
+def contact_cards(o, penalty):
+    """The contact pair S1 (slave) on S0, frictionless, linear penalty."""
+    o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
+    o.append("S1, S0")
+    o.append("*SURFACE INTERACTION, NAME=SI")
+    o.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
+    o.append("%.10g" % penalty)
+
+
+def done_runs(path):
+    """(h, roll to six digits, penalty) of the runs already in the CSV file path."""
+    done = set()
+    if os.path.exists(path):
+        for r in csv.DictReader(open(path)):
+            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["penalty"])))
+    return done
+
+
+def append_row(path, fields, row):
+    """Append one row to the CSV file path (header first when new)."""
+    new = not os.path.exists(path)
+    with open(path, "a", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        if new:
+            w.writeheader()
+        w.writerow(row)
+
+
 def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     tri_t = 9 if order == 2 else 2
     line_t = 8 if order == 2 else 1
@@ -473,17 +515,8 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     # TE 4.76 instead of 12.62 um; the hub force exposed it, 734 N instead
     # of 2000).
     o.append("*EQUATION")
-    for n in sorted(hubn[21]):
-        x, y = nodes[n]
-        o.append("2")
-        o.append("%d, 1, 1., %d, 1, %.12f" % (n, rotn, y))
-        o.append("2")
-        o.append("%d, 2, 1., %d, 1, %.12f" % (n, rotn, -x))
-    o.append("*CONTACT PAIR, INTERACTION=SI, TYPE=SURFACE TO SURFACE")
-    o.append("S1, S0")
-    o.append("*SURFACE INTERACTION, NAME=SI")
-    o.append("*SURFACE BEHAVIOR, PRESSURE-OVERCLOSURE=LINEAR")
-    o.append("%.10g" % penalty)
+    hub_ties(o, nodes, hubn[21], rotn, (0.0, 0.0))
+    contact_cards(o, penalty)
     o.append("*BOUNDARY")
     o.append("HUB1, 1, 2, 0")
     o.append("NREF, 1, 3, 0")

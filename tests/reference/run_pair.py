@@ -12,7 +12,6 @@ already in runs.csv (same h, roll, penalty) is skipped, so an interrupted
 sweep resumes.  Work files go to a temporary directory (kept with --keep).
 """
 import argparse
-import csv
 import json
 import math
 import os
@@ -32,7 +31,7 @@ def make_gear(d):
     return gearref.Gear(d["teeth"], d["module_mm"], d.get("pressure_angle_deg", 20.0),
                         d.get("addendum", 1.0), d.get("dedendum", 1.25),
                         d.get("fillet", 0.38), d.get("profile_shift", 0.0),
-                        d.get("hub_radius_mm", 0.0))
+                        d.get("hub_radius_mm", 0.0), d.get("thinning_mm", 0.0))
 
 
 def main():
@@ -54,10 +53,7 @@ def main():
     force = torque / g1.rb
     th2_0 = cfg.get("driven_angle0_rad", 0.0)
     out = os.path.join(a.dir, "runs.csv")
-    done = set()
-    if os.path.exists(out):
-        for r in csv.DictReader(open(out)):
-            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["penalty"])))
+    done = gearref.done_runs(out)
     rolls = a.rolls if a.rolls else range(a.positions)
     for h in a.h:
         for j in rolls:
@@ -84,12 +80,7 @@ def main():
                        mesh_s="%.2f" % info["mesh_s"], ccx_s="%.2f" % dt, ccx_cpu_s="%.2f" % cpu,
                        driver_teeth=" ".join(map(str, info["teeth1"])),
                        driven_teeth=" ".join(map(str, info["teeth2"])))
-            new = not os.path.exists(out)
-            with open(out, "a", newline="") as f:
-                w = csv.DictWriter(f, fieldnames=FIELDS)
-                if new:
-                    w.writeheader()
-                w.writerow(row)
+            gearref.append_row(out, FIELDS, row)
             print("h %.4g roll %.4f nodes %d TE %.4f um k %.4f N/(mm um) ccx %.1f s (cpu %.1f s)"
                   % (h, roll, info["nodes"], te_mm * 1e3, force / (te_mm * 1e3) / face, dt, cpu),
                   flush=True)

@@ -74,6 +74,7 @@ static gs_fe_modes_result analyse(const gs_scene *sc, int positions)
 {
     gs_fe_modes_opts o;
     gs_fe_modes_opts_defaults(&o);
+    o.nearfield = 0; /* the FE model's own modes (the dense check solves the same problem) */
     o.positions = positions;
     o.modes = 2;
     gs_fe_modes_result r;
