@@ -223,15 +223,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
             free(ask(s, "{\"v\":1,\"id\":\"t\",\"cmd\":\"status\"}"));
         }
     }
-    if (s->adv.active)
-        gsi_finish_advance(s, true, GS_OK, NULL);
-    gs_record_close(&s->record);
-    if (gs_engine_system(eng)) {
-        gs_diag d;
-        gs_engine_run(eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
-    }
-    gsi_service_release(s);
-    free(s);
-    clean_data_dir();
+    fuzz_teardown(s);
     return 0;
 }

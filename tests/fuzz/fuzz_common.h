@@ -14,6 +14,7 @@
 
 #include "gearsim/engine.h"
 #include "service/options.h"
+#include "service/service_internal.h"
 
 static gs_engine *eng;
 static char data_dir[64];
@@ -54,6 +55,22 @@ static void fuzz_setup(int *argc, char ***argv, const char *target, const char *
     atexit(at_exit);
     cfg.data_dir = data_dir;
     cfg.connection_file = NULL;
+}
+
+/* After an input: finish what the service left running, close its record,
+ * unload the scene, free the service and empty the data directory. */
+static void fuzz_teardown(gs_service *s)
+{
+    if (s->adv.active)
+        gsi_finish_advance(s, true, GS_OK, NULL);
+    gs_record_close(&s->record);
+    if (gs_engine_system(eng)) {
+        gs_diag d;
+        gs_engine_run(eng, GS_OP_UNLOAD, NULL, 0, &d, NULL);
+    }
+    gsi_service_release(s);
+    free(s);
+    clean_data_dir();
 }
 
 #endif
