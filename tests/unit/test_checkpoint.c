@@ -17,6 +17,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "../common/engine_load.h"
 #include "gearsim/engine.h"
 #include "gearsim/record.h"
 #include "gearsim/scene.h"
@@ -38,18 +39,20 @@ static char *scene_text(const char *name, const char *fid)
     return txt;
 }
 
+/* The scene loaded and 20 steps taken. */
 static gs_engine *loaded(const char *txt)
 {
-    gs_engine *e = NULL;
-    assert_int_equal(gs_engine_new(MPI_COMM_WORLD, &e), GS_OK);
-    gs_diag d;
-    gs_err err = gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL);
-    if (err != GS_OK)
-        print_error("load: %s: %s\n", d.field, d.message);
-    assert_int_equal(err, GS_OK);
-    int64_t n = 20, done = 0;
-    assert_int_equal(gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done), GS_OK);
+    gs_engine *e = engine_loaded(txt);
+    advance(e, 20);
     return e;
+}
+
+/* The engine's snapshot, checked, into *b, *len and *v. */
+static void snapshot(gs_engine *e, char **b, size_t *len, gs_snapshot_view *v)
+{
+    gs_diag d;
+    assert_int_equal(gs_engine_snapshot(e, b, len), GS_OK);
+    assert_int_equal(gs_engine_snapshot_check(*b, *len, v, &d), GS_OK);
 }
 
 static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
@@ -83,10 +86,9 @@ static void choice_survives_restore(void **state)
     assert_non_null(strstr(want, "\"why\""));
     char *b;
     size_t len;
-    assert_int_equal(gs_engine_snapshot(a, &b, &len), GS_OK);
     gs_snapshot_view v;
     gs_diag d;
-    assert_int_equal(gs_engine_snapshot_check(b, len, &v, &d), GS_OK);
+    snapshot(a, &b, &len, &v);
     assert_non_null(v.choice);
     assert_string_equal(v.choice, want);
 
@@ -139,10 +141,9 @@ static void no_targets_no_choice(void **state)
     assert_null(gs_engine_system(a)->scene->fidelity_choice);
     char *b;
     size_t len;
-    assert_int_equal(gs_engine_snapshot(a, &b, &len), GS_OK);
     gs_snapshot_view v;
     gs_diag d;
-    assert_int_equal(gs_engine_snapshot_check(b, len, &v, &d), GS_OK);
+    snapshot(a, &b, &len, &v);
     assert_null(v.choice);
     /* the loads end the snapshot, as before choices were kept */
     assert_true(v.loads + strlen(v.loads) + 1 == b + len);
