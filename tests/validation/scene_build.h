@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "gearsim/contact.h"
+#include "gearsim/modal.h"
 #include "gearsim/step.h"
 
 /* The builtin scene `name` as a JSON tree to edit (the caller passes it on
@@ -164,6 +165,21 @@ static inline void vt_centre_force(const gs_system *s, int b, double F[2])
                 F[1] += lam * r->dg_dc[k][1];
             }
     }
+}
+
+/* The modal analysis (gs_modal_analyse) of a scene tree (consumed); fails
+ * the test with the diagnostic. */
+static inline gs_modal *vt_modal(json_object *root)
+{
+    gs_scene *sc = vt_scene_parse(root);
+    gs_diag d;
+    gs_modal *m;
+    gs_err e = gs_modal_analyse(sc, &m, &d);
+    if (e != GS_OK)
+        print_message("modal: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    gs_scene_free(&sc);
+    return m;
 }
 
 #endif

@@ -305,14 +305,7 @@ static void modal_run(double h_step)
     for (int q = 0; q < 3; q++)
         kt[q] = ks, kt[3 + q] = kr;
     json_object *lr = modal_train(false, kt, Ip);
-    gs_scene *sc = vt_scene_parse(lr);
-    gs_diag d;
-    gs_modal *m;
-    gs_err e = gs_modal_analyse(sc, &m, &d);
-    if (e != GS_OK)
-        print_message("modal: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    gs_scene_free(&sc);
+    gs_modal *m = vt_modal(lr);
     int n = m->n;
     assert_int_equal(n, 12);
     assert_int_equal(m->n_modes, n);
