@@ -449,7 +449,8 @@ static void nearfield_backlash(void **state)
  * fit's curvature bound and the rigid gaps against the pair's flank gap
  * (docs/explanation/stiffness.md "Near-field correction") keep it a softening of the
  * plain FE like on unmodified flanks, NF_RELIEF_LO < TE / TE plain <
- * NF_RELIEF_HI at every position (measured 1.026-1.098). Before, a fit
+ * NF_RELIEF_HI at every position (measured 1.023-1.099 with the perfect
+ * gears' offsets, nearfield_modified_limit; 1.026-1.098 before). Before, a fit
  * through a neighbour beyond the mating tip put roll 0.5 8.3 um early (x1.80)
  * and the relief in the rigid gaps turned the correction off elsewhere
  * (x0.97-1.02). */
