@@ -484,7 +484,7 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     h = fnv_i(h, o ? o->positions : 48);
     if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
         h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
-    else if (modified_pair(sc, sm)) /* modified flanks: the correction forced on */
+    if (modified_pair(sc, sm)) /* modified flanks: the correction forced on, its offsets the perfect gears' */
         h = fnv(h, "nearfield-modified", 18);
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
