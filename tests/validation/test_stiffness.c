@@ -391,6 +391,18 @@ static gs_scene *relief_pair(double thin_mm, double relief_um)
     return parse_scene(txt);
 }
 
+/* The options of the relief pair's checks: 12 positions, no tangent,
+ * 70.5 N m on the wheel (200 N/mm). */
+static gs_stiffness_opts relief_opts(void)
+{
+    gs_stiffness_opts o;
+    gs_stiffness_opts_defaults(&o);
+    o.positions = 12;
+    o.tangent = 0;
+    o.torque_nm = 70.5;
+    return o;
+}
+
 /* The near-field default on a pair with backlash (thinned teeth at the
  * standard centre distance; docs/explanation/stiffness.md "Near-field correction"):
  * thinned involutes are conjugate at any centre distance, so every loaded
@@ -411,11 +423,7 @@ static void nearfield_backlash(void **state)
 {
     (void)state;
     gs_scene *thin = relief_pair(0.05, 0.0), *tight = relief_pair(0.0, 0.0);
-    gs_stiffness_opts o;
-    gs_stiffness_opts_defaults(&o);
-    o.positions = 12;
-    o.tangent = 0;
-    o.torque_nm = 70.5;
+    gs_stiffness_opts o = relief_opts();
     gs_stiffness_result rt, rn, ra;
     gs_diag d;
     gs_diag_clear(&d);
@@ -460,11 +468,7 @@ static void nearfield_relief(void **state)
 {
     (void)state;
     gs_scene *s = relief_pair(0.0, 10.3);
-    gs_stiffness_opts o;
-    gs_stiffness_opts_defaults(&o);
-    o.positions = 12;
-    o.tangent = 0;
-    o.torque_nm = 70.5;
+    gs_stiffness_opts o = relief_opts();
     gs_stiffness_result plain, nf;
     plain_then_nf(s, &o, &plain, &nf);
     assert_true(nf.modified);
@@ -501,11 +505,7 @@ static void nearfield_modified_limit(void **state)
 {
     (void)state;
     gs_scene *un = relief_pair(0.05, 0.0), *eps = relief_pair(0.05, 1e-3), *rel = relief_pair(0.05, 10.3);
-    gs_stiffness_opts o;
-    gs_stiffness_opts_defaults(&o);
-    o.positions = 12;
-    o.tangent = 0;
-    o.torque_nm = 70.5;
+    gs_stiffness_opts o = relief_opts();
     gs_stiffness_result ru, re, rr;
     gs_diag d;
     gs_diag_clear(&d);
