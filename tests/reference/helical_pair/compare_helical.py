@@ -34,6 +34,7 @@ def load_reference():
             roll=float(r["roll"]), te=float(r["te_um"]), k=float(r["k_n_per_mm_um"]),
             peak=float(r["peak_n_per_mm"]), h=float(r["h_mm"]), levels=int(r["levels"]),
             te_change=float(r["te_change_pct"]), peak_change=float(r["peak_change_pct"]),
+            finer=float(r["finer_h_mm"]) if r["finer_h_mm"] else None,
             cpu=float(r["ccx_cpu_s"]), q=[float(r["q%02d" % i]) for i in range(NBIN)]))
     for f in ref:
         ref[f].sort(key=lambda r: r["roll"])

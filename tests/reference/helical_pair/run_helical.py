@@ -333,22 +333,7 @@ def write_inp(path, nodes, elems, pair, g1, a, b, misalign_um, d):
     o.append("%d, 0, 0, 0" % ref)
     o.append("*NODE, NSET=NROT")
     o.append("%d, 0, 0, 0" % rotn)
-    for ph, name in ((1, "E0"), (2, "E1")):
-        o.append("*ELEMENT, TYPE=C3D10, ELSET=%s" % name)
-        for e, c in numbered[ph]:
-            o.append("%d, %s" % (e, ", ".join(map(str, c))))
-    for ph, name in ((21, "HUB0"), (22, "HUB1")):
-        o.append("*NSET, NSET=%s" % name)
-        ids = sorted(hubn[ph])
-        for i in range(0, len(ids), 12):
-            o.append(", ".join(map(str, ids[i:i + 12])) + ",")
-    for ph, name in ((11, "S0"), (12, "S1")):
-        o.append("*SURFACE, NAME=%s, TYPE=ELEMENT" % name)
-        for e, fno in surf[ph]:
-            o.append("%d, S%d" % (e, fno))
-    o.append("*MATERIAL, NAME=STEEL")
-    o.append("*ELASTIC")
-    o.append("%.10g, %.10g" % (pair["E_mpa"], pair["nu"]))
+    gearref.deck_sets(o, "C3D10", numbered, hubn, surf, pair["E_mpa"], pair["nu"])
     o.append("*SOLID SECTION, ELSET=E0, MATERIAL=STEEL")
     o.append("*SOLID SECTION, ELSET=E1, MATERIAL=STEEL")
     # driver hub: u_x = -y theta, u_y = x theta (theta: dof 1 of NROT), u_z = 0

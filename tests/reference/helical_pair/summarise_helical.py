@@ -1,11 +1,13 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Summarise the 3D helical pair runs (runs.csv, profiles.csv) into
-reference.csv: per roll position and misalignment the finest mesh level's
-TE, k, peak load per unit face width and its load profile along the face
-(summed over the driven teeth, NBIN bins), with the change from the next
-coarser level (the convergence figure) and, where three levels ran, the
-Richardson limit of TE (what the reference holds then).
+reference.csv: per roll position and misalignment, at the reference level
+(the finest mesh size run at every position of that misalignment), the TE,
+k, peak load per unit face width and the load profile along the face
+(summed over the driven teeth, NBIN bins); the change to a finer level
+where one ran at that position (the convergence figure); where three
+levels up to the reference level ran, the Richardson limit of TE (what the
+reference holds then).
 
 Usage: ./summarise_helical.py      (reads and writes beside this file)
 """
@@ -43,35 +45,48 @@ def main():
     for r in runs:
         key = (round(float(r["roll"]), 6), float(r["misalign_um"]))
         by.setdefault(key, []).append(r)
+    # the reference level of a misalignment: the finest h run at all its
+    # positions (one level for the whole cycle); a finer level run at some
+    # positions gives the change (finer / reference - 1) there
+    hs_all = {}
+    for (roll, f), rows in by.items():
+        hs_all.setdefault(f, []).append(set(float(r["h_mm"]) for r in rows))
+    href = {f: min(set.intersection(*v)) for f, v in hs_all.items()}
     out = []
-    print("%6s %5s %6s %9s %9s %8s %8s %8s %9s %7s %8s" % ("roll", "f um", "h mm", "TE um", "k", "peak", "dTE %",
-                                                          "dpeak %", "TE lim", "p", "cpu s"))
+    print("%6s %5s %6s %9s %9s %8s %6s %9s %9s %8s %8s" % ("roll", "f um", "h mm", "TE um", "k", "peak", "finer",
+                                                         "dTE %", "dpeak %", "TE lim", "cpu s"))
     for key in sorted(by):
         rows = sorted(by[key], key=lambda r: -float(r["h_mm"]))
+        rows = [r for r in rows if float(r["h_mm"]) >= href[key[1]]] + \
+               [r for r in rows if float(r["h_mm"]) < href[key[1]]]
         hs = [float(r["h_mm"]) for r in rows]
         te = [float(r["te_um"]) for r in rows]
-        fin = rows[-1]
-        q = prof.get((key[0], key[1], hs[-1]), [0.0] * NBIN)
+        iref = hs.index(href[key[1]])
+        fin = rows[iref]
+        q = prof.get((key[0], key[1], hs[iref]), [0.0] * NBIN)
         peak = max(q)
         dte = dpk = float("nan")
-        if len(rows) > 1:
-            dte = 100.0 * (te[-1] / te[-2] - 1.0)
-            q0 = prof.get((key[0], key[1], hs[-2]), [0.0] * NBIN)
-            dpk = 100.0 * (peak / max(q0) - 1.0) if max(q0) > 0 else float("nan")
-        lim = richardson(hs, te) if len(rows) >= 3 else None
-        te_ref = lim[0] if lim else te[-1]
+        hfiner = ""
+        if iref + 1 < len(rows):
+            hfiner = hs[iref + 1]
+            dte = 100.0 * (te[iref + 1] / te[iref] - 1.0)
+            q1 = prof.get((key[0], key[1], hfiner), [0.0] * NBIN)
+            dpk = 100.0 * (max(q1) / peak - 1.0) if peak > 0 else float("nan")
+        lim = richardson(hs[:iref + 1], te[:iref + 1]) if iref >= 2 else None
+        te_ref = lim[0] if lim else te[iref]
         F = float(fin["force_n"])
-        b = F / float(fin["k_n_per_mm_um"]) / te[-1]
-        out.append(dict(roll="%.6f" % key[0], misalign_um=key[1], h_mm=hs[-1], levels=len(rows),
-                        te_um="%.6f" % te_ref, te_finest_um="%.6f" % te[-1],
-                        k_n_per_mm_um="%.5f" % (F / te_ref / b),
-                        te_change_pct="%.4f" % dte, peak_n_per_mm="%.3f" % peak, peak_change_pct="%.4f" % dpk,
+        b = F / float(fin["k_n_per_mm_um"]) / te[iref]
+        out.append(dict(roll="%.6f" % key[0], misalign_um=key[1], h_mm=hs[iref], levels=iref + 1,
+                        te_um="%.6f" % te_ref, te_level_um="%.6f" % te[iref],
+                        k_n_per_mm_um="%.5f" % (F / te_ref / b), peak_n_per_mm="%.3f" % peak,
+                        finer_h_mm=hfiner, te_change_pct="%.4f" % dte, peak_change_pct="%.4f" % dpk,
                         order="%.3f" % lim[1] if lim else "",
                         ccx_cpu_s=fin["ccx_cpu_s"], nodes=fin["nodes"],
+                        contact_force_n=fin["contact_force_n"], force_n=fin["force_n"],
                         **{"q%02d" % i: "%.4f" % q[i] for i in range(NBIN)}))
-        print("%6.3f %5g %6g %9.4f %9.4f %8.2f %8.3f %8.3f %9s %7s %8s" % (
-            key[0], key[1], hs[-1], te[-1], F / te[-1] / b, peak, dte, dpk,
-            "%.4f" % lim[0] if lim else "-", "%.2f" % lim[1] if lim else "-", fin["ccx_cpu_s"]))
+        print("%6.3f %5g %6g %9.4f %9.4f %8.2f %6s %9.3f %9.3f %9s %8s" % (
+            key[0], key[1], hs[iref], te[iref], F / te[iref] / b, peak, hfiner, dte, dpk,
+            "%.4f" % lim[0] if lim else "-", fin["ccx_cpu_s"]))
     if not out:
         sys.exit("no runs")
     with open(os.path.join(HERE, "reference.csv"), "w", newline="") as f:
