@@ -35,7 +35,8 @@ def load_reference():
             peak=float(r["peak_n_per_mm"]), h=float(r["h_mm"]), levels=int(r["levels"]),
             te_change=float(r["te_change_pct"]), peak_change=float(r["peak_change_pct"]),
             finer=float(r["finer_h_mm"]) if r["finer_h_mm"] else None,
-            cpu=float(r["ccx_cpu_s"]), q=[float(r["q%02d" % i]) for i in range(NBIN)]))
+            cpu=float(r["ccx_cpu_s"]), force=float(r["force_n"]), hub_force=float(r["hub_force_n"]),
+            q=[float(r["q%02d" % i]) for i in range(NBIN)]))
     for f in ref:
         ref[f].sort(key=lambda r: r["roll"])
     return ref
@@ -95,13 +96,15 @@ def compare(tool):
             pk = max(qb)
             rows.append(dict(roll=r["roll"], te=p["te_elastic_um"], te_ref=r["te"], k=p["k"], k_ref=r["k"],
                              peak=pk, peak_ref=r["peak"], err_te=p["te_elastic_um"] / r["te"] - 1.0,
-                             err_k=p["k"] / r["k"] - 1.0, err_peak=pk / r["peak"] - 1.0,
+                             err_k=p["k"] / r["k"] - 1.0,
+                             err_peak=pk / r["peak"] - 1.0 if r["peak"] == r["peak"] else None,
                              h=r["h"], te_change=r["te_change"], peak_change=r["peak_change"], cpu=r["cpu"]))
         kmean = sum(x["k"] for x in rows) / len(rows)
         kmean_ref = sum(x["k_ref"] for x in rows) / len(rows)
         summ = dict(positions=len(rows), cycle_positions=n, max_err_k=max(abs(x["err_k"]) for x in rows), max_err_te=max(abs(x["err_te"]) for x in rows),
-                    max_err_peak=max(abs(x["err_peak"]) for x in rows), k_mean=kmean, k_mean_ref=kmean_ref,
-                    err_k_mean=kmean / kmean_ref - 1.0, seconds=g.get("seconds"),
+                    max_err_peak=max((abs(x["err_peak"]) for x in rows if x["err_peak"] is not None), default=None),
+                    k_mean=kmean, k_mean_ref=kmean_ref,
+                    err_k_mean=kmean / kmean_ref - 1.0 if len(rows) == n else None, seconds=g.get("seconds"),
                     k_hbeta=sl["k_hbeta"], coupling_mm=sl["coupling_mm"])
         res[f] = dict(rows=rows, summary=summ)
     return res
@@ -124,11 +127,13 @@ def main():
         for x in r["rows"]:
             print("%6.3f %8.4f %8.4f %7.2f %8.3f %8.3f %7.2f %6.1f %8.1f %7.2f %6g %9.3f %9.3f" % (
                 x["roll"], x["te"], x["te_ref"], 100 * x["err_te"], x["k"], x["k_ref"], 100 * x["err_k"],
-                x["peak"], x["peak_ref"], 100 * x["err_peak"], x["h"], x["te_change"], x["peak_change"]))
+                x["peak"], x["peak_ref"], 100 * x["err_peak"] if x["err_peak"] is not None else float("nan"),
+                x["h"], x["te_change"], x["peak_change"]))
         s = r["summary"]
-        print("  max |err|: k %.2f %%, TE %.2f %%, peak %.2f %%; cycle mean k %.3f against %.3f (%.2f %%)\n" % (
-            100 * s["max_err_k"], 100 * s["max_err_te"], 100 * s["max_err_peak"], s["k_mean"], s["k_mean_ref"],
-            100 * s["err_k_mean"]))
+        pct = (lambda v: "%.2f %%" % (100 * v) if v is not None else "n/a")
+        print("  max |err|: k %s, TE %s, peak %s; mean k over the positions %.3f against %.3f "
+              "(cycle mean: %s)\n" % (pct(s["max_err_k"]), pct(s["max_err_te"]), pct(s["max_err_peak"]),
+                                       s["k_mean"], s["k_mean_ref"], pct(s["err_k_mean"])))
 
 
 if __name__ == "__main__":

@@ -4,7 +4,9 @@
 reference.csv: per roll position and misalignment, at the reference level
 (the finest mesh size run at every position of that misalignment), the TE,
 k, peak load per unit face width and the load profile along the face
-(summed over the driven teeth, NBIN bins); the change to a finer level
+(summed over the driven teeth, NBIN bins; the peak is "nan" where the
+integrated contact pressure misses the applied force by more than 5 %:
+the profile is then not valid); the change to a finer level
 where one ran at that position (the convergence figure); where three
 levels up to the reference level ran, the Richardson limit of TE (what the
 reference holds then).
@@ -64,14 +66,17 @@ def main():
         iref = hs.index(href[key[1]])
         fin = rows[iref]
         q = prof.get((key[0], key[1], hs[iref]), [0.0] * NBIN)
-        peak = max(q)
+        # the profile counts only where the integrated contact pressure
+        # carries the applied force (within 5 %)
+        valid = abs(float(fin["contact_force_n"]) / float(fin["force_n"]) - 1.0) < 0.05
+        peak = max(q) if valid else float("nan")
         dte = dpk = float("nan")
         hfiner = ""
         if iref + 1 < len(rows):
             hfiner = hs[iref + 1]
             dte = 100.0 * (te[iref + 1] / te[iref] - 1.0)
             q1 = prof.get((key[0], key[1], hfiner), [0.0] * NBIN)
-            dpk = 100.0 * (max(q1) / peak - 1.0) if peak > 0 else float("nan")
+            dpk = 100.0 * (max(q1) / peak - 1.0) if valid and peak > 0 else float("nan")
         lim = richardson(hs[:iref + 1], te[:iref + 1]) if iref >= 2 else None
         te_ref = lim[0] if lim else te[iref]
         F = float(fin["force_n"])
@@ -83,6 +88,7 @@ def main():
                         order="%.3f" % lim[1] if lim else "",
                         ccx_cpu_s=fin["ccx_cpu_s"], nodes=fin["nodes"],
                         contact_force_n=fin["contact_force_n"], force_n=fin["force_n"],
+                        hub_force_n=fin["hub_force_n"],
                         **{"q%02d" % i: "%.4f" % q[i] for i in range(NBIN)}))
         print("%6.3f %5g %6g %9.4f %9.4f %8.2f %6s %9.3f %9.3f %9s %8s" % (
             key[0], key[1], hs[iref], te[iref], F / te[iref] / b, peak, hfiner, dte, dpk,
