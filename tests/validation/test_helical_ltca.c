@@ -5,7 +5,7 @@
  *  - helical_pair (as shipped, `fidelity: "ltca"`) and helical_crowned
  *    (crowned pinion, 20 um misalignment in the plane of action), their
  *    brakes raised so that the wheel turns at 20 rad/s (mesh frequency
- *    95.5 Hz, far below the mesh mode near 9 kHz), over the second half of
+ *    95.5 Hz, far below the mesh mode near 8.3 kHz), over the second half of
  *    a run whose half spans 12 mesh cycles: the mean dynamic TE within 1 %
  *    and its rms about the mean (DTE rms) within 3 % of the quasi-static
  *    TE of the slice analysis run here at the run's mean mesh force, at 24
