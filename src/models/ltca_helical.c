@@ -34,50 +34,30 @@ int gsi_ltca_sliced(const gs_scene *sc, int mesh)
     return s;
 }
 
-/* FNV-1a, 64 bits, over the bytes of a double or a long. */
-static uint64_t mix(uint64_t h, const void *p, size_t n)
-{
-    const unsigned char *c = p;
-    for (size_t i = 0; i < n; i++) {
-        h ^= c[i];
-        h *= 1099511628211ull;
-    }
-    return h;
-}
-
-static uint64_t mix_d(uint64_t h, double x)
-{
-    return mix(h, &x, sizeof x);
-}
-
-static uint64_t mix_i(uint64_t h, long x)
-{
-    return mix(h, &x, sizeof x);
-}
-
-uint64_t gsi_ltca_key_sliced(uint64_t h, const gs_scene *sc, int mesh)
+int gsi_ltca_key_sliced(const gs_scene *sc, int mesh, double *v)
 {
     if (!gsi_ltca_sliced(sc, mesh))
-        return h;
+        return 0;
     const gs_scene_mesh *sm = &sc->meshes[mesh];
-    h = mix(h, "slices", 6);
+    int n = 0;
     for (int k = 0; k < 2; k++) {
         const gs_scene_body *b = &sc->bodies[sm->gear[k]];
         const gs_gear_params *g = &b->gear;
         const gs_lead_mods *l = &b->lead;
-        h = mix_d(mix_i(h, g->hand), g->helix_angle);
-        h = mix_d(mix_d(h, g->normal_module_m), g->normal_pressure_angle);
-        double lv[] = {l->crowning, l->end_relief, l->end_relief_length, l->slope};
-        for (size_t i = 0; i < sizeof lv / sizeof lv[0]; i++)
-            h = mix_d(h, lv[i]);
-        h = mix_i(h, l->end_relief_parabolic);
+        double x[] = {g->hand, g->helix_angle, g->normal_module_m, g->normal_pressure_angle, l->crowning,
+                      l->end_relief, l->end_relief_length, l->end_relief_parabolic, l->slope};
+        for (size_t i = 0; i < sizeof x / sizeof x[0]; i++)
+            v[n++] = x[i];
     }
-    h = mix_d(mix_d(h, sm->misalign_in), sm->misalign_out);
+    v[n++] = sm->misalign_in;
+    v[n++] = sm->misalign_out;
     /* the slice settings the tables are built with: the analysis's defaults
      * (slices 0: 320; coupling 0: 1.1 m_n) */
     gs_stiffness_opts o;
     gs_stiffness_opts_defaults(&o);
-    return mix_d(mix_i(h, o.slices), o.coupling_mm);
+    v[n++] = o.slices;
+    v[n++] = o.coupling_mm;
+    return n;
 }
 
 gs_err gsi_ltca_sliced_check(const gs_model_view *sys, const gs_gmesh_rt *m, gs_diag *d)

@@ -5,8 +5,6 @@
 #ifndef GS_MODELS_LTCA_HELICAL_H
 #define GS_MODELS_LTCA_HELICAL_H
 
-#include <stdint.h>
-
 #include "gearsim/models.h"
 #include "gearsim/scene.h"
 
@@ -14,11 +12,13 @@
  * (a helical gear, lead modifications or a misalignment), else 0. */
 int gsi_ltca_sliced(const gs_scene *sc, int mesh);
 
-/* The table key's share of what only the slice analysis reads: helix
- * angle and hand, the normal section, the lead modifications of both
- * gears, the misalignment and the slice settings. h unchanged for a spur
- * pair without them (their keys stay). */
-uint64_t gsi_ltca_key_sliced(uint64_t h, const gs_scene *sc, int mesh);
+/* The values the table key adds for what only the slice analysis reads
+ * (helix angle and hand, the normal section, both gears' lead
+ * modifications, the misalignment, the slice settings) into v (at least
+ * GSI_LTCA_KEY_SLICED entries); returns their count, 0 for a spur pair
+ * without them (its key stays). */
+#define GSI_LTCA_KEY_SLICED 24
+int gsi_ltca_key_sliced(const gs_scene *sc, int mesh, double *v);
 
 /* What an ltca mesh on a sliced pair cannot take: pitch errors and run-out
  * of a helical gear (their load share follows the spur wave). */
