@@ -18,7 +18,7 @@
  *  - refusals naming the field: lead modifications on a lumped mesh, a
  *    run-out on a helical ltca mesh.
  * The tables of both scenes are shipped in deploy/ltca (a checkout without
- * them builds them on first use, about a CPU minute each). */
+ * them builds them on first use, about 30 CPU s each). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -36,19 +36,15 @@
 #include "gearsim/util.h"
 #include "../common/steady_half.h"
 
-/* The shipped scene, at the ltca rung when `ltca`. */
-static gs_scene *scene(const char *name, int ltca)
+/* The scene text txt parsed with add inserted at `at` (a place in txt). */
+static gs_scene *spliced(const char *txt, const char *at, const char *add)
 {
-    const char *txt = gs_scene_builtin(name);
-    assert_non_null(txt);
-    size_t n = strlen(txt);
-    char *s = malloc(n + 64);
+    assert_non_null(at);
+    size_t n = strlen(txt), pre = (size_t)(at - txt), k = strlen(add);
+    char *s = malloc(n + k + 1);
     assert_non_null(s);
-    const char *brace = strchr(txt, '{');
-    assert_non_null(brace);
-    size_t pre = (size_t)(brace - txt) + 1;
     memcpy(s, txt, pre);
-    int k = ltca ? sprintf(s + pre, "\"fidelity\": \"ltca\", ") : 0;
+    memcpy(s + pre, add, k);
     memcpy(s + pre + k, txt + pre, n - pre + 1);
     gs_scene *sc;
     gs_diag d;
@@ -58,6 +54,16 @@ static gs_scene *scene(const char *name, int ltca)
         fprintf(stderr, "%s: %s\n", d.field, d.message);
     assert_int_equal(e, GS_OK);
     return sc;
+}
+
+/* The shipped scene, at the ltca rung when `ltca`. */
+static gs_scene *scene(const char *name, int ltca)
+{
+    const char *txt = gs_scene_builtin(name);
+    assert_non_null(txt);
+    const char *brace = strchr(txt, '{');
+    assert_non_null(brace);
+    return spliced(txt, brace + 1, ltca ? "\"fidelity\": \"ltca\", " : "");
 }
 
 static gs_system *system_of(gs_scene *sc, double h)
@@ -214,19 +220,7 @@ static void test_refusals(void **state)
     expect_refusal(sc, "meshes[0].misalignment");
     /* run-out on a helical ltca mesh */
     const char *txt = gs_scene_builtin("helical_crowned");
-    const char *at = strstr(txt, "\"lead\"");
-    assert_non_null(at);
-    size_t n = strlen(txt), pre = (size_t)(at - txt);
-    char *s = malloc(n + 64);
-    memcpy(s, txt, pre);
-    int k = sprintf(s + pre, "\"runout\": {\"eccentricity_um\": 5, \"phase_deg\": 0}, ");
-    memcpy(s + pre + k, txt + pre, n - pre + 1);
-    gs_diag d;
-    gs_err e = gs_scene_parse(s, strlen(s), &sc, &d);
-    free(s);
-    if (e != GS_OK)
-        fprintf(stderr, "%s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
+    sc = spliced(txt, strstr(txt, "\"lead\""), "\"runout\": {\"eccentricity_um\": 5, \"phase_deg\": 0}, ");
     expect_refusal(sc, "bodies[0].runout");
 }
 
