@@ -14,6 +14,7 @@
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "models/ltca_paths.h"
+#include "ltca_helical.h"
 #include "mesh_common.h"
 
 /* Front-flank loads as fractions of the reference line load of 200 N/mm
@@ -481,6 +482,9 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
             h = fnv_d(fnv_d(fnv_d(h, sc->bodies[b->carrier].angle0), b->carrier_radius), b->carrier_angle);
     }
     h = fnv_d(h, driver_moment(sc, sm->gear[driver_of(sc, mesh)]));
+    double hv[GSI_LTCA_KEY_SLICED]; /* helical gears, lead modifications, misalignment */
+    for (int i = 0, nh = gsi_ltca_key_sliced(sc, mesh, hv); i < nh; i++)
+        h = fnv_d(h, hv[i]);
     h = fnv_i(h, o ? o->positions : 48);
     if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
         h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
