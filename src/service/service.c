@@ -332,10 +332,18 @@ static bool step_hook(gs_engine *eng, void *user)
         return true;
     if (st % sys->scene->telemetry_every == 0) {
         double t0 = gs_now();
-        json_object *o = gsi_state_json(s);
-        if (s->adv.active)
-            json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
-        gsi_publish(s, "telemetry", o);
+        size_t len = 0;
+        const char *txt = gsi_telemetry_text(s, &len);
+        if (txt && s->pub) {
+            /* A slow subscriber never slows the simulation: drop on a full queue. */
+            zmq_send(s->pub, "telemetry", 9, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+            zmq_send(s->pub, txt, len, ZMQ_DONTWAIT);
+        } else if (!txt) {
+            json_object *o = gsi_state_json(s);
+            if (s->adv.active)
+                json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
+            gsi_publish(s, "telemetry", o);
+        }
         s->timing_telemetry += gs_now() - t0;
     }
     int fe = sys->scene->fields_every;

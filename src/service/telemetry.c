@@ -1,0 +1,195 @@
+/* SPDX-License-Identifier: MIT
+ * The telemetry event written straight into one reused buffer: the same
+ * members, in the same order, with the same values as gsi_publish of
+ * gsi_state_json (the `state` reply's body), without building a JSON tree.
+ * Numbers are the shortest text that reads back as the identical double
+ * (gs_fmt_double); a non-finite one is null, as gsi_json_scrub makes it. */
+#include <math.h>
+#include <stdbool.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "gearsim/numfmt.h"
+#include "gearsim/util.h"
+#include "service/service_internal.h"
+
+typedef struct tbuf {
+    char *p;
+    size_t n, cap;
+    bool oom;
+} tbuf;
+
+static tbuf tb; /* one service per process; its events are written one at a time */
+
+static void reserve(tbuf *b, size_t more)
+{
+    if (b->oom || b->n + more + 1 <= b->cap)
+        return;
+    char *q = gs_grow(b->p, &b->cap, b->n + more + 1, 1);
+    if (!q)
+        b->oom = true;
+    else
+        b->p = q;
+}
+
+static void put(tbuf *b, const char *s, size_t len)
+{
+    reserve(b, len);
+    if (b->oom)
+        return;
+    memcpy(b->p + b->n, s, len);
+    b->n += len;
+}
+
+#define PUT(b, lit) put((b), (lit), sizeof(lit) - 1)
+
+static void put_num(tbuf *b, double x)
+{
+    reserve(b, GS_FMT_DOUBLE_MAX);
+    if (!b->oom)
+        b->n += (size_t)gs_fmt_double(b->p + b->n, x);
+}
+
+static void put_int(tbuf *b, long long v)
+{
+    reserve(b, 24);
+    if (!b->oom)
+        b->n += (size_t)snprintf(b->p + b->n, 24, "%lld", v);
+}
+
+/* A JSON string: quotes, backslashes and control characters escaped. */
+static void put_str(tbuf *b, const char *s)
+{
+    PUT(b, "\"");
+    for (const char *r = s; *r; r++) {
+        unsigned char c = (unsigned char)*r;
+        if (c == '"' || c == '\\') {
+            char e[2] = {'\\', (char)c};
+            put(b, e, 2);
+        } else if (c < 0x20) {
+            char e[8];
+            snprintf(e, sizeof e, "\\u%04x", c);
+            put(b, e, 6);
+        } else {
+            put(b, r, 1);
+        }
+    }
+    PUT(b, "\"");
+}
+
+const char *gsi_telemetry_text(gs_service *s, size_t *len)
+{
+    gs_system *sys = gs_engine_system(s->eng);
+    tbuf *b = &tb;
+    b->n = 0;
+    b->oom = false;
+    PUT(b, "{\"v\":1,\"type\":\"telemetry\",\"seq\":");
+    put_int(b, (long long)++s->seq);
+    PUT(b, ",\"session\":");
+    put_str(b, s->session);
+    PUT(b, ",\"step\":");
+    put_int(b, (long long)sys->step);
+    PUT(b, ",\"time\":");
+    put_num(b, sys->time);
+    gs_energy e;
+    gs_system_energy(sys, &e);
+    PUT(b, ",\"energy\":{\"kinetic\":");
+    put_num(b, e.kinetic);
+    PUT(b, ",\"potential\":");
+    put_num(b, e.potential);
+    PUT(b, ",\"elastic\":");
+    put_num(b, e.elastic);
+    PUT(b, ",\"total\":");
+    put_num(b, e.total);
+    PUT(b, ",\"work_in\":");
+    put_num(b, e.work_in);
+    PUT(b, ",\"dissipated\":");
+    put_num(b, e.dissipated);
+    PUT(b, ",\"balance_residual\":");
+    put_num(b, e.balance_residual);
+    PUT(b, ",\"contact_work\":");
+    put_num(b, e.contact_work);
+    PUT(b, "},\"bodies\":[");
+    for (int i = 0; i < sys->n_bodies; i++) {
+        if (i)
+            PUT(b, ",");
+        PUT(b, "{\"name\":");
+        put_str(b, sys->scene->bodies[i].name);
+        PUT(b, ",\"angle\":");
+        put_num(b, gs_system_angle(sys, i));
+        PUT(b, ",\"omega\":");
+        put_num(b, gs_system_omega(sys, i));
+        PUT(b, ",\"rpm\":");
+        put_num(b, gs_system_rpm(sys, i));
+        int tc = sys->bodies[i].tcoord;
+        if (tc >= 0) {
+            PUT(b, ",\"offset\":[");
+            put_num(b, sys->q[tc]);
+            PUT(b, ",");
+            put_num(b, sys->q[tc + 1]);
+            PUT(b, "]");
+        }
+        PUT(b, "}");
+    }
+    PUT(b, "],\"meshes\":[");
+    for (int i = 0; i < sys->n_meshes; i++) {
+        const gs_gmesh_rt *m = &sys->meshes[i];
+        if (i)
+            PUT(b, ",");
+        PUT(b, "{\"name\":");
+        put_str(b, sys->scene->meshes[i].name);
+        PUT(b, ",\"force\":");
+        put_num(b, isfinite(m->force) ? m->force : 0.0);
+        PUT(b, ",\"deflection\":");
+        put_num(b, m->deflection);
+        PUT(b, ",\"penetration\":");
+        put_num(b, m->penetration);
+        if (m->ops->contact) {
+            PUT(b, ",\"contacts\":");
+            put_int(b, m->n_active);
+            PUT(b, ",\"rows\":");
+            put_int(b, m->n_rows);
+            PUT(b, ",\"friction_loss\":");
+            put_num(b, m->friction_loss);
+            PUT(b, ",\"contact_work\":");
+            put_num(b, m->contact_work);
+        }
+        if (m->ops->after_step) {
+            PUT(b, ",\"impacts\":");
+            put_int(b, (long long)m->impacts);
+            PUT(b, ",\"impact_loss\":");
+            put_num(b, m->impact_loss);
+        }
+        PUT(b, "}");
+    }
+    PUT(b, "]");
+    int planet[64];
+    double share[64];
+    int np = gs_system_planet_shares(sys, planet, share, 64);
+    if (np > 0) {
+        PUT(b, ",\"planets\":[");
+        for (int i = 0; i < np; i++) {
+            if (i)
+                PUT(b, ",");
+            PUT(b, "{\"name\":");
+            put_str(b, sys->scene->bodies[planet[i]].name);
+            PUT(b, ",\"share\":");
+            put_num(b, share[i]);
+            PUT(b, "}");
+        }
+        PUT(b, "]");
+    }
+    if (s->adv.active) {
+        PUT(b, ",\"parent_id\":");
+        put_str(b, s->adv.parent_id);
+    }
+    PUT(b, "}");
+    if (b->oom) {
+        s->seq--; /* not sent: the caller publishes through the JSON tree */
+        return NULL;
+    }
+    b->p[b->n] = '\0';
+    *len = b->n;
+    return b->p;
+}
