@@ -9,6 +9,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <zmq.h>
 
 #include "gearsim/numfmt.h"
 #include "gearsim/util.h"
@@ -20,7 +21,16 @@ typedef struct tbuf {
     bool oom;
 } tbuf;
 
-static tbuf tb; /* one service per process; its events are written one at a time */
+/* One service per process. Its telemetry events of a chunk are queued here
+ * and sent together (gsi_telemetry_flush): ZeroMQ's I/O thread then wakes
+ * once for the lot rather than once for each event, its largest cost per
+ * event. The queue is sent before any other event (seq stays in order), at
+ * the end of every chunk, and whenever it holds TEL_QUEUE events, so a
+ * burst never nears the socket's high-water mark (1000 messages). */
+#define TEL_QUEUE 64
+static tbuf tb;
+static size_t q_end[TEL_QUEUE]; /* end offset of each queued event in tb */
+static int q_n;
 
 static void reserve(tbuf *b, size_t more)
 {
@@ -78,11 +88,26 @@ static void put_str(tbuf *b, const char *s)
     PUT(b, "\"");
 }
 
-const char *gsi_telemetry_text(gs_service *s, size_t *len)
+void gsi_telemetry_flush(gs_service *s)
+{
+    size_t at = 0;
+    for (int i = 0; i < q_n; i++) {
+        if (s->pub) { /* a slow subscriber never slows the simulation: drop on a full queue */
+            zmq_send(s->pub, "telemetry", 9, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+            zmq_send(s->pub, tb.p + at, q_end[i] - at, ZMQ_DONTWAIT);
+        }
+        at = q_end[i];
+    }
+    q_n = 0;
+    tb.n = 0;
+}
+
+bool gsi_telemetry_queue(gs_service *s)
 {
     gs_system *sys = gs_engine_system(s->eng);
     tbuf *b = &tb;
-    b->n = 0;
+    size_t start = b->n;
+    uint64_t seq0 = s->seq;
     b->oom = false;
     PUT(b, "{\"v\":1,\"type\":\"telemetry\",\"seq\":");
     put_int(b, (long long)++s->seq);
@@ -185,11 +210,14 @@ const char *gsi_telemetry_text(gs_service *s, size_t *len)
         put_str(b, s->adv.parent_id);
     }
     PUT(b, "}");
-    if (b->oom) {
-        s->seq--; /* not sent: the caller publishes through the JSON tree */
-        return NULL;
+    if (b->oom) { /* not queued: the caller publishes through the JSON tree */
+        b->n = start;
+        s->seq = seq0;
+        gsi_telemetry_flush(s);
+        return false;
     }
-    b->p[b->n] = '\0';
-    *len = b->n;
-    return b->p;
+    q_end[q_n++] = b->n;
+    if (q_n == TEL_QUEUE)
+        gsi_telemetry_flush(s);
+    return true;
 }
