@@ -61,6 +61,13 @@ static void put_num(tbuf *b, double x)
         b->n += (size_t)gs_fmt_double(b->p + b->n, x);
 }
 
+/* A member's key (and what precedes it), then its number. */
+static void put_kn(tbuf *b, const char *key, double x)
+{
+    put(b, key, strlen(key));
+    put_num(b, x);
+}
+
 static void put_int(tbuf *b, long long v)
 {
     reserve(b, 24);
@@ -115,44 +122,30 @@ bool gsi_telemetry_queue(gs_service *s)
     put_str(b, s->session);
     PUT(b, ",\"step\":");
     put_int(b, (long long)sys->step);
-    PUT(b, ",\"time\":");
-    put_num(b, sys->time);
+    put_kn(b, ",\"time\":", sys->time);
     gs_energy e;
     gs_system_energy(sys, &e);
-    PUT(b, ",\"energy\":{\"kinetic\":");
-    put_num(b, e.kinetic);
-    PUT(b, ",\"potential\":");
-    put_num(b, e.potential);
-    PUT(b, ",\"elastic\":");
-    put_num(b, e.elastic);
-    PUT(b, ",\"total\":");
-    put_num(b, e.total);
-    PUT(b, ",\"work_in\":");
-    put_num(b, e.work_in);
-    PUT(b, ",\"dissipated\":");
-    put_num(b, e.dissipated);
-    PUT(b, ",\"balance_residual\":");
-    put_num(b, e.balance_residual);
-    PUT(b, ",\"contact_work\":");
-    put_num(b, e.contact_work);
+    put_kn(b, ",\"energy\":{\"kinetic\":", e.kinetic);
+    put_kn(b, ",\"potential\":", e.potential);
+    put_kn(b, ",\"elastic\":", e.elastic);
+    put_kn(b, ",\"total\":", e.total);
+    put_kn(b, ",\"work_in\":", e.work_in);
+    put_kn(b, ",\"dissipated\":", e.dissipated);
+    put_kn(b, ",\"balance_residual\":", e.balance_residual);
+    put_kn(b, ",\"contact_work\":", e.contact_work);
     PUT(b, "},\"bodies\":[");
     for (int i = 0; i < sys->n_bodies; i++) {
         if (i)
             PUT(b, ",");
         PUT(b, "{\"name\":");
         put_str(b, sys->scene->bodies[i].name);
-        PUT(b, ",\"angle\":");
-        put_num(b, gs_system_angle(sys, i));
-        PUT(b, ",\"omega\":");
-        put_num(b, gs_system_omega(sys, i));
-        PUT(b, ",\"rpm\":");
-        put_num(b, gs_system_rpm(sys, i));
+        put_kn(b, ",\"angle\":", gs_system_angle(sys, i));
+        put_kn(b, ",\"omega\":", gs_system_omega(sys, i));
+        put_kn(b, ",\"rpm\":", gs_system_rpm(sys, i));
         int tc = sys->bodies[i].tcoord;
         if (tc >= 0) {
-            PUT(b, ",\"offset\":[");
-            put_num(b, sys->q[tc]);
-            PUT(b, ",");
-            put_num(b, sys->q[tc + 1]);
+            put_kn(b, ",\"offset\":[", sys->q[tc]);
+            put_kn(b, ",", sys->q[tc + 1]);
             PUT(b, "]");
         }
         PUT(b, "}");
@@ -164,27 +157,21 @@ bool gsi_telemetry_queue(gs_service *s)
             PUT(b, ",");
         PUT(b, "{\"name\":");
         put_str(b, sys->scene->meshes[i].name);
-        PUT(b, ",\"force\":");
-        put_num(b, isfinite(m->force) ? m->force : 0.0);
-        PUT(b, ",\"deflection\":");
-        put_num(b, m->deflection);
-        PUT(b, ",\"penetration\":");
-        put_num(b, m->penetration);
+        put_kn(b, ",\"force\":", isfinite(m->force) ? m->force : 0.0);
+        put_kn(b, ",\"deflection\":", m->deflection);
+        put_kn(b, ",\"penetration\":", m->penetration);
         if (m->ops->contact) {
             PUT(b, ",\"contacts\":");
             put_int(b, m->n_active);
             PUT(b, ",\"rows\":");
             put_int(b, m->n_rows);
-            PUT(b, ",\"friction_loss\":");
-            put_num(b, m->friction_loss);
-            PUT(b, ",\"contact_work\":");
-            put_num(b, m->contact_work);
+            put_kn(b, ",\"friction_loss\":", m->friction_loss);
+            put_kn(b, ",\"contact_work\":", m->contact_work);
         }
         if (m->ops->after_step) {
             PUT(b, ",\"impacts\":");
             put_int(b, (long long)m->impacts);
-            PUT(b, ",\"impact_loss\":");
-            put_num(b, m->impact_loss);
+            put_kn(b, ",\"impact_loss\":", m->impact_loss);
         }
         PUT(b, "}");
     }
@@ -199,8 +186,7 @@ bool gsi_telemetry_queue(gs_service *s)
                 PUT(b, ",");
             PUT(b, "{\"name\":");
             put_str(b, sys->scene->bodies[planet[i]].name);
-            PUT(b, ",\"share\":");
-            put_num(b, share[i]);
+            put_kn(b, ",\"share\":", share[i]);
             PUT(b, "}");
         }
         PUT(b, "]");
