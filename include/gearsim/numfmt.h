@@ -1,5 +1,5 @@
 /* SPDX-License-Identifier: MIT
- * gearsim: exact number text for JSON output (telemetry, replies). */
+ * gearsim: exact number text for JSON output (the telemetry events). */
 #ifndef GEARSIM_NUMFMT_H
 #define GEARSIM_NUMFMT_H
 
