@@ -90,6 +90,7 @@ int gsi_json_scrub(json_object *o)
 
 void gsi_publish(gs_service *s, const char *type, json_object *o)
 {
+    gsi_telemetry_flush(s); /* the queued telemetry goes first: seq in order */
     gs_system *sys = gs_engine_system(s->eng);
     json_object *ev = json_object_new_object();
     json_object_object_add(ev, "v", json_object_new_int(1));
@@ -332,10 +333,12 @@ static bool step_hook(gs_engine *eng, void *user)
         return true;
     if (st % sys->scene->telemetry_every == 0) {
         double t0 = gs_now();
-        json_object *o = gsi_state_json(s);
-        if (s->adv.active)
-            json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
-        gsi_publish(s, "telemetry", o);
+        if (!gsi_telemetry_queue(s)) {
+            json_object *o = gsi_state_json(s);
+            if (s->adv.active)
+                json_object_object_add(o, "parent_id", json_object_new_string(s->adv.parent_id));
+            gsi_publish(s, "telemetry", o);
+        }
         s->timing_telemetry += gs_now() - t0;
     }
     int fe = sys->scene->fields_every;
@@ -460,6 +463,7 @@ static bool valid_utf8(const unsigned char *p, size_t n)
 
 static void send_reply(gs_service *s, zmq_msg_t *ident, bool delim, const char *txt)
 {
+    gsi_telemetry_flush(s); /* a reply never overtakes the telemetry of earlier steps */
     zmq_msg_t copy;
     zmq_msg_init(&copy);
     zmq_msg_copy(&copy, ident);
@@ -1049,6 +1053,7 @@ static void run_chunk(gs_service *s)
     gs_diag d;
     gs_diag_clear(&d);
     gs_err e = gs_engine_run(s->eng, GS_OP_STEP, &n, sizeof n, &d, &done);
+    gsi_telemetry_flush(s);
     double dt = gs_now() - t0;
     s->timing_step += dt;
     if (done > 0 && dt > 0) {

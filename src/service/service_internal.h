@@ -130,6 +130,12 @@ typedef struct gs_service {
 /* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */
 void gsi_publish(gs_service *s, const char *type, json_object *o);
 json_object *gsi_state_json(gs_service *s);
+/* Queue the telemetry event (gsi_publish of gsi_state_json, parent_id added
+ * in an advance) as text, its seq taken; false when out of memory (nothing
+ * queued, no seq taken). gsi_telemetry_flush sends the queue; gsi_publish
+ * sends it first. src/service/telemetry.c. */
+bool gsi_telemetry_queue(gs_service *s);
+void gsi_telemetry_flush(gs_service *s);
 /* Open the run record at `path` for the loaded system, with the meshes of
  * its elastic bodies when the scene records field snapshots. */
 gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d);
