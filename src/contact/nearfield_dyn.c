@@ -155,6 +155,27 @@ int gsi_nf_pair(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, con
     return tooth[0] * t->z[1] + tooth[1];
 }
 
+int gsi_nf_run_secant(const gs_stiffness_run *run, int *pair, double *c_sec)
+{
+    const work *w = gsi_stiffness_run_work(run);
+    const gs_contact_row *rows;
+    const double *x;
+    int nr = w ? gs_stiffness_run_rows(run, &rows, &x) : 0, np = 0;
+    for (int i = 0; i < nr; i++)
+        pair[i] = -1;
+    if (!w || !w->nf)
+        return 0;
+    for (int p = 0; p < w->n_pc; p++) {
+        if (!(gsi_stiff_nf_tangent(w, nr, p) > 0.0)) /* the pairs the tangent corrects */
+            continue;
+        for (int i = 0; i < nr; i++)
+            if (w->teeth[i][0] == w->pc[p].tooth[0] && w->teeth[i][1] == w->pc[p].tooth[1])
+                pair[i] = np;
+        c_sec[np++] = w->pc[p].c;
+    }
+    return np;
+}
+
 int gsi_nf_table_samples(const gsi_nf_table *t, const double **key, const double **c_sec,
                          const double **c_tan, const double **load)
 {

@@ -7,6 +7,7 @@
 
 #include "gearsim/contact.h"
 #include "gearsim/scene.h"
+#include "gearsim/stiffness.h"
 
 typedef struct gsi_nf_table gsi_nf_table;
 
@@ -26,6 +27,10 @@ double gsi_nf_row_compliance(const gsi_nf_table *t, const gs_contact_row *r, con
 /* Tooth pair of candidate c of a search between meshes m0 and m1 (gear 0's
  * tooth times gear 1's tooth count plus gear 1's tooth). */
 int gsi_nf_pair(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, const gs_contact_candidate *c);
+
+/* As gs_stiffness_run_nearfield, the secant compliance c = delta_H / P - L
+ * of each corrected pair (the dynamic springs') instead of the tangent. */
+int gsi_nf_run_secant(const gs_stiffness_run *run, int *pair, double *c_sec);
 
 /* Samples of the table (for tests and tools): key (m along the normal of
  * the centre line from gear 0's centre), secant and tangent compliance (m/N),
