@@ -104,7 +104,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len);
 /* A snapshot's bytes read back (from a checkpoint file: input like a
  * request): the layout, every count within the bytes, every value finite,
  * the step count in [0, GS_CHECKPOINT_MAX_STEP], the level a level, the
- * scene and loads texts NUL-terminated and nothing after them. Pointers in
+ * scene and loads texts NUL-terminated, then either nothing or the scene's
+ * fidelity choice (gs_scene_check_fidelity_choice) and nothing after it. Pointers in
  * the view are into b (not aligned for doubles). GS_OK, or an error with a
  * message naming what is wrong. GS_OP_RESTORE checks the rest against the
  * scene (sizes, time against the step count, the level's range). */
@@ -119,6 +120,7 @@ typedef struct gs_snapshot_view {
     const char *states; /* n_states doubles */
     const char *scene;  /* the scene's JSON */
     const char *loads;  /* the loads in force, a JSON array */
+    const char *choice; /* gs_scene.fidelity_choice, or NULL (a scene without targets) */
 } gs_snapshot_view;
 gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, gs_diag *d);
 

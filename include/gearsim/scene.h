@@ -165,6 +165,17 @@ typedef struct gs_scene {
                                 * table and why, JSON text (owned); NULL otherwise */
 } gs_scene;
 
+/* A fidelity choice read back (from a checkpoint: input): len bytes of
+ * text, at most GS_FIDELITY_CHOICE_MAX, a JSON object holding "choice" (an
+ * object with a string "level") and a string "why", as the targets of a
+ * scene write it. GS_OK, or GS_EIO with a message naming what is wrong. */
+#define GS_FIDELITY_CHOICE_MAX ((size_t)1 << 20)
+gs_err gs_scene_check_fidelity_choice(const char *text, size_t len, gs_diag *d);
+/* The choice (checked as above) given to sc, a scene parsed from the
+ * concrete scene its targets were set on ("fidelity": "as_given"), which
+ * has none of its own; GS_EIO otherwise. */
+gs_err gs_scene_adopt_fidelity_choice(gs_scene *sc, const char *text, gs_diag *d);
+
 /* Parse and validate. On failure returns the code, fills d, *out = NULL. */
 gs_err gs_scene_parse(const char *json_text, size_t len, gs_scene **out, gs_diag *d);
 /* Validate an already parsed JSON object (borrowed). */

@@ -687,7 +687,8 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
  * penetration (the last step's, reported by telemetry), impacts and their
  * energy loss, friction loss, contact work (since load), n_states (as a double), the body states (elastic:
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
- * NUL-terminated. */
+ * NUL-terminated, then (only for a scene that gave accuracy targets) the
+ * fidelity choice JSON, NUL-terminated. */
 #define SNAP_MAGIC 0x38534753u /* "GSS8" */
 #define SNAP_HEAD_DOUBLES 5 /* time, work_in, dissipated, energy0, adaptive level */
 #define MESH_SNAP 8 /* doubles per mesh */
@@ -748,8 +749,9 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
         return GS_ENOMEM;
     size_t n = (size_t)s->n_coords, nm = (size_t)s->n_meshes;
     size_t sl = strlen(s->scene->json) + 1, ll = strlen(lj) + 1;
+    size_t cl = s->scene->fidelity_choice ? strlen(s->scene->fidelity_choice) + 1 : 0;
     size_t total = 3 * sizeof(uint32_t) + sizeof(int64_t) + SNAP_HEAD_DOUBLES * sizeof(double) +
-                   (2 * n + MESH_SNAP * nm + 1 + ns) * sizeof(double) + sl + ll;
+                   (2 * n + MESH_SNAP * nm + 1 + ns) * sizeof(double) + sl + ll + cl;
     char *b = malloc(total), *p = b;
     if (!b) {
         free(lj);
@@ -782,6 +784,8 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
         PUT(e->states, ns * sizeof(double));
     PUT(s->scene->json, sl);
     PUT(lj, ll);
+    if (cl)
+        PUT(s->scene->fidelity_choice, cl);
 #undef PUT
     free(lj);
     *bytes = b;
@@ -866,9 +870,14 @@ gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, 
     if (!lj || lj + 1 >= end || !memchr(lj + 1, '\0', (size_t)(end - lj - 1)))
         return gs_diag_set(d, GS_EIO, "path", "the checkpoint is truncated");
     lj++;
-    if (lj + strlen(lj) + 1 != end)
-        return gs_diag_set(d, GS_EIO, "path", "the checkpoint has %zu bytes after its end",
-                           (size_t)(end - (lj + strlen(lj) + 1)));
+    const char *ch = lj + strlen(lj) + 1; /* the fidelity choice, when the scene gave targets */
+    if (ch != end) {
+        const char *z = memchr(ch, '\0', (size_t)(end - ch));
+        if (!z || z + 1 != end)
+            return gs_diag_set(d, GS_EIO, "path", "the checkpoint has %zu bytes after its end", (size_t)(end - ch));
+        GS_TRY(gs_scene_check_fidelity_choice(ch, (size_t)(z - ch), d));
+        v->choice = ch;
+    }
     v->scene = scene;
     v->loads = lj;
     return GS_OK;
@@ -883,6 +892,11 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
     const char *scene = sv.scene, *lj = sv.loads;
     gs_scene *sc;
     GS_TRY(gs_scene_parse(scene, strlen(scene), &sc, d));
+    gs_err ce = sv.choice ? gs_scene_adopt_fidelity_choice(sc, sv.choice, d) : GS_OK;
+    if (ce != GS_OK) {
+        gs_scene_free(&sc);
+        return ce;
+    }
     json_object *loads = json_tokener_parse(lj);
     if (!loads || json_object_get_type(loads) != json_type_array) {
         json_object_put(loads);

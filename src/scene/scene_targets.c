@@ -330,3 +330,41 @@ gs_err gsi_scene_fidelity_targets(json_object *root, json_object **out, bool *co
     *copy = true;
     return GS_OK;
 }
+
+gs_err gs_scene_check_fidelity_choice(const char *text, size_t len, gs_diag *d)
+{
+    if (len == 0 || len > GS_FIDELITY_CHOICE_MAX || strlen(text) != len)
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint's fidelity choice has %zu bytes (1 to %zu)", len,
+                           GS_FIDELITY_CHOICE_MAX);
+    json_tokener *tok = json_tokener_new();
+    if (!tok)
+        return GS_ENOMEM;
+    json_object *o = json_tokener_parse_ex(tok, text, (int)len), *c = NULL, *lv = NULL, *why = NULL;
+    bool whole = o && json_tokener_get_error(tok) == json_tokener_success &&
+                 json_tokener_get_parse_end(tok) == len;
+    json_tokener_free(tok);
+    gs_err e = GS_OK;
+    if (!whole || json_object_get_type(o) != json_type_object)
+        e = gs_diag_set(d, GS_EIO, "path", "the checkpoint's fidelity choice is not a JSON object");
+    else if (!json_object_object_get_ex(o, "choice", &c) || json_object_get_type(c) != json_type_object ||
+             !json_object_object_get_ex(c, "level", &lv) || json_object_get_type(lv) != json_type_string)
+        e = gs_diag_set(d, GS_EIO, "path", "the checkpoint's fidelity choice names no level (choice.level)");
+    else if (!json_object_object_get_ex(o, "why", &why) || json_object_get_type(why) != json_type_string)
+        e = gs_diag_set(d, GS_EIO, "path", "the checkpoint's fidelity choice gives no reason (why)");
+    json_object_put(o);
+    return e;
+}
+
+gs_err gs_scene_adopt_fidelity_choice(gs_scene *sc, const char *text, gs_diag *d)
+{
+    GS_TRY(gs_scene_check_fidelity_choice(text, strlen(text), d));
+    json_object *root = json_tokener_parse(sc->json), *f = NULL;
+    bool given = root && json_object_object_get_ex(root, "fidelity", &f) &&
+                 json_object_get_type(f) == json_type_string && !strcmp(json_object_get_string(f), "as_given");
+    json_object_put(root);
+    if (sc->fidelity_choice || !given)
+        return gs_diag_set(d, GS_EIO, "path", "the checkpoint holds a fidelity choice for a scene not set from "
+                           "targets (its fidelity is not \"as_given\")");
+    sc->fidelity_choice = gs_strdup(text);
+    return sc->fidelity_choice ? GS_OK : GS_ENOMEM;
+}

@@ -10,7 +10,8 @@ gearctl advise makes.
    cost) and the same cheaper rows rejected, or both refusing.
 2. Through the daemon (-n 2): contact_drive at dte 5 % loads with ltca
    meshes and rigid gears; the load reply, `status`, `state` and the HDF5
-   record's attributes carry the choice and why; a planetary train written
+   record's attributes carry the choice and why, and so does the run
+   restored from its checkpoint; a planetary train written
    with the `train` short form is classified as a planetary train; bad
    targets are refused naming the field (unknown output, a target nothing
    meets, a scene the table does not measure) and the daemon stays up.
@@ -125,6 +126,13 @@ def through_daemon():
                 a = f.attrs.get("fidelity_choice")
                 a = a.decode() if isinstance(a, bytes) else a
             R.check("the record's attributes carry the choice", a is not None and json.loads(a) == fc, a)
+            step = c.status().get("step")
+            c.checkpoint("targets.ckpt")
+            c.unload()
+            rr = c.restore("targets.ckpt")
+            R.check("a checkpoint keeps the choice: restored, status carries it",
+                    rr.get("step") == step and c.status().get("fidelity_choice") == fc,
+                    (rr, c.status().get("fidelity_choice")))
 
             tr = {"name": "short train", "train": {
                 "type": "planetary", "module_mm": 2.5, "face_width_mm": 10, "sun": {"teeth": 24},

@@ -8,6 +8,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "gearsim/contact.h"
+#include "gearsim/modal.h"
 #include "gearsim/step.h"
 
 /* The builtin scene `name` as a JSON tree to edit (the caller passes it on
@@ -114,6 +116,70 @@ static inline void vt_step_balance(gs_system *s, gs_energy *e, double *worst, do
     gs_system_energy(s, e);
     *worst = fmax(*worst, fabs(e->balance_residual));
     *scale = fmax(*scale, fmax(e->total, fmax(e->work_in, e->dissipated)));
+}
+
+/* The joint of `body` in a scene tree (fails the test without one). */
+static inline json_object *vt_joint_of(json_object *root, const char *body)
+{
+    json_object *js = json_object_object_get(root, "joints");
+    for (size_t i = 0; i < json_object_array_length(js); i++) {
+        json_object *j = json_object_array_get_idx(js, i);
+        if (!strcmp(json_object_get_string(json_object_object_get(j, "body")), body))
+            return j;
+    }
+    fail_msg("no joint for %s", body);
+    return NULL;
+}
+
+/* The scene's loads replaced by one moment table on `body`: moments mo
+ * (N m) at times t (s), n points. */
+static inline void vt_moment_table(json_object *root, const char *body, const double *t, const double *mo, int n)
+{
+    json_object *loads = json_object_new_array(), *l = json_object_new_object();
+    json_object_object_add(l, "body", json_object_new_string(body));
+    json_object *tt = json_object_new_array(), *mm = json_object_new_array();
+    for (int k = 0; k < n; k++) {
+        json_object_array_add(tt, json_object_new_double(t[k]));
+        json_object_array_add(mm, json_object_new_double(mo[k]));
+    }
+    json_object_object_add(l, "type", json_object_new_string("table"));
+    json_object_object_add(l, "times", tt);
+    json_object_object_add(l, "moments", mm);
+    json_object_array_add(loads, l);
+    json_object_object_add(root, "loads", loads);
+}
+
+/* The contact forces on body b's centre in the last step, scene frame: the
+ * rows' reactions on its translation, sum of lambda dg/dc over the rows of
+ * its meshes (the generalised force G^T lambda the step gave it). */
+static inline void vt_centre_force(const gs_system *s, int b, double F[2])
+{
+    F[0] = F[1] = 0.0;
+    for (int i = 0; i < gs_step_contact_rows(s); i++) {
+        int mi;
+        double lam;
+        const gs_contact_row *r = gs_step_contact_row(s, i, &mi, &lam);
+        for (int k = 0; k < 2; k++)
+            if (s->scene->meshes[mi].gear[k] == b) {
+                F[0] += lam * r->dg_dc[k][0];
+                F[1] += lam * r->dg_dc[k][1];
+            }
+    }
+}
+
+/* The modal analysis (gs_modal_analyse) of a scene tree (consumed); fails
+ * the test with the diagnostic. */
+static inline gs_modal *vt_modal(json_object *root)
+{
+    gs_scene *sc = vt_scene_parse(root);
+    gs_diag d;
+    gs_modal *m;
+    gs_err e = gs_modal_analyse(sc, &m, &d);
+    if (e != GS_OK)
+        print_message("modal: %s: %s\n", d.field, d.message);
+    assert_int_equal(e, GS_OK);
+    gs_scene_free(&sc);
+    return m;
 }
 
 #endif

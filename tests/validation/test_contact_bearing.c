@@ -243,20 +243,9 @@ static json_object *modal_pair(bool contact, double kt)
         json_object_object_add(m0, "model", json_object_new_string("lumped"));
         json_object_object_add(m0, "stiffness", json_object_new_double(kt));
     }
-    json_object *loads = json_object_new_array(), *l = json_object_new_object();
-    json_object_object_add(l, "body", json_object_new_string("pinion"));
     /* 1 N m per ms to 21 N m at 21 ms, back to 20 N m at 22 ms, then held */
-    const double t[5] = {0.0, 0.021, 0.022, 1.0}, mo[5] = {0.0, 21.0, 20.0, 20.0};
-    json_object *tt = json_object_new_array(), *mm = json_object_new_array();
-    for (int k = 0; k < 4; k++) {
-        json_object_array_add(tt, json_object_new_double(t[k]));
-        json_object_array_add(mm, json_object_new_double(mo[k]));
-    }
-    json_object_object_add(l, "type", json_object_new_string("table"));
-    json_object_object_add(l, "times", tt);
-    json_object_object_add(l, "moments", mm);
-    json_object_array_add(loads, l);
-    json_object_object_add(root, "loads", loads);
+    const double t[4] = {0.0, 0.021, 0.022, 1.0}, mo[4] = {0.0, 21.0, 20.0, 20.0};
+    vt_moment_table(root, "pinion", t, mo, 4);
     return root;
 }
 
@@ -280,14 +269,7 @@ static void modal_against_free_response(void **state)
     print_message("ramp: F %.4f -> %.4f N, deflection %.5f -> %.5f um\n", f1 / n1, f2 / n2, d1 / n1 * 1e6, d2 / n2 * 1e6);
     /* the modal analysis of the pair with a lumped mesh of stiffness k_t */
     json_object *lr = modal_pair(false, kt);
-    gs_scene *sc = vt_scene_parse(lr);
-    gs_diag d;
-    gs_modal *m;
-    gs_err e = gs_modal_analyse(sc, &m, &d);
-    if (e != GS_OK)
-        print_message("modal: %s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
-    gs_scene_free(&sc);
+    gs_modal *m = vt_modal(lr);
     assert_int_equal(m->n, 3);
     int map[3];
     for (int b = 0; b < 3; b++)

@@ -14,7 +14,10 @@
  *  - a 10 um tangential pin error on planet1 with the sun on a fixed axis
  *    and floating (a bearing joint of zero stiffness): with the sun fixed
  *    planet1 is nearly unloaded, floating the three share nearly equally;
- *    the balance at round-off.
+ *    the balance at round-off;
+ *  - the same pin error with the sun on its axis and the ring floating (a
+ *    bearing of zero radial stiffness, its rotation held by a torsional
+ *    spring): the three share nearly equally, the balance at round-off.
  * The figures are printed (docs/explanation/planetary.md). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -36,18 +39,6 @@
  * of the sun relative to the carrier, as tests/validation/test_planetary_contact.c). */
 enum { N_STEPS = 5000, TAIL = 2618 };
 
-static json_object *joint_of(json_object *root, const char *body)
-{
-    json_object *js = json_object_object_get(root, "joints");
-    for (size_t i = 0; i < json_object_array_length(js); i++) {
-        json_object *j = json_object_array_get_idx(js, i);
-        if (!strcmp(json_object_get_string(json_object_object_get(j, "body")), body))
-            return j;
-    }
-    fail_msg("no joint for %s", body);
-    return NULL;
-}
-
 static int mesh_index(const gs_system *s, const char *name)
 {
     for (int i = 0; i < s->scene->n_meshes; i++)
@@ -55,24 +46,6 @@ static int mesh_index(const gs_system *s, const char *name)
             return i;
     fail_msg("no mesh %s", name);
     return -1;
-}
-
-/* The contact forces on body b's centre in the last step, scene frame: the
- * rows' reactions on its translation, sum of lambda dg/dc over the rows of
- * its meshes (the generalised force G^T lambda the step gave it). */
-static void centre_force(const gs_system *s, int b, double F[2])
-{
-    F[0] = F[1] = 0.0;
-    for (int i = 0; i < gs_step_contact_rows(s); i++) {
-        int mi;
-        double lam;
-        const gs_contact_row *r = gs_step_contact_row(s, i, &mi, &lam);
-        for (int k = 0; k < 2; k++)
-            if (s->scene->meshes[mi].gear[k] == b) {
-                F[0] += lam * r->dg_dc[k][0];
-                F[1] += lam * r->dg_dc[k][1];
-            }
-    }
 }
 
 static void pin_bearings_carry_mesh_forces(void **state)
@@ -83,7 +56,7 @@ static void pin_bearings_carry_mesh_forces(void **state)
     for (int p = 1; p <= 3; p++) {
         char name[16];
         snprintf(name, sizeof name, "planet%d", p);
-        json_object *j = joint_of(root, name);
+        json_object *j = vt_joint_of(root, name);
         json_object_object_add(j, "bearing_stiffness", json_object_new_double(k));
         json_object_object_add(j, "bearing_damping", json_object_new_double(500.0));
     }
@@ -119,7 +92,7 @@ static void pin_bearings_carry_mesh_forces(void **state)
             const double *cc = s->bodies[car].centre;
             double dx = c[0] - cc[0] - sb->carrier_radius * cos(a), dy = c[1] - cc[1] - sb->carrier_radius * sin(a);
             double F[2];
-            centre_force(s, pl[p], F);
+            vt_centre_force(s, pl[p], F);
             /* in the carrier's frame, like the offsets */
             double cs = cos(thc), sn = sin(thc);
             ex[p][0] += cs * dx + sn * dy, ex[p][1] += -sn * dx + cs * dy;
@@ -166,14 +139,14 @@ static void pin_bearings_carry_mesh_forces(void **state)
 
 /* Run the train `root` (consumed) n steps with the pin error; the shares
  * of the planets (from their mean normalised shares over the last `tail`
- * steps) into sh, the sun's mean offset into *sun_off; returns the LSF
- * (largest share over the mean). Prints them under `what`; the balance at
- * round-off. */
-static double share_run(json_object *root, int n, int tail, const char *what, bool floating, double sh[3],
-                        double *sun_off)
+ * steps) into sh, the mean offset of `mover`'s centre (the sun or the
+ * ring) into *sun_off; returns the LSF (largest share over the mean).
+ * Prints them under `what`; the balance at round-off. */
+static double share_run(json_object *root, int n, int tail, const char *what, const char *mover, bool floating,
+                        double sh[3], double *sun_off)
 {
     gs_system *s = vt_system(root);
-    int sun = gs_scene_find_body(s->scene, "sun");
+    int sun = gs_scene_find_body(s->scene, mover);
     double acc[3] = {0, 0, 0}, worst = 0, scale = 0, off = 0;
     gs_energy e;
     for (int i = 0; i < n; i++) {
@@ -195,9 +168,9 @@ static double share_run(json_object *root, int n, int tail, const char *what, bo
         mx = fmax(mx, sh[p]);
     }
     *sun_off = off / tail;
-    print_message("%s, pin error 10 um on planet1, sun %s: LSF %.4f (shares %.4f %.4f %.4f), sun off centre %.2f um; "
-                  "balance %.2e of %.2e J\n", what, floating ? "floating" : "fixed", mx, sh[0], sh[1], sh[2],
-                  *sun_off * 1e6, worst, scale);
+    print_message("%s, pin error 10 um on planet1, %s %s: LSF %.4f (shares %.4f %.4f %.4f), %s off centre %.2f um; "
+                  "balance %.2e of %.2e J\n", what, mover, floating ? "floating" : "fixed", mx, sh[0], sh[1], sh[2],
+                  mover, *sun_off * 1e6, worst, scale);
     assert_true(worst < 1e-9 * scale);
     gs_system_free(&s);
     return mx;
@@ -211,15 +184,15 @@ static double sharing(bool floating, double sh[3], double *sun_off)
     json_object *pe = json_object_new_array();
     json_object_array_add(pe, json_object_new_double(0.0));
     json_object_array_add(pe, json_object_new_double(10.0));
-    json_object_object_add(joint_of(root, "planet1"), "pin_error_um", pe);
+    json_object_object_add(vt_joint_of(root, "planet1"), "pin_error_um", pe);
     if (floating) {
-        json_object *j = joint_of(root, "sun");
+        json_object *j = vt_joint_of(root, "sun");
         json_object_object_del(j, "centre_mm");
         json_object_object_add(j, "type", json_object_new_string("bearing"));
         json_object_object_add(j, "stiffness", json_object_new_double(0.0));
         json_object_object_add(j, "damping", json_object_new_double(50.0));
     }
-    return share_run(root, N_STEPS, TAIL, "contact meshes", floating, sh, sun_off);
+    return share_run(root, N_STEPS, TAIL, "contact meshes", "sun", floating, sh, sun_off);
 }
 
 static void floating_sun_shares_load(void **state)
@@ -230,6 +203,31 @@ static void floating_sun_shares_load(void **state)
     assert_true(lsf_fx > 1.3);
     assert_true(lsf_fl < 1.05);
     assert_true(off_fl > 5e-6); /* the sun moves towards planet1, about the pin error */
+}
+
+/* The ring floating: the same pin error, the sun on its axis, the ring on
+ * a bearing of zero radial stiffness (1000 N s/m) with its rotation held
+ * by a torsional spring of 1e7 N m/rad (10 N m s/rad): it moves about the
+ * pin error and the planets share nearly equally (against the held ring,
+ * floating_sun_shares_load's fixed case: LSF about 1.5). */
+static void floating_ring_shares_load(void **state)
+{
+    (void)state;
+    json_object *root = vt_scene_linear("planetary_contact");
+    json_object *pe = json_object_new_array();
+    json_object_array_add(pe, json_object_new_double(0.0));
+    json_object_array_add(pe, json_object_new_double(10.0));
+    json_object_object_add(vt_joint_of(root, "planet1"), "pin_error_um", pe);
+    json_object *j = vt_joint_of(root, "ring");
+    json_object_object_add(j, "type", json_object_new_string("bearing"));
+    json_object_object_add(j, "stiffness", json_object_new_double(0.0));
+    json_object_object_add(j, "damping", json_object_new_double(1000.0));
+    json_object_object_add(j, "torsional_stiffness", json_object_new_double(1e7));
+    json_object_object_add(j, "torsional_damping", json_object_new_double(10.0));
+    double sh[3], off;
+    double lsf = share_run(root, N_STEPS, TAIL, "contact meshes", "ring", true, sh, &off);
+    assert_true(lsf < 1.05);
+    assert_true(off > 5e-6); /* the ring moves, about the pin error */
 }
 
 /* The same train and pin error with calibrated lumped meshes (the
@@ -246,12 +244,12 @@ static double sharing_calibrated(bool floating, double sh[3], double *sun_off)
         json_object_object_add(json_object_array_get_idx(meshes, i), "stiffness", st);
     }
     if (!floating) {
-        json_object *j = joint_of(root, "sun");
+        json_object *j = vt_joint_of(root, "sun");
         json_object_object_del(j, "stiffness");
         json_object_object_del(j, "damping");
         json_object_object_add(j, "type", json_object_new_string("fixed_axis"));
     }
-    return share_run(root, 25000, 5000, "calibrated lumped meshes", floating, sh, sun_off);
+    return share_run(root, 25000, 5000, "calibrated lumped meshes", "sun", floating, sh, sun_off);
 }
 
 static void calibrated_meshes_share_load(void **state)
@@ -270,6 +268,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(pin_bearings_carry_mesh_forces),
         cmocka_unit_test(floating_sun_shares_load),
+        cmocka_unit_test(floating_ring_shares_load),
         cmocka_unit_test(calibrated_meshes_share_load),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -34,6 +34,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "../common/engine_load.h"
 #include "../common/json_child.h"
 #include "../common/reduced_scene.h"
 #include "gearsim/engine.h"
@@ -53,29 +54,6 @@ static char *scene_text(const char *rule, double damping_m, double tip_load)
     char *txt = strdup(json_object_to_json_string(root));
     json_object_put(root);
     return txt;
-}
-
-static gs_engine *engine_loaded(const char *txt)
-{
-    gs_engine *e = NULL;
-    assert_int_equal(gs_engine_new(MPI_COMM_WORLD, &e), GS_OK);
-    gs_diag d;
-    gs_err err = gs_engine_run(e, GS_OP_LOAD, txt, strlen(txt), &d, NULL);
-    if (err != GS_OK)
-        print_error("load: %s: %s\n", d.field, d.message);
-    assert_int_equal(err, GS_OK);
-    return e;
-}
-
-static void advance(gs_engine *e, int64_t n)
-{
-    gs_diag d;
-    int64_t done = 0;
-    gs_err err = gs_engine_run(e, GS_OP_STEP, &n, sizeof n, &d, &done);
-    if (err != GS_OK)
-        print_error("step: %s: %s\n", d.field, d.message);
-    assert_int_equal(err, GS_OK);
-    assert_int_equal(done, n);
 }
 
 typedef struct {
