@@ -1064,7 +1064,7 @@ again:;
         sol[gs_sol_mesh_contact(sys, mi)] += 1.0;
         sol[gs_sol_mesh_force(sys, mi)] += s->lam_in[r] * hypot(cr->gap.grad[0], cr->gap.grad[1]);
     }
-    if (closure && s->n_grp > 0) {
+    if (closure) { /* every step, also once a pair's springs have let go */
         /* The springs' energy at the step's end, 1/2 c Lambda^2 per pair:
          * part of the potential (ct[7]). The reactions' work on the bodies
          * booked above less the springs' change of energy is what the pair
