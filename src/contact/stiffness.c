@@ -321,9 +321,10 @@ gs_err gs_stiffness_begin(const gs_scene *sc, int mesh_index, const gs_stiffness
         gs_diag td;
         gs_diag_clear(&td);
         double ac = hypot(w.b[1].c[0] - w.b[0].c[0], w.b[1].c[1] - w.b[0].c[1]);
-        w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref &&
-                    gs_pair_analyse(gA, gB, ac, &pinfo, &td) == GS_OK;
-        if (w.nf_conj && fabs(ac - pinfo.a_tight) >= 1e-8)
+        int conj = gs_pair_analyse(gA, gB, ac, &pinfo, &td) == GS_OK;
+        w.nf_conj = !w.b[0].xy_ref && !w.b[1].xy_ref && conj;
+        w.nf_refconj = (w.b[0].xy_ref || w.b[1].xy_ref) && conj;
+        if ((w.nf_conj || w.nf_refconj) && fabs(ac - pinfo.a_tight) >= 1e-8)
             nf_gap = 0.5 * pinfo.backlash_normal;
         gs_index nmax = w.b[0].mesh->n_nodes > w.b[1].mesh->n_nodes ? w.b[0].mesh->n_nodes
                                                                    : w.b[1].mesh->n_nodes;

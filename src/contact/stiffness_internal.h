@@ -141,6 +141,8 @@ typedef struct work {
     double nf_estar;       /* contact modulus E* of the pair, Pa */
     double nf_bw;          /* face width in contact, m */
     int nf_conj;           /* conjugate involute flanks (gsi_stiff_nf_offsets) */
+    int nf_refconj;        /* modified flanks of gears whose perfect flanks are conjugate
+                            * involutes: their offsets from the perfect meshes */
     double nf_dc;          /* the driver's turn from the kinematic angle that closes
                             * their backlash (0 at the tight mesh), rad: gsi_stiff_nf_offsets
                             * evaluates the rows there */

@@ -336,10 +336,16 @@ gs_err gsi_stiff_slices(const gs_scene *sc, const gs_scene_mesh *sm, const gs_st
     p.kc = sbar * lam * lam / h;
     p.kl = cloc > 0.0 ? h / cloc : 1e12;
     out->local_compliance = cloc;
+    /* the back flank (a negative moment) sees the misalignment and the slope
+     * deviations with the other sign: they turn the flanks, the crowning and
+     * end relief take material off both */
+    double fl = out->torque_nm < 0 ? -1.0 : 1.0;
     for (int i = 0; i < n; i++) {
         double z = (-0.5 * bmm + (i + 0.5) * h) * 1e-3, b = bmm * 1e-3;
         zz[i] = z * 1e3;
-        p.e[i] = 1e6 * (lead_gap(&bA->lead, z, b) + lead_gap(&bB->lead, z, b) + sm->misalign_in * z / b);
+        double tilt = (bA->lead.slope + bB->lead.slope + sm->misalign_in) * z / b;
+        p.e[i] = 1e6 * (lead_gap(&bA->lead, z, b) + lead_gap(&bB->lead, z, b) + (fl - 1.0) * tilt +
+                        sm->misalign_in * z / b);
     }
     /* the positions */
     double kmean = 0.0;

@@ -52,6 +52,11 @@
 /* Factorisations kept for the step sizes visited (an adaptive step moves
  * between h / 2^k): the least recently used one is replaced. */
 #define FACTOR_SLOTS 4
+/* A solve with a factor of more entries than this (a few milliseconds of
+ * work and more) runs beside a polling service (gs_run_polled): one solve
+ * of the finest meshes takes seconds and cannot be divided. Smaller ones
+ * run here (a thread per solve would cost more than the solve). */
+#define POLLED_SOLVE_NNZ 2e6
 
 /* The compliance columns cached for one h (see struct gs_fe_body). */
 typedef struct col_cache {
@@ -224,10 +229,29 @@ gs_err gs_fe_body_new(const gs_fe_model *m, gs_fe_body **out)
 
 /* ---- sparse solves ------------------------------------------------------ */
 
+/* X = A_ee^{-1} B with the body's factor and workspace, for gs_run_polled:
+ * it touches only the solver's arrays, which the poll hook never reads. */
+typedef struct solve_job {
+    gs_fe_body *b;
+    cholmod_dense *rhs, **x, **y, **e;
+} solve_job;
+
+static int solve_run(void *arg)
+{
+    solve_job *j = arg;
+    return cholmod_l_solve2(CHOLMOD_A, j->b->L, j->rhs, NULL, j->x, NULL, j->y, j->e, &j->b->cc);
+}
+
+static int solve_polled(gs_fe_body *b, cholmod_dense *rhs, cholmod_dense **x, cholmod_dense **y, cholmod_dense **e)
+{
+    solve_job j = {b, rhs, x, y, e};
+    return b->st.factor_nnz > POLLED_SOLVE_NNZ ? gs_run_polled(solve_run, &j) : solve_run(&j);
+}
+
 /* x = A_ee^{-1} rb, result in b->rx->x. */
 static gs_err solve_one(gs_fe_body *b)
 {
-    if (!cholmod_l_solve2(CHOLMOD_A, b->L, b->rb, NULL, &b->rx, NULL, &b->ry, &b->re, &b->cc))
+    if (!solve_polled(b, b->rb, &b->rx, &b->ry, &b->re))
         return GS_ENOMEM;
     b->st.solves++;
     gs_poll(); /* a fine mesh's step is many solves: a service answers between them */
@@ -260,6 +284,7 @@ static gs_err update_sigma(gs_fe_body *b)
 typedef struct factor_job {
     gs_fe_body *b;
     factor_slot *sl;
+    double alpha_m, kappa;
 } factor_job;
 
 static int factor_in_slot(void *arg)
@@ -267,6 +292,18 @@ static int factor_in_slot(void *arg)
     factor_job *j = arg;
     gs_fe_body *b = j->b;
     factor_slot *sl = j->sl;
+    const gs_fe_model *m = b->m;
+    /* A_ee = alpha_m M + kappa K (formed here too: a pass over every
+     * entry, seconds for the finest meshes) */
+    if (!b->A) {
+        b->A = gsi_fe_cholmod_matrix(m, j->alpha_m, j->kappa, &b->cc);
+        if (!b->A)
+            return GS_ENOMEM;
+    } else {
+        double *Ax = b->A->x;
+        for (gs_index p = 0; p < m->nnz; p++)
+            Ax[p] = j->alpha_m * m->mx[p] + j->kappa * m->kx[p];
+    }
     if (!sl->L) {
         int src = -1;
         for (int k = 0; k < FACTOR_SLOTS; k++)
@@ -308,18 +345,9 @@ static gs_err factorise(gs_fe_body *b, int k, double h)
         sl->h = h;
         return GS_OK;
     }
-    if (!b->A) {
-        b->A = gsi_fe_cholmod_matrix(m, alpha_m, kappa, &b->cc);
-        if (!b->A)
-            return GS_ENOMEM;
-    } else {
-        double *Ax = b->A->x;
-        for (gs_index p = 0; p < m->nnz; p++)
-            Ax[p] = alpha_m * m->mx[p] + kappa * m->kx[p];
-    }
     /* One piece of work that cannot be divided: a service answers
      * meanwhile (gs_run_polled). */
-    factor_job fj = {b, sl};
+    factor_job fj = {b, sl, alpha_m, kappa};
     gs_err fe = (gs_err)gs_run_polled(factor_in_slot, &fj);
     if (fe != GS_OK)
         return fe;
@@ -871,7 +899,7 @@ static gs_err cache_fill(gs_fe_body *b, gs_index g0, int n, const gs_index *node
         B[2 * order[g0 + k] + (size_t)(2 * k) * ne] = 1.0;
         B[2 * order[g0 + k] + 1 + (size_t)(2 * k + 1) * ne] = 1.0;
     }
-    int ok = cholmod_l_solve2(CHOLMOD_A, b->L, b->bb, NULL, &b->bx, NULL, &b->by, &b->be, &b->cc);
+    int ok = solve_polled(b, b->bb, &b->bx, &b->by, &b->be);
     for (int k = 0; k < gn; k++) {
         B[2 * order[g0 + k] + (size_t)(2 * k) * ne] = 0.0;
         B[2 * order[g0 + k] + 1 + (size_t)(2 * k + 1) * ne] = 0.0;

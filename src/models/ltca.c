@@ -14,6 +14,7 @@
 #include "gearsim/stiffness.h"
 #include "gearsim/util.h"
 #include "models/ltca_paths.h"
+#include "ltca_helical.h"
 #include "mesh_common.h"
 
 /* Front-flank loads as fractions of the reference line load of 200 N/mm
@@ -439,6 +440,23 @@ static int driver_of(const gs_scene *sc, int mesh)
     return sc->bodies[sc->meshes[mesh].gear[0]].gear.kind == GS_GEAR_INTERNAL ? 1 : 0;
 }
 
+/* Either gear of the mesh has profile modifications (relief, deviation
+ * tables). The analysis's auto setting drops the near-field correction on
+ * modified flanks (it is validated against CalculiX only on unmodified
+ * ones) and falls back to the plain FE of the mesh, up to 10 % too stiff;
+ * the tables force it on there, so a modified pair's tables carry the same
+ * contact compliance as an unmodified one's (the Hertz law with the local
+ * flank curvature about the rows' load centre: docs/explanation/ltca.md). */
+static int modified_pair(const gs_scene *sc, const gs_scene_mesh *sm)
+{
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+        if (b->mods && gs_gear_mods_has_profile(b->mods))
+            return 1;
+    }
+    return 0;
+}
+
 /* The analysis's near-field setting: $GEARSIM_LTCA_NEARFIELD (0 the plain
  * FE contact, what the elastic gears' dynamic contact has; 1 the
  * correction on any mesh; 2 auto), else -1: the analysis's default. */
@@ -464,9 +482,14 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
             h = fnv_d(fnv_d(fnv_d(h, sc->bodies[b->carrier].angle0), b->carrier_radius), b->carrier_angle);
     }
     h = fnv_d(h, driver_moment(sc, sm->gear[driver_of(sc, mesh)]));
+    double hv[GSI_LTCA_KEY_SLICED]; /* helical gears, lead modifications, misalignment */
+    for (int i = 0, nh = gsi_ltca_key_sliced(sc, mesh, hv); i < nh; i++)
+        h = fnv_d(h, hv[i]);
     h = fnv_i(h, o ? o->positions : 48);
     if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
         h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
+    if (modified_pair(sc, sm)) /* modified flanks: the correction forced on, its offsets the perfect gears' */
+        h = fnv(h, "nearfield-modified", 18);
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
     for (int i = 0; i < N_BACK; i++)
@@ -491,6 +514,8 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     o.phase = 0.5 / n;
     if (nearfield_setting() >= 0)
         o.nearfield = nearfield_setting();
+    else if (modified_pair(sc, &sc->meshes[mesh]))
+        o.nearfield = 1;
     gs_stiffness_result r;
     GS_TRY(gs_stiffness_analyse(sc, mesh, &o, &r, dg));
     double sg = r.torque_nm < 0 ? -1.0 : 1.0;

@@ -15,6 +15,7 @@
 #include "gearsim/ltca.h"
 #include "gearsim/models.h"
 #include "gearsim/util.h"
+#include "ltca_helical.h"
 #include "mesh_common.h"
 
 typedef struct ltca_rt {
@@ -72,7 +73,7 @@ static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
     GS_TRY(gsi_mesh_needs_rigid(sys, m, "ltca", d));
-    GS_TRY(gsi_mesh_helical_supported(sys, m, "ltca", 0, d)); /* its tables are a spur FE analysis */
+    GS_TRY(gsi_ltca_sliced_check(sys, m, d)); /* helical: tables of the slice analysis */
     for (int k = 0; k < 2; k++) {
         const gs_scene_body *b = &sys->scene->bodies[sm->gear[k]];
         if (b->pitch_error_tooth >= 0 && b->pitch_error != 0.0 && (!b->mods || b->mods->n_pitch == 0)) {

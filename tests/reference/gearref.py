@@ -443,6 +443,29 @@ def append_row(path, fields, row):
         w.writerow(row)
 
 
+def deck_sets(o, eltype, numbered, hubn, surf, e_mpa, nu):
+    """Deck lines: the elements of both gears (ELSET E0, E1 from
+    numbered[1], numbered[2]: (id, nodes)), the hub node sets HUB0, HUB1
+    (hubn[21], hubn[22]), the contact surfaces S0, S1 (surf[11], surf[12]:
+    (element, face number)) and the steel."""
+    for ph, name in ((1, "E0"), (2, "E1")):
+        o.append("*ELEMENT, TYPE=%s, ELSET=%s" % (eltype, name))
+        for eid, conn in numbered[ph]:
+            o.append("%d, %s" % (eid, ", ".join(map(str, conn))))
+    for ph, name in ((21, "HUB0"), (22, "HUB1")):
+        o.append("*NSET, NSET=%s" % name)
+        ids = sorted(hubn[ph])
+        for i in range(0, len(ids), 12):
+            o.append(", ".join(map(str, ids[i:i + 12])) + ",")
+    for ph, name in ((11, "S0"), (12, "S1")):
+        o.append("*SURFACE, NAME=%s, TYPE=ELEMENT" % name)
+        for el, fno in surf[ph]:
+            o.append("%d, S%d" % (el, fno))
+    o.append("*MATERIAL, NAME=STEEL")
+    o.append("*ELASTIC")
+    o.append("%.10g, %.10g" % (e_mpa, nu))
+
+
 def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     tri_t = 9 if order == 2 else 2
     line_t = 8 if order == 2 else 1
@@ -485,22 +508,7 @@ def write_inp(path, nodes, elems, e_mpa, nu, face, torque, penalty, order, rb):
     o.append("%d, 0, 0, 0" % ref)
     o.append("*NODE, NSET=NROT")
     o.append("%d, 0, 0, 0" % rotn)
-    for ph, name in ((1, "E0"), (2, "E1")):
-        o.append("*ELEMENT, TYPE=%s, ELSET=%s" % (eltype, name))
-        for eid, conn in numbered[ph]:
-            o.append("%d, %s" % (eid, ", ".join(map(str, conn))))
-    for ph, name in ((21, "HUB0"), (22, "HUB1")):
-        o.append("*NSET, NSET=%s" % name)
-        ids = sorted(hubn[ph])
-        for i in range(0, len(ids), 12):
-            o.append(", ".join(map(str, ids[i:i + 12])) + ",")
-    for ph, name in ((11, "S0"), (12, "S1")):
-        o.append("*SURFACE, NAME=%s, TYPE=ELEMENT" % name)
-        for el, fno in surf[ph]:
-            o.append("%d, S%d" % (el, fno))
-    o.append("*MATERIAL, NAME=STEEL")
-    o.append("*ELASTIC")
-    o.append("%.10g, %.10g" % (e_mpa, nu))
+    deck_sets(o, eltype, numbered, hubn, surf, e_mpa, nu)
     o.append("*SOLID SECTION, ELSET=E0, MATERIAL=STEEL")
     o.append("%.10g" % face)
     o.append("*SOLID SECTION, ELSET=E1, MATERIAL=STEEL")

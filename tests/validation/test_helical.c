@@ -4,8 +4,8 @@
  *    braked: energy balance E - E0 - W_in + D at round-off, the speed ratio
  *    and the steady speed of the closed form;
  *  - the helical planetary scene: energy balance and the sun/carrier ratio;
- *  - the contact and ltca meshes refuse a helical pair naming
- *    bodies[i].helix_angle_deg; lead modifications and misalignment are
+ *  - the contact mesh refuses a helical pair naming
+ *    bodies[i].helix_angle_deg, the ltca mesh a helical gear's run-out; lead modifications and misalignment are
  *    refused by the planar models naming the field; the quasi-static
  *    analysis takes the pair through its slice analysis (its figures:
  *    tests/validation/test_helical_slices.py). */
@@ -142,7 +142,11 @@ static void refusals(void **state)
     json_object_object_del(m, "stiffness");
     json_object_object_del(m, "backlash_mm");
     json_object_object_add(m, "model", json_object_new_string("ltca"));
-    expect_refused(root, "bodies[0].helix_angle_deg", &d);
+    json_object *ro = json_object_new_object(); /* ltca takes the pair, not its run-out */
+    json_object_object_add(ro, "eccentricity_um", json_object_new_double(5));
+    json_object_object_add(ro, "phase_deg", json_object_new_double(0));
+    json_object_object_add(body(root, 0), "runout", ro);
+    expect_refused(root, "bodies[0].runout", &d);
 
     root = vt_scene("helical_pair");
     json_object *lead = json_object_new_object();

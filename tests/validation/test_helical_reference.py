@@ -1,0 +1,95 @@
+#!/usr/bin/python3
+# SPDX-License-Identifier: MIT
+"""gearsim's slice analysis of a helical pair against the stored 3D
+CalculiX reference of the loaded pair (tests/reference/helical_pair/: gmsh
+quadratic tetrahedra, frictionless surface-to-surface contact; never run
+here), aligned and with 20 um of misalignment in the plane of action over
+the face. Per reference position: the mesh stiffness k, the elastic static
+TE and the peak load per unit face width along the face (1 mm bins, summed
+over the contact lines); and the cycle mean of k.
+
+The bars (BAR_*) are the targets: mesh stiffness within 3 % at every
+position and in the cycle mean, static TE within 3 %, peak load within 5 %.
+Where a bar is not met, the measured agreement is asserted instead with a
+stated margin: a regression bound (REGRESSION, in
+docs/validation/calculix_helical.md), which fails if the agreement gets
+worse. Each check names which of the two it asserts.
+Also asserted: the reference's own state (the positions stored, and each
+stored run's wheel hub reaction equal to the applied force within 0.1 %).
+"""
+import os
+import sys
+
+SRC = os.environ.get("GEARSIM_SOURCE_ROOT",
+                     os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+BUILD = os.environ.get("GEARSIM_BUILD_ROOT", os.path.join(SRC, "build"))
+sys.path.insert(0, os.path.join(SRC, "tests", "reference", "helical_pair"))
+import compare_helical  # noqa: E402
+
+BAR_K, BAR_K_MEAN, BAR_TE, BAR_PEAK = 0.03, 0.03, 0.03, 0.05
+# Regression bounds: the measured largest |error| (see the docs page) plus
+# a margin; used where the bar above is not met. Keyed by misalignment (um).
+# Stored today: one aligned position (roll 0) at one mesh level, no valid
+# load profile, no misaligned run (README.md beside the reference); there
+# gearsim's TE is 11.48 % below the 3D model's and its k 12.97 % above.
+REGRESSION = {
+    0.0: dict(k=0.145, te=0.125),
+}
+MIN_POSITIONS = {0.0: 1}
+fails = []
+
+
+def check(ok, what):
+    print(("ok     " if ok else "FAILED ") + what)
+    if not ok:
+        fails.append(what)
+
+
+def bound(measured, bar, reg, what):
+    """Assert measured < bar, or, if a regression bound is stated, measured
+    < that bound (the bar then reported as not met). measured None: the
+    reference has no such figure (printed, not asserted)."""
+    if measured is None:
+        print("n/a    %s: not in the stored reference" % what)
+    elif measured < bar:
+        check(True, "%s %.2f %% within the bar %.0f %%" % (what, 100 * measured, 100 * bar))
+    elif reg is not None:
+        check(measured < reg, "%s %.2f %%: bar %.0f %% NOT MET; regression bound %.1f %%" %
+              (what, 100 * measured, 100 * bar, 100 * reg))
+    else:
+        check(False, "%s %.2f %% above the bar %.0f %%" % (what, 100 * measured, 100 * bar))
+
+
+def main():
+    tool = os.path.join(BUILD, "src", "tools", "gearsim-stiffness")
+    ref = compare_helical.load_reference()
+    for f, n in MIN_POSITIONS.items():
+        rr = ref.get(f, [])
+        check(len(rr) >= n, "reference, misalignment %g um: %d positions (>= %d)" % (f, len(rr), n))
+    for f, rr in sorted(ref.items()):
+        for r in rr:
+            # the stored runs balance: the wheel hub carries the applied force
+            check(abs(r["hub_force"] / r["force"] - 1.0) < 1e-3,
+                  "reference roll %.3f, misalignment %g um: hub reaction %.1f N against %.1f N" %
+                  (r["roll"], f, r["hub_force"], r["force"]))
+    res = compare_helical.compare(tool)
+    for f, r in sorted(res.items()):
+        s = r["summary"]
+        print("misalignment %g um: %d positions" % (f, s["positions"]))
+        for x in r["rows"]:
+            print("  roll %.3f: k %.3f / %.3f (%+.2f %%), TE %.3f / %.3f um (%+.2f %%), peak %.1f / %.1f N/mm"
+                  % (x["roll"], x["k"], x["k_ref"], 100 * x["err_k"], x["te"], x["te_ref"], 100 * x["err_te"],
+                     x["peak"], x["peak_ref"]))
+        reg = REGRESSION.get(f, {})
+        tag = "misalignment %g um:" % f
+        bound(s["max_err_k"], BAR_K, reg.get("k"), tag + " largest |k error|")
+        bound(abs(s["err_k_mean"]) if s["err_k_mean"] is not None else None, BAR_K_MEAN, reg.get("k_mean"),
+              tag + " cycle mean k error")
+        bound(s["max_err_te"], BAR_TE, reg.get("te"), tag + " largest |TE error|")
+        bound(s["max_err_peak"], BAR_PEAK, reg.get("peak"), tag + " largest |peak load error|")
+    if fails:
+        print("%d check(s) failed" % len(fails))
+        sys.exit(1)
+
+
+main()
