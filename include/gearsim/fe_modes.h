@@ -49,6 +49,9 @@ typedef struct gs_fe_modes_opts {
                        * plain FE). On, each corrected tooth pair's rows are held with its
                        * tangent series compliance (gs_stiffness_run_nearfield):
                        * G q + C lambda = 0 instead of G q = 0 */
+    int nearfield_secant; /* 1: each pair's secant compliance (approach / load) instead of the
+                       * tangent, as the dynamic contact's "nearfield" springs hold it
+                       * (the linearisation of the time-stepped model); default 0 */
 } gs_fe_modes_opts;
 
 void gs_fe_modes_opts_defaults(gs_fe_modes_opts *o);

@@ -242,6 +242,8 @@ struct gs_gmesh_rt {
     double friction_loss;    /* energy dissipated by flank friction since load, J */
     double contact_work;     /* work of the contact reactions since load, J (numerics.contact
                               * "closure": the gap closure's; exactly 0 with "seed") */
+    double nf_energy;        /* "nearfield": energy in the pairs' series compliance at the
+                              * last step's end, J (part of the potential) */
     /* impact meshes (rattle): */
     int64_t impacts;         /* impacts since the start (sustained-contact impulses not counted) */
     double impact_loss;      /* kinetic energy its impulses dissipated since the start, J */

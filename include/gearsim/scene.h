@@ -116,6 +116,9 @@ typedef struct gs_scene_mesh {
                                 * complementarity with the normal contact in the step), 1
                                 * "explicit" (the force from the frictionless solve's
                                 * normal forces and the rigid sliding velocity) */
+    int nearfield;             /* 1: the near-field (Hertz) compliance of each loaded tooth pair in
+                                * series with its contact rows (from the pair's quasi-static
+                                * analysis); 0 (default): the plain FE contact */
     /* compliant (also damping, damping_ratio, backlash, transition): */
     int patches;               /* strips of the patch model across a contact */
     int bending;               /* 0: beam (tooth bending in series), 1: none,

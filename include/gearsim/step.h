@@ -184,8 +184,9 @@ gs_err gs_step_serial(gs_system *sys);
 /* Offsets in the solution. Per mesh contact figures: constraints with a
  * positive force, constraints imposed, deepest penetration, friction loss of
  * the step, work of the contact reactions in the step, and (closure) the
- * reactions' moments on the coordinates of the mesh's gears 0 and 1. */
-#define GS_SOL_CONTACT 7
+ * reactions' moments on the coordinates of the mesh's gears 0 and 1, the energy in
+ * its near-field springs at the step's end ("nearfield"). */
+#define GS_SOL_CONTACT 8
 static inline size_t gs_sol_mesh_force(const gs_system *s, int m) { return (size_t)(s->n_coords + 1 + m); }
 static inline size_t gs_sol_mesh_contact(const gs_system *s, int m)
 {

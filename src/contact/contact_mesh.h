@@ -18,6 +18,8 @@ typedef struct gsi_contact_mesh {
     double friction;                   /* Coulomb coefficient on the flanks */
     bool friction_explicit;            /* friction_scheme "explicit" (src/step/contact_step.c),
                                         * else implicit (src/step/contact_friction.c) */
+    struct gsi_nf_table *nf;           /* "nearfield": the pairs' series compliance
+                                        * (src/contact/nearfield_dyn.c), NULL: none */
     gs_contact_search *search;
     const gs_contact_candidate *cand;  /* the last search (owned by `search`) */
     gs_index n_cand;

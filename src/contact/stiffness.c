@@ -153,6 +153,11 @@ int gs_stiffness_run_nearfield(const gs_stiffness_run *run, int *pair, double *c
     return np;
 }
 
+const work *gsi_stiffness_run_work(const gs_stiffness_run *run)
+{
+    return run && run->next > 0 ? &run->w : NULL;
+}
+
 const gs_mesh *gs_stiffness_run_mesh(const gs_stiffness_run *run, int k)
 {
     return run && (k == 0 || k == 1) ? run->w.b[k].mesh : NULL;

@@ -184,6 +184,8 @@ double gsi_stiff_default_torque(const gs_scene *sc, int body, double rb, double 
 gs_err gsi_stiff_collect(work *w, double delta, double win, int *nr, double *gmin);
 gs_err gsi_stiff_nf_offsets(work *w);
 double gsi_stiff_nf_tangent(const work *w, int nr, int p);
+/* The working state of a run after gs_stiffness_next (NULL before the first). */
+const work *gsi_stiffness_run_work(const gs_stiffness_run *run);
 gs_err gsi_stiff_sbody_displace(sbody *b);
 gs_err gsi_stiff_sbody_init(const gs_scene *sc, int bi, int refine, int order, int fine,
                             int fine_centre, sbody *b, gs_diag *d);

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "fe/fe_internal.h"
+#include "contact/nearfield_dyn.h"
 #include "gearsim/contact.h"
 #include "gearsim/fe_modes.h"
 #include "gearsim/geometry.h"
@@ -24,6 +25,7 @@ void gs_fe_modes_opts_defaults(gs_fe_modes_opts *o)
     o->refine = -1;
     o->lanczos = 60;
     o->nearfield = 2;
+    o->nearfield_secant = 0;
 }
 
 void gs_fe_modes_result_clear(gs_fe_modes_result *r)
@@ -516,7 +518,8 @@ gs_err gs_fe_modes_analyse(const gs_scene *sc, int mesh_index, const gs_fe_modes
         }
         pt->rows = build_G(&x, rows, force, nr, 1e-9 * tan.force_n, G, which, &pt->lever_departure);
         int m = pt->rows;
-        if (gs_stiffness_run_nearfield(run, pair, ct) > 0 && m > 0) {
+        int npairs = o.nearfield_secant ? gsi_nf_run_secant(run, pair, ct) : gs_stiffness_run_nearfield(run, pair, ct);
+        if (npairs > 0 && m > 0) {
             Cm = calloc((size_t)m * (size_t)m, sizeof *Cm);
             if (!Cm) {
                 free(which), free(pair);

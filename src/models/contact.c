@@ -9,6 +9,7 @@
 #include <stdlib.h>
 
 #include "contact/contact_mesh.h"
+#include "contact/nearfield_dyn.h"
 #include "gearsim/models.h"
 #include "gearsim/util.h"
 #include "mesh_common.h"
@@ -19,6 +20,7 @@ static void contact_destroy(gs_gmesh_rt *m)
     if (!cm)
         return;
     gs_contact_search_free(&cm->search);
+    gsi_nf_table_free(&cm->nf);
     for (int k = 0; k < 2; k++)
         gs_mesh_free(&cm->own[k]);
     free(cm);
@@ -67,13 +69,23 @@ static gs_err contact_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
                                      &sc->bodies[sm->gear[1]].gear, &o, &cm->search, &cd);
     if (e != GS_OK)
         return gs_diag_set(d, e, field, "contact mesh '%s': %s", sm->name, cd.message);
+    if (sm->nearfield) {
+        if (sc->contact_scheme == GS_CONTACT_SEED)
+            return gs_diag_set(d, GS_ERANGE, field,
+                               "contact mesh '%s': \"nearfield\" needs numerics.contact \"closure\" or "
+                               "\"closure_energy\" (the seed's rows drop the gap)", sm->name);
+        gs_diag nd;
+        e = gsi_nf_table_build(sc, m->index, &cm->nf, &nd);
+        if (e != GS_OK)
+            return gs_diag_set(d, e, field, "contact mesh '%s', nearfield: %s", sm->name, nd.message);
+    }
     return GS_OK;
 }
 
 static double contact_energy(const gs_model_view *sys, const gs_gmesh_rt *m, const double *q)
 {
-    (void)sys, (void)m, (void)q;
-    return 0.0;
+    (void)sys, (void)q;
+    return m->nf_energy; /* the near-field springs' (0 without "nearfield") */
 }
 
 const gs_gmesh_ops gsi_gmesh_contact = {

@@ -19,7 +19,7 @@
 static const char *const gmesh_keys[] = {"name", "gears", "model", "stiffness", "damping",
                                          "damping_ratio", "backlash_mm", "passes", "constrain", "friction",
                                          "friction_scheme", "restitution", "law", "patches", "bending", "transition",
-                                         "max_line_load_n_per_mm", "misalignment", NULL};
+                                         "max_line_load_n_per_mm", "misalignment", "nearfield", NULL};
 static const char *const stiff_keys[] = {"type",      "value",     "single",      "double",
                                          "transition", "positions", "calibration", NULL};
 static const char *const load_keys[] = {"name", "body", "type", "moment", "ramp_time",
@@ -97,7 +97,7 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
             }
     }
     if (m->model != GS_MESH_CONTACT) {
-        static const char *const no[] = {"passes", "constrain", "friction", "friction_scheme", NULL};
+        static const char *const no[] = {"passes", "constrain", "friction", "friction_scheme", "nearfield", NULL};
         for (const char *const *k = no; *k; k++)
             if (json_object_object_get_ex(o, *k, NULL)) {
                 gsi_path(p, sizeof p, path, *k);
@@ -128,6 +128,9 @@ gs_err gsi_scene_parse_gear_mesh(gs_scene *s, json_object *o, const char *path, 
         m->predict = v;
         GS_TRY(gsi_json_number(o, "friction", path, 0, 2, false, 0, &m->friction, d));
         GS_TRY(gsi_scene_enum_field(o, "friction_scheme", path, "implicit", fschemes, 2, &m->friction_explicit, d));
+        bool nf = false;
+        GS_TRY(gsi_json_bool(o, "nearfield", path, false, &nf, d));
+        m->nearfield = nf;
         return GS_OK;
     }
     if (m->model == GS_MESH_KINEMATIC)

@@ -40,6 +40,7 @@
 #include <string.h>
 
 #include "contact/contact_mesh.h"
+#include "contact/nearfield_dyn.h"
 #include "contact_friction.h"
 #include "gearsim/qp.h"
 #include "gearsim/util.h"
@@ -98,6 +99,16 @@ typedef struct solver {
     bool rows_ready;
     double *mct;
     size_t cap_mct;
+    /* "nearfield" (src/contact/nearfield_dyn.c): per row its tooth pair's
+     * group (-1: none); per group its mesh, pair, unknown and compliance */
+    int *grp;
+    size_t cap_grp;
+    int n_grp;
+    struct nf_group {
+        int mesh, pair, unk;
+        double c;
+    } *gr;
+    size_t cap_gr;
 } solver;
 
 void gsi_contact_free(gs_system *sys)
@@ -124,6 +135,8 @@ void gsi_contact_free(gs_system *sys)
     free(s->x), free(s->lam_eq), free(s->lam_in), free(s->S), free(s->f);
     free(s->inc);
     free(s->mct);
+    free(s->grp);
+    free(s->gr);
     gs_qp_free(&s->qp);
     free(s);
     sys->solver = NULL;
@@ -613,6 +626,50 @@ static gs_err friction_forces(gs_system *sys, solver *s, int N, const size_t *ba
     return GS_OK;
 }
 
+/* "nearfield": the rows of a tooth pair share one spring of the pair's
+ * near-field compliance c in series with the bodies (src/contact/nearfield_dyn.c),
+ * an unknown s >= 0 of energy s^2 / (2 c) in the QP that enters each of
+ * the pair's rows, G x + s >= -g0. At the solution s = c Lambda, Lambda the
+ * pair's summed multipliers, so each row is g + G x + c Lambda >= 0,
+ * complementary with its lambda: the compliant rows of the quasi-static
+ * analysis. Groups the rows (s->grp), one unknown each from *N on. */
+static gs_err nf_groups(gs_system *sys, solver *s, int *N)
+{
+    s->n_grp = 0;
+    int *grp = gs_grow(s->grp, &s->cap_grp, (size_t)s->n_rows + 1, sizeof(int));
+    if (!grp)
+        return GS_ENOMEM;
+    s->grp = grp;
+    for (int r = 0; r < s->n_rows; r++) {
+        int mi = s->rows[r].mesh;
+        const gsi_contact_mesh *cm = sys->meshes[mi].contact;
+        grp[r] = -1;
+        if (!cm->nf)
+            continue;
+        double c[2][2], th;
+        gs_system_body_pose(sys, cm->body[0], c[0], &th);
+        gs_system_body_pose(sys, cm->body[1], c[1], &th);
+        double cr = gsi_nf_row_compliance(cm->nf, &s->rows[r].r, c[0], c[1]);
+        if (!(cr > 0.0))
+            continue;
+        int pair = gsi_nf_pair(cm->nf, cm->mesh[0], cm->mesh[1], &cm->cand[s->rows[r].cand]);
+        int g = 0;
+        while (g < s->n_grp && !(s->gr[g].mesh == mi && s->gr[g].pair == pair))
+            g++;
+        if (g == s->n_grp) {
+            struct nf_group *ng = gs_grow(s->gr, &s->cap_gr, (size_t)g + 1, sizeof *ng);
+            if (!ng)
+                return GS_ENOMEM;
+            s->gr = ng;
+            /* the pair's compliance where its first row is */
+            s->gr[g] = (struct nf_group){.mesh = mi, .pair = pair, .unk = (*N)++, .c = cr};
+            s->n_grp++;
+        }
+        grp[r] = g;
+    }
+    return GS_OK;
+}
+
 /* One solve of the step's problem: the QP, or with implicit friction on
  * some row the frictional LCP (src/step/contact_friction.c). */
 static gs_err qp_or_lcp(gs_system *sys, solver *s, gs_qp_problem *pr, gs_qp_result *res)
@@ -808,6 +865,9 @@ again:;
         s->rows_ready = true;
         return GS_OK;
     }
+    int nbody = N; /* unknowns of the bodies; then the near-field springs' */
+    if (closure)
+        GS_TRY(nf_groups(sys, s, &N));
     int ne = sys->n_eq, ni = s->n_rows;
     GS_TRY(reserve(s, N, ne, ni, maxdof));
     gs_err err = GS_OK;
@@ -844,6 +904,8 @@ again:;
     if (err != GS_OK)
         return err;
     gsi_centre_mass(sys, s->H, s->c, N); /* translating centres: free masses */
+    for (int g = 0; closure && g < s->n_grp; g++) /* near-field springs: s^2 / (2 c) */
+        s->H[(size_t)s->gr[g].unk * N + s->gr[g].unk] = 1.0 / s->gr[g].c;
     /* 4. Rows: kinematic equalities and linearised contacts. */
     memset(s->E, 0, (size_t)(ne ? ne : 1) * N * sizeof(double));
     for (int a = 0; a < ne; a++) {
@@ -873,6 +935,8 @@ again:;
             for (int comp = 0; comp < 2; comp++)
                 G[unk[base[b] + (size_t)node_dof(sys, b, pk, comp)]] += cr->dg_du[t][comp];
         }
+        if (closure && s->grp[r] >= 0)
+            G[s->gr[s->grp[r]].unk] = 1.0;
     }
     /* 4b. Flank friction: per row its force (and, implicit, its tangent row). */
     if (s->fr || gsi_friction_any(sys, false)) {
@@ -974,8 +1038,8 @@ again:;
     for (int r = 0; r < ni; r++) {
         if (closure) {
             /* rows per mesh (promoted ones too), and the reactions' work */
-            double gx = 0.0;
-            for (int j = 0; j < N; j++)
+            double gx = 0.0; /* the bodies' part of the row (not its spring) */
+            for (int j = 0; j < nbody; j++)
                 gx += s->G[(size_t)r * N + j] * s->x[j];
             double *ct = sol + gs_sol_mesh_contact(sys, s->rows[r].mesh);
             ct[1] += 1.0;
@@ -999,6 +1063,24 @@ again:;
         int mi = s->rows[r].mesh;
         sol[gs_sol_mesh_contact(sys, mi)] += 1.0;
         sol[gs_sol_mesh_force(sys, mi)] += s->lam_in[r] * hypot(cr->gap.grad[0], cr->gap.grad[1]);
+    }
+    if (closure) { /* every step, also once a pair's springs have let go */
+        /* The springs' energy at the step's end, 1/2 c Lambda^2 per pair:
+         * part of the potential (ct[7]). The reactions' work on the bodies
+         * booked above less the springs' change of energy is what the pair
+         * lost or gained (contact_work), so the balance holds with it. */
+        for (int g = 0; g < s->n_grp; g++) {
+            double L = 0.0;
+            for (int r = 0; r < ni; r++)
+                if (s->grp[r] == g)
+                    L += s->lam_in[r];
+            sol[gs_sol_mesh_contact(sys, s->gr[g].mesh) + 7] += 0.5 * s->gr[g].c * L * L;
+        }
+        for (int mi = 0; mi < sys->n_meshes; mi++) {
+            double *ct = sol + gs_sol_mesh_contact(sys, mi);
+            if (sys->meshes[mi].ops->contact && ((const gsi_contact_mesh *)sys->meshes[mi].contact)->nf)
+                ct[4] += ct[7] - sys->meshes[mi].nf_energy;
+        }
     }
     for (int i = 0; i < nb; i++)
         for (int a = 0; a < p->n_dof[i]; a++) {

@@ -515,6 +515,8 @@ static gs_err apply(gs_system *sys, const double *sol, bool all)
         me->penetration = ct[2];
         me->friction_loss += ct[3];
         me->contact_work += ct[4]; /* gap closure (numerics.contact); 0 with the seed's rows */
+        if (me->ops->contact)
+            me->nf_energy = ct[7]; /* near-field springs (src/step/contact_step.c) */
     }
     /* The sum over the meshes, formed the same way after a restore. */
     sys->contact_work = 0.0;

@@ -4,7 +4,7 @@
  *
  *   gearsim-modal SCENE.json [--json]
  *   gearsim-modal SCENE.json --fe [--mesh NAME] [--positions N] [--modes M] [--refine R]
- *                 [--order 1|2] [--torque T] [--no-nearfield|--plain] [--json]
+ *                 [--order 1|2] [--torque T] [--no-nearfield|--plain] [--nearfield-secant] [--json]
  *
  * Without --json prints one line per group of equal frequencies (frequency,
  * kind, multiplicity); with --json the result object of the `modal` command
@@ -12,6 +12,8 @@
  * mesh's elastic pair from the FE model's generalised eigenproblem at the
  * loaded static contact (include/gearsim/fe_modes.h), one line per roll
  * position and the mean, or (--json) gs_fe_modes_json's object.
+ * --nearfield-secant: the pairs' secant near-field compliance instead of the
+ * tangent (the linearisation of the dynamic contact with "nearfield").
  * Exit status 0 on success, 1 on an error (message on stderr naming the
  * field), 2 on bad usage. Not an MPI program. */
 #include <stdio.h>
@@ -27,7 +29,7 @@
 #define USAGE                                                                                   \
     "usage: gearsim-modal SCENE.json [--json]\n"                                                   \
     "       gearsim-modal SCENE.json --fe [--mesh NAME] [--positions N] [--modes M] [--refine R]\n" \
-    "                     [--order 1|2] [--torque T] [--no-nearfield|--plain] [--json]\n"
+    "                     [--order 1|2] [--torque T] [--no-nearfield|--plain] [--nearfield-secant] [--json]\n"
 
 static int fe_modes(const char *path, gs_scene *s, const char *mesh, const gs_fe_modes_opts *o, int json)
 {
@@ -101,6 +103,8 @@ int main(int argc, char **argv)
             o.torque_nm = atof(argv[++i]);
         else if (!strcmp(a, "--no-nearfield") || !strcmp(a, "--plain"))
             o.nearfield = 0;
+        else if (!strcmp(a, "--nearfield-secant"))
+            o.nearfield_secant = 1;
         else if (a[0] != '-' && !path)
             path = a;
         else {
