@@ -62,6 +62,9 @@ gs_err gs_engine_new(MPI_Comm comm, gs_engine **out);
 void gs_engine_free(gs_engine **e);
 int gs_engine_rank(const gs_engine *e);
 int gs_engine_size(const gs_engine *e);
+/* True while a chunk of steps runs (a poll from within it sees bodies
+ * part-way through a step, or energies not yet summed). */
+bool gs_engine_stepping(const gs_engine *e);
 gs_system *gs_engine_system(gs_engine *e);   /* NULL when nothing is loaded */
 MPI_Comm gs_engine_comm(const gs_engine *e);
 void gs_engine_set_hook(gs_engine *e, gs_engine_step_hook hook, void *user);

@@ -36,6 +36,7 @@ struct gs_engine {
     bool cpu_timing;        /* gs_engine_set_cpu_timing: cpu_on allowed */
     bool energy_sched;      /* gs_engine_set_energy_schedule (rank 0's travels with GS_OP_STEP) */
     bool solo;              /* steps on rank 0 alone (no body state elsewhere) */
+    bool stepping;          /* within a GS_OP_STEP chunk (gs_engine_stepping) */
 };
 
 gs_err gs_engine_new(MPI_Comm comm, gs_engine **out)
@@ -245,6 +246,7 @@ void gs_engine_free(gs_engine **pe)
 
 int gs_engine_rank(const gs_engine *e) { return e->rank; }
 int gs_engine_size(const gs_engine *e) { return e->size; }
+bool gs_engine_stepping(const gs_engine *e) { return e && e->stepping; }
 gs_system *gs_engine_system(gs_engine *e) { return e->sys; }
 MPI_Comm gs_engine_comm(const gs_engine *e) { return e->comm; }
 
@@ -1034,7 +1036,10 @@ static gs_err exec(gs_engine *e, gs_op op, const char *payload, size_t len, gs_d
         if (!e->sys || len != sizeof n)
             return GS_ESTATE;
         memcpy(n, payload, len);
-        return run_steps(e, n[0], done, n[1] != 0);
+        e->stepping = true;
+        gs_err err = run_steps(e, n[0], done, n[1] != 0);
+        e->stepping = false;
+        return err;
     }
     case GS_OP_SET_LOAD: {
         if (!e->sys)

@@ -807,8 +807,13 @@ static bool defer_request(gs_service *s, zmq_msg_t *ident, bool delim, char **da
     if (!s->inside || s->validating)
         return false;
     json_object *req = json_tokener_parse(*data), *cmd;
-    bool later = req && json_object_object_get_ex(req, "cmd", &cmd) &&
-                 json_object_get_type(cmd) == json_type_string && !gsi_validating_allows(json_object_get_string(cmd));
+    bool later = false;
+    if (req && json_object_object_get_ex(req, "cmd", &cmd) && json_object_get_type(cmd) == json_type_string) {
+        const char *c = json_object_get_string(cmd);
+        /* `state` reads the running system: within a chunk of steps it waits
+         * for the chunk's end, where every body and energy is of one step. */
+        later = !gsi_validating_allows(c) || (!strcmp(c, "state") && gs_engine_stepping(s->eng));
+    }
     json_object_put(req);
     if (!later)
         return false;
