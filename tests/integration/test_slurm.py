@@ -153,13 +153,17 @@ class Cluster:
         return None
 
 
-def gearsimd_pids():
+def gearsimd_pids(job, conn):
+    """The gearsimd processes of Slurm job `job` whose connection file is
+    `conn` (other suites on the same machine run Slurm jobs of their own,
+    numbered by their own controller)."""
     out = []
     for n in os.listdir("/proc"):
         if n.isdigit():
             try:
+                env = open(f"/proc/{n}/environ", "rb").read().split(b"\0")
                 if os.path.basename(os.readlink(f"/proc/{n}/exe")) == "gearsimd" and \
-                        "SLURM_JOB_ID" in open(f"/proc/{n}/environ", "rb").read().decode(errors="replace"):
+                        f"SLURM_JOB_ID={job}".encode() in env and f"GEARSIM_CONNECTION={conn}".encode() in env:
                     out.append(int(n))
             except OSError:
                 pass
@@ -268,7 +272,7 @@ def main(tmp):
         t_end = time.monotonic() + 2.0
         while time.monotonic() < t_end:
             c.next_event(timeout=0.2)
-        ranks = gearsimd_pids()
+        ranks = gearsimd_pids(jid, conn)
         r = cl.run("scancel", jid)
         R.check("scancel accepted", r.returncode == 0, r.stderr)
         done, t_end = None, time.monotonic() + 60
