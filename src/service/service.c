@@ -1221,6 +1221,7 @@ void gsi_service_release(gs_service *s)
     free(s->clients);
     s->clients = NULL;
     s->n_clients = 0;
+    gsi_telemetry_free(s);
 }
 
 gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)

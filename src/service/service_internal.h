@@ -125,6 +125,7 @@ typedef struct gs_service {
     bool keep_autosave;     /* set at shutdown: the cancelled advance stays resumable */
     svc_client *clients;    /* active clients (--max-clients), n_clients of them */
     int n_clients;
+    struct svc_telemetry *tel; /* telemetry events queued as text (telemetry.c) */
 } gs_service;
 
 /* Events (PUB): adds v, type, seq, session, step, time; takes ownership of o. */
@@ -136,6 +137,7 @@ json_object *gsi_state_json(gs_service *s);
  * sends it first. src/service/telemetry.c. */
 bool gsi_telemetry_queue(gs_service *s);
 void gsi_telemetry_flush(gs_service *s);
+void gsi_telemetry_free(gs_service *s);
 /* Open the run record at `path` for the loaded system, with the meshes of
  * its elastic bodies when the scene records field snapshots. */
 gs_err gsi_record_open(gs_service *s, const char *path, gs_record **out, gs_diag *d);

@@ -21,16 +21,18 @@ typedef struct tbuf {
     bool oom;
 } tbuf;
 
-/* One service per process. Its telemetry events of a chunk are queued here
- * and sent together (gsi_telemetry_flush): ZeroMQ's I/O thread then wakes
- * once for the lot rather than once for each event, its largest cost per
- * event. The queue is sent before any other event (seq stays in order), at
- * the end of every chunk, and whenever it holds TEL_QUEUE events, so a
- * burst never nears the socket's high-water mark (1000 messages). */
+/* The telemetry events of a chunk are queued here and sent together
+ * (gsi_telemetry_flush): ZeroMQ's I/O thread then wakes once for the lot
+ * rather than once for each event, its largest cost per event. The queue
+ * is sent before any other event (seq stays in order), at the end of every
+ * chunk, and whenever it holds TEL_QUEUE events, so a burst never nears
+ * the socket's high-water mark (1000 messages). */
 #define TEL_QUEUE 64
-static tbuf tb;
-static size_t q_end[TEL_QUEUE]; /* end offset of each queued event in tb */
-static int q_n;
+typedef struct svc_telemetry {
+    tbuf tb;
+    size_t q_end[TEL_QUEUE]; /* end offset of each queued event in tb */
+    int q_n;
+} svc_telemetry;
 
 static void reserve(tbuf *b, size_t more)
 {
@@ -97,22 +99,36 @@ static void put_str(tbuf *b, const char *s)
 
 void gsi_telemetry_flush(gs_service *s)
 {
+    svc_telemetry *t = s->tel;
+    if (!t)
+        return;
     size_t at = 0;
-    for (int i = 0; i < q_n; i++) {
+    for (int i = 0; i < t->q_n; i++) {
         if (s->pub) { /* a slow subscriber never slows the simulation: drop on a full queue */
             zmq_send(s->pub, "telemetry", 9, ZMQ_SNDMORE | ZMQ_DONTWAIT);
-            zmq_send(s->pub, tb.p + at, q_end[i] - at, ZMQ_DONTWAIT);
+            zmq_send(s->pub, t->tb.p + at, t->q_end[i] - at, ZMQ_DONTWAIT);
         }
-        at = q_end[i];
+        at = t->q_end[i];
     }
-    q_n = 0;
-    tb.n = 0;
+    t->q_n = 0;
+    t->tb.n = 0;
+}
+
+void gsi_telemetry_free(gs_service *s)
+{
+    if (s->tel)
+        free(s->tel->tb.p);
+    free(s->tel);
+    s->tel = NULL;
 }
 
 bool gsi_telemetry_queue(gs_service *s)
 {
+    if (!s->tel && !(s->tel = calloc(1, sizeof *s->tel)))
+        return false;
+    svc_telemetry *t = s->tel;
     gs_system *sys = gs_engine_system(s->eng);
-    tbuf *b = &tb;
+    tbuf *b = &t->tb;
     size_t start = b->n;
     uint64_t seq0 = s->seq;
     b->oom = false;
@@ -202,8 +218,8 @@ bool gsi_telemetry_queue(gs_service *s)
         gsi_telemetry_flush(s);
         return false;
     }
-    q_end[q_n++] = b->n;
-    if (q_n == TEL_QUEUE)
+    t->q_end[t->q_n++] = b->n;
+    if (t->q_n == TEL_QUEUE)
         gsi_telemetry_flush(s);
     return true;
 }

@@ -25,6 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/long_mode.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
 #include "scene_build.h"
@@ -244,9 +245,5 @@ int main(void)
     const struct CMUnitTest long_tests[] = {
         cmocka_unit_test(long_runs),
     };
-    const char *lg = getenv("GEARSIM_LONG");
-    int rc = cmocka_run_group_tests(tests, NULL, NULL);
-    if (lg && strcmp(lg, "1") == 0)
-        rc |= cmocka_run_group_tests(long_tests, NULL, NULL);
-    return rc;
+    return RUN_GROUPS_LONG(tests, long_tests);
 }

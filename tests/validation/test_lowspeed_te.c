@@ -36,6 +36,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/long_mode.h"
 #include "gearsim/stiffness.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
@@ -213,9 +214,5 @@ int main(void)
     const struct CMUnitTest long_tests[] = {
         cmocka_unit_test(test_long_windows),
     };
-    const char *lg = getenv("GEARSIM_LONG");
-    int rc = cmocka_run_group_tests(tests, NULL, NULL);
-    if (lg && strcmp(lg, "1") == 0)
-        rc |= cmocka_run_group_tests(long_tests, NULL, NULL);
-    return rc;
+    return RUN_GROUPS_LONG(tests, long_tests);
 }
