@@ -142,6 +142,22 @@ int gs_fmt_double(char *buf, double x)
     uint64_t ab;
     memcpy(&ab, &a, sizeof ab);
     int e2 = (int)(ab >> 52) - 1022; /* a = f 2^e2, f in [0.5, 1) */
+    if ((ab & 0xfffffffffffffull) == 0 && a >= 1.0 && a < 0x1p53) {
+        /* An integer power of two (a planet's load share of 1, say): its
+         * ulp is at most 1, so no text with fewer digits than its own
+         * integer digits reads back as it; those digits are the shortest,
+         * as the slow path finds them. */
+        char r[20], d[20];
+        int nd = 0;
+        for (uint64_t c = (uint64_t)a; c; c /= 10)
+            r[nd++] = (char)('0' + c % 10);
+        for (int i = 0; i < nd; i++)
+            d[i] = r[nd - 1 - i];
+        int kk = nd - 1;
+        while (nd > 1 && d[nd - 1] == '0')
+            nd--;
+        return layout(buf, neg, d, nd, kk);
+    }
     if ((ab & 0xfffffffffffffull) == 0 || a < DBL_MIN)
         return slow(buf, x); /* lopsided interval; subnormal */
     /* Decimal exponent k (10^k <= a < 10^(k+1)) and a scaled to 17 digits,
