@@ -167,7 +167,12 @@ int gs_fmt_double(char *buf, double x)
     int k = ((e2 - 1) * 78913) >> 18; /* about (e2 - 1) log10(2), floored */
     if (k > 37 || k < -37)
         return slow(buf, x);
-    long double half = ldexpl(1.0L, e2 - 54);
+    /* Half an ulp, 2^(e2-54), written as a double's bits (|k| <= 37 keeps
+     * it a normal double): exact, and no libm call. */
+    uint64_t hb = (uint64_t)(e2 - 54 + 1023) << 52;
+    double hd;
+    memcpy(&hd, &hb, sizeof hd);
+    long double half = hd;
     long double S = scale10((long double)a, 16 - k), H = scale10(half, 16 - k);
     if (S >= 1e17L)
         k++, S /= 10.0L, H /= 10.0L;

@@ -31,14 +31,14 @@ typedef struct tbuf {
  * daemon which topics someone subscribed to, and each form is written only
  * while someone wants it. The queue is sent before any other event (seq
  * stays in order), at the end of every chunk, when it holds TEL_QUEUE
- * events or TEL_BYTES of text, and when its oldest event is TEL_LAG_S old,
+ * events or would pass TEL_BYTES of text with one more, and when its oldest event is TEL_LAG_S old,
  * so a live view never lags more than that behind the simulation and a
  * burst never nears the socket's high-water mark. TEL_BYTES keeps a
  * message's buffers (ZeroMQ's copy and CurveZMQ's encrypted one) below
  * glibc's 64 KiB free that consolidates and trims the I/O thread's heap
  * (an madvise and a TLB flush per message, measured). */
 #define TEL_QUEUE 64
-#define TEL_BYTES 40000
+#define TEL_BYTES 60000
 #define TEL_LAG_S 0.05
 typedef struct svc_telemetry {
     tbuf tb;                   /* the batch header, then the events with ',' between them */
@@ -85,29 +85,43 @@ static void put_kn(tbuf *b, const char *key, double x)
     put_num(b, x);
 }
 
+/* An integer's decimal digits (as printf's %lld writes them). */
 static void put_int(tbuf *b, long long v)
 {
-    reserve(b, 24);
-    if (!b->oom)
-        b->n += (size_t)snprintf(b->p + b->n, 24, "%lld", v);
+    char r[24];
+    int n = 0;
+    unsigned long long u = v < 0 ? 0ull - (unsigned long long)v : (unsigned long long)v;
+    do
+        r[sizeof r - 1 - n++] = (char)('0' + u % 10);
+    while ((u /= 10) != 0);
+    if (v < 0)
+        r[sizeof r - 1 - n++] = '-';
+    put(b, r + sizeof r - n, (size_t)n);
 }
 
-/* A JSON string: quotes, backslashes and control characters escaped. */
+/* A JSON string: quotes, backslashes and control characters escaped; the
+ * runs between them copied whole. */
 static void put_str(tbuf *b, const char *s)
 {
     PUT(b, "\"");
-    for (const char *r = s; *r; r++) {
-        unsigned char c = (unsigned char)*r;
+    const char *r = s;
+    for (;;) {
+        const char *q = r;
+        while (*q && *q != '"' && *q != '\\' && (unsigned char)*q >= 0x20)
+            q++;
+        put(b, r, (size_t)(q - r));
+        unsigned char c = (unsigned char)*q;
+        if (!c)
+            break;
         if (c == '"' || c == '\\') {
             char e[2] = {'\\', (char)c};
             put(b, e, 2);
-        } else if (c < 0x20) {
+        } else {
             char e[8];
             snprintf(e, sizeof e, "\\u%04x", c);
             put(b, e, 6);
-        } else {
-            put(b, r, 1);
         }
+        r = q + 1;
     }
     PUT(b, "\"");
 }
@@ -308,7 +322,8 @@ bool gsi_telemetry_queue(gs_service *s)
         return false;
     }
     t->q_end[t->q_n++] = b->n;
-    if (t->q_n == TEL_QUEUE || b->n >= TEL_BYTES || gs_now() - t->t_first >= TEL_LAG_S)
+    size_t last = b->n - (t->q_n > 1 ? t->q_end[t->q_n - 2] : t->head);
+    if (t->q_n == TEL_QUEUE || b->n + last >= TEL_BYTES || gs_now() - t->t_first >= TEL_LAG_S)
         gsi_telemetry_flush(s);
     return true;
 }
