@@ -1114,8 +1114,11 @@ gs_err gs_engine_serve(gs_engine *e)
         int64_t hdr[2];
         MPI_Request rq;
         MPI_Ibcast(hdr, 2, MPI_INT64_T, 0, e->comm, &rq);
-        /* Spin briefly (a chunk of an advance follows quickly), then sleep. */
-        gs_mpi_wait_idle(&rq, 0.005);
+        /* Spin briefly (a chunk of an advance follows quickly), then sleep.
+         * After a chunk rank 0 stepped alone there is nothing to be quick
+         * for: this rank only takes the state at the chunk's end, and a
+         * spin would burn a core while rank 0 works between chunks. */
+        gs_mpi_wait_idle(&rq, e->solo ? 0.0 : 0.005);
         size_t len = (size_t)hdr[1];
         char *payload = malloc(len + 1);
         if (!payload)
