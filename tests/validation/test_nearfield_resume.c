@@ -109,19 +109,7 @@ static void resume_nearfield(void **state)
 {
     (void)state;
     char *txt = scene_text(1);
-    char path[] = "/tmp/gs_nearfield_resume_XXXXXX";
-    int fd = mkstemp(path);
-    assert_true(fd >= 0);
-    close(fd);
-
-    /* the uninterrupted run */
-    gs_engine *c = engine_loaded(txt);
-    advance(c, N1 + N2);
-    end_state ref;
-    take(c, &ref);
-    gs_engine_free(&c);
-
-    /* N1 steps, the checkpoint */
+    /* N1 steps, the checkpoint in a file */
     gs_engine *a = engine_loaded(txt);
     advance(a, N1);
     double enf_a, bal_a = balance(a, &enf_a);
@@ -130,6 +118,9 @@ static void resume_nearfield(void **state)
     assert_int_equal(gs_engine_snapshot(a, &bytes, &len), GS_OK);
     gs_system *sa = gs_engine_system(a);
     gs_diag d;
+    char path[] = "/tmp/gs_nearfield_resume_XXXXXX";
+    int fd = mkstemp(path);
+    assert_true(fd >= 0 && close(fd) == 0);
     assert_int_equal(gs_checkpoint_write(path, bytes, len, sa->scene->json, sa->step, sa->time, &d), GS_OK);
     gs_engine_free(&a);
 
@@ -180,9 +171,13 @@ static void resume_nearfield(void **state)
     /* 2. on to N1 + N2: the uninterrupted run's state, bit for bit */
     advance(b, N2);
     double bal_end = balance(b, NULL);
-    end_state res;
+    end_state res, ref;
     take(b, &res);
     gs_engine_free(&b);
+    gs_engine *c = engine_loaded(txt);
+    advance(c, N1 + N2);
+    take(c, &ref);
+    gs_engine_free(&c);
     print_message("resumed, step %d: balance %.1e\n", N1 + N2, bal_end);
     same("restored in a new engine", &res, &ref);
     assert_true(bal_end < 1e-12);
