@@ -167,6 +167,29 @@ def path_of_contact(g1, g2, a):
     return pa, pe, d
 
 
+def size_field(L, g1, g2, a, h, hmax, grow=0.35, zone=None, algorithm="Mesh.Algorithm3D = 1;"):
+    """gmsh lines of the mesh size (h within zone, default 1.5 h, of the
+    transverse path of contact, growing by grow per mm, at most hmax) and
+    the quadratic-element options; returns the line of action d."""
+    pa, pe, d = path_of_contact(g1, g2, a)
+    ux, uy = pe[0] - pa[0], pe[1] - pa[1]
+    ln = math.hypot(ux, uy)
+    ux, uy = ux / ln, uy / ln
+    if zone is None:
+        zone = 1.5 * h
+    t = "Min(Max((x-(%.9f))*(%.9f)+(y-(%.9f))*(%.9f), 0), %.9f)" % (pa[0], ux, pa[1], uy, ln)
+    dist = "Sqrt((x-(%.9f)-%s*(%.9f))^2+(y-(%.9f)-%s*(%.9f))^2)" % (pa[0], t, ux, pa[1], t, uy)
+    L.append("Field[1] = MathEval;")
+    L.append('Field[1].F = "Min(%.9g + %.9g * Max(%s - %.9g, 0), %.9g)";' % (h, grow, dist, zone, hmax))
+    L.append("Background Field = 1;")
+    for opt in ("Mesh.MeshSizeExtendFromBoundary = 0;", "Mesh.MeshSizeFromPoints = 0;",
+                "Mesh.MeshSizeFromCurvature = 0;", "Mesh.MeshSizeMax = %.9g;" % hmax,
+                "Mesh.ElementOrder = 2;", "Mesh.SecondOrderLinear = 0;", "Mesh.HighOrderOptimize = 0;",
+                algorithm, "Mesh.MshFileVersion = 2.2;", "Mesh.Binary = 0;"):
+        L.append(opt)
+    return d
+
+
 def build(work, pair, g1, g2, roll, h, misalign_um, grow=0.35, zone=None):
     """Mesh and write the ccx deck of one position; returns info."""
     os.makedirs(work, exist_ok=True)
@@ -199,23 +222,7 @@ def build(work, pair, g1, g2, roll, h, misalign_um, grow=0.35, zone=None):
     for tag, roles, e in ((21, r1, "e1"), (22, r2, "e2")):
         idx = [i for i, r in enumerate(roles) if r == "hub"]
         L.append("Physical Surface(%d) = {%s};" % (tag, ", ".join("%s[%d]" % (e, 2 + i) for i in idx)))
-    pa, pe, d = path_of_contact(g1, g2, a)
-    ux, uy = pe[0] - pa[0], pe[1] - pa[1]
-    ln = math.hypot(ux, uy)
-    ux, uy = ux / ln, uy / ln
-    if zone is None:
-        zone = 1.5 * h
-    t = "Min(Max((x-(%.9f))*(%.9f)+(y-(%.9f))*(%.9f), 0), %.9f)" % (pa[0], ux, pa[1], uy, ln)
-    dist = "Sqrt((x-(%.9f)-%s*(%.9f))^2+(y-(%.9f)-%s*(%.9f))^2)" % (pa[0], t, ux, pa[1], t, uy)
-    hmax = pair["mn_mm"]
-    L.append("Field[1] = MathEval;")
-    L.append('Field[1].F = "Min(%.9g + %.9g * Max(%s - %.9g, 0), %.9g)";' % (h, grow, dist, zone, hmax))
-    L.append("Background Field = 1;")
-    for opt in ("Mesh.MeshSizeExtendFromBoundary = 0;", "Mesh.MeshSizeFromPoints = 0;",
-                "Mesh.MeshSizeFromCurvature = 0;", "Mesh.MeshSizeMax = %.9g;" % hmax,
-                "Mesh.ElementOrder = 2;", "Mesh.SecondOrderLinear = 0;", "Mesh.HighOrderOptimize = 0;",
-                "Mesh.Algorithm3D = 1;", "Mesh.MshFileVersion = 2.2;", "Mesh.Binary = 0;"):
-        L.append(opt)
+    d = size_field(L, g1, g2, a, h, pair["mn_mm"], grow, zone, "Mesh.Algorithm3D = 1;")
     geo = os.path.join(work, "pair.geo")
     msh = os.path.join(work, "pair.msh")
     text = "\n".join(L) + "\n"

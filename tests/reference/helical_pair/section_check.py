@@ -44,21 +44,7 @@ def sector_deck(work, pair, g1, g2, roll, h, teeth, grow=0.35):
     for tag, cs, rs, want in ((11, c1, r1, ("flank", "tip")), (12, c2, r2, ("flank", "tip")),
                               (21, c1, r1, ("hub",)), (22, c2, r2, ("hub",))):
         L.append("Physical Curve(%d) = {%s};" % (tag, ", ".join(str(c) for c, r in zip(cs, rs) if r in want)))
-    pa, pe, d = rh.path_of_contact(g1, g2, a)
-    ux, uy = pe[0] - pa[0], pe[1] - pa[1]
-    ln = math.hypot(ux, uy)
-    ux, uy = ux / ln, uy / ln
-    t = "Min(Max((x-(%.9f))*(%.9f)+(y-(%.9f))*(%.9f), 0), %.9f)" % (pa[0], ux, pa[1], uy, ln)
-    dist = "Sqrt((x-(%.9f)-%s*(%.9f))^2+(y-(%.9f)-%s*(%.9f))^2)" % (pa[0], t, ux, pa[1], t, uy)
-    hmax = pair["mn_mm"]
-    L.append("Field[1] = MathEval;")
-    L.append('Field[1].F = "Min(%.9g + %.9g * Max(%s - %.9g, 0), %.9g)";' % (h, grow, dist, 1.5 * h, hmax))
-    L.append("Background Field = 1;")
-    for opt in ("Mesh.MeshSizeExtendFromBoundary = 0;", "Mesh.MeshSizeFromPoints = 0;",
-                "Mesh.MeshSizeFromCurvature = 0;", "Mesh.MeshSizeMax = %.9g;" % hmax,
-                "Mesh.ElementOrder = 2;", "Mesh.SecondOrderLinear = 0;", "Mesh.HighOrderOptimize = 0;",
-                "Mesh.Algorithm = 6;", "Mesh.MshFileVersion = 2.2;", "Mesh.Binary = 0;"):
-        L.append(opt)
+    rh.size_field(L, g1, g2, a, h, pair["mn_mm"], grow, None, "Mesh.Algorithm = 6;")
     geo = os.path.join(work, "pair.geo")
     msh = os.path.join(work, "pair.msh")
     with open(geo, "w") as f:
