@@ -190,16 +190,20 @@ def size_field(L, g1, g2, a, h, hmax, grow=0.35, zone=None, algorithm="Mesh.Algo
     return d
 
 
+def placing(pair, g1, g2, roll):
+    """Mid-face angles of both gears at a roll position and the teeth the
+    sectors centre on (the nearest the pitch point)."""
+    th1 = roll * g1.g.pitch
+    th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
+    return th1, th2, int(round(-th1 / g1.g.pitch)), int(round((math.pi - th2) / g2.g.pitch))
+
+
 def build(work, pair, g1, g2, roll, h, misalign_um, grow=0.35, zone=None):
     """Mesh and write the ccx deck of one position; returns info."""
     os.makedirs(work, exist_ok=True)
     a = pair["centre_mm"]
     b = pair["face_width_mm"]
-    th1 = roll * g1.g.pitch
-    th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
-    # sector teeth: centred on the tooth nearest the pitch point at mid-face
-    k1 = int(round(-th1 / g1.g.pitch))
-    k2 = int(round((math.pi - th2) / g2.g.pitch))
+    th1, th2, k1, k2 = placing(pair, g1, g2, roll)
     half = TEETH // 2
     hc = CONTACT // 2
     loaded1 = set(range(k1 - hc, k1 + hc + 1))

@@ -12,8 +12,8 @@ Usage:  ./section_check.py [--roll 0] [--h 0.2] [--teeth 5 9 13 0] [--plane stre
 to section_check.csv. Never run by the test suite.
 """
 import argparse
-import math
 import os
+import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -29,10 +29,7 @@ def sector_deck(work, pair, g1, g2, roll, h, teeth, grow=0.35):
     os.makedirs(work, exist_ok=True)
     rh.TEETH = teeth
     a = pair["centre_mm"]
-    th1 = roll * g1.g.pitch
-    th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
-    k1 = int(round(-th1 / g1.g.pitch))
-    k2 = int(round((math.pi - th2) / g2.g.pitch))
+    th1, th2, k1, k2 = rh.placing(pair, g1, g2, roll)
     half = teeth // 2
     gw = gearref.GeoWriter()
     L = gw.lines
@@ -49,7 +46,6 @@ def sector_deck(work, pair, g1, g2, roll, h, teeth, grow=0.35):
     msh = os.path.join(work, "pair.msh")
     with open(geo, "w") as f:
         f.write("\n".join(L) + "\n")
-    import subprocess
     subprocess.run(["nice", "gmsh", "-2", "-nt", "1", geo, "-o", msh, "-v", "1"], check=True,
                    stdout=subprocess.DEVNULL)
     nodes, elems = gearref.read_msh(msh)
