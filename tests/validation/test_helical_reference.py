@@ -41,12 +41,14 @@ BAR_K, BAR_K_MEAN, BAR_TE, BAR_PEAK = 0.03, 0.03, 0.03, 0.05
 # make the sector 27 % more compliant than whole gears (2D check).
 # 13-tooth sectors (the reference proper: 1.2 % from whole gears in 2D;
 # aligned, h = 1.2 mm, roll 0): gearsim's k 9.37 % below, TE 10.33 % above,
-# peak load 12.83 % below.
+# peak load 12.83 % below; misaligned 20 um (roll 0): k 21.21 % below, TE
+# 26.92 % above, peak 8.50 % below.
 REGRESSION = {
     (0.0, 5): dict(k=0.14, te=0.125, peak=0.17),
     (0.0, 13): dict(k=0.105, te=0.115, peak=0.14),
+    (20.0, 13): dict(k=0.225, te=0.285, peak=0.095),
 }
-MIN_POSITIONS = {(0.0, 5): 2, (0.0, 13): 1}
+MIN_POSITIONS = {(0.0, 5): 2, (0.0, 13): 1, (20.0, 13): 1}
 fails = []
 
 
