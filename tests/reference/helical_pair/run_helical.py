@@ -40,7 +40,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, ".."))
 import gearref  # noqa: E402
 
-TEETH = 5          # teeth per gear sector
+TEETH = 5          # teeth per gear sector (--teeth)
+CONTACT = 5        # the central teeth whose flanks are contact surfaces
 NBIN = 20          # face bins of the load profile
 
 
@@ -166,19 +167,47 @@ def path_of_contact(g1, g2, a):
     return pa, pe, d
 
 
+def size_field(L, g1, g2, a, h, hmax, grow=0.35, zone=None, algorithm="Mesh.Algorithm3D = 1;"):
+    """gmsh lines of the mesh size (h within zone, default 1.5 h, of the
+    transverse path of contact, growing by grow per mm, at most hmax) and
+    the quadratic-element options; returns the line of action d."""
+    pa, pe, d = path_of_contact(g1, g2, a)
+    ux, uy = pe[0] - pa[0], pe[1] - pa[1]
+    ln = math.hypot(ux, uy)
+    ux, uy = ux / ln, uy / ln
+    if zone is None:
+        zone = 1.5 * h
+    t = "Min(Max((x-(%.9f))*(%.9f)+(y-(%.9f))*(%.9f), 0), %.9f)" % (pa[0], ux, pa[1], uy, ln)
+    dist = "Sqrt((x-(%.9f)-%s*(%.9f))^2+(y-(%.9f)-%s*(%.9f))^2)" % (pa[0], t, ux, pa[1], t, uy)
+    L.append("Field[1] = MathEval;")
+    L.append('Field[1].F = "Min(%.9g + %.9g * Max(%s - %.9g, 0), %.9g)";' % (h, grow, dist, zone, hmax))
+    L.append("Background Field = 1;")
+    for opt in ("Mesh.MeshSizeExtendFromBoundary = 0;", "Mesh.MeshSizeFromPoints = 0;",
+                "Mesh.MeshSizeFromCurvature = 0;", "Mesh.MeshSizeMax = %.9g;" % hmax,
+                "Mesh.ElementOrder = 2;", "Mesh.SecondOrderLinear = 0;", "Mesh.HighOrderOptimize = 0;",
+                algorithm, "Mesh.MshFileVersion = 2.2;", "Mesh.Binary = 0;"):
+        L.append(opt)
+    return d
+
+
+def placing(pair, g1, g2, roll):
+    """Mid-face angles of both gears at a roll position and the teeth the
+    sectors centre on (the nearest the pitch point)."""
+    th1 = roll * g1.g.pitch
+    th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
+    return th1, th2, int(round(-th1 / g1.g.pitch)), int(round((math.pi - th2) / g2.g.pitch))
+
+
 def build(work, pair, g1, g2, roll, h, misalign_um, grow=0.35, zone=None):
     """Mesh and write the ccx deck of one position; returns info."""
     os.makedirs(work, exist_ok=True)
     a = pair["centre_mm"]
     b = pair["face_width_mm"]
-    th1 = roll * g1.g.pitch
-    th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
-    # sector teeth: centred on the tooth nearest the pitch point at mid-face
-    k1 = int(round(-th1 / g1.g.pitch))
-    k2 = int(round((math.pi - th2) / g2.g.pitch))
+    th1, th2, k1, k2 = placing(pair, g1, g2, roll)
     half = TEETH // 2
-    loaded1 = set(range(k1 - half, k1 + half + 1))
-    loaded2 = set(range(k2 - half, k2 + half + 1))
+    hc = CONTACT // 2
+    loaded1 = set(range(k1 - hc, k1 + hc + 1))
+    loaded2 = set(range(k2 - hc, k2 + hc + 1))
     gw = gearref.GeoWriter()
     L = gw.lines
     L.insert(0, 'SetFactory("Built-in");')
@@ -197,23 +226,7 @@ def build(work, pair, g1, g2, roll, h, misalign_um, grow=0.35, zone=None):
     for tag, roles, e in ((21, r1, "e1"), (22, r2, "e2")):
         idx = [i for i, r in enumerate(roles) if r == "hub"]
         L.append("Physical Surface(%d) = {%s};" % (tag, ", ".join("%s[%d]" % (e, 2 + i) for i in idx)))
-    pa, pe, d = path_of_contact(g1, g2, a)
-    ux, uy = pe[0] - pa[0], pe[1] - pa[1]
-    ln = math.hypot(ux, uy)
-    ux, uy = ux / ln, uy / ln
-    if zone is None:
-        zone = 1.5 * h
-    t = "Min(Max((x-(%.9f))*(%.9f)+(y-(%.9f))*(%.9f), 0), %.9f)" % (pa[0], ux, pa[1], uy, ln)
-    dist = "Sqrt((x-(%.9f)-%s*(%.9f))^2+(y-(%.9f)-%s*(%.9f))^2)" % (pa[0], t, ux, pa[1], t, uy)
-    hmax = pair["mn_mm"]
-    L.append("Field[1] = MathEval;")
-    L.append('Field[1].F = "Min(%.9g + %.9g * Max(%s - %.9g, 0), %.9g)";' % (h, grow, dist, zone, hmax))
-    L.append("Background Field = 1;")
-    for opt in ("Mesh.MeshSizeExtendFromBoundary = 0;", "Mesh.MeshSizeFromPoints = 0;",
-                "Mesh.MeshSizeFromCurvature = 0;", "Mesh.MeshSizeMax = %.9g;" % hmax,
-                "Mesh.ElementOrder = 2;", "Mesh.SecondOrderLinear = 0;", "Mesh.HighOrderOptimize = 0;",
-                "Mesh.Algorithm3D = 1;", "Mesh.MshFileVersion = 2.2;", "Mesh.Binary = 0;"):
-        L.append(opt)
+    d = size_field(L, g1, g2, a, h, pair["mn_mm"], grow, zone, "Mesh.Algorithm3D = 1;")
     geo = os.path.join(work, "pair.geo")
     msh = os.path.join(work, "pair.msh")
     text = "\n".join(L) + "\n"
@@ -285,6 +298,8 @@ def tet10_check(nodes, elems, floor=0.05, want_conn=False):
 TET_ORDER = (0, 1, 2, 3, 4, 5, 6, 7, 9, 8)
 # C3D10 faces (corner indices, ccx numbering S1..S4)
 TET_FACES = ((0, 1, 2), (0, 3, 1), (1, 3, 2), (2, 3, 0))
+# their mid-edge nodes (C3D10 numbering: edges 01 12 20 03 13 23 -> 4..9)
+FACE_MIDS = ((4, 5, 6), (7, 8, 4), (8, 9, 5), (9, 7, 6))
 
 
 def write_inp(path, nodes, elems, pair, g1, a, b, misalign_um, d):
@@ -334,6 +349,24 @@ def write_inp(path, nodes, elems, pair, g1, a, b, misalign_um, d):
     o.append("*NODE, NSET=NROT")
     o.append("%d, 0, 0, 0" % rotn)
     gearref.deck_sets(o, "C3D10", numbered, hubn, surf, pair["E_mpa"], pair["nu"])
+    # the slave flank's nodes and every driven element holding one: their
+    # internal nodal forces (from the stresses at the integration points)
+    # are the contact forces on the flank
+    slv = set()
+    tets2 = dict(numbered[2])
+    for e, fno in surf[12]:
+        c = tets2[e]
+        fc = TET_FACES[fno - 1]
+        slv.update(c[i] for i in fc)
+        slv.update(c[k] for k in FACE_MIDS[fno - 1])
+    efl = sorted(e for e, c in numbered[2] if any(n in slv for n in c))
+    o.append("*NSET, NSET=SLV")
+    ids = sorted(slv)
+    for i in range(0, len(ids), 12):
+        o.append(", ".join(map(str, ids[i:i + 12])) + ",")
+    o.append("*ELSET, ELSET=EFL")
+    for i in range(0, len(efl), 12):
+        o.append(", ".join(map(str, efl[i:i + 12])) + ",")
     o.append("*SOLID SECTION, ELSET=E0, MATERIAL=STEEL")
     o.append("*SOLID SECTION, ELSET=E1, MATERIAL=STEEL")
     # driver hub: u_x = -y theta, u_y = x theta (theta: dof 1 of NROT), u_z = 0
@@ -384,6 +417,10 @@ def write_inp(path, nodes, elems, pair, g1, a, b, misalign_um, d):
     o.append("RF")
     o.append("*CONTACT FILE")
     o.append("CSTR")
+    o.append("*NODE PRINT, NSET=SLV")
+    o.append("RF")
+    o.append("*EL PRINT, ELSET=EFL")
+    o.append("S")
     o.append("*END STEP")
     with open(path, "w") as fo:
         fo.write("\n".join(o) + "\n")
@@ -392,78 +429,221 @@ def write_inp(path, nodes, elems, pair, g1, a, b, misalign_um, d):
                 coords=nodes)
 
 
-def read_contact_pressure(frd):
-    """Contact pressure (MPa) at the slave nodes from the last CONTACT
-    block of a ccx .frd file: {node: p}."""
-    press = {}
-    cur = None
-    with open(frd) as f:
+def read_dat_last(path, head):
+    """The rows of the last block of a ccx .dat file whose title starts with
+    head (e.g. "stresses", "forces"): [[numbers]]."""
+    rows, cur = [], None
+    with open(path) as f:
         for ln in f:
-            if ln.startswith(" -4") and "CONTACT" in ln:
-                cur = {}
+            s = ln.strip()
+            if not s:
+                continue
+            if s[0].isalpha():
+                if cur is not None:
+                    rows = cur
+                cur = [] if s.startswith(head) else None
                 continue
             if cur is not None:
-                if ln.startswith(" -3"):
-                    press = cur
-                    cur = None
-                elif ln.startswith(" -1"):
-                    n = int(ln[3:13])
-                    v = [float(ln[13 + 12 * i:25 + 12 * i]) for i in range(4)]
-                    cur[n] = v[3]
-    return press
+                cur.append([float(v) for v in s.split()])
+    if cur is not None:
+        rows = cur
+    return rows
 
 
-def face_profile(info, press, cx1, rb1, b, nbin=NBIN):
-    """Transverse load per unit face width (N/mm) in nbin bins over the
-    face, per driven tooth (keyed by the slave face's tooth: the angle of
-    the face centre about the driven axis, in pitches, rounded): the
-    moment about the driver axis of p n dA over the slave faces, over
-    r_b1, 6-point Gauss on each face with the pressure interpolated
-    quadratically. Returns ({tooth: [N/mm] * nbin}, total N)."""
-    # 6-point rule on the triangle (degree 4)
-    w1, a1, b1 = 0.223381589678011, 0.445948490915965, 0.108103018168070
-    w2, a2, b2 = 0.109951743655322, 0.091576213509771, 0.816847572980459
-    gp = [(a1, a1, w1), (a1, b1, w1), (b1, a1, w1), (a2, a2, w2), (a2, b2, w2), (b2, a2, w2)]
-    prof = {}
-    total = 0.0
+# C3D10 (ccx numbering: corners 1-4 at (0,0,0), (1,0,0), (0,1,0), (0,0,1);
+# mid-edge nodes 12, 23, 31, 14, 24, 34): shape function derivatives
+def tet10_grad(r, s, t):
+    l0 = 1.0 - r - s - t
+    return ((1 - 4 * l0, 4 * r - 1, 0.0, 0.0, 4 * (l0 - r), 4 * s, -4 * s, -4 * t, 4 * t, 0.0),
+            (1 - 4 * l0, 0.0, 4 * s - 1, 0.0, -4 * r, 4 * r, 4 * (l0 - s), -4 * t, 0.0, 4 * t),
+            (1 - 4 * l0, 0.0, 0.0, 4 * t - 1, -4 * r, 0.0, -4 * s, 4 * (l0 - t), 4 * r, 4 * s))
+
+
+# ccx's 4 integration points of C3D10 (weight 1/24 each), in its order
+_GA, _GB = 0.1381966011250105, 0.5854101966249685
+TET_IP = ((_GA, _GA, _GA), (_GB, _GA, _GA), (_GA, _GB, _GA), (_GA, _GA, _GB))
+
+
+def inv3(J):
+    a, b, c = J[0]
+    d, e, f = J[1]
+    g, h, i = J[2]
+    A, B, C = e * i - f * h, -(d * i - f * g), d * h - e * g
+    det = a * A + b * B + c * C
+    inv = [[A / det, -(b * i - c * h) / det, (b * f - c * e) / det],
+           [B / det, (a * i - c * g) / det, -(a * f - c * d) / det],
+           [C / det, -(a * h - b * g) / det, (a * e - b * d) / det]]
+    return inv, det
+
+
+def nodal_forces(info, stress):
+    """Internal nodal forces (N) of the driven elements printed (EFL, from
+    their stresses at the integration points, ccx's rule): at a free node
+    they equal the external force there, i.e. at a slave flank node the
+    contact force on the wheel. stress: rows (element, point, sxx, syy,
+    szz, sxy, sxz, syz). Returns {node: [fx, fy, fz]}."""
     X = info["coords"]
-    pitch2 = info["pitch2"]
-    a = info["centre"]
+    by = {}
+    for r in stress:
+        by.setdefault(int(r[0]), {})[int(r[1])] = r[2:8]
+    grads = [tet10_grad(*p) for p in TET_IP]
+    f = {}
+    for e, sig in by.items():
+        c = info["tets"][e]
+        P = [X[n] for n in c]
+        fe = [[0.0, 0.0, 0.0] for _ in range(10)]
+        for ip in range(4):
+            sxx, syy, szz, sxy, sxz, syz = sig[ip + 1]
+            S = ((sxx, sxy, sxz), (sxy, syy, syz), (sxz, syz, szz))
+            G = grads[ip]
+            J = [[sum(G[k][a] * P[a][i] for a in range(10)) for i in range(3)] for k in range(3)]
+            Ji, det = inv3(J)
+            w = abs(det) / 24.0
+            for a in range(10):
+                gx = [Ji[i][0] * G[0][a] + Ji[i][1] * G[1][a] + Ji[i][2] * G[2][a] for i in range(3)]
+                for i in range(3):
+                    fe[a][i] += w * (S[i][0] * gx[0] + S[i][1] * gx[1] + S[i][2] * gx[2])
+        for a in range(10):
+            acc = f.setdefault(c[a], [0.0, 0.0, 0.0])
+            for i in range(3):
+                acc[i] += fe[a][i]
+    return f
+
+
+def slave_nodes(info):
+    """The slave flank's faces as (6 nodes: corners then mid-edges 01, 12, 20)."""
+    out = []
     for e, fno in info["slave_faces"]:
         c = info["tets"][e]
         fc = TET_FACES[fno - 1]
-        corners = [c[i] for i in fc]
-        # mid-edge nodes of the face edges (01, 12, 20) in C3D10 numbering
-        edge_node = {(0, 1): 4, (1, 2): 5, (0, 2): 6, (0, 3): 7, (1, 3): 8, (2, 3): 9}
-        mids = []
-        for i, j in ((fc[0], fc[1]), (fc[1], fc[2]), (fc[2], fc[0])):
-            mids.append(c[edge_node[(min(i, j), max(i, j))]])
-        nn = corners + mids
-        pv = [press.get(n, 0.0) for n in nn]
-        if max(pv) <= 0.0:
-            continue
-        P = [X[n] for n in nn]
-        for xi, eta, w in gp:
-            l0 = 1.0 - xi - eta
-            N = (l0 * (2 * l0 - 1), xi * (2 * xi - 1), eta * (2 * eta - 1), 4 * l0 * xi, 4 * xi * eta, 4 * eta * l0)
-            dxi = (1 - 4 * l0, 4 * xi - 1, 0.0, 4 * (l0 - xi), 4 * eta, -4 * eta)
-            deta = (1 - 4 * l0, 0.0, 4 * eta - 1, -4 * xi, 4 * xi, 4 * (l0 - eta))
-            x = [sum(N[k] * P[k][i] for k in range(6)) for i in range(3)]
+        mids = FACE_MIDS[fno - 1]
+        # FACE_MIDS follow the face's edges (c0 c1), (c1 c2), (c2 c0)
+        out.append([c[i] for i in fc] + [c[k] for k in mids])
+    return out
+
+
+def tri6(xi, eta):
+    l0 = 1.0 - xi - eta
+    N = (l0 * (2 * l0 - 1), xi * (2 * xi - 1), eta * (2 * eta - 1), 4 * l0 * xi, 4 * xi * eta, 4 * eta * l0)
+    dxi = (1 - 4 * l0, 4 * xi - 1, 0.0, 4 * (l0 - xi), 4 * eta, -4 * eta)
+    deta = (1 - 4 * l0, 0.0, 4 * eta - 1, -4 * xi, 4 * xi, 4 * (l0 - eta))
+    return N, dxi, deta
+
+
+# 6-point rule on the triangle (degree 4), (xi, eta, weight) on the unit triangle of area 1/2
+_W1, _A1, _B1 = 0.223381589678011, 0.445948490915965, 0.108103018168070
+_W2, _A2, _B2 = 0.109951743655322, 0.091576213509771, 0.816847572980459
+TRI_GP = ((_A1, _A1, _W1), (_A1, _B1, _W1), (_B1, _A1, _W1), (_A2, _A2, _W2), (_A2, _B2, _W2), (_B2, _A2, _W2))
+
+
+def face_profile(info, fnode, rb1, b, nbin=NBIN, sub=4):
+    """Transverse load per unit face width (N/mm) in nbin bins over the
+    face, per driven tooth, from the contact forces at the slave nodes
+    (fnode: {node: force on the wheel}). Each node's share of the
+    transverse load is the moment of its force about the driver axis over
+    r_b1; that nodal field is turned back into a load per unit area q on
+    the slave surface whose work-equivalent nodal loads it is (M q = m, M
+    the surface's consistent mass matrix of the 6-node faces; conjugate
+    gradients), and q is integrated over each bin (each face cut into
+    sub x sub triangles, 6 points on each). Returns ({tooth: [N/mm] *
+    nbin}, total of the nodal shares N, total of the integral N)."""
+    X = info["coords"]
+    faces = slave_nodes(info)
+    m = {}
+    for n, F in fnode.items():
+        x, y, _ = X[n]
+        m[n] = (x * F[1] - y * F[0]) / rb1
+    # on the slave nodes only (the rest of the printed nodes are inside)
+    snodes = sorted(set(n for fc in faces for n in fc))
+    idx = {n: i for i, n in enumerate(snodes)}
+    rhs = [m.get(n, 0.0) for n in snodes]
+    total_nodes = sum(rhs)
+    sgn = 1.0 if total_nodes >= 0 else -1.0
+    rhs = [sgn * v for v in rhs]
+    total_nodes *= sgn
+    # consistent mass matrix, stored per face (6 x 6)
+    fmass = []
+    for fc in faces:
+        P = [X[n] for n in fc]
+        Mf = [[0.0] * 6 for _ in range(6)]
+        for xi, eta, w in TRI_GP:
+            N, dxi, deta = tri6(xi, eta)
             t1 = [sum(dxi[k] * P[k][i] for k in range(6)) for i in range(3)]
             t2 = [sum(deta[k] * P[k][i] for k in range(6)) for i in range(3)]
-            nv = (t1[1] * t2[2] - t1[2] * t2[1], t1[2] * t2[0] - t1[0] * t2[2], t1[0] * t2[1] - t1[1] * t2[0])
-            p = max(sum(N[k] * pv[k] for k in range(6)), 0.0)
-            # |nv| dxi deta is the area element: the force p dA along the
-            # normal (sign fixed below by the moment's sign over the face)
-            fx, fy = p * nv[0] * w * 0.5, p * nv[1] * w * 0.5
-            mz = abs(x[0] * fy - x[1] * fx) / rb1
-            ang = math.atan2(x[1], x[0] - a) - info["th2_z0"] - x[2] * info["twist2"]
-            tooth = int(round(ang / pitch2)) % info["z2"]
-            ib = min(max(int(x[2] / b * nbin), 0), nbin - 1)
-            prof.setdefault(tooth, [0.0] * nbin)[ib] += mz
-            total += mz
+            da = 0.5 * w * math.sqrt((t1[1] * t2[2] - t1[2] * t2[1]) ** 2 + (t1[2] * t2[0] - t1[0] * t2[2]) ** 2
+                                     + (t1[0] * t2[1] - t1[1] * t2[0]) ** 2)
+            for a in range(6):
+                for c in range(6):
+                    Mf[a][c] += N[a] * N[c] * da
+        fmass.append(([idx[n] for n in fc], Mf))
+    nn = len(snodes)
+    diag = [0.0] * nn
+    for ids, Mf in fmass:
+        for a in range(6):
+            diag[ids[a]] += Mf[a][a]
+
+    def matvec(v):
+        out = [0.0] * nn
+        for ids, Mf in fmass:
+            vv = [v[i] for i in ids]
+            for a in range(6):
+                out[ids[a]] += sum(Mf[a][c] * vv[c] for c in range(6))
+        return out
+    # Jacobi-preconditioned conjugate gradients
+    q = [0.0] * nn
+    r = rhs[:]
+    z = [r[i] / diag[i] for i in range(nn)]
+    p = z[:]
+    rz = sum(r[i] * z[i] for i in range(nn))
+    r0 = math.sqrt(sum(v * v for v in rhs)) or 1.0
+    for _ in range(2000):
+        Ap = matvec(p)
+        al = rz / sum(p[i] * Ap[i] for i in range(nn))
+        for i in range(nn):
+            q[i] += al * p[i]
+            r[i] -= al * Ap[i]
+        if math.sqrt(sum(v * v for v in r)) < 1e-10 * r0:
+            break
+        z = [r[i] / diag[i] for i in range(nn)]
+        rz1 = sum(r[i] * z[i] for i in range(nn))
+        p = [z[i] + rz1 / rz * p[i] for i in range(nn)]
+        rz = rz1
+    # integrate q over the bins
+    prof = {}
+    total = 0.0
+    pitch2, a, z2 = info["pitch2"], info["centre"], info["z2"]
+    subpts = []
+    for i in range(sub):
+        for j in range(sub - i):
+            # upright and (if any) inverted sub-triangles of the unit triangle
+            subpts.append(((i, j), (i + 1, j), (i, j + 1)))
+            if i + j + 1 < sub:
+                subpts.append(((i + 1, j), (i + 1, j + 1), (i, j + 1)))
+    for fc in faces:
+        P = [X[n] for n in fc]
+        qv = [q[idx[n]] for n in fc]
+        if max(abs(v) for v in qv) == 0.0:
+            continue
+        for tri in subpts:
+            (u0, v0), (u1, v1), (u2, v2) = [(c[0] / sub, c[1] / sub) for c in tri]
+            for s1, s2, w in TRI_GP:
+                xi = u0 + s1 * (u1 - u0) + s2 * (u2 - u0)
+                eta = v0 + s1 * (v1 - v0) + s2 * (v2 - v0)
+                N, dxi, deta = tri6(xi, eta)
+                t1 = [sum(dxi[k] * P[k][i] for k in range(6)) for i in range(3)]
+                t2 = [sum(deta[k] * P[k][i] for k in range(6)) for i in range(3)]
+                da = 0.5 * w / (sub * sub) * math.sqrt(
+                    (t1[1] * t2[2] - t1[2] * t2[1]) ** 2 + (t1[2] * t2[0] - t1[0] * t2[2]) ** 2
+                    + (t1[0] * t2[1] - t1[1] * t2[0]) ** 2)
+                x = [sum(N[k] * P[k][i] for k in range(6)) for i in range(3)]
+                val = sum(N[k] * qv[k] for k in range(6)) * da
+                ang = math.atan2(x[1], x[0] - a) - info["th2_z0"] - x[2] * info["twist2"]
+                tooth = int(round(ang / pitch2)) % z2
+                ib = min(max(int(x[2] / b * nbin), 0), nbin - 1)
+                prof.setdefault(tooth, [0.0] * nbin)[ib] += val
+                total += val
     w = b / nbin
-    return {k: [v / w for v in vals] for k, vals in prof.items()}, total
+    return {k: [v / w for v in vals] for k, vals in prof.items()}, total_nodes, total
 
 
 def parse_ccx(work):
@@ -506,6 +686,7 @@ def run_ccx(work):
     with open(os.path.join(work, "ccx.log"), "w") as f:
         f.write(r.stdout)
         f.write("\nCPU seconds (user + system, this process): %.2f\n" % cpu)
+        f.write("wall seconds: %.2f\n" % dt)
     if r.returncode != 0 or "*ERROR" in r.stdout:
         raise RuntimeError("ccx failed in %s (see ccx.log)" % work)
     rot, rf = parse_ccx(work)
@@ -514,20 +695,74 @@ def run_ccx(work):
 
 FIELDS = ["roll", "h_mm", "misalign_um", "penalty", "nodes", "elements", "dofs", "theta_rad", "te_um",
           "k_n_per_mm_um", "force_n", "hub_force_n", "contact_force_n", "peak_n_per_mm", "mesh_s", "ccx_s",
-          "ccx_cpu_s", "driver_teeth", "driven_teeth"]
+          "ccx_cpu_s", "driver_teeth", "driven_teeth", "sector_teeth"]
+
+
+PFIELDS = ["roll", "h_mm", "misalign_um", "driven_tooth"] + ["q%02d" % i for i in range(NBIN)] + ["sector_teeth"]
+
+
+def sector_of(r):
+    """The sector size of a stored row (rows before the column: 5 teeth)."""
+    return int(r.get("sector_teeth") or 5)
+
+
+def ccx_times(work):
+    """CPU and wall seconds of the ccx run in work (from ccx.log; wall nan
+    where the log predates its record)."""
+    cpu = wall = float("nan")
+    for ln in open(os.path.join(work, "ccx.log")):
+        if ln.startswith("CPU seconds"):
+            cpu = float(ln.split(":")[1])
+        elif ln.startswith("wall seconds"):
+            wall = float(ln.split(":")[1])
+    return cpu, wall
+
+
+def store(runs, profs, row, prow, replace=False):
+    """Append the run's row and profile rows; replace: the stored rows of
+    the same run (h, roll, misalignment) are replaced (keeping their times
+    where the log has none)."""
+    key = (float(row["h_mm"]), round(float(row["roll"]), 6), float(row["misalign_um"]), sector_of(row))
+    same = (lambda r: (float(r["h_mm"]), round(float(r["roll"]), 6), float(r["misalign_um"]), sector_of(r)) == key)
+    if not replace:
+        gearref.append_row(runs, FIELDS, row)
+        for p in prow:
+            gearref.append_row(profs, PFIELDS, p)
+        return
+    for path, fields, new in ((runs, FIELDS, [row]), (profs, PFIELDS, prow)):
+        old = list(csv.DictReader(open(path))) if os.path.exists(path) else []
+        if path == runs:
+            for r in old:
+                if same(r):
+                    for k in ("ccx_s", "ccx_cpu_s", "mesh_s"):
+                        if row[k] in ("nan", "") or float(row[k]) != float(row[k]):
+                            row[k] = r[k]
+        kept = [r for r in old if not same(r)]
+        with open(path, "w", newline="") as fo:
+            w = csv.DictWriter(fo, fieldnames=fields)
+            w.writeheader()
+            w.writerows(kept + new)
 
 
 def main():
+    global TEETH
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--h", type=float, nargs="+", default=[1.2])
     ap.add_argument("--positions", type=int, default=8)
     ap.add_argument("--rolls", type=int, nargs="*", help="roll indices j of j/N to run (default all)")
     ap.add_argument("--misalign", type=float, nargs="+", default=[0.0])
+    ap.add_argument("--teeth", type=int, default=TEETH,
+                    help="teeth per gear sector (odd; the central %d carry the contact surfaces)" % CONTACT)
     ap.add_argument("--keep", action="store_true")
-    ap.add_argument("--post", type=float, nargs=2, metavar=("CPU_S", "WALL_S"),
-                    help="read the outputs of a finished ccx run in the work directory (not run again)")
+    ap.add_argument("--post", action="store_true",
+                    help="read the outputs of a finished ccx run kept in the work directory again (not run "
+                         "again; its row and profile replace the stored ones, CPU and wall time from ccx.log "
+                         "or the stored row)")
     ap.add_argument("--work", default=os.path.join("/tmp", "helical_pair_%d" % os.getpid()))
     args = ap.parse_args()
+    if args.teeth < CONTACT or args.teeth % 2 == 0:
+        ap.error("--teeth must be odd and at least %d" % CONTACT)
+    TEETH = args.teeth
     pair, g1, g2 = load_pair(os.path.join(HERE, "pair.json"))
     b = pair["face_width_mm"]
     F = pair["torque_nmm"] / g1.g.rb
@@ -536,15 +771,17 @@ def main():
     done = set()
     if os.path.exists(runs):
         for r in csv.DictReader(open(runs)):
-            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["misalign_um"])))
+            done.add((float(r["h_mm"]), round(float(r["roll"]), 6), float(r["misalign_um"]), sector_of(r)))
     js = args.rolls if args.rolls else range(args.positions)
     for h in args.h:
         for f in args.misalign:
             for j in js:
                 roll = j / args.positions
-                if (h, round(roll, 6), f) in done:
+                if (h, round(roll, 6), f, TEETH) in done and not args.post:
                     continue
-                work = os.path.join(args.work, "h%g_f%g_r%d" % (h, f, j))
+                work = os.path.join(args.work, "h%g_f%g_r%d" % (h, f, j) + ("_t%d" % TEETH if TEETH != 5 else ""))
+                if args.post and not os.path.exists(os.path.join(work, "pair.dat")):
+                    continue
                 info = build(work, pair, g1, g2, roll, h, f)
                 info["pitch2"] = g2.g.pitch
                 info["centre"] = pair["centre_mm"]
@@ -553,14 +790,13 @@ def main():
                 info["th2_z0"] = (pair["driven_angle0_rad"] - roll * g1.g.pitch * g1.g.z / g2.g.z
                                   - 0.5 * b * g2.twist)
                 if args.post:
-                    # a finished ccx run whose reading failed: its outputs read
-                    # again, CPU and wall time as given
                     rot, rf = parse_ccx(work)
-                    cpu, dt = args.post
+                    cpu, dt = ccx_times(work)
                 else:
                     rot, rf, dt, cpu = run_ccx(work)
-                press = read_contact_pressure(os.path.join(work, "pair.frd"))
-                prof, total = face_profile(info, press, 0.0, g1.g.rb, b)
+                dat = os.path.join(work, "pair.dat")
+                fnode = nodal_forces(info, read_dat_last(dat, "stresses"))
+                prof, total, integral = face_profile(info, fnode, g1.g.rb, b)
                 te = g1.g.rb * rot * 1e3
                 peak = max((max(v) for v in prof.values()), default=0.0)
                 row = dict(roll="%.6f" % roll, h_mm=h, misalign_um=f, penalty=pair["penalty"],
@@ -570,16 +806,14 @@ def main():
                            contact_force_n="%.3f" % total, peak_n_per_mm="%.3f" % peak,
                            mesh_s="%.1f" % info["mesh_s"], ccx_s="%.1f" % dt, ccx_cpu_s="%.1f" % cpu,
                            driver_teeth=" ".join(map(str, info["teeth1"])),
-                           driven_teeth=" ".join(map(str, info["teeth2"])))
-                gearref.append_row(runs, FIELDS, row)
-                for tooth, vals in sorted(prof.items()):
-                    gearref.append_row(profs, ["roll", "h_mm", "misalign_um", "driven_tooth"] +
-                                       ["q%02d" % i for i in range(NBIN)],
-                                       dict(roll="%.6f" % roll, h_mm=h, misalign_um=f, driven_tooth=tooth,
-                                            **{"q%02d" % i: "%.4f" % v for i, v in enumerate(vals)}))
+                           driven_teeth=" ".join(map(str, info["teeth2"])), sector_teeth=TEETH)
+                prow = [dict(roll="%.6f" % roll, h_mm=h, misalign_um=f, driven_tooth=tooth, sector_teeth=TEETH,
+                             **{"q%02d" % i: "%.4f" % v for i, v in enumerate(vals)})
+                        for tooth, vals in sorted(prof.items())]
+                store(runs, profs, row, prow, replace=args.post)
                 print("roll %.4f h %g f %g: nodes %d TE %.4f um k %.4f N/(mm um) peak %.1f N/mm "
-                      "contact %.1f N of %.1f, hub %.1f; ccx cpu %.1f s" %
-                      (roll, h, f, info["nodes"], te, F / te / b, peak, total, F,
+                      "contact %.1f N (integral %.1f) of %.1f, hub %.1f; ccx cpu %.1f s" %
+                      (roll, h, f, info["nodes"], te, F / te / b, peak, total, integral, F,
                        math.hypot(rf[0], rf[1]), cpu), flush=True)
                 if not args.keep:
                     for fn in os.listdir(work):
