@@ -492,26 +492,13 @@ static int train_mesh(const gs_scene *sc, const gs_scene_mesh *sm)
     return 0;
 }
 
-/* A body's moment for the static share: constant and ramped moments at
- * full value, a table's largest (as driver_moment); *react 1 when a brake
- * on it reacts the others. */
-static double share_moment(const gs_scene *sc, int body, int *react)
+/* A brake on the body: it reacts the others in the static share. */
+static int braked(const gs_scene *sc, int body)
 {
-    double M = 0;
-    for (int i = 0; i < sc->n_loads; i++) {
-        const gs_scene_load *l = &sc->loads[i];
-        if (l->body != body)
-            continue;
-        if (l->type == GS_LOAD_BRAKE)
-            *react = 1;
-        else if (l->type == GS_LOAD_CONSTANT || l->type == GS_LOAD_RAMP)
-            M += l->moment;
-        else if (l->type == GS_LOAD_TABLE)
-            for (int k = 0; k < l->n_table; k++)
-                if (fabs(l->moments[k]) > fabs(M))
-                    M = l->moments[k];
-    }
-    return M;
+    for (int i = 0; i < sc->n_loads; i++)
+        if (sc->loads[i].body == body && sc->loads[i].type == GS_LOAD_BRAKE)
+            return 1;
+    return 0;
 }
 
 /* Row i of the meshes' line-of-action displacement over the bodies'
@@ -535,7 +522,7 @@ static void share_row(const gs_scene *sc, int i, double *a)
  * along its line of action, signed as its deflection (0 when the train
  * does not stand under them): the rotations held where a brake reacts or
  * the joint holds, every mesh a spring of one stiffness, the moments of
- * share_moment. Equal springs give a symmetric train's shares by its
+ * driver_moment on the others. Equal springs give a symmetric train's shares by its
  * geometry alone (the planets' equal shares of the sun's moment), and the
  * mean force of a mesh no load acts on directly (a planet's on its ring)
  * with the flank it loads. */
@@ -551,12 +538,11 @@ static double static_share(const gs_scene *sc, int mesh)
     for (int i = 0; i < nm; i++)
         share_row(sc, i, a + (size_t)i * nb);
     for (int b = 0; b < nb; b++) {
-        int react = 0;
-        double M = share_moment(sc, b, &react), diag = 0;
+        double diag = 0;
         for (int i = 0; i < nm; i++)
             diag += a[(size_t)i * nb + b] * a[(size_t)i * nb + b];
-        if (!react && sc->bodies[b].joint != GS_JOINT_HELD && diag > 0)
-            f[nf] = M, fc[nf++] = b;
+        if (!braked(sc, b) && sc->bodies[b].joint != GS_JOINT_HELD && diag > 0)
+            f[nf] = driver_moment(sc, b), fc[nf++] = b;
     }
     double big = 0; /* K_ff q = f (Gauss, partial pivoting) */
     for (int r = 0; r < nf; r++)
