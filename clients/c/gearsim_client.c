@@ -27,6 +27,9 @@ struct gsc_client {
     int all_topics;
     long long last_seq;    /* -1: none yet */
     long gaps;
+    int batched;           /* the daemon sends telemetry in batches (connection file) */
+    json_object *batch;    /* the events of the last batch received, */
+    size_t batch_next;     /* the next of them to hand out */
     /* CURVE (Z85): the daemon's key and this client's pair, from the
      * connection file (a loopback daemon's own pair); empty when off. */
     char curve_server[41], curve_public[41], curve_secret[41];
@@ -117,6 +120,8 @@ int gsc_client_new(const char *connection_file, gsc_client **out, gsc_error *err
         return -1;
     }
     copy_string(info, "session", c->session, sizeof c->session);
+    json_object *bv;
+    c->batched = json_object_object_get_ex(info, "telemetry_batch", &bv) && json_object_get_boolean(bv);
     snprintf(c->conn_path, sizeof c->conn_path, "%s", connection_file);
     json_object *pv, *sv;
     if (json_object_object_get_ex(info, "pid", &pv) && json_object_get_type(pv) == json_type_int)
@@ -159,6 +164,7 @@ void gsc_client_free(gsc_client **pc)
     gsc_client *c = *pc;
     if (c->sub)
         zmq_close(c->sub);
+    json_object_put(c->batch);
     if (c->cmd)
         zmq_close(c->cmd);
     if (c->ctx)
@@ -360,20 +366,51 @@ int gsc_request(gsc_client *c, const char *cmd, json_object *args, int timeout_m
     return -1;
 }
 
+/* Hand out the next event of the batch being read; 0 when none is left. */
+static int next_of_batch(gsc_client *c, json_object **event)
+{
+    while (c->batch && c->batch_next < json_object_array_length(c->batch)) {
+        json_object *ev = json_object_array_get_idx(c->batch, c->batch_next++);
+        if (json_object_get_type(ev) == json_type_object) {
+            *event = json_object_get(ev);
+            return 1;
+        }
+    }
+    json_object_put(c->batch);
+    c->batch = NULL;
+    return 0;
+}
+
 static int recv_event(gsc_client *c, int timeout_ms, json_object **event)
 {
     *event = NULL;
-    zmq_pollitem_t it = {c->sub, 0, ZMQ_POLLIN, 0};
-    if (zmq_poll(&it, 1, timeout_ms) <= 0)
-        return 0;
-    int nf;
-    char topic[64];
-    char *text = recv_message(c->sub, &nf, topic, sizeof topic);
-    json_object *ev = nf == 2 ? parse(text) : NULL;
-    free(text);
-    if (!ev || json_object_get_type(ev) != json_type_object) {
-        json_object_put(ev);
-        return 0;
+    json_object *ev = NULL;
+    if (!next_of_batch(c, &ev)) {
+        zmq_pollitem_t it = {c->sub, 0, ZMQ_POLLIN, 0};
+        if (zmq_poll(&it, 1, timeout_ms) <= 0)
+            return 0;
+        int nf;
+        char topic[64];
+        char *text = recv_message(c->sub, &nf, topic, sizeof topic);
+        ev = nf == 2 ? parse(text) : NULL;
+        free(text);
+        if (!ev || json_object_get_type(ev) != json_type_object) {
+            json_object_put(ev);
+            return 0;
+        }
+        json_object *evs;
+        if (strcmp(topic, "batch") == 0) { /* telemetry events, in order, many per message */
+            if (!json_object_object_get_ex(ev, "events", &evs) || json_object_get_type(evs) != json_type_array) {
+                json_object_put(ev);
+                return 0;
+            }
+            c->batch = json_object_get(evs);
+            c->batch_next = 0;
+            json_object_put(ev);
+            ev = NULL;
+            if (!next_of_batch(c, &ev))
+                return 0;
+        }
     }
     json_object *seq;
     if (json_object_object_get_ex(ev, "seq", &seq) && json_object_get_type(seq) == json_type_int) {
@@ -386,6 +423,29 @@ static int recv_event(gsc_client *c, int timeout_ms, json_object **event)
     return 1;
 }
 
+/* The event types; a daemon that batches telemetry sends it on `batch`. */
+static const char *const event_types[] = {"telemetry", "progress", "done", "heartbeat", "warning", "error"};
+
+/* Subscribe to what `topic` asks for: every event type it is a prefix of
+ * (telemetry as `batch` from a batching daemon), and heartbeats. */
+static int subscribe_topics(gsc_client *c, const char *topic)
+{
+    if (!c->batched)
+        return zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, topic, strlen(topic)) ||
+               (topic[0] && zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, "heartbeat", 9));
+    size_t n = strlen(topic);
+    for (size_t i = 0; i < sizeof event_types / sizeof event_types[0]; i++) {
+        const char *t = event_types[i];
+        if (strncmp(t, topic, n) != 0 && strcmp(t, "heartbeat") != 0)
+            continue;
+        if (strcmp(t, "telemetry") == 0)
+            t = "batch";
+        if (zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, t, strlen(t)))
+            return -1;
+    }
+    return 0;
+}
+
 int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *err)
 {
     if (c->sub)
@@ -395,8 +455,7 @@ int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *e
     if (!c->sub || zmq_setsockopt(c->sub, ZMQ_LINGER, &linger, sizeof linger) ||
         zmq_setsockopt(c->sub, ZMQ_IPV6, &v6, sizeof v6) ||
         zmq_setsockopt(c->sub, ZMQ_RCVHWM, &hwm, sizeof hwm) ||
-        zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, topic, strlen(topic)) ||
-        (topic[0] && zmq_setsockopt(c->sub, ZMQ_SUBSCRIBE, "heartbeat", 9)) || apply_curve(c, c->sub) ||
+        subscribe_topics(c, topic) || apply_curve(c, c->sub) ||
         zmq_connect(c->sub, c->telemetry_ep)) {
         set_err(err, "io_error", "", "cannot subscribe to %s: %s", c->telemetry_ep,
                 zmq_strerror(zmq_errno()));

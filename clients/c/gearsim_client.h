@@ -53,7 +53,10 @@ const char *gsc_last_id(const gsc_client *c);
 
 /* Connect the SUB socket with a topic prefix ("" = every event) and wait up
  * to timeout_ms for the first heartbeat (the ZeroMQ slow joiner would lose
- * events sent before the subscription is live). 0 on success, -1 on failure. */
+ * events sent before the subscription is live). 0 on success, -1 on failure.
+ * From a daemon that batches telemetry (`telemetry_batch` in its connection
+ * file) the telemetry travels many events per message, on the topic
+ * `batch`; gsc_next_event hands them out one by one, in order, either way. */
 int gsc_subscribe(gsc_client *c, const char *topic, int timeout_ms, gsc_error *err);
 
 /* Wait up to timeout_ms for the next event. Returns 1 and a new reference in

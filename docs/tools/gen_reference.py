@@ -134,6 +134,8 @@ def gen_schemas():
         name = os.path.splitext(os.path.basename(p))[0]
         parts.append(f"## Event `{name}`\n")
         parts.append(schema_section("Fields", p))
+    parts.append("## Telemetry batch\n")
+    parts.append(schema_section("Fields", os.path.join(v1, "batch.json")))
     return "\n".join(parts)
 
 

@@ -142,6 +142,22 @@ int gs_fmt_double(char *buf, double x)
     uint64_t ab;
     memcpy(&ab, &a, sizeof ab);
     int e2 = (int)(ab >> 52) - 1022; /* a = f 2^e2, f in [0.5, 1) */
+    if ((ab & 0xfffffffffffffull) == 0 && a >= 1.0 && a < 0x1p53) {
+        /* An integer power of two (a planet's load share of 1, say): its
+         * ulp is at most 1, so no text with fewer digits than its own
+         * integer digits reads back as it; those digits are the shortest,
+         * as the slow path finds them. */
+        char r[20], d[20];
+        int nd = 0;
+        for (uint64_t c = (uint64_t)a; c; c /= 10)
+            r[nd++] = (char)('0' + c % 10);
+        for (int i = 0; i < nd; i++)
+            d[i] = r[nd - 1 - i];
+        int kk = nd - 1;
+        while (nd > 1 && d[nd - 1] == '0')
+            nd--;
+        return layout(buf, neg, d, nd, kk);
+    }
     if ((ab & 0xfffffffffffffull) == 0 || a < DBL_MIN)
         return slow(buf, x); /* lopsided interval; subnormal */
     /* Decimal exponent k (10^k <= a < 10^(k+1)) and a scaled to 17 digits,
@@ -151,7 +167,12 @@ int gs_fmt_double(char *buf, double x)
     int k = ((e2 - 1) * 78913) >> 18; /* about (e2 - 1) log10(2), floored */
     if (k > 37 || k < -37)
         return slow(buf, x);
-    long double half = ldexpl(1.0L, e2 - 54);
+    /* Half an ulp, 2^(e2-54), written as a double's bits (|k| <= 37 keeps
+     * it a normal double): exact, and no libm call. */
+    uint64_t hb = (uint64_t)(e2 - 54 + 1023) << 52;
+    double hd;
+    memcpy(&hd, &hb, sizeof hd);
+    long double half = hd;
     long double S = scale10((long double)a, 16 - k), H = scale10(half, 16 - k);
     if (S >= 1e17L)
         k++, S /= 10.0L, H /= 10.0L;

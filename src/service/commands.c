@@ -39,7 +39,7 @@ static gs_err cmd_hello(gs_service *s, json_object *args, const char *id, json_o
     json_object_object_add(o, "ranks", json_object_new_int(gs_engine_size(s->eng)));
     json_object *caps = json_object_new_array();
     static const char *const cap[] = {"rigid", "elastic", "kinematic", "lumped", "contact", "fields", "record",
-                                      "checkpoint", "jobs", "fetch", "modal", "sweep", NULL};
+                                      "checkpoint", "jobs", "fetch", "modal", "sweep", "telemetry_batch", NULL};
     for (int i = 0; cap[i]; i++)
         json_object_array_add(caps, json_object_new_string(cap[i]));
     json_object_object_add(o, "capabilities", caps);

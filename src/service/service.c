@@ -108,8 +108,12 @@ void gsi_publish(gs_service *s, const char *type, json_object *o)
         return;
     }
     /* A slow subscriber never slows the simulation: drop on a full queue. */
-    zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
-    zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
+    if (strcmp(type, "telemetry") == 0) {
+        gsi_telemetry_publish_one(s, txt); /* in the form(s) subscribed to */
+    } else {
+        zmq_send(s->pub, type, strlen(type), ZMQ_SNDMORE | ZMQ_DONTWAIT);
+        zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
+    }
     json_object_put(ev);
 }
 
@@ -1122,6 +1126,8 @@ static gs_err write_connection_file(gs_service *s)
     json_object_object_add(o, "session", json_object_new_string(s->session));
     json_object_object_add(o, "command", json_object_new_string(s->cmd_endpoint));
     json_object_object_add(o, "telemetry", json_object_new_string(s->tel_endpoint));
+    /* Telemetry also comes in batches on the topic `batch` (telemetry.c). */
+    json_object_object_add(o, "telemetry_batch", json_object_new_boolean(1));
     json_object_object_add(o, "pid", json_object_new_int((int)getpid()));
     json_object_object_add(o, "ranks", json_object_new_int(size));
     json_object_object_add(o, "version", json_object_new_string("0.1.0"));
@@ -1239,7 +1245,7 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
 
     s->zctx = zmq_ctx_new();
     s->router = zmq_socket(s->zctx, ZMQ_ROUTER);
-    s->pub = zmq_socket(s->zctx, ZMQ_PUB);
+    s->pub = zmq_socket(s->zctx, ZMQ_XPUB); /* XPUB: telemetry.c reads the subscriptions */
     int linger = 0, hwm = 10000, mandatory = 0;
     /* No transport cap: ZMQ_MAXMSGSIZE would drop the connection with no
      * reply. Every frame is received; above GSI_MAX_MESSAGE it is discarded

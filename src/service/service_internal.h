@@ -137,6 +137,8 @@ json_object *gsi_state_json(gs_service *s);
  * sends it first. src/service/telemetry.c. */
 bool gsi_telemetry_queue(gs_service *s);
 void gsi_telemetry_flush(gs_service *s);
+/* One telemetry event's text, published in the form(s) subscribed to. */
+void gsi_telemetry_publish_one(gs_service *s, const char *txt);
 void gsi_telemetry_free(gs_service *s);
 /* Open the run record at `path` for the loaded system, with the meshes of
  * its elastic bodies when the scene records field snapshots. */

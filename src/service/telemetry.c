@@ -22,16 +22,31 @@ typedef struct tbuf {
 } tbuf;
 
 /* The telemetry events of a chunk are queued here and sent together
- * (gsi_telemetry_flush): ZeroMQ's I/O thread then wakes once for the lot
- * rather than once for each event, its largest cost per event. The queue
- * is sent before any other event (seq stays in order), at the end of every
- * chunk, and whenever it holds TEL_QUEUE events, so a burst never nears
- * the socket's high-water mark (1000 messages). */
+ * (gsi_telemetry_flush). ZeroMQ's I/O thread wakes, encrypts and writes
+ * once per message, its largest cost per event: a subscriber to the topic
+ * `batch` gets the whole queue as one message, {"v":1,"type":"batch",
+ * "session":..,"events":[..]}, each event the very text a single telemetry
+ * message carries. A subscriber to `telemetry` (or to everything) still
+ * gets one message per event: the PUB socket is an XPUB, which tells the
+ * daemon which topics someone subscribed to, and each form is written only
+ * while someone wants it. The queue is sent before any other event (seq
+ * stays in order), at the end of every chunk, when it holds TEL_QUEUE
+ * events or would pass TEL_BYTES of text with one more, and when its oldest event is TEL_LAG_S old,
+ * so a live view never lags more than that behind the simulation and a
+ * burst never nears the socket's high-water mark. TEL_BYTES keeps a
+ * message's buffers (ZeroMQ's copy and CurveZMQ's encrypted one) below
+ * glibc's 64 KiB free that consolidates and trims the I/O thread's heap
+ * (an madvise and a TLB flush per message, measured). */
 #define TEL_QUEUE 64
+#define TEL_BYTES 60000
+#define TEL_LAG_S 0.05
 typedef struct svc_telemetry {
-    tbuf tb;
-    size_t q_end[TEL_QUEUE]; /* end offset of each queued event in tb */
+    tbuf tb;                   /* the batch header, then the events with ',' between them */
+    size_t head;               /* length of the header: {"v":1,..,"events":[ */
+    size_t q_end[TEL_QUEUE];   /* end offset of each queued event in tb */
     int q_n;
+    double t_first;            /* gs_now() when the first queued event was written */
+    int subs_single, subs_batch; /* subscriptions that match `telemetry`, `batch` (XPUB) */
 } svc_telemetry;
 
 static void reserve(tbuf *b, size_t more)
@@ -70,48 +85,126 @@ static void put_kn(tbuf *b, const char *key, double x)
     put_num(b, x);
 }
 
+/* An integer's decimal digits (as printf's %lld writes them). */
 static void put_int(tbuf *b, long long v)
 {
-    reserve(b, 24);
-    if (!b->oom)
-        b->n += (size_t)snprintf(b->p + b->n, 24, "%lld", v);
+    char r[24];
+    int n = 0;
+    unsigned long long u = v < 0 ? 0ull - (unsigned long long)v : (unsigned long long)v;
+    do
+        r[sizeof r - 1 - n++] = (char)('0' + u % 10);
+    while ((u /= 10) != 0);
+    if (v < 0)
+        r[sizeof r - 1 - n++] = '-';
+    put(b, r + sizeof r - n, (size_t)n);
 }
 
-/* A JSON string: quotes, backslashes and control characters escaped. */
+/* A JSON string: quotes, backslashes and control characters escaped; the
+ * runs between them copied whole. */
 static void put_str(tbuf *b, const char *s)
 {
     PUT(b, "\"");
-    for (const char *r = s; *r; r++) {
-        unsigned char c = (unsigned char)*r;
+    const char *r = s;
+    for (;;) {
+        const char *q = r;
+        while (*q && *q != '"' && *q != '\\' && (unsigned char)*q >= 0x20)
+            q++;
+        put(b, r, (size_t)(q - r));
+        unsigned char c = (unsigned char)*q;
+        if (!c)
+            break;
         if (c == '"' || c == '\\') {
             char e[2] = {'\\', (char)c};
             put(b, e, 2);
-        } else if (c < 0x20) {
+        } else {
             char e[8];
             snprintf(e, sizeof e, "\\u%04x", c);
             put(b, e, 6);
-        } else {
-            put(b, r, 1);
         }
+        r = q + 1;
     }
     PUT(b, "\"");
+}
+
+/* The subscriptions the XPUB passed on since the last call: byte 1 then
+ * the topic prefix (subscribe) or byte 0 then it (the last subscriber of
+ * that prefix left). ZeroMQ passes each prefix once however many
+ * subscribers share it, so the counts are of distinct prefixes. A prefix
+ * longer than the topic cannot match it (read truncated, still counted
+ * right: its length is the returned size). */
+static void read_subscriptions(gs_service *s, svc_telemetry *t)
+{
+    unsigned char m[16];
+    int n;
+    while ((n = zmq_recv(s->pub, m, sizeof m, ZMQ_DONTWAIT)) >= 1) {
+        int d = m[0] == 1 ? 1 : m[0] == 0 ? -1 : 0;
+        size_t len = (size_t)n - 1;
+        if (len <= 9 && memcmp(m + 1, "telemetry", len) == 0)
+            t->subs_single += d;
+        if (len <= 5 && memcmp(m + 1, "batch", len) == 0)
+            t->subs_batch += d;
+    }
+}
+
+static svc_telemetry *tel_get(gs_service *s)
+{
+    if (!s->tel)
+        s->tel = calloc(1, sizeof *s->tel);
+    return s->tel;
 }
 
 void gsi_telemetry_flush(gs_service *s)
 {
-    svc_telemetry *t = s->tel;
+    svc_telemetry *t = tel_get(s);
     if (!t)
         return;
-    size_t at = 0;
-    for (int i = 0; i < t->q_n; i++) {
-        if (s->pub) { /* a slow subscriber never slows the simulation: drop on a full queue */
+    if (s->pub)
+        read_subscriptions(s, t);
+    if (t->q_n == 0)
+        return;
+    /* A slow subscriber never slows the simulation: drop on a full queue. */
+    if (s->pub && t->subs_single > 0) {
+        size_t at = t->head;
+        for (int i = 0; i < t->q_n; i++) {
             zmq_send(s->pub, "telemetry", 9, ZMQ_SNDMORE | ZMQ_DONTWAIT);
             zmq_send(s->pub, t->tb.p + at, t->q_end[i] - at, ZMQ_DONTWAIT);
+            at = t->q_end[i] + 1; /* past the ',' */
         }
-        at = t->q_end[i];
+    }
+    if (s->pub && t->subs_batch > 0) {
+        t->tb.n = t->q_end[t->q_n - 1];
+        PUT(&t->tb, "]}");
+        if (!t->tb.oom) {
+            zmq_send(s->pub, "batch", 5, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+            zmq_send(s->pub, t->tb.p, t->tb.n, ZMQ_DONTWAIT);
+        }
     }
     t->q_n = 0;
     t->tb.n = 0;
+}
+
+void gsi_telemetry_publish_one(gs_service *s, const char *txt)
+{
+    svc_telemetry *t = tel_get(s);
+    if (!s->pub || !t)
+        return;
+    if (t->subs_single > 0) {
+        zmq_send(s->pub, "telemetry", 9, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+        zmq_send(s->pub, txt, strlen(txt), ZMQ_DONTWAIT);
+    }
+    if (t->subs_batch > 0) { /* a batch of one */
+        tbuf b = {0};
+        PUT(&b, "{\"v\":1,\"type\":\"batch\",\"session\":");
+        put_str(&b, s->session);
+        PUT(&b, ",\"events\":[");
+        put(&b, txt, strlen(txt));
+        PUT(&b, "]}");
+        if (!b.oom) {
+            zmq_send(s->pub, "batch", 5, ZMQ_SNDMORE | ZMQ_DONTWAIT);
+            zmq_send(s->pub, b.p, b.n, ZMQ_DONTWAIT);
+        }
+        free(b.p);
+    }
 }
 
 void gsi_telemetry_free(gs_service *s)
@@ -124,14 +217,23 @@ void gsi_telemetry_free(gs_service *s)
 
 bool gsi_telemetry_queue(gs_service *s)
 {
-    if (!s->tel && !(s->tel = calloc(1, sizeof *s->tel)))
+    svc_telemetry *t = tel_get(s);
+    if (!t)
         return false;
-    svc_telemetry *t = s->tel;
     gs_system *sys = gs_engine_system(s->eng);
     tbuf *b = &t->tb;
-    size_t start = b->n;
-    uint64_t seq0 = s->seq;
     b->oom = false;
+    if (t->q_n == 0) {
+        b->n = 0;
+        PUT(b, "{\"v\":1,\"type\":\"batch\",\"session\":");
+        put_str(b, s->session);
+        PUT(b, ",\"events\":[");
+        t->head = b->n;
+        t->t_first = gs_now();
+    } else {
+        PUT(b, ",");
+    }
+    uint64_t seq0 = s->seq;
     PUT(b, "{\"v\":1,\"type\":\"telemetry\",\"seq\":");
     put_int(b, (long long)++s->seq);
     PUT(b, ",\"session\":");
@@ -213,13 +315,15 @@ bool gsi_telemetry_queue(gs_service *s)
     }
     PUT(b, "}");
     if (b->oom) { /* not queued: the caller publishes through the JSON tree */
-        b->n = start;
         s->seq = seq0;
+        if (t->q_n > 0)
+            b->n = t->q_end[t->q_n - 1];
         gsi_telemetry_flush(s);
         return false;
     }
     t->q_end[t->q_n++] = b->n;
-    if (t->q_n == TEL_QUEUE)
+    size_t last = b->n - (t->q_n > 1 ? t->q_end[t->q_n - 2] : t->head);
+    if (t->q_n == TEL_QUEUE || b->n + last >= TEL_BYTES || gs_now() - t->t_first >= TEL_LAG_S)
         gsi_telemetry_flush(s);
     return true;
 }

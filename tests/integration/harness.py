@@ -206,6 +206,7 @@ class Probe:
         self.dealer.connect(self.info["command"])
         self.sub = None
         self.events = []        # (frames, parsed or None, error text or None)
+        self.batches = []       # (frames, parsed or None, error text or None) of each batch message
         self.event_times = []   # arrival time (time.monotonic()) of each event
         self.replies = {}       # id -> (frames, parsed, error)
         self.stray = []         # replies whose id we did not expect
@@ -214,11 +215,19 @@ class Probe:
         if subscribe:
             self.subscribe()
 
-    def subscribe(self, timeout=10.0):
+    def subscribe(self, timeout=10.0, single=False):
+        """Subscribe to every event; telemetry in batches (the topic `batch`,
+        unpacked into self.events one event each, the batch itself kept in
+        self.batches) from a daemon that offers them, unless single=True
+        (everything, telemetry one event per message)."""
         self.sub = self.ctx.socket(zmq.SUB)
         self.sub.setsockopt(zmq.LINGER, 0)
         self.sub.setsockopt(zmq.RCVHWM, 1000000)
-        self.sub.setsockopt(zmq.SUBSCRIBE, b"")
+        if self.info.get("telemetry_batch") and not single:
+            for t in ("batch", "progress", "done", "heartbeat", "warning", "error"):
+                self.sub.setsockopt(zmq.SUBSCRIBE, t.encode())
+        else:
+            self.sub.setsockopt(zmq.SUBSCRIBE, b"")
         apply_curve(self.sub, self.info)
         self.sub.connect(self.info["telemetry"])
         deadline = time.monotonic() + timeout
@@ -250,8 +259,16 @@ class Probe:
             if self.sub in ready:
                 frames = self.sub.recv_multipart()
                 parsed, err = self._parse(frames)
-                self.events.append((frames, parsed, err))
-                self.event_times.append(time.monotonic())
+                evs = parsed.get("events") if frames[0] == b"batch" and isinstance(parsed, dict) else None
+                if isinstance(evs, list):
+                    self.batches.append((frames, parsed, err))
+                    for ev in evs:   # as a single telemetry message would carry it
+                        text = json.dumps(ev, allow_nan=False, separators=(",", ":")).encode()
+                        self.events.append(([b"telemetry", text], ev, None))
+                        self.event_times.append(time.monotonic())
+                else:
+                    self.events.append((frames, parsed, err))
+                    self.event_times.append(time.monotonic())
                 got += 1
             if self.dealer in ready:
                 frames = self.dealer.recv_multipart()

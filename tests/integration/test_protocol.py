@@ -178,6 +178,18 @@ def check_events(probe, session):
         if p not in uniq:
             uniq.append(p)
     R.check(f"all {len(probe.events)} events are valid (counts {counts})", not uniq, "\n".join(uniq[:15]))
+    bad_batches = []
+    for frames, parsed, err in probe.batches:
+        errs = [err] if err else P.errors("batch.json", parsed)
+        if not errs and frames[0] != b"batch":
+            errs = [f"topic {frames[0]!r} of a batch"]
+        seqs = [e.get("seq") for e in parsed.get("events", [])] if not errs else []
+        if seqs and any(b != a + 1 for a, b in zip(seqs, seqs[1:])):
+            errs = [f"seq within a batch not consecutive: {seqs[:8]}"]
+        if errs:
+            bad_batches.append(errs[0])
+    R.check(f"all {len(probe.batches)} telemetry batches validate against batch.json, seq consecutive inside",
+            not bad_batches, "\n".join(bad_batches[:5]))
     R.check("event seq increases by one (no gaps for a fast local subscriber)", gaps == 0, f"{gaps} missing")
     return counts
 

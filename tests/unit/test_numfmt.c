@@ -121,6 +121,16 @@ static void powers_and_neighbours(void **state)
         double x = ldexp(1.0, e);
         check(x, 1), check(nextafter(x, 0.0), 1), check(nextafter(x, INFINITY), 1);
     }
+    /* The integer powers of two below 2^53 (their own fast path): the
+     * integer's digits and ".0", as printf writes the integer. */
+    for (int e = 0; e < 53; e++) {
+        char b[GS_FMT_DOUBLE_MAX], t[40];
+        double x = ldexp(1.0, e);
+        snprintf(t, sizeof t, "%.0f.0", x);
+        gs_fmt_double(b, x), assert_string_equal(b, t);
+        snprintf(t, sizeof t, "-%.0f.0", x);
+        gs_fmt_double(b, -x), assert_string_equal(b, t);
+    }
     for (int e = -323; e <= 308; e++) {
         char t[16];
         snprintf(t, sizeof t, "1e%d", e);

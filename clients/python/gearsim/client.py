@@ -77,6 +77,7 @@ class Client:
         self._sent = {}          # id -> frame, for retries
         self._replies = {}       # id -> reply that arrived while waiting for another
         self._events = collections.deque()
+        self._batch = collections.deque()   # the rest of a received batch of telemetry events
         self.last_seq = None     # seq of the last event received
         self.gaps = 0            # events missed (seq gaps), counted when subscribed to all topics
         self.bad_events = 0      # event messages that were not two frames of JSON
@@ -390,7 +391,11 @@ class Client:
     def subscribe(self, topics=None, timeout=None):
         """Connect the SUB socket and wait for the first heartbeat (ZeroMQ's
         slow joiner would otherwise lose the first events). topics=None
-        subscribes to every event type (and enables gap detection by seq)."""
+        subscribes to every event type (and enables gap detection by seq).
+        Telemetry comes as single events either way; from a daemon that
+        offers it (`telemetry_batch` in the connection file) it travels in
+        batches, many events per message, which this client unpacks in order
+        (docs/reference/protocol.md, "Telemetry batches")."""
         if self._sub is not None:
             return
         timeout = max(self.timeout, 5.0) if timeout is None else timeout
@@ -402,12 +407,15 @@ class Client:
         except GearsimError:
             sub.close(linger=0)
             raise
-        if topics is None:
+        batched = bool(self.info.get("telemetry_batch"))
+        if topics is None and not batched:
             sub.setsockopt(zmq.SUBSCRIBE, b"")
             self._topics = None
         else:
-            self._topics = set(topics)
-            for t in self._topics | {"heartbeat"}:
+            self._topics = None if topics is None else set(topics)
+            for t in (set(EVENT_TYPES) if topics is None else self._topics | {"heartbeat"}):
+                if batched and t == "telemetry":
+                    t = "batch"
                 sub.setsockopt(zmq.SUBSCRIBE, t.encode())
         sub.setsockopt(zmq.IPV6, 1)
         sub.connect(self.info["telemetry"])
@@ -427,6 +435,8 @@ class Client:
             self._events.append(ev)
 
     def _recv_event(self, timeout):
+        if self._batch:
+            return self._seen(self._batch.popleft())
         if not self._sub.poll(int(max(timeout, 0) * 1000)):
             return None
         frames = self._sub.recv_multipart()
@@ -436,9 +446,19 @@ class Client:
             ev = json.loads(frames[1])
             if not isinstance(ev, dict):
                 raise ValueError("not an object")
+            if frames[0] == b"batch":
+                evs = ev.get("events")
+                if not isinstance(evs, list) or not evs or not all(isinstance(e, dict) for e in evs):
+                    raise ValueError("a batch without events")
+                self._batch.extend(evs)
+                ev = self._batch.popleft()
         except ValueError:
             self.bad_events += 1
             return None
+        return self._seen(ev)
+
+    def _seen(self, ev):
+        """Count a gap in seq before ev (subscribed to every topic)."""
         seq = ev.get("seq")
         if isinstance(seq, int):
             if self._topics is None and self.last_seq is not None and seq > self.last_seq + 1:
