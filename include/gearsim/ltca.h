@@ -45,14 +45,15 @@ typedef struct gs_ltca_table {
     double *f;        /* n x m forces along the line of action, N (increasing) */
     double *v;        /* n x m potential at the knots, J (0 at the closings) */
     double force_scene; /* the load of the analysis's default case (the scene's load on the
-                         * driver, else 200 N/mm), N: one of the front knots */
+                         * driver, else 200 N/mm; a train's mesh: its static share of the
+                         * scene's moments), N: one of the front knots */
     int knot_scene;   /* its knot index */
     double base_radius_m; /* of the driver */
     double k_mean;    /* mean over the positions of the tangent stiffness at force_scene, N/m */
     double body_compliance; /* m/N along the line of action: the share of the static compliance
                              * in the gears' bodies (web, hub; linear, the same at every position),
-                             * from the FE pair's own torsional mesh modes (0 where that analysis
-                             * does not apply: an internal gear in the mesh) */
+                             * from the FE pair's own torsional mesh modes, each gear on its own
+                             * axis (a train's meshes too: internal gears, planets) */
     double build_cpu_s; /* CPU seconds the analyses took (0 when read from a cache) */
     int from_cache;   /* 1 when read from a cache file */
     uint64_t key;
@@ -103,7 +104,7 @@ void gs_ltca_grad(const gs_ltca_table *t, double x0, double dx, double p0, doubl
 void gs_ltca_closing(const gs_ltca_table *t, double p, double *back, double *front);
 
 typedef struct gs_ltca_opts {
-    int positions;    /* roll positions per mesh cycle (default 48) */
+    int positions;    /* roll positions per mesh cycle (default 48, or $GEARSIM_LTCA_POSITIONS) */
     const char *cache_dir; /* NULL: $GEARSIM_LTCA_CACHE, else $XDG_CACHE_HOME/gearsim/ltca,
                             * else $HOME/.cache/gearsim/ltca; "" no cache */
 } gs_ltca_opts;

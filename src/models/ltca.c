@@ -338,9 +338,18 @@ void gs_ltca_grad(const gs_ltca_table *t, double x0, double dx, double p0, doubl
 /* Building: the quasi-static analyses                                    */
 /* ---------------------------------------------------------------------- */
 
+/* Roll positions per mesh cycle: 48, or $GEARSIM_LTCA_POSITIONS (12 ..
+ * 720; a key of its own) for checks of the tables' resolution in roll. */
+static int default_positions(void)
+{
+    const char *e = getenv("GEARSIM_LTCA_POSITIONS");
+    int n = e && e[0] ? atoi(e) : 0;
+    return n >= 12 && n <= 720 ? n : 48;
+}
+
 void gs_ltca_opts_defaults(gs_ltca_opts *o)
 {
-    o->positions = 48;
+    o->positions = default_positions();
     o->cache_dir = NULL;
 }
 
@@ -469,6 +478,128 @@ static int nearfield_setting(void)
     return v >= 0 && v <= 2 ? v : -1;
 }
 
+/* A mesh of a train: an internal gear or a planet on its carrier in it.
+ * Its tables carry the bodies' compliance measured on the pair with each
+ * gear on its own axis (the FE modal analysis's pair), as an external
+ * pair's do; the key says so (tables of earlier versions kept 0 there). */
+static int train_mesh(const gs_scene *sc, const gs_scene_mesh *sm)
+{
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+        if (b->gear.kind == GS_GEAR_INTERNAL || b->joint == GS_JOINT_ON_CARRIER)
+            return 1;
+    }
+    return 0;
+}
+
+/* A brake on the body: it reacts the others in the static share. */
+static int braked(const gs_scene *sc, int body)
+{
+    for (int i = 0; i < sc->n_loads; i++)
+        if (sc->loads[i].body == body && sc->loads[i].type == GS_LOAD_BRAKE)
+            return 1;
+    return 0;
+}
+
+/* Row i of the meshes' line-of-action displacement over the bodies'
+ * rotations (the rigid kinematics of the system's meshes, gearsim/step.h:
+ * sigma r_b on each gear's rotation, less on its carrier's; sigma -1 for
+ * a ring). */
+static void share_row(const gs_scene *sc, int i, double *a)
+{
+    const gs_scene_mesh *sm = &sc->meshes[i];
+    memset(a, 0, (size_t)sc->n_bodies * sizeof *a);
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *g = &sc->bodies[sm->gear[k]];
+        double sr = (g->gear.kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) * gs_gear_base_radius(&g->gear);
+        a[sm->gear[k]] += sr;
+        if (g->joint == GS_JOINT_ON_CARRIER)
+            a[g->carrier] -= sr;
+    }
+}
+
+/* The static share of the scene's moments that mesh `mesh` carries, N
+ * along its line of action, signed as its deflection (0 when the train
+ * does not stand under them): the rotations held where a brake reacts or
+ * the joint holds, every mesh a spring of one stiffness, the moments of
+ * driver_moment on the others. Equal springs give a symmetric train's shares by its
+ * geometry alone (the planets' equal shares of the sun's moment), and the
+ * mean force of a mesh no load acts on directly (a planet's on its ring)
+ * with the flank it loads. */
+static double static_share(const gs_scene *sc, int mesh)
+{
+    int nb = sc->n_bodies, nm = sc->n_meshes, nf = 0;
+    double *a = gs_calloc((size_t)nb * nm, sizeof *a), *K = gs_calloc((size_t)nb * nb + nb, sizeof *K);
+    int *fc = gs_calloc((size_t)nb, sizeof *fc);
+    double F = 0;
+    if (!a || !K || !fc)
+        goto out;
+    double *f = K + (size_t)nb * nb;
+    for (int i = 0; i < nm; i++)
+        share_row(sc, i, a + (size_t)i * nb);
+    for (int b = 0; b < nb; b++) {
+        double diag = 0;
+        for (int i = 0; i < nm; i++)
+            diag += a[(size_t)i * nb + b] * a[(size_t)i * nb + b];
+        if (!braked(sc, b) && sc->bodies[b].joint != GS_JOINT_HELD && diag > 0)
+            f[nf] = driver_moment(sc, b), fc[nf++] = b;
+    }
+    double big = 0; /* K_ff q = f (Gauss, partial pivoting) */
+    for (int r = 0; r < nf; r++)
+        for (int c = 0; c < nf; c++) {
+            double k = 0;
+            for (int i = 0; i < nm; i++)
+                k += a[(size_t)i * nb + fc[r]] * a[(size_t)i * nb + fc[c]];
+            K[(size_t)r * nf + c] = k;
+            big = fmax(big, fabs(k));
+        }
+    for (int c = 0; c < nf; c++) {
+        int p = c;
+        for (int r = c + 1; r < nf; r++)
+            if (fabs(K[(size_t)r * nf + c]) > fabs(K[(size_t)p * nf + c]))
+                p = r;
+        if (!(fabs(K[(size_t)p * nf + c]) > 1e-9 * big)) /* a rotation nothing reacts */
+            goto out;
+        for (int k = 0; k < nf; k++) {
+            double t = K[(size_t)c * nf + k];
+            K[(size_t)c * nf + k] = K[(size_t)p * nf + k], K[(size_t)p * nf + k] = t;
+        }
+        double t = f[c];
+        f[c] = f[p], f[p] = t;
+        for (int r = c + 1; r < nf; r++) {
+            double l = K[(size_t)r * nf + c] / K[(size_t)c * nf + c];
+            for (int k = c; k < nf; k++)
+                K[(size_t)r * nf + k] -= l * K[(size_t)c * nf + k];
+            f[r] -= l * f[c];
+        }
+    }
+    for (int c = nf - 1; c >= 0; c--) {
+        double v = f[c];
+        for (int k = c + 1; k < nf; k++)
+            v -= K[(size_t)c * nf + k] * f[k];
+        f[c] = v / K[(size_t)c * nf + c];
+    }
+    for (int r = 0; r < nf; r++)
+        F += a[(size_t)mesh * nb + fc[r]] * f[r];
+out:
+    free(a);
+    free(K);
+    free(fc);
+    return isfinite(F) ? F : 0.0;
+}
+
+/* The moment on the driver of the tables' default case: a train's mesh,
+ * its static share times the driver's base radius (the flank the train
+ * loads); otherwise 0, the analysis's default (the scene's moment on the
+ * driver, else 200 N/mm). */
+static double default_moment(const gs_scene *sc, int mesh)
+{
+    if (!train_mesh(sc, &sc->meshes[mesh]))
+        return 0.0;
+    const gs_scene_body *g = &sc->bodies[sc->meshes[mesh].gear[driver_of(sc, mesh)]];
+    return static_share(sc, mesh) * gs_gear_base_radius(&g->gear);
+}
+
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
 {
     uint64_t h = 14695981039346656037ull;
@@ -485,11 +616,13 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     double hv[GSI_LTCA_KEY_SLICED]; /* helical gears, lead modifications, misalignment */
     for (int i = 0, nh = gsi_ltca_key_sliced(sc, mesh, hv); i < nh; i++)
         h = fnv_d(h, hv[i]);
-    h = fnv_i(h, o ? o->positions : 48);
+    h = fnv_i(h, o ? o->positions : default_positions());
     if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
         h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
     if (modified_pair(sc, sm)) /* modified flanks: the correction forced on, its offsets the perfect gears' */
         h = fnv(h, "nearfield-modified", 18);
+    if (train_mesh(sc, sm)) /* a train's mesh: its load share, the bodies' compliance measured */
+        h = fnv_d(fnv(h, "train-share", 11), default_moment(sc, mesh));
     for (int i = 0; i < N_FRONT; i++)
         h = fnv_d(h, front_frac[i]);
     for (int i = 0; i < N_BACK; i++)
@@ -536,19 +669,6 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     return GS_OK;
 }
 
-/* The body compliance is measured on a pair of external gears turning
- * about fixed axes (the FE modal analysis's pair); a train's meshes (an
- * internal gear, a planet on its carrier) keep 0. */
-static int body_measurable(const gs_scene *sc, const gs_scene_mesh *sm)
-{
-    for (int k = 0; k < 2; k++) {
-        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
-        if (b->gear.kind == GS_GEAR_INTERNAL || b->joint == GS_JOINT_ON_CARRIER)
-            return 0;
-    }
-    return 1;
-}
-
 /* Positions of the modal analysis that measures the body compliance. */
 #define BODY_POSITIONS 12
 
@@ -566,7 +686,7 @@ static int body_measurable(const gs_scene *sc, const gs_scene_mesh *sm)
  * identifies it as the bodies'; the mean over the positions is returned.
  * The plain FE's k_t is the one of the eigenproblem's own model: the
  * near-field correction of the tables is in the contact, not the bodies. */
-static gs_err body_compliance(const gs_scene *sc, int mesh, double T, double *c, double *cpu, gs_diag *dg)
+static gs_err body_compliance_run(const gs_scene *sc, int mesh, double T, double *c, double *cpu, gs_diag *dg)
 {
     gs_fe_modes_opts mo;
     gs_fe_modes_opts_defaults(&mo);
@@ -596,6 +716,28 @@ static gs_err body_compliance(const gs_scene *sc, int mesh, double T, double *c,
     return e;
 }
 
+static gs_err body_compliance(const gs_scene *sc0, int mesh, double T, double *c, double *cpu, gs_diag *dg)
+{
+    /* The modal analysis loads its first gear: with the driver second (a
+     * ring listed first), the same pair with the gears swapped, so that it
+     * sees the analysis's moment on the same gear. */
+    gs_scene sc = *sc0;
+    gs_scene_mesh *ms = NULL;
+    if (driver_of(sc0, mesh) == 1) {
+        ms = gs_calloc((size_t)sc0->n_meshes, sizeof *ms);
+        if (!ms)
+            return GS_ENOMEM;
+        memcpy(ms, sc0->meshes, (size_t)sc0->n_meshes * sizeof *ms);
+        int g = ms[mesh].gear[0];
+        ms[mesh].gear[0] = ms[mesh].gear[1];
+        ms[mesh].gear[1] = g;
+        sc.meshes = ms;
+    }
+    gs_err e = body_compliance_run(&sc, mesh, T, c, cpu, dg);
+    free(ms);
+    return e;
+}
+
 static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_diag *dg)
 {
     gs_scene sc;
@@ -614,7 +756,7 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
      * closings, then the back loads. */
     int col = 0;
     if (e == GS_OK)
-        e = analyse(&sc, mesh, n, 0.0, d, f, m, col++, N_FRONT + 1, &T0, &rb, &cpu, dg);
+        e = analyse(&sc, mesh, n, default_moment(&sc, mesh), d, f, m, col++, N_FRONT + 1, &T0, &rb, &cpu, dg);
     double sg = T0 < 0 ? -1.0 : 1.0, F0 = fabs(T0) / rb;
     for (int i = 0; e == GS_OK && i < N_FRONT; i++) {
         double F = front_frac[i] * Fref;
@@ -638,8 +780,7 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
         t->knot_scene = k < m ? k : m - 1;
         t->k_mean = tangent_mean(t);
         t->body_compliance = 0.0;
-        if (body_measurable(&sc, sm))
-            e = body_compliance(&sc, mesh, T0, &t->body_compliance, &t->build_cpu_s, dg);
+        e = body_compliance(&sc, mesh, T0, &t->body_compliance, &t->build_cpu_s, dg);
         if (e != GS_OK)
             gs_ltca_table_clear(t);
     }

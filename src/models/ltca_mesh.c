@@ -87,7 +87,8 @@ static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
         return GS_ENOMEM;
     m->contact = L; /* freed by ltca_destroy */
     GS_TRY(gs_ltca_tables(sys->scene, m->index, NULL, &L->tab, d));
-    /* the bodies' compliance carries the mean load: the scene's, a knot of every row */
+    /* the bodies' compliance carries the mean load: the scene's (a train's
+     * mesh: its static share of it), a knot of every row */
     GS_TRY(gs_ltca_table_dynamic(&L->tab, L->tab.f[L->tab.knot_scene], d));
     L->phase0 = dot(m->c, sys->q, sys->n_coords);
     m->n_table = L->tab.n; /* the time-step check of a wave over the mesh cycle */
