@@ -21,7 +21,7 @@ again over this benchmark's window instead (about ten CPU minutes).
     tests/bench/bench_converged.py [--tool build/tests/bench/dyn_convergence_run]
         [--h 2e-5,4e-5] [--rounds 1] [--reference csv|run]
 
-Bars (issue text of the cost target): DTE rms and mean TE within 2 % of the
+Bars: DTE rms and mean TE within 2 % of the
 reference at <= 5 CPU s per simulated second. Prints a Markdown table; exits
 0 whatever the figures (a benchmark, not a test)."""
 import argparse
