@@ -119,7 +119,7 @@ typedef struct gs_snapshot_view {
     uint32_t n_coords, n_meshes;
     size_t n_states;
     const char *q;      /* 2 n_coords doubles: coordinates then speeds */
-    const char *meshes; /* 8 doubles per mesh */
+    const char *meshes; /* 9 doubles per mesh */
     const char *states; /* n_states doubles */
     const char *scene;  /* the scene's JSON */
     const char *loads;  /* the loads in force, a JSON array */

@@ -15,4 +15,11 @@
  * zone"). The results must not change. */
 extern int gsi_stiffness_zone_late;
 
+/* 0 (default). 1: the near-field correction keeps its compliance but takes
+ * no gap offsets off the rows (the rows keep the node-sampled gaps of the
+ * FE flanks, as the dynamic contact step's rows do):
+ * tests/validation/test_nearfield_dyn.c measures what the offsets account
+ * for. */
+extern int gsi_stiffness_nf_no_offsets;
+
 #endif

@@ -107,7 +107,7 @@ static const struct gap_off *gap_off_find(const work *w, const int t[2])
  * slave (gsi_stiff_nf_offsets; 0 when none). */
 static double gap_offset(const work *w, const int t[2], int slave)
 {
-    const struct gap_off *go = gap_off_find(w, t);
+    const struct gap_off *go = gsi_stiffness_nf_no_offsets ? NULL : gap_off_find(w, t);
     return go && (go->slave < 0 || go->slave == slave) ? go->off : 0.0;
 }
 
@@ -118,6 +118,7 @@ static double gap_offset(const work *w, const int t[2], int slave)
  * displacements behind at the new nodes: w->restart is set and the
  * position is solved again from the start (GS_EINTERNAL here). */
 int gsi_stiffness_zone_late = 0; /* src/contact/stiffness_hook.h */
+int gsi_stiffness_nf_no_offsets = 0; /* src/contact/stiffness_hook.h */
 
 gs_err gsi_stiff_zone_cover(work *w, const gs_contact_stats *st, const gs_contact_candidate *cand,
                             gs_index nc)

@@ -696,9 +696,9 @@ static gs_err run_steps(gs_engine *e, int64_t n, int64_t *done, bool sched)
  * q then w of each FE body, in body order), then scene JSON and loads JSON,
  * NUL-terminated, then (only for a scene that gave accuracy targets) the
  * fidelity choice JSON, NUL-terminated. */
-#define SNAP_MAGIC 0x38534753u /* "GSS8" */
+#define SNAP_MAGIC 0x39534753u /* "GSS9" */
 #define SNAP_HEAD_DOUBLES 5 /* time, work_in, dissipated, energy0, adaptive level */
-#define MESH_SNAP 8 /* doubles per mesh */
+#define MESH_SNAP 9 /* doubles per mesh */
 
 static char *loads_json(const gs_scene *sc)
 {
@@ -782,7 +782,7 @@ gs_err gs_engine_snapshot(gs_engine *e, char **bytes, size_t *len)
         const gs_gmesh_rt *m = &s->meshes[i];
         double ct[MESH_SNAP] = {m->force, (double)m->n_active, (double)m->n_rows, m->penetration,
                                 (double)m->impacts, m->impact_loss, m->friction_loss,
-                                m->contact_work};
+                                m->contact_work, m->nf_energy};
         PUT(ct, sizeof ct);
     }
     double nsd = (double)ns;
@@ -863,6 +863,9 @@ gs_err gs_engine_snapshot_check(const char *b, size_t len, gs_snapshot_view *v, 
         if (!is_count(get_double(m, 1), 1 << 30) || !is_count(get_double(m, 2), 1 << 30) ||
             !is_count(get_double(m, 4), (double)GS_CHECKPOINT_MAX_STEP))
             return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's counters of mesh %zu are out of range", i);
+        if (get_double(m, 8) < 0.0)
+            return gs_diag_set(d, GS_ERANGE, "path", "the checkpoint's near-field spring energy of mesh %zu is "
+                               "negative (%g J)", i, get_double(m, 8));
     }
     double nsd = get_double(v->meshes, MESH_SNAP * (size_t)nm);
     size_t avail = (len - head) / sizeof(double) - (2 * (size_t)nc + MESH_SNAP * (size_t)nm + 1);
@@ -953,6 +956,16 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         unload(e);
         return GS_ERANGE;
     }
+    /* The near-field springs' energy: only on the meshes that have them. */
+    for (uint32_t i = 0; i < nm; i++) {
+        double enf = get_double(sv.meshes, MESH_SNAP * (size_t)i + 8);
+        if (enf != 0.0 && !s->scene->meshes[s->meshes[i].index].nearfield) {
+            gs_diag_set(d, GS_EIO, "path", "the checkpoint does not match its scene (near-field spring energy "
+                        "%g J on mesh %u, which has no \"nearfield\")", enf, i);
+            unload(e);
+            return GS_EIO;
+        }
+    }
     gs_err lerr = GS_OK;
     for (int i = 0, off = 0; i < s->n_bodies; i++) {
         gs_body_rt *b = &s->bodies[i];
@@ -1009,6 +1022,7 @@ static gs_err restore(gs_engine *e, const char *b, size_t len, gs_diag *d)
         m->impact_loss = ct[5];
         m->friction_loss = ct[6];
         m->contact_work = ct[7];
+        m->nf_energy = ct[8];
     }
     s->contact_work = 0.0;
     for (int i = 0; i < s->n_meshes; i++)
