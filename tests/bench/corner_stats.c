@@ -27,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/bench_args.h"
 #include "../common/corner_stats.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
@@ -39,45 +40,24 @@ int main(int argc, char **argv)
     const char *scene = "contact_drive", *scheme = "closure_energy", *csv = NULL;
     double h = 1e-5, t_end = 0.2, t_from = 0.02, off = 30, factor = 2, se_static = 1e-3, zeta = 0, fhz = 9200;
     int order = 2, refine = 0, n_print = 8;
-    for (int i = 1; i < argc; i++) {
-        if (i + 1 >= argc) {
-            fprintf(stderr, "%s: value missing\n", argv[i]);
-            return 2;
-        }
-        const char *k = argv[i], *v = argv[++i];
-        if (!strcmp(k, "--scene"))
-            scene = v;
-        else if (!strcmp(k, "--scheme"))
-            scheme = v;
-        else if (!strcmp(k, "--h"))
-            h = atof(v);
-        else if (!strcmp(k, "--order"))
-            order = atoi(v);
-        else if (!strcmp(k, "--refine"))
-            refine = atoi(v);
-        else if (!strcmp(k, "--t"))
-            t_end = atof(v);
-        else if (!strcmp(k, "--from"))
-            t_from = atof(v);
-        else if (!strcmp(k, "--off"))
-            off = atof(v);
-        else if (!strcmp(k, "--factor"))
-            factor = atof(v);
-        else if (!strcmp(k, "--static-se"))
-            se_static = atof(v);
-        else if (!strcmp(k, "--episodes"))
-            n_print = atoi(v);
-        else if (!strcmp(k, "--zeta"))
-            zeta = atof(v);
-        else if (!strcmp(k, "--fhz"))
-            fhz = atof(v);
-        else if (!strcmp(k, "--csv"))
-            csv = v;
-        else {
-            fprintf(stderr, "unknown option %s\n", k);
-            return 2;
-        }
-    }
+    const bench_opt opts[] = {
+        {"--scene", 's', &scene},
+        {"--scheme", 's', &scheme},
+        {"--h", 'd', &h},
+        {"--order", 'i', &order},
+        {"--refine", 'i', &refine},
+        {"--t", 'd', &t_end},
+        {"--from", 'd', &t_from},
+        {"--off", 'd', &off},
+        {"--factor", 'd', &factor},
+        {"--static-se", 'd', &se_static},
+        {"--episodes", 'i', &n_print},
+        {"--zeta", 'd', &zeta},
+        {"--fhz", 'd', &fhz},
+        {"--csv", 's', &csv},
+    };
+    if (bench_args(argc, argv, NULL, opts, sizeof opts / sizeof *opts))
+        return 2;
     const char *txt0 = gs_scene_builtin(scene);
     json_object *root = txt0 ? json_tokener_parse(txt0) : NULL;
     if (!root) {

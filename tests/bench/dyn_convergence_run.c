@@ -37,6 +37,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/bench_args.h"
 #include "../common/dyn_window.h"
 #include "../common/json_child.h"
 #include "fe/fe_internal.h"
@@ -138,43 +139,21 @@ int main(int argc, char **argv)
     double h = 1e-5, scale = 1, zeta = 0, fhz = 9200, t0 = 0.04, t1 = 0.08, fmax = 0;
     const char *residual = NULL;
     int order = 2, refine = 0;
-    for (int i = 1; i < argc; i++) {
-        if (argv[i][0] != '-') {
-            scene = argv[i];
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "%s: value missing\n", argv[i]);
-            return 2;
-        }
-        const char *k = argv[i], *v = argv[++i];
-        if (!strcmp(k, "--h"))
-            h = atof(v);
-        else if (!strcmp(k, "--order"))
-            order = atoi(v);
-        else if (!strcmp(k, "--refine"))
-            refine = atoi(v);
-        else if (!strcmp(k, "--scale"))
-            scale = atof(v);
-        else if (!strcmp(k, "--contact"))
-            contact = v;
-        else if (!strcmp(k, "--zeta"))
-            zeta = atof(v);
-        else if (!strcmp(k, "--fhz"))
-            fhz = atof(v);
-        else if (!strcmp(k, "--from"))
-            t0 = atof(v);
-        else if (!strcmp(k, "--to"))
-            t1 = atof(v);
-        else if (!strcmp(k, "--fmax"))
-            fmax = atof(v);
-        else if (!strcmp(k, "--residual"))
-            residual = v;
-        else {
-            fprintf(stderr, "unknown option %s\n", k);
-            return 2;
-        }
-    }
+    const bench_opt opts[] = {
+        {"--h", 'd', &h},
+        {"--order", 'i', &order},
+        {"--refine", 'i', &refine},
+        {"--scale", 'd', &scale},
+        {"--contact", 's', &contact},
+        {"--zeta", 'd', &zeta},
+        {"--fhz", 'd', &fhz},
+        {"--from", 'd', &t0},
+        {"--to", 'd', &t1},
+        {"--fmax", 'd', &fmax},
+        {"--residual", 's', &residual},
+    };
+    if (bench_args(argc, argv, &scene, opts, sizeof opts / sizeof *opts))
+        return 2;
     if (!scene || !(h > 0) || !(t1 > t0 && t0 >= 0) || !(scale > 0) || (order != 1 && order != 2)) {
         fprintf(stderr, "usage: dyn_convergence_run SCENE [--h H] [--order 1|2] [--refine R] [--scale S] "
                         "[--contact seed|closure|closure_energy] [--zeta Z --fhz F] [--from T0] [--to T1]\n");

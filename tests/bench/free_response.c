@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/bench_args.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 #include "gearsim/util.h"
@@ -23,27 +24,13 @@ int main(int argc, char **argv)
 {
     const char *path = NULL, *csv = NULL;
     double h = NAN, duration = NAN;
-    for (int i = 1; i < argc; i++) {
-        if (argv[i][0] != '-') {
-            path = argv[i];
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "%s: value missing\n", argv[i]);
-            return 2;
-        }
-        const char *k = argv[i], *v = argv[++i];
-        if (!strcmp(k, "--h"))
-            h = atof(v);
-        else if (!strcmp(k, "--duration"))
-            duration = atof(v);
-        else if (!strcmp(k, "--csv"))
-            csv = v;
-        else {
-            fprintf(stderr, "unknown option %s\n", k);
-            return 2;
-        }
-    }
+    const bench_opt opts[] = {
+        {"--h", 'd', &h},
+        {"--duration", 'd', &duration},
+        {"--csv", 's', &csv},
+    };
+    if (bench_args(argc, argv, &path, opts, sizeof opts / sizeof *opts))
+        return 2;
     if (!path || !csv || !(h > 0) || !(duration > 0)) {
         fprintf(stderr, "usage: free_response SCENE.json --h H --duration S --csv FILE\n");
         return 2;

@@ -31,6 +31,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/bench_args.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 #include "gearsim/sweep.h"
@@ -40,31 +41,15 @@ int main(int argc, char **argv)
 {
     const char *path = NULL, *csv = NULL;
     double rpm = NAN, settle = 2e-3, measure = 1.2e-3, h = 2.5e-6;
-    for (int i = 1; i < argc; i++) {
-        if (argv[i][0] != '-') {
-            path = argv[i];
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "%s: value missing\n", argv[i]);
-            return 2;
-        }
-        const char *k = argv[i], *v = argv[++i];
-        if (!strcmp(k, "--rpm"))
-            rpm = atof(v);
-        else if (!strcmp(k, "--settle"))
-            settle = atof(v);
-        else if (!strcmp(k, "--measure"))
-            measure = atof(v);
-        else if (!strcmp(k, "--h"))
-            h = atof(v);
-        else if (!strcmp(k, "--csv"))
-            csv = v;
-        else {
-            fprintf(stderr, "unknown option %s\n", k);
-            return 2;
-        }
-    }
+    const bench_opt opts[] = {
+        {"--rpm", 'd', &rpm},
+        {"--settle", 'd', &settle},
+        {"--measure", 'd', &measure},
+        {"--h", 'd', &h},
+        {"--csv", 's', &csv},
+    };
+    if (bench_args(argc, argv, &path, opts, sizeof opts / sizeof *opts))
+        return 2;
     if (!path || !isfinite(rpm) || !(h > 0) || !(measure > 0) || !(settle >= 0)) {
         fprintf(stderr, "usage: freq_point SCENE.json --rpm RPM --settle S --measure S --h H [--csv FILE]\n");
         return 2;

@@ -22,6 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "../common/bench_args.h"
 #include "../common/dyn_window.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
@@ -30,26 +31,13 @@ int main(int argc, char **argv)
 {
     const char *path = NULL, *csv = NULL;
     double t0 = 0.1, t1 = 0.2;
-    for (int i = 1; i < argc; i++) {
-        if (argv[i][0] != '-') {
-            path = argv[i];
-            continue;
-        }
-        if (i + 1 >= argc) {
-            fprintf(stderr, "%s: value missing\n", argv[i]);
-            return 2;
-        }
-        if (!strcmp(argv[i], "--from"))
-            t0 = atof(argv[++i]);
-        else if (!strcmp(argv[i], "--to"))
-            t1 = atof(argv[++i]);
-        else if (!strcmp(argv[i], "--csv"))
-            csv = argv[++i];
-        else {
-            fprintf(stderr, "unknown option %s\n", argv[i]);
-            return 2;
-        }
-    }
+    const bench_opt opts[] = {
+        {"--from", 'd', &t0},
+        {"--to", 'd', &t1},
+        {"--csv", 's', &csv},
+    };
+    if (bench_args(argc, argv, &path, opts, sizeof opts / sizeof *opts))
+        return 2;
     if (!path || !(t1 > t0 && t0 >= 0)) {
         fprintf(stderr, "usage: lowspeed_te SCENE.json [--from T0] [--to T1] [--csv FILE]\n");
         return 2;

@@ -36,6 +36,7 @@ R = Results("test_sweep_service: sweeps on groups of ranks, identical tables, ca
 PROTO = Proto()
 GEARCTL = os.path.join(dmod.SOURCE_ROOT, "clients", "python", "gearctl")
 POINTS = 6
+BUSY_POINTS = 2000  # far more than a busy machine computes while a load is sent
 SPEC = {"builtin": "planetary_sweep",
         "parameters": [{"path": "driver_rpm", "from": 17000, "to": 25000, "points": POINTS}],
         "settle": 0.0006, "measure": 0.0006, "time_step": 2e-6}
@@ -166,17 +167,26 @@ def run():
         with h5py.File(d.path("g1.h5"), "r") as a, h5py.File(d.path("g2.h5"), "r") as b:
             same = all(np.array_equal(a["sweep"][k][()], b["sweep"][k][()], equal_nan=True) for k in reply1["columns"])
             R.check("HDF5 tables equal, one dataset per column", same and list(a["sweep"]["point"][()]) == list(range(POINTS)))
-        # While a sweep runs: status shows it, engine commands wait.
-        rid = c.send("sweep", dict(SPEC, groups=1, path="g3"))
-        c.wait_reply(rid)
+        # While a sweep runs: status shows it, engine commands wait. A sweep
+        # of many points, so that it cannot end before the load is read (six
+        # points can, on a busy machine); cancelled once checked.
+        many = dict(SPEC, groups=1, path="g_busy",
+                    parameters=[dict(SPEC["parameters"][0], points=BUSY_POINTS)])
+        busy = c.send("sweep", many)
+        c.wait_reply(busy)
         st = c.status()
         schema_ok("status during a sweep validates", PROTO.errors("results/status.json", st))
-        R.check("status shows the sweep", (st.get("sweep") or {}).get("parent_id") == rid, st.get("sweep"))
+        R.check("status shows the sweep", (st.get("sweep") or {}).get("parent_id") == busy, st.get("sweep"))
         try:
             c.load(builtin="pair")
             R.check("load refused while a sweep runs", False, "accepted")
         except dmod.gearsim.GearsimError as e:
             R.check("load refused while a sweep runs", e.code == "wrong_state", e)
+        c.cancel()
+        busy_done = c.wait_done(busy, timeout=120)
+        R.check("the long sweep ends cancelled", busy_done.get("cancelled") is True, busy_done)
+        rid = c.send("sweep", dict(SPEC, groups=1, path="g3"))
+        c.wait_reply(rid)
         # Cancel after the first point, then resume: only the rest computed.
         first = []
         while not first:
