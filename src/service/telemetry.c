@@ -129,7 +129,9 @@ static void put_str(tbuf *b, const char *s)
 /* The subscriptions the XPUB passed on since the last call: byte 1 then
  * the topic prefix (subscribe) or byte 0 then it (the last subscriber of
  * that prefix left). ZeroMQ passes each prefix once however many
- * subscribers share it, so the counts are of distinct prefixes. A prefix
+ * subscribers share it, so the counts are of distinct prefixes. The empty
+ * prefix (everything) asks for single events only: batches go out only
+ * while someone subscribed to them by name. A prefix
  * longer than the topic cannot match it (read truncated, still counted
  * right: its length is the returned size). */
 static void read_subscriptions(gs_service *s, svc_telemetry *t)
@@ -141,7 +143,7 @@ static void read_subscriptions(gs_service *s, svc_telemetry *t)
         size_t len = (size_t)n - 1;
         if (len <= 9 && memcmp(m + 1, "telemetry", len) == 0)
             t->subs_single += d;
-        if (len <= 5 && memcmp(m + 1, "batch", len) == 0)
+        if (len >= 1 && len <= 5 && memcmp(m + 1, "batch", len) == 0) /* not "": everything */
             t->subs_batch += d;
     }
 }
