@@ -230,11 +230,13 @@ void gs_tradeoff_label(const gs_tradeoff_row *r, char *out, size_t cap)
         snprintf(out + k, cap - (size_t)k, r->zeta != 0.0 ? " (%s, damping %g)" : " (%s)", r->scheme, r->zeta);
 }
 
-/* The reference: every error 0 (its own is not known: no candidate). */
+/* The reference: every error 0 (its own is not known: no candidate), but
+ * the peak force's, which may be against the reference's model converged
+ * further in the step. */
 static bool is_reference(const gs_tradeoff *t, const gs_tradeoff_row *r)
 {
     for (int o = 0; o < t->n_out; o++)
-        if (!(r->err[o] == 0.0))
+        if (!(r->err[o] == 0.0) && strcmp(t->out[o], "force") != 0)
             return false;
     return true;
 }

@@ -150,9 +150,10 @@ def advise(scene, table_path, target_specs, scene_label):
     if not mine:
         raise AdviceError(f"{scene_label} is {why}, measured on {tscene}, but table {table_path} has no "
                           f"{tscene} rows")
-    # The reference (every error 0 by definition) is what the others are
-    # measured against: its own error is not known, so it is no candidate.
-    is_ref = [all(num(r.get("err_" + o)) == 0 for o in outputs) for r in mine]
+    # The reference (every error 0 by definition, but the peak force's, which
+    # may be against its model converged further in the step) is what the
+    # others are measured against: it is no candidate.
+    is_ref = [all(num(r.get("err_" + o)) == 0 for o in outputs if o != "force") for r in mine]
     ref = [r for r, f in zip(mine, is_ref) if f]
     cands = sorted((r for r, f in zip(mine, is_ref) if not f), key=lambda r: num(r["cost"]))
 
