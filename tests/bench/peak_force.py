@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Where the peak mesh force of contact_drive comes from, at the ltca rung
 and at the top rung (docs/explanation/ltca.md "Peak mesh force").

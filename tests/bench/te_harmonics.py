@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """Where a dynamic TE differs from the quasi-static TE, by harmonic of the mesh.
 

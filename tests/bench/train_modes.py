@@ -1,4 +1,4 @@
-#!/usr/bin/env python3
+#!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The mesh modes of planetary_contact's train at the ltca rung against the
 elastic gears' (docs/explanation/ltca.md "Planetary trains"), from free
