@@ -126,6 +126,14 @@ static void put_str(tbuf *b, const char *s)
     PUT(b, "\"");
 }
 
+/* A batch message up to its events: {"v":1,"type":"batch","session":..,"events":[ */
+static void put_batch_head(tbuf *b, const char *session)
+{
+    PUT(b, "{\"v\":1,\"type\":\"batch\",\"session\":");
+    put_str(b, session);
+    PUT(b, ",\"events\":[");
+}
+
 /* The subscriptions the XPUB passed on since the last call: byte 1 then
  * the topic prefix (subscribe) or byte 0 then it (the last subscriber of
  * that prefix left). ZeroMQ passes each prefix once however many
@@ -196,9 +204,7 @@ void gsi_telemetry_publish_one(gs_service *s, const char *txt)
     }
     if (t->subs_batch > 0) { /* a batch of one */
         tbuf b = {0};
-        PUT(&b, "{\"v\":1,\"type\":\"batch\",\"session\":");
-        put_str(&b, s->session);
-        PUT(&b, ",\"events\":[");
+    put_batch_head(&b, s->session);
         put(&b, txt, strlen(txt));
         PUT(&b, "]}");
         if (!b.oom) {
@@ -227,9 +233,7 @@ bool gsi_telemetry_queue(gs_service *s)
     b->oom = false;
     if (t->q_n == 0) {
         b->n = 0;
-        PUT(b, "{\"v\":1,\"type\":\"batch\",\"session\":");
-        put_str(b, s->session);
-        PUT(b, ",\"events\":[");
+        put_batch_head(b, s->session);
         t->head = b->n;
         t->t_first = gs_now();
     } else {
