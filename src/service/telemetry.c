@@ -204,7 +204,7 @@ void gsi_telemetry_publish_one(gs_service *s, const char *txt)
     }
     if (t->subs_batch > 0) { /* a batch of one */
         tbuf b = {0};
-    put_batch_head(&b, s->session);
+        put_batch_head(&b, s->session);
         put(&b, txt, strlen(txt));
         PUT(&b, "]}");
         if (!b.oom) {
