@@ -12,19 +12,38 @@
  * the scene's moment, and its pairs' compliances are kept against where the
  * pair is along the path of contact (the load-weighted contact point,
  * measured along the normal of the centre line). The contact step puts each
- * tooth pair's compliance in series with the pair's rows. */
+ * tooth pair's compliance in series with the pair's rows.
+ *
+ * The analysis also takes the node-sampling part of each pair's rigid gap
+ * off its rows (gsi_stiff_nf_offsets: the flanks touch where they do, not
+ * where their nearest node does). That offset is a property of the rigid
+ * geometry: it is sampled here finely over a mesh cycle at the rigid
+ * kinematic positions and kept against the angle of gear 1's tooth of the
+ * pair from the centre line, the angle the analysis holds while its driver
+ * (gear 0) turns under the load. The contact step takes it off the rows'
+ * gaps with its slope in their derivatives (gsi_nf_row_offset), so the
+ * offset is part of the gap function the rows linearise. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "nearfield_dyn.h"
+#include "stiffness_hook.h"
+#include "gearsim/util.h"
 #include "stiffness_internal.h"
+
+/* Rigid positions per mesh cycle at which the gap offsets are sampled. */
+#define NF_OFF_SAMPLES 1536
 
 struct gsi_nf_table {
     int n;
     double *key, *cs, *ct, *load; /* sorted by key */
     double sign;                  /* sign of dg/dtheta_0 of the loaded flanks' rows */
     int z[2];
+    /* Gap offsets: against the angle of gear 1's tooth from the centre line
+     * (rad, sorted), per slave gear of the rows (m). */
+    int n_off;
+    double *okey, (*off)[2];
 };
 
 void gsi_nf_table_free(gsi_nf_table **t)
@@ -32,6 +51,7 @@ void gsi_nf_table_free(gsi_nf_table **t)
     if (!t || !*t)
         return;
     free((*t)->key), free((*t)->cs), free((*t)->ct), free((*t)->load);
+    free((*t)->okey), free((*t)->off);
     free(*t);
     *t = NULL;
 }
@@ -44,10 +64,79 @@ static double path_key(const double X[2], const double c0[2], const double c1[2]
     return ((X[0] - c0[0]) * -ey + (X[1] - c0[1]) * ex) / l;
 }
 
+/* Angle of tooth t of gear 1 (z teeth, at angle th1 about its centre c1)
+ * from the centre line towards gear 0's centre c0, in [-pi, pi]; with its
+ * derivative w.r.t. c0 (that w.r.t. c1 is its negative). */
+static double tooth_key(double th1, int t, int z, const double c0[2], const double c1[2], double dk_dc0[2])
+{
+    double ex = c0[0] - c1[0], ey = c0[1] - c1[1], l2 = ex * ex + ey * ey;
+    if (dk_dc0) {
+        dk_dc0[0] = ey / l2;
+        dk_dc0[1] = -ex / l2;
+    }
+    return remainder(th1 + 2.0 * GS_PI * t / z - atan2(ey, ex), 2.0 * GS_PI);
+}
+
 static int by_key(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
+}
+
+/* Index of the last of the n sorted keys at or below k (0 below the first). */
+static int key_below(const double *key, int n, double k)
+{
+    int lo = 0, hi = n - 1;
+    if (k >= key[hi])
+        return hi;
+    while (hi - lo > 1) {
+        int m = (lo + hi) / 2;
+        if (key[m] <= k)
+            lo = m;
+        else
+            hi = m;
+    }
+    return lo;
+}
+
+/* The gap offsets of the run's pairs at NF_OFF_SAMPLES rigid positions over
+ * its mesh cycle, into t (sorted by key). */
+static gs_err offsets_build(gs_stiffness_run *run, gsi_nf_table *t)
+{
+    const work *w = gsi_stiffness_run_work(run);
+    size_t cap = (size_t)NF_OFF_SAMPLES * 2 * GS_STIFF_MAX_PAIRS;
+    double *rec = malloc(3 * cap * sizeof *rec);
+    if (!rec)
+        return GS_ENOMEM;
+    gs_err e = GS_OK;
+    int n = 0;
+    for (int j = 0; j < NF_OFF_SAMPLES && e == GS_OK; j++) {
+        if ((e = gsi_stiffness_run_offsets(run, (double)j / NF_OFF_SAMPLES)) != GS_OK)
+            break;
+        for (int p = 0; p < w->n_go && (size_t)n < cap; p++) {
+            double *r = rec + 3 * (size_t)n++;
+            int sl = w->go[p].slave;
+            r[0] = tooth_key(w->theta0[1], w->go[p].tooth[1], w->b[1].sb->gear.teeth, w->b[0].c, w->b[1].c,
+                             NULL);
+            r[1] = sl < 0 || sl == 0 ? w->go[p].off : 0.0;
+            r[2] = sl < 0 || sl == 1 ? w->go[p].off : 0.0;
+        }
+    }
+    if (e == GS_OK) {
+        qsort(rec, (size_t)n, 3 * sizeof *rec, by_key);
+        t->okey = malloc((size_t)n * sizeof *t->okey);
+        t->off = malloc((size_t)n * sizeof *t->off);
+        if (!t->okey || !t->off)
+            e = GS_ENOMEM;
+        for (int i = 0; i < n && e == GS_OK; i++) {
+            t->okey[i] = rec[3 * i];
+            t->off[i][0] = rec[3 * i + 1];
+            t->off[i][1] = rec[3 * i + 2];
+        }
+        t->n_off = e == GS_OK ? n : 0;
+    }
+    free(rec);
+    return e;
 }
 
 gs_err gsi_nf_table_build(const gs_scene *sc, int mesh_index, gsi_nf_table **out, gs_diag *d)
@@ -93,6 +182,8 @@ gs_err gsi_nf_table_build(const gs_scene *sc, int mesh_index, gsi_nf_table **out
         for (int k = 0; k < 2; k++)
             t->z[k] = w->b[k].sb->gear.teeth;
     }
+    if (e == GS_OK && !gsi_stiffness_nf_no_offsets)
+        e = offsets_build(run, t);
     if (e == GS_OK && n < 2)
         e = gs_diag_set(d, GS_ERANGE, "nearfield",
                         "the quasi-static analysis found no near-field correction for this pair "
@@ -133,16 +224,38 @@ double gsi_nf_row_compliance(const gsi_nf_table *t, const gs_contact_row *r, con
         return t->cs[0];
     if (k >= t->key[t->n - 1])
         return t->cs[t->n - 1];
-    int lo = 0, hi = t->n - 1;
-    while (hi - lo > 1) {
-        int m = (lo + hi) / 2;
-        if (t->key[m] <= k)
-            lo = m;
-        else
-            hi = m;
-    }
+    int lo = key_below(t->key, t->n, k), hi = lo + 1;
     double dk = t->key[hi] - t->key[lo], a = dk > 0.0 ? (k - t->key[lo]) / dk : 0.0;
     return (1.0 - a) * t->cs[lo] + a * t->cs[hi];
+}
+
+void gsi_nf_row_offset(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, const gs_contact_candidate *c,
+                       const gs_contact_pose pose[2], gs_contact_row *r)
+{
+    if (!t || t->n_off < 2 || !(r->dg_dtheta[0] * t->sign > 0.0))
+        return;
+    int tooth1 = gsi_nf_pair(t, m0, m1, c) % t->z[1], sl = c->slave;
+    double dk_dc0[2];
+    double k = tooth_key(pose[1].theta, tooth1, t->z[1], pose[0].c, pose[1].c, dk_dc0);
+    /* Linear between samples, the end values beyond (slope 0 there). */
+    double off, slope = 0.0;
+    if (k <= t->okey[0]) {
+        off = t->off[0][sl];
+    } else if (k >= t->okey[t->n_off - 1]) {
+        off = t->off[t->n_off - 1][sl];
+    } else {
+        int lo = key_below(t->okey, t->n_off, k), hi = lo + 1;
+        double dk = t->okey[hi] - t->okey[lo];
+        slope = dk > 0.0 ? (t->off[hi][sl] - t->off[lo][sl]) / dk : 0.0;
+        off = t->off[lo][sl] + slope * (k - t->okey[lo]);
+    }
+    /* g - off(k): dk/dtheta_1 = 1, dk/dc_1 = -dk/dc_0. */
+    r->gap.g -= off;
+    r->dg_dtheta[1] -= slope;
+    for (int i = 0; i < 2; i++) {
+        r->dg_dc[0][i] -= slope * dk_dc0[i];
+        r->dg_dc[1][i] += slope * dk_dc0[i];
+    }
 }
 
 int gsi_nf_pair(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, const gs_contact_candidate *c)
@@ -186,4 +299,13 @@ int gsi_nf_table_samples(const gsi_nf_table *t, const double **key, const double
     *c_tan = t->ct;
     *load = t->load;
     return t->n;
+}
+
+int gsi_nf_table_offsets(const gsi_nf_table *t, const double **key, const double (**off)[2])
+{
+    if (!t)
+        return 0;
+    *key = t->okey;
+    *off = (const double(*)[2])t->off;
+    return t->n_off;
 }

@@ -24,6 +24,15 @@ void gsi_nf_table_free(gsi_nf_table **t);
 double gsi_nf_row_compliance(const gsi_nf_table *t, const gs_contact_row *r, const double c0[2],
                              const double c1[2]);
 
+/* The pair's gap offset (the node-sampling part of its rigid gap, the
+ * quasi-static analysis's gsi_stiff_nf_offsets) taken off row r of
+ * candidate c, evaluated at the poses: r->gap.g less the offset at the
+ * angle of the pair's tooth of gear 1 from the centre line, and the
+ * offset's slope in r's derivatives w.r.t. gear 1's angle and both centres.
+ * Nothing for a row on the other flanks. */
+void gsi_nf_row_offset(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, const gs_contact_candidate *c,
+                       const gs_contact_pose pose[2], gs_contact_row *r);
+
 /* Tooth pair of candidate c of a search between meshes m0 and m1 (gear 0's
  * tooth times gear 1's tooth count plus gear 1's tooth). */
 int gsi_nf_pair(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *m1, const gs_contact_candidate *c);
@@ -37,5 +46,10 @@ int gsi_nf_run_secant(const gs_stiffness_run *run, int *pair, double *c_sec);
  * the pair's load (N). Returns the number of samples. */
 int gsi_nf_table_samples(const gsi_nf_table *t, const double **key, const double **c_sec,
                          const double **c_tan, const double **load);
+
+/* The gap offsets' samples (for tests and tools): key (rad, the angle of
+ * the pair's tooth of gear 1 from the centre line), offset per slave gear
+ * (m). Returns the number of samples. */
+int gsi_nf_table_offsets(const gsi_nf_table *t, const double **key, const double (**off)[2]);
 
 #endif

@@ -421,6 +421,30 @@ static gs_err close_rigid(work *w, double *delta0, double roll, const char *name
     return GS_OK;
 }
 
+/* The bodies' kinematic angles at roll (mesh cycles from the phase). */
+static void roll_angles(gs_stiffness_run *r, double roll)
+{
+    work *w = &r->w;
+    const gs_gear_params *gA = &w->b[0].sb->gear, *gB = &w->b[1].sb->gear;
+    w->theta0[0] = w->b[0].sb->angle0 + w->sgn * (r->o.phase + roll) * r->pitch;
+    w->theta0[1] = gs_pair_mesh_phase(gA, w->b[0].c, w->theta0[0], gB, w->b[1].c,
+                                      r->thB_first + r->ratio * w->sgn * roll * r->pitch);
+}
+
+gs_err gsi_stiffness_run_offsets(gs_stiffness_run *r, double roll)
+{
+    work *w = &r->w;
+    if (!w->nf || r->next < 1)
+        return GS_EINVAL;
+    roll_angles(r, roll);
+    for (int k = 0; k < 2; k++) {
+        memset(w->b[k].u, 0, (size_t)(2 * w->b[k].mesh->n_nodes) * sizeof *w->b[k].u);
+        w->b[k].dirty = 0;
+    }
+    w->restart = 0;
+    return gsi_stiff_nf_offsets(w);
+}
+
 /* Roll position r->next: its no-load closing rotation, the loaded solve
  * and the tangent. */
 static gs_err solve_position(gs_stiffness_run *r, gs_diag *d)
@@ -431,7 +455,6 @@ static gs_err solve_position(gs_stiffness_run *r, gs_diag *d)
     const gs_scene_mesh *sm = r->sm;
     gs_stiffness_result *out = &r->out;
     double **uT = r->uT;
-    const gs_gear_params *gA = &w.b[0].sb->gear, *gB = &w.b[1].sb->gear;
     double T = r->T, F = r->F, bmm = r->bmm, pitch = r->pitch;
     gs_err e = GS_OK;
     {
@@ -440,9 +463,7 @@ static gs_err solve_position(gs_stiffness_run *r, gs_diag *d)
         double roll = (double)j / o.positions * o.cycles;
         pt->roll = roll;
         pt->angle_rad = roll * pitch;
-        w.theta0[0] = w.b[0].sb->angle0 + w.sgn * (o.phase + roll) * pitch;
-        w.theta0[1] = gs_pair_mesh_phase(gA, w.b[0].c, w.theta0[0], gB, w.b[1].c,
-                                         r->thB_first + r->ratio * w.sgn * roll * pitch);
+        roll_angles(r, roll);
         for (int k = 0; k < 2; k++) {
             memset(w.b[k].u, 0, (size_t)(2 * w.b[k].mesh->n_nodes) * sizeof *w.b[k].u);
             w.b[k].dirty = 0;

@@ -17,7 +17,8 @@ extern int gsi_stiffness_zone_late;
 
 /* 0 (default). 1: the near-field correction keeps its compliance but takes
  * no gap offsets off the rows (the rows keep the node-sampled gaps of the
- * FE flanks, as the dynamic contact step's rows do):
+ * FE flanks), in the quasi-static analysis and in the tables of the dynamic
+ * contact step built while it is set (src/contact/nearfield_dyn.c):
  * tests/validation/test_nearfield_dyn.c measures what the offsets account
  * for. */
 extern int gsi_stiffness_nf_no_offsets;

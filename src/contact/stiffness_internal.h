@@ -184,6 +184,11 @@ double gsi_stiff_default_torque(const gs_scene *sc, int body, double rb, double 
 gs_err gsi_stiff_collect(work *w, double delta, double win, int *nr, double *gmin);
 gs_err gsi_stiff_nf_offsets(work *w);
 double gsi_stiff_nf_tangent(const work *w, int nr, int p);
+/* The near-field gap offsets (gsi_stiff_nf_offsets, into the run's work:
+ * w->go, w->n_go) at roll position roll (mesh cycles, as the positions of
+ * gs_stiffness_next), rigid bodies; after the first position, near field on.
+ * The displacements are left at zero. */
+gs_err gsi_stiffness_run_offsets(gs_stiffness_run *r, double roll);
 /* The working state of a run after gs_stiffness_next (NULL before the first). */
 const work *gsi_stiffness_run_work(const gs_stiffness_run *run);
 gs_err gsi_stiff_sbody_displace(sbody *b);

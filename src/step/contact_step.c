@@ -237,6 +237,16 @@ static double gap_change(const gs_system *sys, const solver *s, const gs_contact
     return dg;
 }
 
+/* Candidate j of contact mesh cm at the poses: its row, with "nearfield"
+ * the pair's gap offset taken off (gsi_nf_row_offset). */
+static gs_err eval_row(const gsi_contact_mesh *cm, const gs_contact_pose pose[2], gs_index j, gs_contact_row *r)
+{
+    GS_TRY(gs_contact_eval(cm->search, pose, &cm->cand[j], r));
+    if (cm->nf)
+        gsi_nf_row_offset(cm->nf, cm->mesh[0], cm->mesh[1], &cm->cand[j], pose, r);
+    return GS_OK;
+}
+
 /* True when node `node` of gear k (0 / 1) of contact mesh cm is a slave
  * candidate of this step (tip corners and tip arc nodes are slaves in both
  * search modes when near the other gear). A flank node outside the other
@@ -272,7 +282,7 @@ static gs_err collect_rows(gs_system *sys, solver *s, int mi, const double *rec,
     *pen = 0.0;
     for (gs_index j = 0; j < cm->n_cand; j++) {
         gs_contact_row r;
-        GS_TRY(gs_contact_eval(cm->search, pose, &cm->cand[j], &r));
+        GS_TRY(eval_row(cm, pose, j, &r));
         double g = r.gap.g;
         if (-g > *pen)
             *pen = -g;
@@ -455,7 +465,7 @@ static gs_err closure_newton(gs_system *sys, solver *s, bool *redo)
             pose[k].u = cm->elastic[k] ? s->ue[cm->body[k]] : NULL;
         }
         end[j] = *w;
-        err = gs_contact_eval(cm->search, pose, &cm->cand[w->cand], &end[j].r);
+        err = eval_row(cm, pose, w->cand, &end[j].r);
         if (err == GS_OK && (j < s->n_rows || end[j].r.gap.g < -CLOSURE_NEWTON_TOL))
             deepest = fmax(deepest, -end[j].r.gap.g);
     }
