@@ -14,7 +14,11 @@
  * chord sag, `te0` of gearsim-stiffness): subtract its mean to compare the
  * mean with the static TE.
  *
- *   lowspeed_te SCENE.json [--from 0.1] [--to 0.2] [--csv FILE]
+ *   lowspeed_te SCENE.json [--from 0.1] [--to 0.2] [--csv FILE] [--nf-offsets 1|0]
+ *
+ * --nf-offsets 0: a "nearfield" mesh's rows keep the FE flanks' node-sampled
+ * gaps (the test hook gsi_stiffness_nf_no_offsets; docs/explanation/contact.md
+ * "Near-field compliance").
  *
  * Not a test: a run of 0.2 s at h = 1e-5 s takes 2e4 steps of the pair. */
 #include <math.h>
@@ -24,6 +28,7 @@
 
 #include "../common/bench_args.h"
 #include "../common/dyn_window.h"
+#include "contact/stiffness_hook.h"
 #include "gearsim/scene.h"
 #include "gearsim/step.h"
 
@@ -31,15 +36,17 @@ int main(int argc, char **argv)
 {
     const char *path = NULL, *csv = NULL;
     double t0 = 0.1, t1 = 0.2;
+    int nf_offsets = 1;
     const bench_opt opts[] = {
         {"--from", 'd', &t0},
         {"--to", 'd', &t1},
         {"--csv", 's', &csv},
+        {"--nf-offsets", 'i', &nf_offsets},
     };
     if (bench_args(argc, argv, &path, opts, sizeof opts / sizeof *opts))
         return 2;
     if (!path || !(t1 > t0 && t0 >= 0)) {
-        fprintf(stderr, "usage: lowspeed_te SCENE.json [--from T0] [--to T1] [--csv FILE]\n");
+        fprintf(stderr, "usage: lowspeed_te SCENE.json [--from T0] [--to T1] [--csv FILE] [--nf-offsets 1|0]\n");
         return 2;
     }
     FILE *f = fopen(path, "rb");
@@ -58,7 +65,10 @@ int main(int argc, char **argv)
         return 1;
     }
     gs_system *s = NULL;
-    if (gs_system_new(sc, 0, 1, &s, &d) != GS_OK) {
+    gsi_stiffness_nf_no_offsets = !nf_offsets;
+    gs_err se = gs_system_new(sc, 0, 1, &s, &d);
+    gsi_stiffness_nf_no_offsets = 0;
+    if (se != GS_OK) {
         fprintf(stderr, "system: %s: %s\n", d.field, d.message);
         return 1;
     }
