@@ -182,12 +182,12 @@ gs_err gsi_nf_table_build(const gs_scene *sc, int mesh_index, gsi_nf_table **out
         for (int k = 0; k < 2; k++)
             t->z[k] = w->b[k].sb->gear.teeth;
     }
-    if (e == GS_OK && !gsi_stiffness_nf_no_offsets)
-        e = offsets_build(run, t);
     if (e == GS_OK && n < 2)
         e = gs_diag_set(d, GS_ERANGE, "nearfield",
                         "the quasi-static analysis found no near-field correction for this pair "
                         "(it needs quadratic elements, mesh.order 2)");
+    if (e == GS_OK && !gsi_stiffness_nf_no_offsets)
+        e = offsets_build(run, t);
     if (e == GS_OK) {
         qsort(rec, (size_t)n, 4 * sizeof *rec, by_key);
         t->n = n;
