@@ -13,10 +13,13 @@
  *   speed     mean speed of the output gear (closed form M0 ratio / c)
  *   ratio     mean speed ratio error against the tooth counts
  *   dte       dynamic transmission error amplitude: rms of the first mesh's
- *             line-of-action deflection about its mean, m (0 for kinematic)
+ *             TE about its mean, m (0 for kinematic): the kinematic
+ *             line-of-action TE of the gears' rigid coordinates, the
+ *             deflection a lumped or ltca mesh reports less the tooth
+ *             errors it adds to it (steady_half.h, sh_te)
  *   force     peak force of the first mesh, N
  *   mesh      the dominant mesh-frequency response: amplitude of the first
- *             mesh's deflection at the tooth-mesh order (one Fourier
+ *             mesh's TE at the tooth-mesh order (one Fourier
  *             coefficient over the mesh phase z_A (theta_A - theta_C), A its
  *             gear on a fixed axis, C the mate's carrier if any: order
  *             tracking, so speed fluctuations do not smear it), m
@@ -242,7 +245,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
             return r;
         }
         if (sh_in_half(&w, i)) {
-            double x = sys->meshes[0].deflection;
+            double x = sh_te(sys);
             double ph = za * (gs_system_angle(sys, ga) - (gc >= 0 ? gs_system_angle(sys, gc) : 0.0));
             xc += x * cos(ph);
             xs += x * sin(ph);
