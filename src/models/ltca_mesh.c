@@ -76,8 +76,8 @@ static double ltca_damping(const gs_model_view *sys, const gs_gmesh_rt *m, doubl
  * TE by its share of it where it is in contact (at the first order in the
  * error: the pairs' load sharing of the analysis). The gears' run-out
  * stays the lumped mesh's (a displacement of every pair alike). Tables
- * without tooth pairs (the slice analysis of helical gears) keep the
- * lumped mesh's windows of the teeth. */
+ * without tooth pairs at some position would keep the lumped mesh's
+ * windows of the teeth. */
 static void pair_errors(const gs_model_view *sys, gs_gmesh_rt *m, ltca_rt *L)
 {
     const gs_scene *sc = sys->scene;
