@@ -289,9 +289,9 @@ static void test_pitch_pairs(void **state)
         }
         int n = o.positions;
         fit[v] = sqrt(fmax(s2 / n - (s1 / n) * (s1 / n), 0));
-        printf("# pitch errors, %s mesh: TE they add rms %.4f um about its mean against the FE's %.4f um; "
-               "misfit rms %.4f um, mean %+.4f um\n", v ? "lumped" : "ltca", fit[v] * 1e6,
-               sqrt(fmax(f2 / n - (f1 / n) * (f1 / n), 0)) * 1e6, fit[v] * 1e6, s1 / n * 1e6);
+        printf("# pitch errors, %s mesh: the FE's TE they add %.4f um rms about its mean; the mesh's misfit "
+               "%.4f um rms, mean %+.4f um\n", v ? "lumped" : "ltca", sqrt(fmax(f2 / n - (f1 / n) * (f1 / n), 0)) * 1e6,
+               fit[v] * 1e6, s1 / n * 1e6);
         free(q0);
         gs_system_free(&sys);
     }
