@@ -254,10 +254,8 @@ static gs_plane plane_of(double beta_deg, double face_mm, const char *material)
     gs_scene *s = NULL;
     gs_diag d;
     gs_diag_clear(&d);
-    gs_err e = gs_scene_parse(txt, strlen(txt), &s, &d);
-    if (e != GS_OK)
-        print_error("%s: %s\n", d.field, d.message);
-    assert_int_equal(e, GS_OK);
+    if (gs_scene_parse(txt, strlen(txt), &s, &d) != GS_OK)
+        fail_msg("%s: %s", d.field, d.message);
     gs_plane pl = s->bodies[0].material.plane;
     /* the wheel never gives a material: the rule alone */
     gs_plane pw = s->bodies[1].material.plane;
