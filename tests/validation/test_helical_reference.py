@@ -44,15 +44,15 @@ BAR_K, BAR_K_MEAN, BAR_TE, BAR_PEAK = 0.03, 0.03, 0.03, 0.05
 # 13-tooth sectors (the reference proper: 1.2 % from whole gears in 2D;
 # aligned, h = 1.2 mm, 8 positions over the mesh cycle): largest |k error|
 # 5.48 %, |TE error| 5.80 %, |peak load error| 20.89 %; the cycle mean of k
-# 2.86 % low, within its bar. Misaligned 20 um (h = 1.2 mm, rolls 0, 0.25
-# and 0.5): largest |k error| 21.91 %, |TE error| 28.06 %, |peak load
-# error| 9.34 % (all at roll 0.5).
+# 2.86 % low, within its bar. Misaligned 20 um (h = 1.2 mm, rolls 0, 0.25,
+# 0.5 and 0.75): largest |k error| 21.91 %, |TE error| 28.06 % (both roll
+# 0.5), |peak load error| 17.70 % (roll 0.75).
 REGRESSION = {
     (0.0, 5): dict(k=0.235, te=0.195, peak=0.175),
     (0.0, 13): dict(k=0.065, te=0.07, peak=0.23),
-    (20.0, 13): dict(k=0.24, te=0.30, peak=0.11, k_mean=0.24),
+    (20.0, 13): dict(k=0.24, te=0.30, peak=0.20, k_mean=0.24),
 }
-MIN_POSITIONS = {(0.0, 5): 2, (0.0, 13): 8, (20.0, 13): 3}
+MIN_POSITIONS = {(0.0, 5): 2, (0.0, 13): 8, (20.0, 13): 4}
 # The reference's own mesh convergence: where a finer level ran at a
 # position, its TE and peak load change from the reference level (h = 1.2 mm
 # to 0.9 mm at roll 0, aligned: TE +1.65 %, peak -0.76 %) stay within this.
