@@ -35,7 +35,7 @@
 
 /* Bump when the analysis or the table's construction changes: part of the
  * cache key. */
-#define GS_LTCA_VERSION "ltca-table-2"
+#define GS_LTCA_VERSION "ltca-table-3"
 
 typedef struct gs_ltca_table {
     int n;            /* roll positions over one mesh cycle */
@@ -54,6 +54,11 @@ typedef struct gs_ltca_table {
                              * in the gears' bodies (web, hub; linear, the same at every position),
                              * from the FE pair's own torsional mesh modes, each gear on its own
                              * axis (a train's meshes too: internal gears, planets) */
+    int np;           /* tooth-pair slots per position */
+    int *pair_tooth;  /* n x np x 2: the teeth of mesh gears 0 and 1 of each tooth pair the
+                       * analysis at force_scene found in contact (-1: empty slot), in the
+                       * table's first mesh cycle (position j at (j + 1/2) / n) */
+    double *pair_share; /* n x np: the pair's share of the mesh force there (summing to 1) */
     double build_cpu_s; /* CPU seconds the analyses took (0 when read from a cache) */
     int from_cache;   /* 1 when read from a cache file */
     uint64_t key;
@@ -113,7 +118,9 @@ void gs_ltca_opts_defaults(gs_ltca_opts *o);
 /* The hash of everything the tables of mesh `mesh` of sc depend on: both
  * gears' parameters, materials, mesh densities and profile modifications,
  * their placement and scene angles, the scene's load on the driver, the
- * positions, the load set, GS_LTCA_VERSION and $GEARSIM_LTCA_NEARFIELD
+ * positions, the load set, the settings of the quasi-static analyses and
+ * of the modal analysis that measures the bodies' compliance (as their
+ * defaults give them), GS_LTCA_VERSION and $GEARSIM_LTCA_NEARFIELD
  * when set (0: the analysis with the plain FE contact, as the elastic
  * gears' dynamic contact; 1, 2: gs_stiffness_opts.nearfield) (pitch errors
  * and run-out are not in it: the tables are of the gears without them). */
@@ -124,6 +131,12 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o);
  * cache (atomically; a cache that cannot be written is skipped). Errors:
  * those of the analysis (d names meshes[i]), GS_ENOMEM. */
 gs_err gs_ltca_tables(const gs_scene *sc, int mesh, const gs_ltca_opts *o, gs_ltca_table *t, gs_diag *d);
+
+/* The change of the tooth index in contact of gear k (0, 1) of mesh `mesh`
+ * per mesh cycle of its phase (c . q, growing with the driver's rotation):
+ * -1 for the driver (each pitch brings the tooth before into the contact),
+ * +1 for an external mate, -1 for a ring. */
+int gs_ltca_tooth_step(const gs_scene *sc, int mesh, int k);
 
 /* The cache directory o selects (NULL when none). */
 const char *gs_ltca_cache_dir(const gs_ltca_opts *o, char *buf, size_t size);

@@ -222,6 +222,25 @@ struct gs_gmesh_rt {
         double beta, kp, runout, phase, n[2];
         const double *pitch;
     } err[2];
+    /* The pitch errors of an ltca mesh, tooth pair by tooth pair (NULL for
+     * the others: err[k].pitch by the teeth's windows). When set, E(q)'s
+     * pitch part is E_p(phi), phi = c . q - phase0 the mesh phase (cycles),
+     * interpolated linearly between the tables' roll positions like the
+     * mesh potential: at position j the load shares of the tooth pairs the
+     * analysis found in contact times each pair's error (both teeth's pitch
+     * errors times their gains kp), the pairs' teeth moving on by step[k]
+     * per mesh cycle (src/models/mesh_common.c). */
+    const struct gs_pair_errors {
+        int n, np;           /* positions per cycle, pair slots per position */
+        const int *tooth;    /* n x np x 2: the teeth of mesh gears 0, 1 (-1: empty slot) */
+        const double *share; /* n x np: the pair's share of the mesh force */
+        int step[2];         /* tooth index change per cycle of phi, gears 0, 1 */
+        int z[2];            /* teeth */
+        double kp[2];        /* sigma r_b / r of each gear */
+        const double *pitch[2]; /* the gears' pitch errors (m; NULL none) */
+        double phase0;
+        int n_coords;
+    } *pair_err;
     double contact_ratio;
     double overlap_ratio;    /* eps_beta of a helical pair (0: spur) */
     double k_single, k_double, damping, half_backlash;

@@ -35,6 +35,8 @@ void gs_ltca_table_clear(gs_ltca_table *t)
     free(t->d);
     free(t->f);
     free(t->v);
+    free(t->pair_tooth);
+    free(t->pair_share);
     memset(t, 0, sizeof *t);
 }
 
@@ -600,6 +602,63 @@ static double default_moment(const gs_scene *sc, int mesh)
     return static_share(sc, mesh) * gs_gear_base_radius(&g->gear);
 }
 
+/* The options of the quasi-static analyses of the tables (analyse) at
+ * moment T. */
+static void analysis_opts(const gs_scene *sc, int mesh, int n, double T, gs_stiffness_opts *o)
+{
+    gs_stiffness_opts_defaults(o);
+    o->positions = n;
+    o->torque_nm = T;
+    o->driver = driver_of(sc, mesh);
+    o->tangent = 0;
+    o->phase = 0.5 / n;
+    if (nearfield_setting() >= 0)
+        o->nearfield = nearfield_setting();
+    else if (modified_pair(sc, &sc->meshes[mesh]))
+        o->nearfield = 1;
+}
+
+/* Positions of the modal analysis that measures the body compliance. */
+#define BODY_POSITIONS 12
+
+/* The options of the modal analysis that measures the bodies' compliance
+ * (body_compliance_run) at moment T. */
+static void body_modes_opts(double T, gs_fe_modes_opts *mo)
+{
+    gs_fe_modes_opts_defaults(mo);
+    mo->positions = BODY_POSITIONS;
+    mo->modes = 4;
+    mo->torque_nm = T;
+    mo->phase = 0.5 / BODY_POSITIONS;
+}
+
+/* The settings of both analyses the tables come from, as the defaults of
+ * include/gearsim/stiffness.h and fe_modes.h give them (the moments are in
+ * the key already): a change of a default (the contact's near-field
+ * correction in either analysis, its depth, the iterations, the slices of
+ * a helical pair, the Lanczos steps) changes the key, so tables built
+ * before it are not read back. */
+static uint64_t hash_settings(uint64_t h, const gs_scene *sc, int mesh, int n)
+{
+    gs_stiffness_opts o;
+    analysis_opts(sc, mesh, n, 0.0, &o);
+    long si[] = {o.positions, o.driver, o.refine, o.tangent, o.max_iter, o.cycles, o.order, o.nearfield, o.fine,
+                 o.all_rows, o.all_dofs, o.slices};
+    double sd[] = {o.phase, o.tangent_step, o.nearfield_depth_mm, o.coupling_mm};
+    h = fnv(h, "stiffness-opts", 14);
+    for (size_t i = 0; i < sizeof si / sizeof si[0]; i++)
+        h = fnv_i(h, si[i]);
+    for (size_t i = 0; i < sizeof sd / sizeof sd[0]; i++)
+        h = fnv_d(h, sd[i]);
+    gs_fe_modes_opts mo;
+    body_modes_opts(0.0, &mo);
+    long mi[] = {mo.positions, mo.modes, mo.refine, mo.order, mo.lanczos, mo.nearfield, mo.nearfield_secant};
+    h = fnv(h, "body-modes-opts", 15);
+    for (size_t i = 0; i < sizeof mi / sizeof mi[0]; i++)
+        h = fnv_i(h, mi[i]);
+    return fnv_d(h, mo.phase);
+}
+
 uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
 {
     uint64_t h = 14695981039346656037ull;
@@ -616,7 +675,9 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     double hv[GSI_LTCA_KEY_SLICED]; /* helical gears, lead modifications, misalignment */
     for (int i = 0, nh = gsi_ltca_key_sliced(sc, mesh, hv); i < nh; i++)
         h = fnv_d(h, hv[i]);
-    h = fnv_i(h, o ? o->positions : default_positions());
+    int n = o ? o->positions : default_positions();
+    h = fnv_i(h, n);
+    h = hash_settings(h, sc, mesh, n);
     if (nearfield_setting() >= 0) /* only when set: the default's keys stay */
         h = fnv_i(fnv(h, "nearfield", 9), nearfield_setting());
     if (modified_pair(sc, sm)) /* modified flanks: the correction forced on, its offsets the perfect gears' */
@@ -630,25 +691,64 @@ uint64_t gs_ltca_key(const gs_scene *sc, int mesh, const gs_ltca_opts *o)
     return h;
 }
 
+/* Tooth-pair slots per position of the tables. */
+#define PAIR_SLOTS 4
+
+typedef struct table_pairs {
+    int np;
+    int *tooth;    /* n x np x 2 */
+    double *share; /* n x np */
+} table_pairs;
+
+/* Tooth index change per mesh cycle of mesh gear k: the mesh phase grows
+ * with the driver's rotation (in the carrier's frame), each pitch bringing
+ * the tooth before it (index - 1) into the contact; the other gear turns
+ * the other way (index + 1), a ring the same way. */
+int gs_ltca_tooth_step(const gs_scene *sc, int mesh, int k)
+{
+    const gs_scene_mesh *sm = &sc->meshes[mesh];
+    if (k == driver_of(sc, mesh))
+        return -1;
+    return sc->bodies[sm->gear[k]].gear.kind == GS_GEAR_INTERNAL ? -1 : 1;
+}
+
+/* The tooth pairs of one position of the analysis into the slots (teeth of
+ * mesh gears 0 and 1, their shares of the force normalised to 1). A roll
+ * against the phase (a negative moment) is the cycle before the table's:
+ * its teeth moved on by one cycle. */
+static void keep_pairs(const gs_scene *sc, int mesh, const gs_stiffness_point *pt, int back, int *tooth,
+                       double *share, int np)
+{
+    int dr = driver_of(sc, mesh), n = 0;
+    double sum = 0;
+    for (int r = 0; r < pt->n_pair; r++)
+        sum += pt->pair[r].force_n;
+    for (int r = 0; r < np; r++) {
+        tooth[2 * r] = tooth[2 * r + 1] = -1;
+        share[r] = 0;
+    }
+    for (int r = 0; r < pt->n_pair && n < np && sum > 0; r++) {
+        if (!(pt->pair[r].force_n > 0))
+            continue;
+        for (int g = 0; g < 2; g++) {
+            int k = g == 0 ? dr : 1 - dr, z = sc->bodies[sc->meshes[mesh].gear[k]].gear.teeth;
+            int t = pt->pair[r].tooth[g] + (back ? gs_ltca_tooth_step(sc, mesh, k) : 0);
+            tooth[2 * n + k] = ((t % z) + z) % z;
+        }
+        share[n++] = pt->pair[r].force_n / sum;
+    }
+}
+
 /* One analysis at moment T (0: the default) into the knots: position j of
  * the run at grid index (T > 0 ? j : n - 1 - j), deflection and force in
  * the mesh coordinate (the driver is the external gear: s grows with its
  * rotation, r_b1 per radian), column col of d and f (n x m); with zero, the
  * no-load closing into column zcol too. */
 static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, double *f, int m, int col,
-                      int zcol, double *Tused, double *rb, double *cpu, gs_diag *dg)
+                      int zcol, double *Tused, double *rb, double *cpu, table_pairs *tp, gs_diag *dg)
 {
     gs_stiffness_opts o;
-    gs_stiffness_opts_defaults(&o);
-    o.positions = n;
-    o.torque_nm = T;
-    o.driver = driver_of(sc, mesh);
-    o.tangent = 0;
-    o.phase = 0.5 / n;
-    if (nearfield_setting() >= 0)
-        o.nearfield = nearfield_setting();
-    else if (modified_pair(sc, &sc->meshes[mesh]))
-        o.nearfield = 1;
+    analysis_opts(sc, mesh, n, T, &o);
     gs_stiffness_result r;
     GS_TRY(gs_stiffness_analyse(sc, mesh, &o, &r, dg));
     double sg = r.torque_nm < 0 ? -1.0 : 1.0;
@@ -661,6 +761,9 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
             d[(size_t)i * m + zcol] = sg * pt->te0_um * 1e-6;
             f[(size_t)i * m + zcol] = 0.0;
         }
+        if (tp)
+            keep_pairs(sc, mesh, pt, sg < 0, tp->tooth + (size_t)i * tp->np * 2, tp->share + (size_t)i * tp->np,
+                       tp->np);
     }
     *Tused = r.torque_nm;
     *rb = r.base_radius_m;
@@ -668,9 +771,6 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
     gs_stiffness_result_clear(&r);
     return GS_OK;
 }
-
-/* Positions of the modal analysis that measures the body compliance. */
-#define BODY_POSITIONS 12
 
 /* The share of the static mesh compliance in the gears' bodies, m/N along
  * the line of action, from the FE pair's own eigenproblem at the load T
@@ -684,16 +784,14 @@ static gs_err analyse(const gs_scene *sc, int mesh, int n, double T, double *d, 
  * That c_j comes out the same at every position (single and double
  * contact alike, within a few per cent: docs/explanation/ltca.md) is what
  * identifies it as the bodies'; the mean over the positions is returned.
- * The plain FE's k_t is the one of the eigenproblem's own model: the
- * near-field correction of the tables is in the contact, not the bodies. */
+ * f_FE and k_t are both of the eigenproblem's own contact (its default
+ * setting, body_modes_opts: the near-field correction where it applies), so
+ * that c is the bodies' share whatever the contact; its settings are in
+ * the key (hash_settings). */
 static gs_err body_compliance_run(const gs_scene *sc, int mesh, double T, double *c, double *cpu, gs_diag *dg)
 {
     gs_fe_modes_opts mo;
-    gs_fe_modes_opts_defaults(&mo);
-    mo.positions = BODY_POSITIONS;
-    mo.modes = 4;
-    mo.torque_nm = T;
-    mo.phase = 0.5 / BODY_POSITIONS;
+    body_modes_opts(T, &mo);
     gs_fe_modes_result fm;
     double c0 = gs_cpu_now();
     GS_TRY(gs_fe_modes_analyse(sc, mesh, &mo, &fm, dg));
@@ -749,27 +847,34 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
     double Fref = LINE_LOAD_N_PER_M * b;
     int m = N_FRONT + N_BACK + 3; /* + the scene's load and the two closings */
     double *d = gs_calloc((size_t)n * m, sizeof(double)), *f = gs_calloc((size_t)n * m, sizeof(double));
-    gs_err e = d && f ? GS_OK : GS_ENOMEM;
+    table_pairs tp = {PAIR_SLOTS, gs_calloc((size_t)n * PAIR_SLOTS * 2, sizeof(int)),
+                         gs_calloc((size_t)n * PAIR_SLOTS, sizeof(double))};
+    gs_err e = d && f && tp.tooth && tp.share ? GS_OK : GS_ENOMEM;
     double T0 = 0, rb = 0, cpu = 0, Tu;
     /* Columns: 0 the default case (the scene's load; its sign the loaded
      * flank), 1 .. N_FRONT the front loads, then the front and back
      * closings, then the back loads. */
     int col = 0;
     if (e == GS_OK)
-        e = analyse(&sc, mesh, n, default_moment(&sc, mesh), d, f, m, col++, N_FRONT + 1, &T0, &rb, &cpu, dg);
+        e = analyse(&sc, mesh, n, default_moment(&sc, mesh), d, f, m, col++, N_FRONT + 1, &T0, &rb, &cpu, &tp, dg);
     double sg = T0 < 0 ? -1.0 : 1.0, F0 = fabs(T0) / rb;
     for (int i = 0; e == GS_OK && i < N_FRONT; i++) {
         double F = front_frac[i] * Fref;
         if (fabs(F - F0) < 0.03 * F0) /* next to the scene's load: nudge it off */
             F = F < F0 ? 0.97 * F0 : 1.03 * F0;
-        e = analyse(&sc, mesh, n, sg * F * rb, d, f, m, col++, -1, &Tu, &rb, &cpu, dg);
+        e = analyse(&sc, mesh, n, sg * F * rb, d, f, m, col++, -1, &Tu, &rb, &cpu, NULL, dg);
     }
     for (int i = 0; e == GS_OK && i < N_BACK; i++)
         e = analyse(&sc, mesh, n, -sg * back_frac[i] * Fref * rb, d, f, m, N_FRONT + 3 + i, i == 0 ? N_FRONT + 2 : -1,
-                    &Tu, &rb, &cpu, dg);
+                    &Tu, &rb, &cpu, NULL, dg);
     if (e == GS_OK)
         e = gs_ltca_table_set(t, n, m, d, f, dg);
     if (e == GS_OK) {
+        t->np = tp.np;
+        t->pair_tooth = tp.tooth;
+        t->pair_share = tp.share;
+        tp.tooth = NULL;
+        tp.share = NULL;
         t->force_scene = F0;
         t->base_radius_m = rb;
         t->build_cpu_s = cpu;
@@ -786,6 +891,8 @@ static gs_err build(const gs_scene *sc0, int mesh, int n, gs_ltca_table *t, gs_d
     }
     free(d);
     free(f);
+    free(tp.tooth);
+    free(tp.share);
     free(bodies);
     return e;
 }
@@ -830,14 +937,31 @@ static int cache_read(const char *path, uint64_t key, gs_ltca_table *t)
         for (size_t i = 0; ok && i < (size_t)n * m; i++)
             ok = fscanf(fp, "%lg %lg", &d[i], &f[i]) == 2;
     }
+    int np = 0, *pt = NULL;
+    double *ps = NULL;
+    if (ok) /* the tooth pairs: "pairs NP", then n x NP lines "tooth0 tooth1 share" */
+        ok = fscanf(fp, " pairs %d", &np) == 1 && np >= 0 && np <= 64;
+    if (ok) {
+        pt = gs_calloc((size_t)n * np * 2 + 1, sizeof(int));
+        ps = gs_calloc((size_t)n * np + 1, sizeof(double));
+        ok = pt && ps;
+        for (size_t i = 0; ok && i < (size_t)n * np; i++)
+            ok = fscanf(fp, "%d %d %lg", &pt[2 * i], &pt[2 * i + 1], &ps[i]) == 3;
+    }
     fclose(fp);
     gs_diag dg;
     if (ok)
         ok = gs_ltca_table_set(t, n, m, d, f, &dg) == GS_OK;
     free(d);
     free(f);
-    if (!ok)
+    if (!ok) {
+        free(pt);
+        free(ps);
         return 0;
+    }
+    t->np = np;
+    t->pair_tooth = pt;
+    t->pair_share = ps;
     t->force_scene = F0;
     t->knot_scene = ks;
     t->base_radius_m = rb;
@@ -864,6 +988,9 @@ static void cache_write(const char *dir, const char *path, uint64_t key, const g
             t->body_compliance);
     for (size_t i = 0; i < (size_t)t->n * t->m; i++)
         fprintf(fp, "%.17g %.17g\n", t->d[i], t->f[i]);
+    fprintf(fp, "pairs %d\n", t->np);
+    for (size_t i = 0; i < (size_t)t->n * t->np; i++)
+        fprintf(fp, "%d %d %.17g\n", t->pair_tooth[2 * i], t->pair_tooth[2 * i + 1], t->pair_share[i]);
     if (fclose(fp) != 0 || rename(tmp, path) != 0)
         remove(tmp);
 }

@@ -21,6 +21,7 @@
 typedef struct ltca_rt {
     gs_ltca_table tab;
     double phase0; /* mesh phase c . q at the scene's initial state */
+    struct gs_pair_errors pe; /* the pitch errors by the tables' tooth pairs */
 } ltca_rt;
 
 static double dot(const double *a, const double *b, int n)
@@ -69,6 +70,47 @@ static double ltca_damping(const gs_model_view *sys, const gs_gmesh_rt *m, doubl
     return inv > 0 ? 2 * zeta * sqrt(kt / inv) : 0;
 }
 
+/* Pitch errors through the tables' tooth pairs: the analysis at the
+ * scene's load says which teeth are in contact at each roll position and
+ * the share of the force each pair carries, so a pair's error shifts the
+ * TE by its share of it where it is in contact (at the first order in the
+ * error: the pairs' load sharing of the analysis). The gears' run-out
+ * stays the lumped mesh's (a displacement of every pair alike). Tables
+ * without tooth pairs at some position would keep the lumped mesh's
+ * windows of the teeth. */
+static void pair_errors(const gs_model_view *sys, gs_gmesh_rt *m, ltca_rt *L)
+{
+    const gs_scene *sc = sys->scene;
+    const gs_scene_mesh *sm = &sc->meshes[m->index];
+    const gs_ltca_table *t = &L->tab;
+    struct gs_pair_errors *pe = &L->pe;
+    int any = 0;
+    for (int k = 0; k < 2; k++) {
+        const gs_scene_body *b = &sc->bodies[sm->gear[k]];
+        pe->z[k] = b->gear.teeth;
+        pe->kp[k] = (b->gear.kind == GS_GEAR_INTERNAL ? -1.0 : 1.0) * gs_gear_base_radius(&b->gear) /
+                    gs_gear_pitch_radius(&b->gear);
+        pe->pitch[k] = b->mods && b->mods->n_pitch == b->gear.teeth ? b->mods->pitch_m : NULL;
+        any |= pe->pitch[k] != NULL;
+        pe->step[k] = gs_ltca_tooth_step(sc, m->index, k);
+    }
+    for (int j = 0; any && j < t->n; j++) { /* every position must have its pairs */
+        double sum = 0;
+        for (int r = 0; r < t->np; r++)
+            sum += t->pair_tooth[2 * ((size_t)j * t->np + r)] >= 0 ? t->pair_share[(size_t)j * t->np + r] : 0.0;
+        any = sum > 0.5;
+    }
+    if (!any)
+        return;
+    pe->n = t->n;
+    pe->np = t->np;
+    pe->tooth = t->pair_tooth;
+    pe->share = t->pair_share;
+    pe->phase0 = L->phase0;
+    pe->n_coords = sys->n_coords;
+    m->pair_err = pe;
+}
+
 static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
 {
     const gs_scene_mesh *sm = &sys->scene->meshes[m->index];
@@ -91,6 +133,7 @@ static gs_err ltca_init(const gs_model_view *sys, gs_gmesh_rt *m, gs_diag *d)
      * mesh: its static share of it), a knot of every row */
     GS_TRY(gs_ltca_table_dynamic(&L->tab, L->tab.f[L->tab.knot_scene], d));
     L->phase0 = dot(m->c, sys->q, sys->n_coords);
+    pair_errors(sys, m, L);
     m->n_table = L->tab.n; /* the time-step check of a wave over the mesh cycle */
     m->k_single = m->k_double = L->tab.k_mean;
     m->damping = ltca_damping(sys, m, L->tab.k_mean);

@@ -193,7 +193,7 @@ static double pitch_part(const gs_gmesh_rt *m, int e, double v, double *dv)
 {
     const double *tab = m->err[e].pitch;
     *dv = 0.0;
-    if (!tab)
+    if (!tab || m->pair_err) /* an ltca mesh's: by its tooth pairs (pair_part) */
         return 0.0;
     int z = m->err[e].z;
     double eps = m->contact_ratio, w = m->transition > 0 ? m->transition : 1e-3;
@@ -209,6 +209,67 @@ static double pitch_part(const gs_gmesh_rt *m, int e, double v, double *dv)
     }
     *dv = -m->err[e].kp * dx * z / (2.0 * GS_PI);
     return m->err[e].kp * val;
+}
+
+/* The errors of the tooth pairs at position i of cycle k. */
+static double pair_row(const struct gs_pair_errors *pe, int i, long k)
+{
+    double E = 0.0;
+    for (int r = 0; r < pe->np; r++) {
+        const int *t = pe->tooth + 2 * ((size_t)i * pe->np + r);
+        double sh = pe->share[(size_t)i * pe->np + r], e = 0.0;
+        if (t[0] < 0 || sh == 0.0)
+            continue;
+        for (int g = 0; g < 2; g++) {
+            if (!pe->pitch[g])
+                continue;
+            long z = pe->z[g], j = ((t[g] + k * pe->step[g]) % z + z) % z;
+            e += pe->kp[g] * pe->pitch[g][j];
+        }
+        E += sh * e;
+    }
+    return E;
+}
+
+/* The pitch part of an ltca mesh at mesh phase p (cycles from phase0):
+ * linear between positions, position j at (j + 1/2) / n of its cycle; with
+ * dp its slope. */
+static double pair_part(const struct gs_pair_errors *pe, double p, double *dp)
+{
+    double x = p * pe->n - 0.5, fl = floor(x), w = x - fl;
+    long c = (long)fl, n = pe->n;
+    long k0 = c >= 0 ? c / n : -((-c + n - 1) / n), i0 = c - k0 * n;
+    long i1 = i0 + 1, k1 = k0;
+    if (i1 == n)
+        i1 = 0, k1++;
+    double e0 = pair_row(pe, (int)i0, k0), e1 = pair_row(pe, (int)i1, k1);
+    *dp = (e1 - e0) * n;
+    return e0 + w * (e1 - e0);
+}
+
+static double pair_phase(const struct gs_pair_errors *pe, const double *c, const double *q)
+{
+    double p = -pe->phase0;
+    for (int i = 0; i < pe->n_coords; i++)
+        p += c[i] * q[i];
+    return p;
+}
+
+/* The pitch part's quotient (E_p(p0 + dp) - E_p(p0)) / dp over a step
+ * (the slope when dp is 0), and with dq its derivative in dp. */
+static double pair_quot(const gs_gmesh_rt *m, const double *q0, const double *dq, double *dqd)
+{
+    const struct gs_pair_errors *pe = m->pair_err;
+    double p0 = pair_phase(pe, m->c, q0), dp = 0.0, s0, s1;
+    for (int i = 0; i < pe->n_coords; i++)
+        dp += m->c[i] * dq[i];
+    double e0 = pair_part(pe, p0, &s0);
+    *dqd = 0.0;
+    if (dp == 0.0)
+        return s0;
+    double e1 = pair_part(pe, p0 + dp, &s1), qt = (e1 - e0) / dp;
+    *dqd = (s1 - qt) / dp;
+    return qt;
 }
 
 static double err_angle(const gs_gmesh_rt *m, int e, const double *q)
@@ -231,6 +292,8 @@ double gsi_mesh_error(const gs_gmesh_rt *m, const double *q)
         double v = err_angle(m, e, q);
         E += pitch_part(m, e, v, &dv) + runout_part(m, e, v);
     }
+    if (m->pair_err)
+        E += pair_part(m->pair_err, pair_phase(m->pair_err, m->c, q), &dv);
     return E;
 }
 
@@ -295,6 +358,11 @@ static void error_grad(const gs_gmesh_rt *m, const double *q0, const double *dq,
         if (cc >= 0)
             abar[cc] -= gq;
     }
+    if (m->pair_err) {
+        double dqd, qt = pair_quot(m, q0, dq, &dqd);
+        for (int i = 0; i < m->pair_err->n_coords; i++)
+            abar[i] += m->c[i] * qt;
+    }
 }
 
 void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, const double *dq, double f, double *J)
@@ -309,6 +377,13 @@ void gsi_mesh_error_jacobian(const gs_gmesh_rt *m, int n, const double *q0, cons
         }
         runout_quot(m, e, v0, dvv, &dr);
         err_add_jacobian(m, e, n, f * (dg + dr), J);
+    }
+    if (m->pair_err) {
+        double dqd;
+        pair_quot(m, q0, dq, &dqd);
+        for (int i = 0; i < n; i++)
+            for (int j = 0; j < n && m->c[i] != 0.0; j++)
+                J[i * n + j] += f * dqd * m->c[i] * m->c[j];
     }
 }
 

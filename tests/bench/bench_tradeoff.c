@@ -13,10 +13,13 @@
  *   speed     mean speed of the output gear (closed form M0 ratio / c)
  *   ratio     mean speed ratio error against the tooth counts
  *   dte       dynamic transmission error amplitude: rms of the first mesh's
- *             line-of-action deflection about its mean, m (0 for kinematic)
+ *             TE about its mean, m (0 for kinematic): the kinematic
+ *             line-of-action TE of the gears' rigid coordinates, the
+ *             deflection a lumped or ltca mesh reports less the tooth
+ *             errors it adds to it (steady_half.h, sh_te)
  *   force     peak force of the first mesh, N
  *   mesh      the dominant mesh-frequency response: amplitude of the first
- *             mesh's deflection at the tooth-mesh order (one Fourier
+ *             mesh's TE at the tooth-mesh order (one Fourier
  *             coefficient over the mesh phase z_A (theta_A - theta_C), A its
  *             gear on a fixed axis, C the mate's carrier if any: order
  *             tracking, so speed fluctuations do not smear it), m
@@ -36,7 +39,8 @@
  * against the last row run (a partial table: e.g. "calibrated,contact" after
  * a change of the default mesh; "" for every row). argv[3] (optional): one
  * scene (contact_drive, planetary_contact, or a variant: contact_drive_relief,
- * contact_drive_errors, run only when named). Every row is also printed to
+ * contact_drive_errors, contact_drive_pitch, contact_drive_runout, run only
+ * when named). Every row is also printed to
  * stderr as it completes. The elastic levels: `contact` steps with
  * numerics.contact "closure_energy", `contact_seed` and `adaptive` with the
  * seed's scheme (CSV column `scheme`); `reduced` as `contact` with every
@@ -94,7 +98,7 @@ typedef struct result {
  * (10.3 um over 4.466 mm); contact_drive_errors, pitch-error tables on both
  * gears (a long-wave cumulative deviation plus a tooth-to-tooth one, about
  * 5 um peak to peak) and run-out (wheel 5 um at 30 deg, pinion 3 um at
- * 120 deg). */
+ * 120 deg); contact_drive_pitch and contact_drive_runout, each alone. */
 static void variant(json_object *root, const char *scene)
 {
     json_object *bs = json_object_object_get(root, "bodies");
@@ -110,15 +114,22 @@ static void variant(json_object *root, const char *scene)
             json_object_object_add(tr, "shape", json_object_new_string("linear"));
             json_object_object_add(mod, "tip_relief", tr);
             json_object_object_add(b, "modification", mod);
-        } else if (!strcmp(scene, "contact_drive_errors")) {
+        } else if (!strcmp(scene, "contact_drive_errors") || !strcmp(scene, "contact_drive_pitch") ||
+                   !strcmp(scene, "contact_drive_runout")) {
             json_object *pe = json_object_new_array(), *ro = json_object_new_object();
             for (int k = 0; k < z; k++)
                 json_object_array_add(pe, json_object_new_double(2.0 * sin(2 * GS_PI * k / z + (wheel ? 0.3 : 1.1)) +
                                                                  (k % 2 ? 0.5 : -0.5)));
-            json_object_object_add(b, "pitch_errors_um", pe);
+            if (strcmp(scene, "contact_drive_runout"))
+                json_object_object_add(b, "pitch_errors_um", pe);
+            else
+                json_object_put(pe);
             json_object_object_add(ro, "eccentricity_um", json_object_new_double(wheel ? 5.0 : 3.0));
             json_object_object_add(ro, "phase_deg", json_object_new_double(wheel ? 30.0 : 120.0));
-            json_object_object_add(b, "runout", ro);
+            if (strcmp(scene, "contact_drive_pitch"))
+                json_object_object_add(b, "runout", ro);
+            else
+                json_object_put(ro);
         }
     }
 }
@@ -242,7 +253,7 @@ static result run(const spec *s, double duration, const char *out_body, const ch
             return r;
         }
         if (sh_in_half(&w, i)) {
-            double x = sys->meshes[0].deflection;
+            double x = sh_te(sys);
             double ph = za * (gs_system_angle(sys, ga) - (gc >= 0 ? gs_system_angle(sys, gc) : 0.0));
             xc += x * cos(ph);
             xs += x * sin(ph);
@@ -354,6 +365,14 @@ int main(int argc, char **argv)
         {"contact_drive_errors", "ltca", 1e-4, 0, 1}, {"contact_drive_errors", "ltca", 1e-5, 0, 1},
         {"contact_drive_errors", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
     };
+    const spec pitch[] = {
+        {"contact_drive_pitch", "ltca", 1e-5, 0, 1},
+        {"contact_drive_pitch", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
+    };
+    const spec runout[] = {
+        {"contact_drive_runout", "ltca", 1e-5, 0, 1},
+        {"contact_drive_runout", "reduced", 1e-5, 0, 3}, /* the reference: o2s3 */
+    };
     struct set {
         const char *title;
         const spec *s;
@@ -376,6 +395,10 @@ int main(int argc, char **argv)
          0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3, 0},
         {"30/20 pair with pitch errors and run-out (contact_drive_errors), 60 ms", errs,
          (int)(sizeof errs / sizeof errs[0]), 0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3, 0},
+        {"30/20 pair with pitch errors (contact_drive_pitch), 60 ms", pitch, (int)(sizeof pitch / sizeof pitch[0]),
+         0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3, 0},
+        {"30/20 pair with run-out (contact_drive_runout), 60 ms", runout, (int)(sizeof runout / sizeof runout[0]),
+         0.06, "pinion", "wheel", 20.0 / 30.0, 20.0 * (20.0 / 30.0) / 0.3, 0},
     };
     printf("# bench_tradeoff: the fidelity ladder, speed against accuracy (one process)\n");
     for (size_t k = 0; k < sizeof sets / sizeof sets[0]; k++) {

@@ -4,7 +4,8 @@
  * tests/bench/bench_tradeoff.c: every step, the worst energy balance
  * residual and the energy scale (total, work in, dissipated) over the whole
  * run; over the second half, the first mesh's deflection (its sum and sum
- * of squares: the mean TE and the DTE rms about it), its force (sum and
+ * of squares: the mean TE and the DTE rms about it; the transmission
+ * error sh_te, the same for every mesh model), its force (sum and
  * largest magnitude) and the angle of one body at the half's start. */
 #ifndef GEARSIM_TESTS_STEADY_HALF_H
 #define GEARSIM_TESTS_STEADY_HALF_H
@@ -37,6 +38,20 @@ static inline bool sh_in_half(const steady_half *r, int i)
     return i >= r->n - r->half;
 }
 
+/* The transmission error of the first mesh, m: the kinematic a . q -
+ * s_ref of the rigid coordinates (the hubs of elastic gears), what a
+ * contact mesh reports as its deflection. A lumped or ltca mesh adds the
+ * gears' tooth errors (pitch tables, run-out) to its deflection as the
+ * displacement E(q) (docs/explanation/geometry.md "Tooth errors in the
+ * lumped meshes"): taken out here, so that every rung's TE is the same
+ * quantity (without tooth errors E is 0 and the deflection is returned
+ * as it is). */
+static inline double sh_te(const gs_system *sys)
+{
+    const gs_gmesh_rt *m = &sys->meshes[0];
+    return m->n_err ? m->deflection - gs_gmesh_error(m, sys->q) : m->deflection;
+}
+
 /* Step i of the run: one step and its figures; false when the step failed. */
 static inline bool sh_step(steady_half *r, gs_system *sys, int i)
 {
@@ -49,7 +64,7 @@ static inline bool sh_step(steady_half *r, gs_system *sys, int i)
     r->worst = fmax(r->worst, fabs(e.balance_residual));
     r->scale = fmax(r->scale, fmax(e.total, fmax(e.work_in, e.dissipated)));
     if (sh_in_half(r, i)) {
-        double x = sys->meshes[0].deflection, f = sys->meshes[0].force;
+        double x = sh_te(sys), f = sys->meshes[0].force;
         r->d1 += x;
         r->d2 += x * x;
         r->fsum += f;
