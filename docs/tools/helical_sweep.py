@@ -11,7 +11,8 @@ and docs/data/helical_sweep_spur.csv and draws docs/img/helical_sweep.png;
 --no-run redraws from the CSVs. The spur scene is helical_pair.json with the
 helix removed and the normal rack turned into transverse values (module
 m_n / cos b, pressure angle atan(tan a_n / cos b), addendum, dedendum and
-fillet times cos b), so both have the same transverse section."""
+fillet times cos b, in plane strain as the helical gears of a 30 mm face are),
+so both have the same transverse section."""
 import argparse
 import csv
 import json
@@ -38,6 +39,8 @@ def scenes():
         b["module_mm"] = round(b["module_mm"] / c, 9)
         b["pressure_angle_deg"] = round(math.degrees(math.atan(math.tan(math.radians(20.0)) / c)), 9)
         b["addendum"], b["dedendum"], b["fillet"] = round(c, 9), round(1.25 * c, 9), round(0.38 * c, 9)
+        # the helical gears' section is in plane strain (face >= 5 m_n): the spur pair's too
+        b["material"] = {"plane": "strain"}
     spur["name"] = "spur pair of helical_pair's transverse section"
     return {"helical": hel, "spur": spur}
 

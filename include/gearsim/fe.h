@@ -37,11 +37,17 @@
 
 typedef enum { GS_PLANE_STRESS = 0, GS_PLANE_STRAIN = 1 } gs_plane;
 
+/* A helical gear whose material does not give the plane state is in plane
+ * strain when its face is at least this many normal modules wide, else in
+ * plane stress (a spur gear: plane stress). */
+#define GS_HELICAL_STRAIN_FACE 5.0
+
 typedef struct gs_material {
     double youngs_pa;   /* E, default 210e9 (steel) */
     double poisson;     /* nu, default 0.3 */
     double density;     /* rho kg/m^3, default 7850 */
-    gs_plane plane;     /* default plane stress with the face width as thickness */
+    gs_plane plane;     /* default plane stress with the face width as thickness (a wide helical
+                         * gear: plane strain, GS_HELICAL_STRAIN_FACE) */
     double damping_s;   /* beta of stiffness-proportional damping D = beta K, s; default 0 */
     double damping_m;   /* alpha of mass-proportional damping D = alpha M of the elastic
                          * unknowns (not the rigid rotation), 1/s; default 0 */

@@ -184,6 +184,15 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
     GS_TRY(gsi_json_number(o, "hub_radius_mm", path, 0, 1e5, false, 0, &x, d));
     g->hub_radius_m = x * 1e-3;
     GS_TRY(parse_helix(o, path, b, d));
+    /* The plane state of a helical gear's transverse section, unless the
+     * material gives it: plane strain when the face is at least
+     * GS_HELICAL_STRAIN_FACE normal modules wide (the through-face stress
+     * builds up within about one tooth thickness of each free end face, so a
+     * face of several tooth thicknesses is mostly in plane strain), plane
+     * stress for a narrower face (docs/explanation/helical.md "Plane state of
+     * the section"). A spur gear keeps plane stress. */
+    if (g->helix_angle > 0 && g->face_width_m >= GS_HELICAL_STRAIN_FACE * g->normal_module_m)
+        b->material.plane = GS_PLANE_STRAIN;
     json_object *mat;
     GS_TRY(gsi_json_object(o, "material", path, false, &mat, d));
     if (mat) {
@@ -204,7 +213,7 @@ gs_err gsi_scene_parse_body(json_object *o, const char *path, gs_scene_body *b, 
                                &b->material.damping_m, d));
         GS_TRY(material_ratio(mat, mp, &b->material, d));
         int pl;
-        GS_TRY(gsi_scene_enum_field(mat, "plane", mp, "stress", planes, 2, &pl, d));
+        GS_TRY(gsi_scene_enum_field(mat, "plane", mp, planes[b->material.plane], planes, 2, &pl, d));
         b->material.plane = (gs_plane)pl;
     }
     json_object *md;

@@ -235,12 +235,58 @@ static void bad_input(void **state)
     gs_scene_free(&s);
 }
 
+/* The plane state of a gear's section: a helical gear whose face is at least
+ * GS_HELICAL_STRAIN_FACE normal modules wide defaults to plane strain, a
+ * narrower one and a spur gear to plane stress; material.plane overrides. */
+static gs_plane plane_of(double beta_deg, double face_mm, const char *material)
+{
+    char txt[2048];
+    const char *hand0 = beta_deg > 0 ? ",\"hand\":\"right\"" : "", *hand1 = beta_deg > 0 ? ",\"hand\":\"left\"" : "";
+    snprintf(txt, sizeof txt,
+             "{\"name\":\"h\",\"bodies\":["
+             "{\"name\":\"p\",\"teeth\":20,\"module_mm\":2.5,\"face_width_mm\":%.17g,\"helix_angle_deg\":%g%s%s},"
+             "{\"name\":\"w\",\"teeth\":30,\"module_mm\":2.5,\"face_width_mm\":%.17g,\"helix_angle_deg\":%g%s}],"
+             "\"joints\":[{\"body\":\"p\",\"type\":\"fixed_axis\",\"centre_mm\":[0,0]},"
+             "{\"body\":\"w\",\"type\":\"fixed_axis\",\"centre_mm\":[%.17g,0]}],"
+             "\"meshes\":[{\"name\":\"m\",\"gears\":[\"p\",\"w\"],\"model\":\"lumped\"}]}",
+             face_mm, beta_deg, hand0, material, face_mm, beta_deg, hand1,
+             62.5 / cos(beta_deg * DEG) + 0.005);
+    gs_scene *s = NULL;
+    gs_diag d;
+    gs_diag_clear(&d);
+    if (gs_scene_parse(txt, strlen(txt), &s, &d) != GS_OK)
+        fail_msg("%s: %s", d.field, d.message);
+    gs_plane pl = s->bodies[0].material.plane;
+    /* the wheel never gives a material: the rule alone */
+    gs_plane pw = s->bodies[1].material.plane;
+    gs_scene_free(&s);
+    if (!material[0])
+        assert_int_equal(pl, pw);
+    return pl;
+}
+
+static void plane_default(void **state)
+{
+    (void)state;
+    double edge = GS_HELICAL_STRAIN_FACE * 2.5; /* mm, m_n 2.5 */
+    assert_int_equal(plane_of(15, edge, ""), GS_PLANE_STRAIN);
+    assert_int_equal(plane_of(15, 30, ""), GS_PLANE_STRAIN);
+    assert_int_equal(plane_of(15, edge * 0.99, ""), GS_PLANE_STRESS);
+    assert_int_equal(plane_of(15, 5, ""), GS_PLANE_STRESS);
+    assert_int_equal(plane_of(0, 30, ""), GS_PLANE_STRESS); /* spur: unchanged */
+    assert_int_equal(plane_of(15, 30, ",\"material\":{\"plane\":\"stress\"}"), GS_PLANE_STRESS);
+    assert_int_equal(plane_of(15, 30, ",\"material\":{\"E\":2e11}"), GS_PLANE_STRAIN);
+    assert_int_equal(plane_of(15, 5, ",\"material\":{\"plane\":\"strain\"}"), GS_PLANE_STRAIN);
+    assert_int_equal(plane_of(0, 30, ",\"material\":{\"plane\":\"strain\"}"), GS_PLANE_STRAIN);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(transverse_involute),
         cmocka_unit_test(contact_ratios),
         cmocka_unit_test(bad_input),
+        cmocka_unit_test(plane_default),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -3,13 +3,14 @@
 """Compare gearsim's slice analysis of the helical pair (scene.json) with the
 stored 3D CalculiX reference (reference.csv), aligned and misaligned.
 
-    compare_helical.py [--build DIR] [--tool PATH] [--json]
+    compare_helical.py [--build DIR] [--tool PATH] [--plane stress|strain] [--json]
 
 Runs `gearsim-stiffness scene.json --json --positions N --no-tangent` (N =
 pair.json's positions; rolls j/N, compared where the reference has them), and the same scene with
 meshes[0].misalignment.in_plane_um = f for each misalignment f the
 reference holds (each gear sector size of the reference, teeth per gear
-body, compared on its own). Per position: the elastic TE (um, from first contact),
+body, compared on its own). --plane sets both gears' material.plane (without
+it: the scene's default, plane strain for this face of 8 normal modules). Per position: the elastic TE (um, from first contact),
 the mesh stiffness k = F / (TE b) (N/(mm um)) and the peak of the load per
 unit face width along the face, summed over the contact lines, both sides
 averaged over the reference's NBIN equal bins of the face, the peak the
@@ -66,8 +67,11 @@ def binned(z, q, b, nbin=NBIN):
     return [a / c if c else 0.0 for a, c in zip(acc, cnt)]
 
 
-def run_gearsim(tool, scene, n, misalign_um):
+def run_gearsim(tool, scene, n, misalign_um, plane=None):
     sc = json.load(open(scene))
+    if plane:
+        for b in sc["bodies"]:
+            b.setdefault("material", {})["plane"] = plane
     if misalign_um:
         sc["meshes"][0]["misalignment"] = {"in_plane_um": misalign_um, "out_of_plane_um": 0}
     fd, path = tempfile.mkstemp(suffix=".json")
@@ -83,7 +87,7 @@ def run_gearsim(tool, scene, n, misalign_um):
     return json.loads(out.stdout)
 
 
-def compare(tool):
+def compare(tool, plane=None):
     """{(misalignment, sector teeth): dict(rows=[...], summary)} for every
     misalignment and gear sector size of the reference."""
     ref = load_reference()
@@ -92,7 +96,7 @@ def compare(tool):
     runs = {}
     for (f, teeth), rr in sorted(ref.items()):
         if f not in runs:
-            runs[f] = run_gearsim(tool, os.path.join(HERE, "scene.json"), n, f)
+            runs[f] = run_gearsim(tool, os.path.join(HERE, "scene.json"), n, f, plane)
         g = runs[f]
         b = g["face_width_mm"]
         sl = g["slice_analysis"]
@@ -124,9 +128,10 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--build")
     ap.add_argument("--tool")
+    ap.add_argument("--plane", choices=("stress", "strain"), help="both gears' material.plane")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
-    res = compare(a.tool or find_tool(a.build))
+    res = compare(a.tool or find_tool(a.build), a.plane)
     if a.json:
         print(json.dumps({"%g um, %d teeth" % k: v for k, v in res.items()}, indent=1))
         return
