@@ -41,5 +41,9 @@ void gs_poll(void);
  * divided (a sparse factorisation, building a body) but touches nothing the
  * hook reads. Otherwise fn runs here. */
 int gs_run_polled(int (*fn)(void *arg), void *arg);
+/* Index of the last of the n ascending keys at or below k: 0 below the
+ * first, n - 1 at or above the last (the segment of a piecewise-linear
+ * table holding k, the end segments continued outwards). n >= 1. */
+int gs_index_below(const double *key, int n, double k);
 
 #endif

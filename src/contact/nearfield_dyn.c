@@ -83,22 +83,6 @@ static int by_key(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-/* Index of the last of the n sorted keys at or below k (0 below the first). */
-static int key_below(const double *key, int n, double k)
-{
-    int lo = 0, hi = n - 1;
-    if (k >= key[hi])
-        return hi;
-    while (hi - lo > 1) {
-        int m = (lo + hi) / 2;
-        if (key[m] <= k)
-            lo = m;
-        else
-            hi = m;
-    }
-    return lo;
-}
-
 /* The gap offsets of the run's pairs at NF_OFF_SAMPLES rigid positions over
  * its mesh cycle, into t (sorted by key). */
 static gs_err offsets_build(gs_stiffness_run *run, gsi_nf_table *t)
@@ -224,7 +208,7 @@ double gsi_nf_row_compliance(const gsi_nf_table *t, const gs_contact_row *r, con
         return t->cs[0];
     if (k >= t->key[t->n - 1])
         return t->cs[t->n - 1];
-    int lo = key_below(t->key, t->n, k), hi = lo + 1;
+    int lo = gs_index_below(t->key, t->n, k), hi = lo + 1;
     double dk = t->key[hi] - t->key[lo], a = dk > 0.0 ? (k - t->key[lo]) / dk : 0.0;
     return (1.0 - a) * t->cs[lo] + a * t->cs[hi];
 }
@@ -244,7 +228,7 @@ void gsi_nf_row_offset(const gsi_nf_table *t, const gs_mesh *m0, const gs_mesh *
     } else if (k >= t->okey[t->n_off - 1]) {
         off = t->off[t->n_off - 1][sl];
     } else {
-        int lo = key_below(t->okey, t->n_off, k), hi = lo + 1;
+        int lo = gs_index_below(t->okey, t->n_off, k), hi = lo + 1;
         double dk = t->okey[hi] - t->okey[lo];
         slope = dk > 0.0 ? (t->off[hi][sl] - t->off[lo][sl]) / dk : 0.0;
         off = t->off[lo][sl] + slope * (k - t->okey[lo]);

@@ -204,3 +204,18 @@ int gs_tmp_create_beside(const char *target, char *tmp, size_t cap)
     errno = EEXIST;
     return -1;
 }
+
+int gs_index_below(const double *key, int n, double k)
+{
+    int lo = 0, hi = n - 1;
+    if (k >= key[hi])
+        return hi;
+    while (hi - lo > 1) {
+        int m = (lo + hi) / 2;
+        if (key[m] <= k)
+            lo = m;
+        else
+            hi = m;
+    }
+    return lo;
+}

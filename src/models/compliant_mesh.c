@@ -199,22 +199,11 @@ static void law(const cmesh *cm, int k, double dl, double *W, double *F, double 
 {
     const double *x = cm->del + (size_t)k * (LOADS + 1), *f = cm->frc + (size_t)k * (LOADS + 1),
                  *w = cm->wrk + (size_t)k * (LOADS + 1);
-    int lo = 0, hi = LOADS;
     if (dl < x[0]) { /* x[0] > 0: a relieved station's clearance */
         *W = *F = *S = 0.0;
         return;
     }
-    if (dl >= x[LOADS - 1]) {
-        lo = LOADS - 1;
-    } else {
-        while (hi - lo > 1) {
-            int mid = (lo + hi) / 2;
-            if (x[mid] <= dl)
-                lo = mid;
-            else
-                hi = mid;
-        }
-    }
+    int lo = gs_index_below(x, LOADS, dl);
     double s = (f[lo + 1] - f[lo]) / (x[lo + 1] - x[lo]), t = dl - x[lo];
     *S = s;
     *F = f[lo] + s * t;

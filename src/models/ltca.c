@@ -47,19 +47,7 @@ void gs_ltca_table_clear(gs_ltca_table *t)
 /* Segment k (0 .. m-2) holding x, the end segments continued outwards. */
 static int row_seg(const double *d, int m, double x)
 {
-    int lo = 0, hi = m - 2;
-    if (x < d[1])
-        return 0;
-    if (x >= d[m - 2])
-        return m - 2;
-    while (hi - lo > 1) {
-        int mid = (lo + hi) / 2;
-        if (d[mid] <= x)
-            lo = mid;
-        else
-            hi = mid;
-    }
-    return lo;
+    return gs_index_below(d, m - 1, x);
 }
 
 static double seg_slope(const double *d, const double *f, int k)
