@@ -39,6 +39,9 @@ void gsi_watchdog_start(const char *conn_path, const char *conn_text);
 void gsi_watchdog_stop(void);
 /* The cause when a rank died, else NULL. */
 const char *gsi_watchdog_lost(void);
+/* Look at the watched ranks now (a few /proc reads); the cause when one
+ * is gone, else NULL. */
+const char *gsi_watchdog_check(void);
 
 int64_t gsi_opt_max_clients(void);
 int64_t gsi_opt_max_scene_mb(void);

@@ -744,7 +744,10 @@ char *gsi_handle_request_text(gs_service *s, const unsigned char *who, size_t wh
     if (!args)
         args = empty = json_object_new_object();
     if ((e = gsi_json_only(args, "args", c->args, &d)) == GS_OK) {
-        if (s->adv.active && !c->during_advance)
+        const char *lost = gsi_watchdog_check();
+        if (lost)
+            e = gs_diag_set(&d, GS_ERANKLOST, "", "%s", lost);
+        else if (s->adv.active && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while an advance runs (pause does not end it; cancel does)", c->name);
         else if (s->stiff.run && !c->during_advance)
             e = gs_diag_set(&d, GS_ESTATE, "cmd", "'%s' is not allowed while a stiffness analysis runs (cancel ends it)", c->name);
@@ -1348,8 +1351,10 @@ gs_err gs_service_run(gs_engine *eng, const gs_service_config *cfg)
     gs_engine_run(eng, GS_OP_SHUTDOWN, NULL, 0, &d, NULL);
     if (cfg->connection_file)
         unlink(cfg->connection_file);
-    /* The last events (the cancelled `done`) leave before the socket goes. */
-    int flush_ms = 1000;
+    /* The last events (the cancelled `done`) leave before the socket goes:
+     * behind a backlog of telemetry to a slow subscriber on a loaded
+     * machine that can take seconds. */
+    int flush_ms = 5000;
     zmq_setsockopt(s->pub, ZMQ_LINGER, &flush_ms, sizeof flush_ms);
     zmq_close(s->router);
     zmq_close(s->pub);

@@ -1,7 +1,9 @@
 /* SPDX-License-Identifier: MIT
  * Rank death (docs/RELIABILITY.md, "When a rank dies"): rank 0 knows the
  * process ids of the ranks on its own host (gathered at start) and a
- * thread looks at them every 100 ms. When one is gone (or a zombie) it
+ * thread looks at them every 100 ms, and every request looks once more
+ * before it is answered (a client is never told the work is healthy after
+ * the death could be seen). When one is gone (or a zombie) it
  * writes the cause into the connection file (`stopped`, so clients waiting
  * on a reply or an event learn it even while rank 0 is blocked in a
  * collective with the dead rank) and flags it for the service loop, which
@@ -71,20 +73,39 @@ static void mark_stopped(void)
     json_object_put(o);
 }
 
-static void *watch(void *arg)
+/* Look at every watched rank once; the first to see one gone writes the
+ * cause and flags it (the thread and a request's check may race: one
+ * claim, and the other waits for the flag). True when a rank is gone. */
+static atomic_int wd_claim;
+static bool scan(void)
 {
-    (void)arg;
-    while (!atomic_load(&wd_stop)) {
-        for (int r = 1; r < wd_n; r++)
-            if (wd_pids[r] > 0 && pid_gone(wd_pids[r])) {
+    if (atomic_load(&wd_lost))
+        return true;
+    for (int r = 1; r < wd_n; r++)
+        if (wd_pids[r] > 0 && pid_gone(wd_pids[r])) {
+            if (atomic_exchange(&wd_claim, 1) == 0) {
                 snprintf(wd_msg, sizeof wd_msg, "rank %d of the daemon (pid %d) died; the MPI job is aborted "
                          "and the daemon stopped (an unfinished advance with checkpoint_every continues with "
                          "gearsimd --resume)", r, wd_pids[r]);
                 fprintf(stderr, "gearsimd: %s\n", wd_msg);
                 mark_stopped();
                 atomic_store(&wd_lost, r + 1);
-                return NULL;
             }
+            while (!atomic_load(&wd_lost)) {
+                struct timespec ts = {0, 1000000};
+                nanosleep(&ts, NULL);
+            }
+            return true;
+        }
+    return false;
+}
+
+static void *watch(void *arg)
+{
+    (void)arg;
+    while (!atomic_load(&wd_stop)) {
+        if (scan())
+            return NULL;
         struct timespec ts = {0, 100000000};
         nanosleep(&ts, NULL);
     }
@@ -116,3 +137,5 @@ void gsi_watchdog_stop(void)
 }
 
 const char *gsi_watchdog_lost(void) { return atomic_load(&wd_lost) ? wd_msg : NULL; }
+
+const char *gsi_watchdog_check(void) { return wd_running && scan() ? wd_msg : NULL; }
