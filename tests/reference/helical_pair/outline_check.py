@@ -16,7 +16,6 @@ Never run by the test suite.
 """
 import argparse
 import json
-import math
 import os
 import subprocess
 import sys
@@ -31,19 +30,8 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, ".."))
 import run_helical as rh  # noqa: E402
 
-
-def spur_section(plane):
-    """scene.json's pair as the spur pair of its transverse section."""
-    sc = json.load(open(os.path.join(HERE, "scene.json")))
-    c = math.cos(math.radians(sc["bodies"][0]["helix_angle_deg"]))
-    for b in sc["bodies"]:
-        del b["helix_angle_deg"], b["hand"]
-        b["module_mm"] = round(b["module_mm"] / c, 9)
-        b["pressure_angle_deg"] = round(math.degrees(math.atan(math.tan(math.radians(20.0)) / c)), 9)
-        b["addendum"], b["dedendum"], b["fillet"] = round(c, 9), round(1.25 * c, 9), round(0.38 * c, 9)
-        b["material"] = {"plane": plane}
-    sc["name"] = "transverse section of the helical reference pair as a spur pair"
-    return sc
+sys.path.insert(0, os.path.join(ROOT, "docs", "tools"))
+import helical_sweep  # noqa: E402
 
 
 def check(name, h, xy, bnd, fixed):
@@ -92,7 +80,9 @@ def main():
     ap.add_argument("--scene-out", help="also write the spur scene here")
     args = ap.parse_args()
     pair, g1, g2 = rh.load_pair(os.path.join(HERE, "pair.json"))
-    sc = spur_section(args.plane)
+    with open(os.path.join(HERE, "scene.json")) as f:
+        sc = helical_sweep.spur_section(json.load(f), args.plane)
+    sc["name"] = "transverse section of the helical reference pair as a spur pair"
     if args.scene_out:
         with open(args.scene_out, "w") as f:
             json.dump(sc, f, indent=1)
