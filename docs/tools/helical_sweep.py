@@ -28,10 +28,10 @@ SWEEP = ["--from", "6000", "--to", "48000", "--points", "41", "--settle", "0.02"
          "--time-step", "2e-6"]
 
 
-def scenes():
-    with open(os.path.join(ROOT, "deploy", "scenes", "helical_pair.json")) as f:
-        hel = json.load(f)
-    hel["fidelity"] = "ltca"
+def spur_section(hel, plane="strain"):
+    """The spur pair of a helical scene's transverse section (helix removed,
+    the normal rack of 20 deg, addendum 1, dedendum 1.25 and fillet 0.38 in
+    transverse values), its bodies in the given plane state."""
     spur = json.loads(json.dumps(hel))
     c = math.cos(math.radians(hel["bodies"][0]["helix_angle_deg"]))
     for b in spur["bodies"]:
@@ -39,8 +39,16 @@ def scenes():
         b["module_mm"] = round(b["module_mm"] / c, 9)
         b["pressure_angle_deg"] = round(math.degrees(math.atan(math.tan(math.radians(20.0)) / c)), 9)
         b["addendum"], b["dedendum"], b["fillet"] = round(c, 9), round(1.25 * c, 9), round(0.38 * c, 9)
-        # the helical gears' section is in plane strain (face >= 5 m_n): the spur pair's too
-        b["material"] = {"plane": "strain"}
+        b["material"] = {"plane": plane}
+    return spur
+
+
+def scenes():
+    with open(os.path.join(ROOT, "deploy", "scenes", "helical_pair.json")) as f:
+        hel = json.load(f)
+    hel["fidelity"] = "ltca"
+    # the helical gears' section is in plane strain (face >= 5 m_n): the spur pair's too
+    spur = spur_section(hel)
     spur["name"] = "spur pair of helical_pair's transverse section"
     return {"helical": hel, "spur": spur}
 

@@ -41,7 +41,7 @@ BAR_K, BAR_K_MEAN, BAR_TE, BAR_PEAK = 0.03, 0.03, 0.03, 0.05
 # 21.41 % above the 3D model's, TE 17.64 % below, peak load 15.76 % below
 # (roll 0.5; roll 0 has no load profile stored). Their free radial cuts
 # make the sector 27 % more compliant than whole gears (2D check).
-# 13-tooth sectors (the reference proper: 1.2 % from whole gears in 2D;
+# 13-tooth sectors (the reference proper: 1.3 % from whole gears in 2D;
 # aligned, h = 1.2 mm, 8 positions over the mesh cycle): largest |k error|
 # 5.48 %, |TE error| 5.80 %, |peak load error| 20.89 %; the cycle mean of k
 # 2.86 % low, within its bar. Misaligned 20 um (h = 1.2 mm, rolls 0, 0.25,

@@ -1,13 +1,21 @@
 #!/usr/bin/python3
 # SPDX-License-Identifier: MIT
 """The transverse section of the helical pair in 2D (gmsh 6-node triangles,
-CalculiX plane stress CPS6 of thickness b or plane strain CPE6, frictionless
-contact): the 3D reference's gear sectors (TEETH teeth, free radial cuts,
-hub arc held / tied) against whole gears, at one roll position. Measures how
-much of the 3D model's compliance comes from its sector bodies (gearsim's
-planar analysis, like the spur references, has whole gears).
+CalculiX CPE6 of thickness b, frictionless contact): the 3D reference's gear
+sectors (TEETH teeth, free radial cuts, hub arc held / tied) against whole
+gears, at one roll position. Measures how much of the 3D model's compliance
+comes from its sector bodies (gearsim's planar analysis, like the spur
+references, has whole gears), and, at the 3D model's own element sizes, how
+far its mesh is from converged in the section.
 
-Usage:  ./section_check.py [--roll 0] [--h 0.2] [--teeth 5 9 13 0] [--plane stress]
+--plane strain (default): plane strain. --plane stress: plane stress, solved
+as plane strain with E' = E (1 + 2 nu) / (1 + nu)^2, nu' = nu / (1 + nu)
+(the same in-plane equations, exact in 2D). --plane cps6: ccx's plane-stress
+element CPS6 of thickness b, which ccx expands into 15-node wedges b thick:
+with b = 20 mm against a 5 mm tooth that body is not in plane stress (kept
+to show the difference; section_check.csv rows `cps6`).
+
+Usage:  ./section_check.py [--roll 0] [--h 0.2] [--teeth 5 9 13 0] [--plane strain]
 (teeth 0: whole gears, ../gearref.py's outline). Prints TE and k; appends
 to section_check.csv. Never run by the test suite.
 """
@@ -23,7 +31,7 @@ import gearref  # noqa: E402
 import run_helical as rh  # noqa: E402
 
 
-def sector_deck(work, pair, g1, g2, roll, h, teeth, grow=0.35):
+def sector_deck(work, pair, g1, g2, roll, h, teeth, e_mpa, nu, grow=0.35):
     """2D sectors of `teeth` teeth (run_helical.sector_geo) meshed with the
     3D model's size function; the deck by gearref.write_inp."""
     os.makedirs(work, exist_ok=True)
@@ -52,16 +60,16 @@ def sector_deck(work, pair, g1, g2, roll, h, teeth, grow=0.35):
     bad = gearref.jacobian_check(nodes, elems)
     if bad:
         raise RuntimeError("%d folded triangles in %s" % (len(bad), msh))
-    gearref.write_inp(os.path.join(work, "pair.inp"), nodes, elems, pair["E_mpa"], pair["nu"],
+    gearref.write_inp(os.path.join(work, "pair.inp"), nodes, elems, e_mpa, nu,
                       pair["face_width_mm"], pair["torque_nmm"], pair["penalty"], 2, g1.g.rb)
     return len(nodes)
 
 
-def whole_deck(work, pair, g1, g2, roll, h):
+def whole_deck(work, pair, g1, g2, roll, h, e_mpa, nu):
     th1 = roll * g1.g.pitch
     th2 = pair["driven_angle0_rad"] - th1 * g1.g.z / g2.g.z
     info = gearref.build_position(work, g1.g, g2.g, (pair["centre_mm"], 0.0), th1, th2, h,
-                                  e_mpa=pair["E_mpa"], nu=pair["nu"], face=pair["face_width_mm"],
+                                  e_mpa=e_mpa, nu=nu, face=pair["face_width_mm"],
                                   torque=pair["torque_nmm"], penalty=pair["penalty"], outline_mm=1.25)
     return info["nodes"]
 
@@ -71,18 +79,21 @@ def main():
     ap.add_argument("--roll", type=float, default=0.0)
     ap.add_argument("--h", type=float, default=0.2)
     ap.add_argument("--teeth", type=int, nargs="+", default=[5, 9, 13, 0])
-    ap.add_argument("--plane", choices=("stress", "strain"), default="stress")
+    ap.add_argument("--plane", choices=("strain", "stress", "cps6"), default="strain")
     ap.add_argument("--work", default=os.path.join("/tmp", "helical_section_%d" % os.getpid()))
     args = ap.parse_args()
     pair, g1, g2 = rh.load_pair(os.path.join(HERE, "pair.json"))
     b = pair["face_width_mm"]
     F = pair["torque_nmm"] / g1.g.rb
+    e_mpa, nu = pair["E_mpa"], pair["nu"]
+    if args.plane == "stress":
+        e_mpa, nu = e_mpa * (1.0 + 2.0 * nu) / (1.0 + nu) ** 2, nu / (1.0 + nu)
     for teeth in args.teeth:
         work = os.path.join(args.work, "t%d" % teeth)
-        nn = (sector_deck(work, pair, g1, g2, args.roll, args.h, teeth) if teeth
-              else whole_deck(work, pair, g1, g2, args.roll, args.h))
+        nn = (sector_deck(work, pair, g1, g2, args.roll, args.h, teeth, e_mpa, nu) if teeth
+              else whole_deck(work, pair, g1, g2, args.roll, args.h, e_mpa, nu))
         inp = os.path.join(work, "pair.inp")
-        if args.plane == "stress":
+        if args.plane == "cps6":
             txt = open(inp).read().replace("TYPE=CPE6", "TYPE=CPS6")
             open(inp, "w").write(txt)
         rot, dt, cpu = gearref.run_ccx(work)
