@@ -21,8 +21,14 @@
  *     needs the analysis's gap offsets on the dynamic rows (without them the
  *     rows keep the FE flanks' node-sampling ripple: +5.6 %; with them
  *     +3.1 %, of which the part locked to the mesh phase is +0.7 % and the
- *     rest the undamped mesh mode's free vibration, 5-10 kHz: the 2 % bar
- *     on the total is not met, docs/explanation/contact.md);
+ *     rest a vibration of the mesh mode (7-9 kHz) not locked to the mesh,
+ *     fed in every cycle where a pair leaves contact and at one node
+ *     passage in single contact, not by the start-up and not by the step
+ *     (+2.5 % at h = 5e-6 s): the 2 % bar on the total is not met with
+ *     closure_energy, docs/explanation/contact.md "Where the part not locked
+ *     comes from"); with `closure` (the closure's work booked, not given back
+ *     by a velocity update that kicks the gears at those handovers) the DTE
+ *     rms within 2 % of the corrected analysis's and the mean within 1 %;
  *  3. GEARSIM_LONG=1: h = 2e-5 s against 1e-5 s: mean within 1 % of the
  *     analysis, DTE rms of the two steps within 2 % of each other;
  *  4. the gap offsets' table: sampled finely enough to follow the
@@ -60,6 +66,7 @@
 
 #define MEAN_BAR 0.01
 #define RMS_BAR 0.04
+#define RMS_BAR_CLOSURE 0.02 /* with `closure`: the issue's bar */
 
 /* contact_drive with the scheme, "nearfield" nf, linear or default mesh. */
 static json_object *tree(const char *scheme, int nf, int linear)
@@ -72,7 +79,7 @@ static json_object *tree(const char *scheme, int nf, int linear)
 }
 
 typedef struct te_stats {
-    double mean, rms, te0, balance;
+    double mean, rms, te0, balance, work; /* work: the contact work booked (J) */
     int cycles;
 } te_stats;
 
@@ -124,7 +131,8 @@ static te_stats dynamic_te(const char *scheme, int nf, int linear, double h, dou
     }
     dyn_figures f;
     assert_int_equal(dw_finish(&w, &f), 0);
-    te_stats r = {.mean = f.te_mean * 1e6, .rms = f.te_rms * 1e6, .balance = f.balance_rel, .cycles = f.cycles};
+    te_stats r = {.mean = f.te_mean * 1e6, .rms = f.te_rms * 1e6, .balance = f.balance_rel, .cycles = f.cycles,
+                  .work = w.contact_work};
     dw_free(&w);
     gs_system_free(&s);
     return r;
@@ -204,6 +212,14 @@ static void test_follows_corrected_static(void **state)
     gs_system_free(&sc);
     te_stats dcl = {.balance = worst / scale};
     printf("# nearfield, closure, default mesh, 0-15 ms: balance %.1e of %.3g J\n", dcl.balance, scale);
+    /* closure over 50-90 ms: no velocity update gives the closure's work
+     * back, so no kick at the contact's handovers rings the mesh mode */
+    te_stats dclr = dynamic_te("closure", 1, 0, 0, 0.05, 0.09);
+    report("nearfield, closure, default mesh, 50-90 ms, against the corrected analysis", &dclr, &snf);
+    printf("# nearfield, closure: contact work booked %.3e J\n", dclr.work);
+    assert_true(fabs(dclr.mean / snf.mean - 1) < MEAN_BAR);
+    assert_true(fabs(dclr.rms / snf.rms - 1) < RMS_BAR_CLOSURE);
+    assert_true(dclr.balance < 1e-9);
     assert_true(dnf.cycles >= 4);
     assert_true(fabs(dnf.mean / snf.mean - 1) < MEAN_BAR);
     assert_true(fabs(dnf.rms / snf.rms - 1) < RMS_BAR);
