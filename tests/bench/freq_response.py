@@ -570,10 +570,16 @@ def main():
                    "%.1f" % pts[i - 1]["mesh_hz"] if i > 0 else "-"))
     fit_report(cache, f0)
     overlays = [overlay_points(o) for o in (a.overlay or "").split(";") if o]
-    for label, pts in overlays:
-        lst = peaks(pts) if len(pts) >= 3 else []
-        print("contact, %s: %s" % (label, ", ".join("peak %.1f Hz (%+.2f %% vs the FE mode), DTE rms %.3f um" %
-                                                    (fp, 100 * (fp / f0 - 1), yp) for fp, yp in lst) or "no peak"))
+    for label, pts in overlays:  # often points near the peak only: the parabola through the largest and its neighbours
+        x = [r["mesh_hz"] for r in pts]
+        y = [r["dte_rms_um"] for r in pts]
+        i = max(range(len(y)), key=lambda i: y[i]) if y else -1
+        if 0 < i < len(y) - 1:
+            fp = parabola(x, y, i)
+            print("contact, %s: peak (parabola) %.1f Hz (%+.2f %% vs the FE mode), largest DTE rms %.3f um at %.1f Hz" %
+                  (label, fp, 100 * (fp / f0 - 1), y[i], x[i]))
+        else:
+            print("contact, %s: the largest DTE rms is not bracketed by two points" % label)
     con = [r for r in cache if r["model"] == "contact"]
     sep = [r for r in con if r.get("separated_fraction") == r.get("separated_fraction")]
     near = min(con, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0])) if found.get("contact") else None
