@@ -1,7 +1,8 @@
 /* SPDX-License-Identifier: MIT
  * One run of the dynamic convergence study (docs/validation/data.md; driven by
  * tests/bench/dyn_convergence.py): a
- * scene with `contact` meshes (a builtin name or a file) at one time step,
+ * scene with `contact` meshes (a builtin name, a variant of contact_drive of
+ * the trade-off table, tests/common/drive_variant.h, or a file) at one time step,
  * mesh level, contact treatment and material damping, run from rest to
  * --to; over the whole cycles of the first mesh from --from on it prints
  * one JSON line: kinematic TE mean and rms about the mean (DTE), peak and
@@ -38,6 +39,7 @@
 #include <string.h>
 
 #include "../common/bench_args.h"
+#include "../common/drive_variant.h"
 #include "../common/dyn_window.h"
 #include "../common/json_child.h"
 #include "fe/fe_internal.h"
@@ -159,10 +161,14 @@ int main(int argc, char **argv)
                         "[--contact seed|closure|closure_energy] [--zeta Z --fhz F] [--from T0] [--to T1]\n");
         return 2;
     }
-    const char *builtin = gs_scene_builtin(scene);
+    /* a builtin scene, a variant of contact_drive (the trade-off table's) or a file */
+    int var = !gs_scene_builtin(scene) && drive_variant_name(scene);
+    const char *builtin = gs_scene_builtin(var ? "contact_drive" : scene);
     char *txt = builtin ? strdup(builtin) : slurp(scene);
     json_object *root = txt ? json_tokener_parse(txt) : NULL;
     free(txt);
+    if (root && var)
+        drive_variant(root, scene);
     if (!root) {
         fprintf(stderr, "%s: not a builtin scene nor a readable JSON file\n", scene);
         return 2;

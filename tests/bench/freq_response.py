@@ -10,7 +10,7 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
                                  [--scene SCENE.json] [--thinning MM] [--h-max H]
                                  [--torque T] [--damping Z] [--order 1|2] [--grid N]
                                  [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
-                                 [--contact closure_energy|closure|seed] [--coarse]
+                                 [--contact closure_energy|closure|seed] [--coarse] [--scale S] [--fmax F]
                                  [--settle S] [--min-measure S] [--min-cycles N]
                                  [--quick] [--no-run] [--plot docs/img/freq_response.png]
                                  [--csv docs/data/freq_response.csv]
@@ -100,6 +100,10 @@ FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measu
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel", "dte_h1_um"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
+# The default counts (flank, across, rim) per element order, those of
+# src/mesh/gear_mesh.c: --scale multiplies them (grading kept), as
+# dyn_convergence_run's --scale does (the study's o2sS meshes).
+DEFAULT_COUNTS = {1: (8, 4, 3), 2: (8, 4, 2)}
 
 
 DEFAULT_SCENE = os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")
@@ -139,7 +143,7 @@ def driver_teeth(s):
 
 
 def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False, scene=None,
-              thinning=None):
+              thinning=None, scale=1.0, fmax=0.0):
     s = base_scene(scene, thinning)
     if torque:
         s["loads"][0]["moment"] = torque
@@ -150,6 +154,11 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
         for b in s["bodies"]:
             b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
             b["mesh"] = dict(COARSE, order=order) if coarse else {"order": order}
+            if scale != 1 and not coarse:
+                for k, n in zip(("flank", "across", "rim"), DEFAULT_COUNTS[order]):
+                    b["mesh"][k] = int(math.floor(n * scale + 0.5))
+            if fmax > 0:  # the reduced elastic body (docs/explanation/elastic_body.md)
+                b["reduction"] = {"f_max_hz": fmax}
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
@@ -170,12 +179,12 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
     return s
 
 
-def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=None, thinning=None):
+def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=None, thinning=None, scale=1.0):
     """The FE mode of the contact model's own gears (its mesh as scene_for
     writes it; the damping does not enter)."""
     path = os.path.join(work, "scene_fe.json")
-    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse, scene=scene, thinning=thinning),
-              open(path, "w"))
+    json.dump(scene_for("contact", 1.0, 0.0, order, torque, coarse=coarse, scene=scene, thinning=thinning,
+                        scale=scale), open(path, "w"))
     exe = os.path.join(build, "src", "tools", "gearsim-modal")
     out = subprocess.run([exe, "--fe", "--positions", str(positions), "--torque", repr(torque), "--json", path],
                          check=True, capture_output=True, text=True).stdout
@@ -183,10 +192,12 @@ def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=Non
 
 
 def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False,
-              settle=5e-3, min_measure=2.5e-3, min_cycles=12, scene=None, thinning=None, h_max=2.5e-6):
+              settle=5e-3, min_measure=2.5e-3, min_cycles=12, scene=None, thinning=None, h_max=2.5e-6, scale=1.0,
+              fmax=0.0):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning), open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning, scale, fmax),
+                  open(path, "w"))
     h = min(h_max, 1.0 / f / 24)
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
@@ -372,6 +383,15 @@ def fit_report(cache, f0):
                                                                   if v else "-") for k, v in est)))
 
 
+def overlay_points(spec):
+    """(label, contact points sorted by mesh frequency) of an --overlay
+    entry PATH:LABEL, PATH a work directory (its points.csv) or a CSV of
+    points (--csv's)."""
+    d, label = spec.split(":", 1)
+    path = d if d.endswith(".csv") else os.path.join(d, "points.csv")
+    return label, sorted((r for r in load_cache(path) if r["model"] == "contact"), key=lambda r: r["mesh_hz"])
+
+
 def compare_plot(specs, out):
     """The contact model's DTE rms and steps without contact against the
     mesh frequency relative to each run's FE mode, one curve per work
@@ -438,6 +458,10 @@ def main():
                     help="thinning_mm of both gears (the backlash; default the scene's)")
     ap.add_argument("--h-max", type=float, default=2.5e-6, help="largest time step, s (h = min(this, period / 24))")
     ap.add_argument("--coarse", action="store_true", help="the contact model on the coarse mesh (flank 2, across 1, rim 1)")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="the contact model's mesh: the order's default counts times this (grading kept)")
+    ap.add_argument("--fmax", type=float, default=0.0,
+                    help="the contact model's gears the reduced elastic body with the modes up to this (Hz)")
     ap.add_argument("--settle", type=float, default=5e-3, help="settling time per point, s")
     ap.add_argument("--min-measure", type=float, default=2.5e-3, help="measured at least this long, s")
     ap.add_argument("--min-cycles", type=int, default=12, help="measured at least this many mesh cycles")
@@ -448,7 +472,8 @@ def main():
     ap.add_argument("--no-sdof", action="store_true",
                     help="plot without linear_parametric's curves (it has no profile modification's excitation)")
     ap.add_argument("--overlay", default=None,
-                    help="with --plot: the contact curves of more work directories, DIR:LABEL;...")
+                    help="the contact curves of more work directories or CSVs, PATH:LABEL;... (their peaks "
+                         "reported; with --plot drawn)")
     ap.add_argument("--title", default=None, help="with --plot: the title")
     ap.add_argument("--csv", default=None)
     ap.add_argument("--no-run", action="store_true", help="only report and plot the cached points")
@@ -473,7 +498,7 @@ def main():
     elif os.path.exists(modefile):
         mode = json.load(open(modefile))
     else:
-        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse, a.scene, a.thinning)
+        mode = fe_mode(a.build, a.work, a.positions, a.order, a.torque, a.coarse, a.scene, a.thinning, a.scale)
         json.dump(mode, open(modefile, "w"), indent=1)
     f0 = mode["mean_hz"]
     print("FE first torsional mesh mode: %.1f Hz (mean over the mesh cycle)" % f0)
@@ -496,7 +521,7 @@ def main():
                 if (m, f) in have:
                     continue
                 r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque, a.contact, a.coarse, a.settle,
-                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max)
+                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max, a.scale, a.fmax)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
@@ -544,6 +569,17 @@ def main():
                   (m, pts[i]["dte_rms_um"], pts[i]["mesh_hz"], 100 * (pts[i]["mesh_hz"] / f0 - 1),
                    "%.1f" % pts[i - 1]["mesh_hz"] if i > 0 else "-"))
     fit_report(cache, f0)
+    overlays = [overlay_points(o) for o in (a.overlay or "").split(";") if o]
+    for label, pts in overlays:  # often points near the peak only: the parabola through the largest and its neighbours
+        x = [r["mesh_hz"] for r in pts]
+        y = [r["dte_rms_um"] for r in pts]
+        i = max(range(len(y)), key=lambda i: y[i]) if y else -1
+        if 0 < i < len(y) - 1:
+            fp = parabola(x, y, i)
+            print("contact, %s: peak (parabola) %.1f Hz (%+.2f %% vs the FE mode), largest DTE rms %.3f um at %.1f Hz" %
+                  (label, fp, 100 * (fp / f0 - 1), y[i], x[i]))
+        else:
+            print("contact, %s: the largest DTE rms is not bracketed by two points" % label)
     con = [r for r in cache if r["model"] == "contact"]
     sep = [r for r in con if r.get("separated_fraction") == r.get("separated_fraction")]
     near = min(con, key=lambda r: abs(r["mesh_hz"] - found["contact"][0][0])) if found.get("contact") else None
@@ -576,10 +612,7 @@ def main():
             x = [r["mesh_hz"] for r in pts]
             ax[0].plot(x, [r["dte_rms_um"] for r in pts], style[m], ms=4, label=m)
             ax[1].plot(x, [r["dynamic_factor"] for r in pts], style[m], ms=4, label=m)
-        for k, spec in enumerate(o for o in (a.overlay or "").split(";") if o):
-            d, label = spec.split(":", 1)
-            pts = sorted((r for r in load_cache(os.path.join(d, "points.csv")) if r["model"] == "contact"),
-                         key=lambda r: r["mesh_hz"])
+        for k, (label, pts) in enumerate(overlays):
             x = [r["mesh_hz"] for r in pts]
             ax[0].plot(x, [r["dte_rms_um"] for r in pts], "-o", color="C%d" % (k + 5), ms=3, lw=1,
                        label="contact, " + label)
