@@ -10,7 +10,7 @@ meshes of the same pair, with the first torsional mesh mode of the FE model
                                  [--scene SCENE.json] [--thinning MM] [--h-max H]
                                  [--torque T] [--damping Z] [--order 1|2] [--grid N]
                                  [--grid-from A] [--grid-to B] [--dense N] [--extra F1,F2,..]
-                                 [--contact closure_energy|closure|seed] [--coarse] [--scale S] [--fmax F]
+                                 [--contact closure_energy|closure|seed] [--coarse] [--nearfield] [--scale S] [--fmax F]
                                  [--settle S] [--min-measure S] [--min-cycles N]
                                  [--quick] [--no-run] [--plot docs/img/freq_response.png]
                                  [--csv docs/data/freq_response.csv]
@@ -143,7 +143,7 @@ def driver_teeth(s):
 
 
 def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False, scene=None,
-              thinning=None, scale=1.0, fmax=0.0):
+              thinning=None, scale=1.0, fmax=0.0, nearfield=False):
     s = base_scene(scene, thinning)
     if torque:
         s["loads"][0]["moment"] = torque
@@ -159,6 +159,8 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
                     b["mesh"][k] = int(math.floor(n * scale + 0.5))
             if fmax > 0:  # the reduced elastic body (docs/explanation/elastic_body.md)
                 b["reduction"] = {"f_max_hz": fmax}
+        if nearfield:  # the near-field compliance in the contact step (docs/explanation/contact.md)
+            s["meshes"][0]["nearfield"] = True
     else:
         for b in s["bodies"]:
             b["model"] = "rigid"
@@ -193,11 +195,11 @@ def fe_mode(build, work, positions, order=1, torque=0.0, coarse=False, scene=Non
 
 def run_point(build, work, model, mode_hz, f, zeta, order=1, torque=0.0, contact="closure_energy", coarse=False,
               settle=5e-3, min_measure=2.5e-3, min_cycles=12, scene=None, thinning=None, h_max=2.5e-6, scale=1.0,
-              fmax=0.0):
+              fmax=0.0, nearfield=False):
     path = os.path.join(work, "scene_%s.json" % model)
     if not os.path.exists(path):
-        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning, scale, fmax),
-                  open(path, "w"))
+        json.dump(scene_for(model, mode_hz, zeta, order, torque, contact, coarse, scene, thinning, scale, fmax,
+                            nearfield), open(path, "w"))
     h = min(h_max, 1.0 / f / 24)
     cycles = max(min_cycles, math.ceil(min_measure * f))
     measure = cycles / f
@@ -457,6 +459,8 @@ def main():
     ap.add_argument("--thinning", type=float, default=None,
                     help="thinning_mm of both gears (the backlash; default the scene's)")
     ap.add_argument("--h-max", type=float, default=2.5e-6, help="largest time step, s (h = min(this, period / 24))")
+    ap.add_argument("--nearfield", action="store_true",
+                    help="the contact model with the near-field compliance (\"nearfield\": true on the mesh)")
     ap.add_argument("--coarse", action="store_true", help="the contact model on the coarse mesh (flank 2, across 1, rim 1)")
     ap.add_argument("--scale", type=float, default=1.0,
                     help="the contact model's mesh: the order's default counts times this (grading kept)")
@@ -521,7 +525,7 @@ def main():
                 if (m, f) in have:
                     continue
                 r = run_point(a.build, a.work, m, f0, f, a.damping, a.order, a.torque, a.contact, a.coarse, a.settle,
-                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max, a.scale, a.fmax)
+                              a.min_measure, a.min_cycles, a.scene, a.thinning, a.h_max, a.scale, a.fmax, a.nearfield)
                 r["mesh_hz_target"] = f
                 cache.append(r)
                 have.add((m, f))
