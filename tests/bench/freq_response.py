@@ -95,15 +95,14 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "clients", "python"))
 from gearsim.sweep import parabola_vertex  # noqa: E402  (the client's peak fit)
+sys.path.insert(0, HERE)
+from dyn_convergence import level_name  # noqa: E402  (the study's mesh levels)
+from static_te_levels import level_mesh  # noqa: E402
 MODELS = ["contact", "lumped", "calibrated", "compliant", "modal", "ltca"]
 FIELDS = ["model", "mesh_hz_target", "driver_rpm", "time_step", "settle", "measure", "mesh_hz", "dte_rms_um",
           "dynamic_factor", "balance_rel", "seconds", "cpu_seconds", "separated_fraction", "low_force_fraction",
           "contact_work_rel", "dte_h1_um"]
 COARSE = {"flank": 2, "across": 1, "rim": 1, "grading": 1}
-# The default counts (flank, across, rim) per element order, those of
-# src/mesh/gear_mesh.c: --scale multiplies them (grading kept), as
-# dyn_convergence_run's --scale does (the study's o2sS meshes).
-DEFAULT_COUNTS = {1: (8, 4, 3), 2: (8, 4, 2)}
 
 
 DEFAULT_SCENE = os.path.join(ROOT, "deploy", "scenes", "contact_drive.json")
@@ -153,10 +152,9 @@ def scene_for(model, mode_hz, zeta, order=1, torque=0.0, contact="closure_energy
     if model == "contact":
         for b in s["bodies"]:
             b["material"] = {"damping_ratio": zeta, "damping_hz": round(mode_hz, 1)}
-            b["mesh"] = dict(COARSE, order=order) if coarse else {"order": order}
-            if scale != 1 and not coarse:
-                for k, n in zip(("flank", "across", "rim"), DEFAULT_COUNTS[order]):
-                    b["mesh"][k] = int(math.floor(n * scale + 0.5))
+            # --scale: the default counts times S, the study's o<order>s<S> meshes
+            b["mesh"] = (dict(COARSE, order=order) if coarse else {"order": order} if scale == 1
+                         else level_mesh(level_name(order, 0, scale)))
             if fmax > 0:  # the reduced elastic body (docs/explanation/elastic_body.md)
                 b["reduction"] = {"f_max_hz": fmax}
         if nearfield:  # the near-field compliance in the contact step (docs/explanation/contact.md)
